@@ -1,0 +1,319 @@
+//! The `cleave` command-line program: run built-in scenes and write a summary.
+
+use bevy_ecs::prelude::*;
+use clap::{Parser, Subcommand};
+use cleave::components::{BodyLattice, InvMass, Position};
+use cleave::dump::dump_body;
+use cleave::resources::{CutTimings, ParticlesCut};
+use cleave::scene::{BUILTIN_SCENES, builtin};
+use cleave::sim::{Simulation, check_invariants, only_body};
+use cleave::stats::{BodyStats, body_stats};
+use serde::Serialize;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(
+    name = "cleave",
+    version,
+    about = "Lattice soft bodies with real-time cutting"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a built-in scene and write a summary.
+    Run {
+        /// Scene name (see `cleave scenes`).
+        scene: String,
+        /// Frames to simulate (default: the scene's).
+        #[arg(long)]
+        frames: Option<u32>,
+        /// Output directory for summary.json.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Random seed.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Write the final state (cleave-state/1 JSON) to this file.
+        #[arg(long)]
+        dump_state: Option<PathBuf>,
+    },
+    /// List the built-in scenes.
+    Scenes,
+}
+
+#[derive(Serialize)]
+struct Summary {
+    scene: String,
+    frames: u32,
+    seed: u64,
+    threads: usize,
+    particles: usize,
+    clusters: usize,
+    memberships: usize,
+    pieces: usize,
+    cut_particles: usize,
+    median_ms_per_step: f64,
+    final_shape_error_h: f64,
+    lowest_particle_y_h: f64,
+    finite: bool,
+    before: BodyStats,
+    after: BodyStats,
+    half_time: BodyStats,
+    tip_drop_h_half: f64,
+    tip_drop_h_end: f64,
+    pinned_max_displacement_h: f64,
+    piece_spread_start_h: f64,
+    piece_spread_end_h: f64,
+    cut_events: usize,
+    cut_event_ms_median: f64,
+    cut_event_ms_max: f64,
+    invariant_violations: usize,
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Mean distance of the piece centroids from their common mean, in units of h.
+fn piece_spread(stats: &BodyStats, h: f32) -> f64 {
+    let c = &stats.piece_centroids;
+    if c.len() < 2 {
+        return 0.0;
+    }
+    let mean = c.iter().map(|p| glam::Vec3::from(*p)).sum::<glam::Vec3>() / c.len() as f32;
+    (c.iter()
+        .map(|p| glam::Vec3::from(*p).distance(mean))
+        .sum::<f32>()
+        / c.len() as f32
+        / h) as f64
+}
+
+fn run(
+    scene_name: &str,
+    frames: Option<u32>,
+    out: PathBuf,
+    seed: u64,
+    dump: Option<PathBuf>,
+    threads: usize,
+) -> Result<(), String> {
+    let scene = builtin(scene_name, seed).ok_or_else(|| {
+        let names: Vec<&str> = BUILTIN_SCENES.iter().map(|(n, _)| *n).collect();
+        format!(
+            "unknown scene `{scene_name}` (built-in: {})",
+            names.join(", ")
+        )
+    })?;
+    let frames = frames.unwrap_or(scene.frames);
+    let mut sim = Simulation::new(scene.config.clone()).map_err(|e| e.to_string())?;
+    for b in &scene.bodies {
+        sim.spawn_body(b).map_err(|e| e.to_string())?;
+    }
+    for t in &scene.tools {
+        sim.spawn_tool(t).map_err(|e| e.to_string())?;
+    }
+    let body = only_body(sim.world_mut()).map_err(|e| e.to_string())?;
+    let h = scene.bodies[0].spacing;
+    let lattice = sim
+        .world()
+        .get::<BodyLattice>(body)
+        .ok_or("no lattice")?
+        .clone();
+    let tip_index = (0..lattice.lattice.len() as u32)
+        .max_by_key(|i| (lattice.lattice.coord(*i).x, -(*i as i64)))
+        .unwrap_or(0);
+    let position_of = |sim: &Simulation, i: u32| {
+        sim.world()
+            .get::<Position>(lattice.particles[i as usize])
+            .map(|p| p.0)
+    };
+    let tip_start = position_of(&sim, tip_index);
+    let pinned: Vec<(u32, glam::Vec3)> = (0..lattice.lattice.len() as u32)
+        .filter(|i| {
+            sim.world()
+                .get::<InvMass>(lattice.particles[*i as usize])
+                .is_some_and(|m| m.0 == 0.0)
+        })
+        .filter_map(|i| Some((i, position_of(&sim, i)?)))
+        .collect();
+    let before = body_stats(sim.world_mut(), body).ok_or("no body")?;
+    let mut step_ms = Vec::new();
+    let mut half = before.clone();
+    let mut tip_half = 0.0;
+    let mut cut_particles = 0;
+    let mut cursor = sim
+        .world()
+        .resource::<Messages<ParticlesCut>>()
+        .get_cursor();
+    for frame in 1..=frames {
+        let t = Instant::now();
+        sim.step();
+        step_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        cut_particles += cursor
+            .read(sim.world().resource::<Messages<ParticlesCut>>())
+            .map(|m| m.particles.len())
+            .sum::<usize>();
+        if frame == frames / 2 {
+            half = body_stats(sim.world_mut(), body).ok_or("no body")?;
+            if let (Some(a), Some(b)) = (tip_start, position_of(&sim, tip_index)) {
+                tip_half = ((a.y - b.y) / h) as f64;
+            }
+        }
+    }
+    let after = body_stats(sim.world_mut(), body).ok_or("no body")?;
+    let tip_end = match (tip_start, position_of(&sim, tip_index)) {
+        (Some(a), Some(b)) => ((a.y - b.y) / h) as f64,
+        _ => f64::NAN,
+    };
+    let pinned_max = pinned
+        .iter()
+        .filter_map(|(i, p0)| Some(position_of(&sim, *i)?.distance(*p0) / h))
+        .fold(0.0f32, f32::max) as f64;
+    let violations = check_invariants(sim.world());
+    let mut events = sim.world().resource::<CutTimings>().event_ms.clone();
+    let summary = Summary {
+        scene: scene_name.into(),
+        frames,
+        seed,
+        threads,
+        particles: after.particles,
+        clusters: after.clusters,
+        memberships: after.memberships,
+        pieces: after.pieces,
+        cut_particles,
+        median_ms_per_step: median(&mut step_ms),
+        final_shape_error_h: after.shape_error_h,
+        lowest_particle_y_h: after.lowest_y / h as f64,
+        finite: after.finite,
+        piece_spread_start_h: piece_spread(&half, h).min(piece_spread(&before, h)),
+        piece_spread_end_h: piece_spread(&after, h),
+        half_time: half,
+        tip_drop_h_half: tip_half,
+        tip_drop_h_end: tip_end,
+        pinned_max_displacement_h: pinned_max,
+        cut_events: events.len(),
+        cut_event_ms_max: events.iter().copied().fold(0.0, f64::max),
+        cut_event_ms_median: median(&mut events),
+        invariant_violations: violations.len(),
+        before,
+        after: after.clone(),
+    };
+    std::fs::create_dir_all(&out).map_err(|e| format!("cannot create `{}`: {e}", out.display()))?;
+    let path = out.join("summary.json");
+    std::fs::write(
+        &path,
+        serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?,
+    )
+    .map_err(|e| format!("cannot write `{}`: {e}", path.display()))?;
+    if let Some(file) = dump {
+        let state = dump_body(sim.world_mut(), body).ok_or("no body")?;
+        std::fs::write(
+            &file,
+            serde_json::to_string(&state).map_err(|e| e.to_string())?,
+        )
+        .map_err(|e| format!("cannot write `{}`: {e}", file.display()))?;
+    }
+    println!("scene {scene_name}: {frames} frames, seed {seed}, {threads} thread(s)");
+    println!("  {:<28} {:>12} {:>12}", "", "start", "end");
+    let rows: [(&str, f64, f64); 6] = [
+        (
+            "particles",
+            summary.before.particles as f64,
+            summary.after.particles as f64,
+        ),
+        (
+            "clusters",
+            summary.before.clusters as f64,
+            summary.after.clusters as f64,
+        ),
+        (
+            "mean cluster size",
+            summary.before.mean_cluster_size,
+            summary.after.mean_cluster_size,
+        ),
+        (
+            "memberships / particle",
+            summary.before.memberships_per_particle,
+            summary.after.memberships_per_particle,
+        ),
+        (
+            "pieces",
+            summary.before.pieces as f64,
+            summary.after.pieces as f64,
+        ),
+        (
+            "shape error (h)",
+            summary.before.shape_error_h,
+            summary.after.shape_error_h,
+        ),
+    ];
+    for (name, a, b) in rows {
+        println!("  {name:<28} {a:>12.3} {b:>12.3}");
+    }
+    println!(
+        "  median step {:.3} ms; lowest particle {:.3} h; cut particles {}; cut events {} (median {:.3} ms, max {:.3} ms)",
+        summary.median_ms_per_step,
+        summary.lowest_particle_y_h,
+        cut_particles,
+        summary.cut_events,
+        summary.cut_event_ms_median,
+        summary.cut_event_ms_max
+    );
+    println!(
+        "  tip drop {:.3} h at half time, {:.3} h at end; pinned moved ≤ {:.4} h; invariant violations {}",
+        summary.tip_drop_h_half,
+        summary.tip_drop_h_end,
+        summary.pinned_max_displacement_h,
+        summary.invariant_violations
+    );
+    println!("  wrote {}", path.display());
+    if !summary.finite {
+        return Err("non-finite particle positions".into());
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Scenes => {
+            for (name, description) in BUILTIN_SCENES {
+                println!("{name:<12} {description}");
+            }
+            Ok(())
+        }
+        Command::Run {
+            scene,
+            frames,
+            out,
+            seed,
+            threads,
+            dump_state,
+        } => {
+            let threads = threads.unwrap_or_else(rayon::current_num_threads).max(1);
+            match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
+                Ok(pool) => pool.install(|| run(&scene, frames, out, seed, dump_state, threads)),
+                Err(e) => Err(format!("cannot start {threads} threads: {e}")),
+            }
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("cleave: {e}");
+            ExitCode::from(2)
+        }
+    }
+}

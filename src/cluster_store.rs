@@ -1,0 +1,145 @@
+//! The clusters of one body as seen by the algorithms: a small trait for reading and
+//! editing member lists with a particle → clusters index, and [`ClusterTable`], its
+//! plain-data implementation (initial clustering, tests, benchmarks).
+
+use smallvec::SmallVec;
+use std::fmt::Debug;
+use std::hash::Hash;
+
+/// Cluster lists per particle; most particles are in at most 8 clusters.
+pub type ClusterList<K> = SmallVec<[K; 8]>;
+
+/// Read and edit access to one body's clusters. Member lists are kept sorted and
+/// hold body-local particle indices; implementations keep the particle index in sync.
+pub trait ClusterStore {
+    /// Cluster handle (an entity in the ECS, a slot number in [`ClusterTable`]).
+    type Key: Copy + Eq + Ord + Hash + Debug;
+    /// Clusters that contain particle `p`.
+    fn clusters_of(&self, p: u32) -> &[Self::Key];
+    /// Members of cluster `k` (sorted); empty if `k` does not exist.
+    fn members(&self, k: Self::Key) -> &[u32];
+    /// Replaces the members of `k` (the list is sorted and deduplicated here).
+    fn set_members(&mut self, k: Self::Key, members: Vec<u32>);
+    /// Creates a cluster with the given members.
+    fn create(&mut self, members: Vec<u32>) -> Self::Key;
+    /// Deletes cluster `k`.
+    fn remove(&mut self, k: Self::Key);
+}
+
+/// Sorts and deduplicates a member list.
+pub fn normalise(mut members: Vec<u32>) -> Vec<u32> {
+    members.sort_unstable();
+    members.dedup();
+    members
+}
+
+/// Helpers that keep a particle → clusters index in step with member edits.
+pub fn index_remove<K: Eq>(index: &mut [ClusterList<K>], members: &[u32], k: K) {
+    for &m in members {
+        if let Some(list) = index.get_mut(m as usize)
+            && let Some(pos) = list.iter().position(|x| *x == k)
+        {
+            list.remove(pos);
+        }
+    }
+}
+
+/// Adds `k` to the index entry of every particle in `members` (inserted in order).
+pub fn index_add<K: Copy + Ord>(index: &mut [ClusterList<K>], members: &[u32], k: K) {
+    for &m in members {
+        let list = &mut index[m as usize];
+        if let Err(pos) = list.binary_search(&k) {
+            list.insert(pos, k);
+        }
+    }
+}
+
+/// Plain-data clusters of one body: slots of member lists plus the particle index.
+#[derive(Clone, Debug, Default)]
+pub struct ClusterTable {
+    slots: Vec<Option<Vec<u32>>>,
+    of_particle: Vec<ClusterList<u32>>,
+}
+
+impl ClusterTable {
+    /// An empty table for a body with `particles` particle indices.
+    pub fn new(particles: usize) -> Self {
+        Self {
+            slots: Vec::new(),
+            of_particle: vec![ClusterList::new(); particles],
+        }
+    }
+
+    /// Builds a table from member lists.
+    pub fn from_clusters(particles: usize, clusters: Vec<Vec<u32>>) -> Self {
+        let mut t = Self::new(particles);
+        for c in clusters {
+            t.create(c);
+        }
+        t
+    }
+
+    /// Live clusters as `(slot, members)`, ascending by slot.
+    pub fn iter(&self) -> impl Iterator<Item = (u32, &[u32])> {
+        self.slots
+            .iter()
+            .enumerate()
+            .filter_map(|(i, s)| s.as_deref().map(|m| (i as u32, m)))
+    }
+
+    /// Number of live clusters.
+    pub fn len(&self) -> usize {
+        self.iter().count()
+    }
+
+    /// True when there is no live cluster.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Member lists of the live clusters, in slot order.
+    pub fn into_clusters(self) -> Vec<Vec<u32>> {
+        self.slots.into_iter().flatten().collect()
+    }
+}
+
+impl ClusterStore for ClusterTable {
+    type Key = u32;
+
+    fn clusters_of(&self, p: u32) -> &[u32] {
+        self.of_particle
+            .get(p as usize)
+            .map(|l| l.as_slice())
+            .unwrap_or(&[])
+    }
+
+    fn members(&self, k: u32) -> &[u32] {
+        self.slots
+            .get(k as usize)
+            .and_then(|s| s.as_deref())
+            .unwrap_or(&[])
+    }
+
+    fn set_members(&mut self, k: u32, members: Vec<u32>) {
+        let members = normalise(members);
+        if let Some(Some(old)) = self.slots.get(k as usize) {
+            let old = old.clone();
+            index_remove(&mut self.of_particle, &old, k);
+        }
+        index_add(&mut self.of_particle, &members, k);
+        self.slots[k as usize] = Some(members);
+    }
+
+    fn create(&mut self, members: Vec<u32>) -> u32 {
+        let k = self.slots.len() as u32;
+        self.slots.push(None);
+        self.set_members(k, members);
+        k
+    }
+
+    fn remove(&mut self, k: u32) {
+        if let Some(old) = self.slots.get_mut(k as usize).and_then(Option::take) {
+            index_remove(&mut self.of_particle, &old, k);
+        }
+    }
+}

@@ -1,0 +1,102 @@
+//! ECS components. Particle side: [`Particle`], [`Position`], [`PrevPosition`],
+//! [`Velocity`], [`InvMass`], [`RestPosition`], [`LatticeCoord`], and the body's
+//! [`BodyLattice`]. Cluster side: [`ClusterMembers`], [`ClusterOf`], [`Stiffness`], and
+//! the body's [`ParticleClusters`] index. Tools: [`Tool`], [`ToolPose`], [`ToolPath`].
+
+use crate::cluster_store::ClusterList;
+use crate::config::Material;
+use crate::lattice::Lattice;
+use crate::tool::{Path, Pose, ToolShape};
+use bevy_ecs::prelude::*;
+use glam::{IVec3, Vec3};
+
+/// A particle: its body and its body-local index (stable for the body's life).
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Particle {
+    /// The body entity.
+    pub body: Entity,
+    /// Index in the body's lattice.
+    pub index: u32,
+}
+
+/// Current (or, during a substep, predicted) position.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct Position(pub Vec3);
+
+/// Position at the start of the current substep.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct PrevPosition(pub Vec3);
+
+/// Velocity.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct Velocity(pub Vec3);
+
+/// Inverse mass; 0 pins the particle.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct InvMass(pub f32);
+
+/// Rest position in the body frame (lattice coordinate × h); never changes.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct RestPosition(pub Vec3);
+
+/// Integer lattice coordinate.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LatticeCoord(pub IVec3);
+
+/// A body: its material.
+#[derive(Component, Clone, Debug)]
+pub struct Body {
+    /// Material and clustering parameters.
+    pub material: Material,
+}
+
+/// Particle data of a body: the lattice (coordinate ↔ index, live flags), the entity of
+/// each particle index, and the number of connected pieces.
+#[derive(Component, Clone, Debug)]
+pub struct BodyLattice {
+    /// The lattice.
+    pub lattice: Lattice,
+    /// Particle entity per index (stale for removed particles).
+    pub particles: Vec<Entity>,
+    /// Connected pieces of the live particle graph.
+    pub pieces: usize,
+}
+
+/// Cluster data of a body: the clusters containing each particle index (sorted).
+#[derive(Component, Clone, Debug, Default)]
+pub struct ParticleClusters(pub Vec<ClusterList<Entity>>);
+
+/// A cluster's members as body-local particle indices, sorted.
+#[derive(Component, Clone, Debug, PartialEq, Eq)]
+pub struct ClusterMembers(pub Vec<u32>);
+
+/// The body a cluster belongs to.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ClusterOf(pub Entity);
+
+/// Shape-matching stiffness of a cluster, in [0, 1].
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct Stiffness(pub f32);
+
+/// A cutting tool: shape and cut width (particles within half the width of the surface,
+/// or inside it, are cut).
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct Tool {
+    /// Shape in the local frame.
+    pub shape: ToolShape,
+    /// Width of the cut zone (> 0).
+    pub cut_width: f32,
+}
+
+/// The tool's pose now and at the previous frame (for the swept test).
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct ToolPose {
+    /// Current pose.
+    pub current: Pose,
+    /// Pose at the previous frame.
+    pub last: Pose,
+}
+
+/// A keyframed path that drives the tool's pose from the simulation clock.
+#[derive(Component, Clone, Debug, PartialEq)]
+pub struct ToolPath(pub Path);

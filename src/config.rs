@@ -1,0 +1,279 @@
+//! Simulation and material parameters, with validation of every field.
+
+use crate::error::{Result, check_finite_vec, check_positive, check_range, out_of_range};
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+/// Which iteration scheme the shape-matching solver uses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SolverMode {
+    /// Every cluster computes its goals from the same positions; each particle moves to
+    /// the (mass-weighted) average of its clusters' goals. Parallel and deterministic.
+    #[default]
+    Jacobi,
+}
+
+/// A horizontal ground plane `y = height` with Coulomb friction.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GroundPlane {
+    /// Height of the plane.
+    pub height: f32,
+    /// Friction coefficient (≥ 0); tangential motion below `friction × penetration` is cancelled.
+    pub friction: f32,
+}
+
+/// A static axis-aligned box that particles cannot enter.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StaticBox {
+    /// Minimum corner.
+    pub min: Vec3,
+    /// Maximum corner.
+    pub max: Vec3,
+    /// Friction coefficient (≥ 0).
+    pub friction: f32,
+}
+
+/// Global simulation settings (a resource).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SimConfig {
+    /// Frame time step in seconds.
+    pub dt: f32,
+    /// Substeps per frame: each runs predict and shape-match with `dt / substeps`.
+    pub substeps: u32,
+    /// Shape-matching iterations per substep.
+    pub iterations: u32,
+    /// Gravity acceleration.
+    pub gravity: Vec3,
+    /// Velocity damping per second, in [0, 1000]: `v *= exp(-damping·dt)`.
+    pub damping: f32,
+    /// Optional ground plane.
+    pub ground: Option<GroundPlane>,
+    /// Static box colliders.
+    pub boxes: Vec<StaticBox>,
+    /// Solver scheme.
+    pub solver: SolverMode,
+    /// Seed for every random choice (clustering offsets, merges, splits, expansion).
+    pub seed: u64,
+    /// Run `check_invariants` after every frame and panic on a violation (tests, debugging).
+    pub check_invariants_every_frame: bool,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            dt: 1.0 / 60.0,
+            substeps: 2,
+            iterations: 10,
+            gravity: Vec3::new(0.0, -9.81, 0.0),
+            damping: 1.0,
+            ground: Some(GroundPlane {
+                height: 0.0,
+                friction: 0.5,
+            }),
+            boxes: Vec::new(),
+            solver: SolverMode::Jacobi,
+            seed: 0,
+            check_invariants_every_frame: false,
+        }
+    }
+}
+
+impl SimConfig {
+    /// Checks every field; the error names the field and its allowed range.
+    pub fn validate(&self) -> Result<()> {
+        check_range("config.dt", self.dt, 1e-6, 1.0, "1e-6 ≤ dt ≤ 1 (seconds)")?;
+        if self.substeps == 0 || self.substeps > 1000 {
+            return Err(out_of_range(
+                "config.substeps",
+                self.substeps,
+                "1 ≤ substeps ≤ 1000",
+            ));
+        }
+        if self.iterations == 0 || self.iterations > 10_000 {
+            return Err(out_of_range(
+                "config.iterations",
+                self.iterations,
+                "1 ≤ iterations ≤ 10000",
+            ));
+        }
+        check_finite_vec("config.gravity", self.gravity)?;
+        check_range(
+            "config.damping",
+            self.damping,
+            0.0,
+            1000.0,
+            "0 ≤ damping ≤ 1000 (per second)",
+        )?;
+        if let Some(g) = &self.ground {
+            check_range("config.ground.height", g.height, -1e9, 1e9, "finite")?;
+            check_range(
+                "config.ground.friction",
+                g.friction,
+                0.0,
+                100.0,
+                "0 ≤ friction ≤ 100",
+            )?;
+        }
+        for (i, b) in self.boxes.iter().enumerate() {
+            check_finite_vec(&format!("config.boxes[{i}].min"), b.min)?;
+            check_finite_vec(&format!("config.boxes[{i}].max"), b.max)?;
+            if !b.min.cmple(b.max).all() {
+                return Err(out_of_range(
+                    &format!("config.boxes[{i}]"),
+                    (b.min, b.max),
+                    "min ≤ max on every axis",
+                ));
+            }
+            check_range(
+                &format!("config.boxes[{i}].friction"),
+                b.friction,
+                0.0,
+                100.0,
+                "0 ≤ friction ≤ 100",
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// Material and clustering parameters of one body.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Material {
+    /// Shape-matching stiffness of every cluster, in [0, 1].
+    pub stiffness: f32,
+    /// Mass of one particle (> 0).
+    pub particle_mass: f32,
+    /// Cluster radius in lattice units (Chebyshev): a cluster spans up to `2r+1` cells per axis.
+    pub cluster_radius: u32,
+    /// Layers shared by neighbouring clusters; cluster centres are `2r+1-overlap` cells apart.
+    pub cluster_overlap: u32,
+    /// Largest allowed cluster (≥ 2); regroup splits clusters above it.
+    pub max_cluster_size: u32,
+    /// Particles added to each rebuilt cluster by the expand stage (SPEC §3.4).
+    pub expand_count: u32,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Self {
+            stiffness: 1.0,
+            particle_mass: 1.0,
+            cluster_radius: 1,
+            cluster_overlap: 1,
+            max_cluster_size: 40,
+            expand_count: 4,
+        }
+    }
+}
+
+impl Material {
+    /// Distance between neighbouring cluster centres, in lattice cells.
+    pub fn cluster_stride(&self) -> u32 {
+        2 * self.cluster_radius + 1 - self.cluster_overlap
+    }
+
+    /// Checks every field; the error names the field and its allowed range.
+    pub fn validate(&self) -> Result<()> {
+        check_range(
+            "material.stiffness",
+            self.stiffness,
+            0.0,
+            1.0,
+            "0 ≤ stiffness ≤ 1",
+        )?;
+        check_positive("material.particle_mass", self.particle_mass)?;
+        if self.cluster_radius == 0 || self.cluster_radius > 8 {
+            return Err(out_of_range(
+                "material.cluster_radius",
+                self.cluster_radius,
+                "1 ≤ cluster_radius ≤ 8 (lattice units)",
+            ));
+        }
+        if self.cluster_overlap > 2 * self.cluster_radius {
+            return Err(out_of_range(
+                "material.cluster_overlap",
+                self.cluster_overlap,
+                "0 ≤ cluster_overlap ≤ 2·cluster_radius",
+            ));
+        }
+        if self.max_cluster_size < 2 || self.max_cluster_size > 100_000 {
+            return Err(out_of_range(
+                "material.max_cluster_size",
+                self.max_cluster_size,
+                "2 ≤ max_cluster_size ≤ 100000",
+            ));
+        }
+        if self.expand_count > 1000 {
+            return Err(out_of_range(
+                "material.expand_count",
+                self.expand_count,
+                "0 ≤ expand_count ≤ 1000",
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid() {
+        SimConfig::default().validate().unwrap();
+        Material::default().validate().unwrap();
+    }
+
+    #[test]
+    fn bad_fields_are_named() {
+        let c = SimConfig {
+            gravity: Vec3::new(0.0, f32::NAN, 0.0),
+            ..Default::default()
+        };
+        assert!(
+            c.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("config.gravity")
+        );
+        let c = SimConfig {
+            substeps: 0,
+            ..Default::default()
+        };
+        assert!(
+            c.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("config.substeps")
+        );
+        let c = SimConfig {
+            iterations: 0,
+            ..Default::default()
+        };
+        assert!(
+            c.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("config.iterations")
+        );
+        let m = Material {
+            stiffness: 1.5,
+            ..Default::default()
+        };
+        let e = m.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("material.stiffness") && e.contains("0 ≤ stiffness ≤ 1"),
+            "{e}"
+        );
+        let m = Material {
+            max_cluster_size: 1,
+            ..Default::default()
+        };
+        assert!(
+            m.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("max_cluster_size")
+        );
+    }
+}

@@ -1,0 +1,90 @@
+//! Errors returned on bad input: each names the field or file and the allowed range.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong when building a simulation from user input.
+#[derive(Debug, thiserror::Error)]
+pub enum CleaveError {
+    /// A numeric parameter is outside its allowed range (or not finite).
+    #[error("invalid `{field}`: {value} (allowed: {allowed})")]
+    OutOfRange {
+        /// Dotted path of the offending field, e.g. `material.stiffness`.
+        field: String,
+        /// The value that was given, formatted.
+        value: String,
+        /// Human-readable allowed range, e.g. `0 ≤ x ≤ 1`.
+        allowed: &'static str,
+    },
+    /// The shape voxelised to zero particles.
+    #[error("empty shape: `{field}` produced no particles at spacing {spacing}")]
+    EmptyShape {
+        /// Which field described the shape.
+        field: String,
+        /// The lattice spacing that was used.
+        spacing: f32,
+    },
+    /// A mesh file could not be read or is not a closed triangle mesh.
+    #[error("mesh `{path}`: {reason}")]
+    Mesh {
+        /// The file that failed.
+        path: PathBuf,
+        /// What was wrong with it.
+        reason: String,
+    },
+    /// The lattice would be too large to index.
+    #[error("shape too large: `{field}` spans {cells} lattice cells (at most {max})")]
+    TooLarge {
+        /// Which field described the shape.
+        field: String,
+        /// Cells of the bounding lattice.
+        cells: u64,
+        /// Limit.
+        max: u64,
+    },
+    /// An entity passed to the API is not what was expected.
+    #[error("{0}")]
+    InvalidEntity(String),
+}
+
+/// Short alias used across the crate.
+pub type Result<T> = std::result::Result<T, CleaveError>;
+
+/// Checks `lo ≤ value ≤ hi` and finiteness; `allowed` is the text shown on failure.
+pub fn check_range(field: &str, value: f32, lo: f32, hi: f32, allowed: &'static str) -> Result<()> {
+    if value.is_finite() && value >= lo && value <= hi {
+        Ok(())
+    } else {
+        Err(out_of_range(field, value, allowed))
+    }
+}
+
+/// Checks `value > 0` and finiteness.
+pub fn check_positive(field: &str, value: f32) -> Result<()> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(out_of_range(field, value, "finite and > 0"))
+    }
+}
+
+/// Checks that every component of a vector is finite.
+pub fn check_finite_vec(field: &str, value: glam::Vec3) -> Result<()> {
+    if value.is_finite() {
+        Ok(())
+    } else {
+        Err(out_of_range(field, value, "finite"))
+    }
+}
+
+/// Builds an [`CleaveError::OutOfRange`] from any debuggable value.
+pub fn out_of_range(
+    field: &str,
+    value: impl std::fmt::Debug,
+    allowed: &'static str,
+) -> CleaveError {
+    CleaveError::OutOfRange {
+        field: field.to_string(),
+        value: format!("{value:?}"),
+        allowed,
+    }
+}

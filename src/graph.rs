@@ -1,0 +1,117 @@
+//! Graph searches over the particle graph (live lattice edges), restricted to particle
+//! subsets: connected components of a cluster, pieces of a body.
+
+use crate::lattice::Lattice;
+use std::collections::VecDeque;
+
+/// Index of `p` in the sorted slice `set`, if present.
+#[inline]
+pub fn position_in(set: &[u32], p: u32) -> Option<usize> {
+    set.binary_search(&p).ok()
+}
+
+/// Maximal connected subgraphs of the live particles in `members` (any order, no
+/// duplicates), using lattice edges between members. Each component is sorted; the
+/// components are ordered by their smallest particle. Dead particles are dropped.
+pub fn connected_components(members: &[u32], lattice: &Lattice) -> Vec<Vec<u32>> {
+    let mut set: Vec<u32> = members
+        .iter()
+        .copied()
+        .filter(|p| lattice.is_live(*p))
+        .collect();
+    set.sort_unstable();
+    set.dedup();
+    let mut label = vec![u32::MAX; set.len()];
+    let mut components = Vec::new();
+    let mut queue = VecDeque::new();
+    for start in 0..set.len() {
+        if label[start] != u32::MAX {
+            continue;
+        }
+        let id = components.len() as u32;
+        label[start] = id;
+        queue.push_back(start);
+        let mut component = Vec::new();
+        while let Some(i) = queue.pop_front() {
+            component.push(set[i]);
+            for n in lattice.neighbours(set[i]) {
+                if let Some(j) = position_in(&set, n)
+                    && label[j] == u32::MAX
+                {
+                    label[j] = id;
+                    queue.push_back(j);
+                }
+            }
+        }
+        component.sort_unstable();
+        components.push(component);
+    }
+    components
+}
+
+/// Whether the live particles of `members` form one connected graph (an empty set is not).
+pub fn is_connected(members: &[u32], lattice: &Lattice) -> bool {
+    connected_components(members, lattice).len() == 1
+}
+
+/// Labels every live particle with its piece (connected component of the whole body);
+/// removed particles get `u32::MAX`. Returns the labels and the number of pieces.
+pub fn body_pieces(lattice: &Lattice) -> (Vec<u32>, usize) {
+    let mut label = vec![u32::MAX; lattice.len()];
+    let mut pieces = 0u32;
+    let mut stack = Vec::new();
+    for start in lattice.live_particles() {
+        if label[start as usize] != u32::MAX {
+            continue;
+        }
+        label[start as usize] = pieces;
+        stack.push(start);
+        while let Some(p) = stack.pop() {
+            for n in lattice.neighbours(p) {
+                if label[n as usize] == u32::MAX {
+                    label[n as usize] = pieces;
+                    stack.push(n);
+                }
+            }
+        }
+        pieces += 1;
+    }
+    (label, pieces as usize)
+}
+
+/// Live particles adjacent to `members` (sorted) but not in it: the cluster's
+/// *adjacent particles* (SPEC §1), ascending and without duplicates.
+pub fn adjacent_particles(members: &[u32], lattice: &Lattice) -> Vec<u32> {
+    let mut out: Vec<u32> = members
+        .iter()
+        .flat_map(|m| lattice.neighbours(*m))
+        .filter(|n| position_in(members, *n).is_none())
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lattice::Shape;
+    use glam::{IVec3, UVec3};
+
+    #[test]
+    fn components_of_a_cut_bar() {
+        let mut l = Shape::cuboid(UVec3::new(5, 1, 1), 1.0)
+            .voxelise(1.0)
+            .unwrap();
+        let all: Vec<u32> = l.live_particles().collect();
+        assert!(is_connected(&all, &l));
+        let mid = l.at(IVec3::new(0, 0, 0)).unwrap();
+        l.remove(mid);
+        let comps = connected_components(&all, &l);
+        assert_eq!(comps.len(), 2);
+        assert_eq!(comps.iter().map(Vec::len).sum::<usize>(), 4);
+        assert_eq!(body_pieces(&l).1, 2);
+        let left: Vec<u32> = comps[0].clone();
+        assert_eq!(adjacent_particles(&left, &l), Vec::<u32>::new());
+    }
+}

@@ -1,0 +1,177 @@
+//! The invariants of SPEC §1 and §3 on plain data: every cluster connected, no dead
+//! member, every live particle covered, no isolated cluster, no oversized cluster.
+
+use crate::graph::{body_pieces, is_connected};
+use crate::lattice::Lattice;
+use petgraph::unionfind::UnionFind;
+use std::fmt;
+
+/// One broken invariant.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Violation {
+    /// A cluster's live members do not form one connected graph (or it is empty).
+    Disconnected {
+        /// Cluster id (as given to the checker).
+        cluster: u64,
+    },
+    /// A cluster lists a removed particle.
+    DeadMember {
+        /// Cluster id.
+        cluster: u64,
+        /// The removed particle.
+        particle: u32,
+    },
+    /// A live particle is in no cluster.
+    Uncovered {
+        /// The particle.
+        particle: u32,
+    },
+    /// Inside one piece, the clusters' overlap graph falls into several components.
+    Isolated {
+        /// A particle of the piece.
+        piece_particle: u32,
+        /// How many overlap components the piece has.
+        components: usize,
+    },
+    /// A cluster has more members than allowed.
+    Oversized {
+        /// Cluster id.
+        cluster: u64,
+        /// Its size.
+        size: usize,
+        /// The limit.
+        max: usize,
+    },
+}
+
+impl fmt::Display for Violation {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Violation::Disconnected { cluster } => write!(f, "cluster {cluster} is not connected"),
+            Violation::DeadMember { cluster, particle } => {
+                write!(f, "cluster {cluster} has removed particle {particle}")
+            }
+            Violation::Uncovered { particle } => write!(f, "particle {particle} is in no cluster"),
+            Violation::Isolated {
+                piece_particle,
+                components,
+            } => write!(
+                f,
+                "the piece of particle {piece_particle} has {components} unlinked cluster groups"
+            ),
+            Violation::Oversized { cluster, size, max } => {
+                write!(f, "cluster {cluster} has {size} members (max {max})")
+            }
+        }
+    }
+}
+
+/// Checks one body's clusters (`(id, sorted members)`) against its lattice.
+pub fn check_body<'a>(
+    lattice: &Lattice,
+    clusters: impl IntoIterator<Item = (u64, &'a [u32])>,
+    max_cluster_size: usize,
+) -> Vec<Violation> {
+    let mut out = Vec::new();
+    let mut covered = vec![false; lattice.len()];
+    let mut sets = UnionFind::<u32>::new(lattice.len());
+    for (id, members) in clusters {
+        if members.len() > max_cluster_size {
+            out.push(Violation::Oversized {
+                cluster: id,
+                size: members.len(),
+                max: max_cluster_size,
+            });
+        }
+        if let Some(&dead) = members.iter().find(|m| !lattice.is_live(**m)) {
+            out.push(Violation::DeadMember {
+                cluster: id,
+                particle: dead,
+            });
+        }
+        if !is_connected(members, lattice) {
+            out.push(Violation::Disconnected { cluster: id });
+        }
+        for &m in members.iter().filter(|m| lattice.is_live(**m)) {
+            covered[m as usize] = true;
+            sets.union(members[0], m);
+        }
+    }
+    for p in lattice.live_particles() {
+        if !covered[p as usize] {
+            out.push(Violation::Uncovered { particle: p });
+        }
+    }
+    let (piece, count) = body_pieces(lattice);
+    let mut roots: Vec<Vec<u32>> = vec![Vec::new(); count];
+    for p in lattice.live_particles().filter(|p| covered[*p as usize]) {
+        roots[piece[p as usize] as usize].push(sets.find(p));
+    }
+    for (i, mut r) in roots.into_iter().enumerate() {
+        r.sort_unstable();
+        r.dedup();
+        if r.len() > 1 {
+            let piece_particle = lattice
+                .live_particles()
+                .find(|p| piece[*p as usize] == i as u32)
+                .unwrap_or(0);
+            out.push(Violation::Isolated {
+                piece_particle,
+                components: r.len(),
+            });
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lattice::Shape;
+    use glam::UVec3;
+
+    #[test]
+    fn each_violation_is_detected() {
+        let mut l = Shape::cuboid(UVec3::new(4, 1, 1), 1.0)
+            .voxelise(1.0)
+            .unwrap();
+        let ok: Vec<Vec<u32>> = vec![vec![0, 1, 2], vec![2, 3]];
+        assert!(
+            check_body(
+                &l,
+                ok.iter().enumerate().map(|(i, m)| (i as u64, m.as_slice())),
+                3
+            )
+            .is_empty()
+        );
+        let bad = [vec![0, 1], vec![2, 3]];
+        let v = check_body(
+            &l,
+            bad.iter()
+                .enumerate()
+                .map(|(i, m)| (i as u64, m.as_slice())),
+            3,
+        );
+        assert!(
+            matches!(v[..], [Violation::Isolated { components: 2, .. }]),
+            "{v:?}"
+        );
+        let v = check_body(&l, [(0, &[0u32, 2, 3][..])], 2);
+        assert!(v.contains(&Violation::Disconnected { cluster: 0 }));
+        assert!(v.contains(&Violation::Oversized {
+            cluster: 0,
+            size: 3,
+            max: 2
+        }));
+        assert!(v.contains(&Violation::Uncovered { particle: 1 }));
+        l.remove(3);
+        let v = check_body(&l, [(0, &[0u32, 1, 2, 3][..])], 4);
+        assert_eq!(
+            v,
+            vec![Violation::DeadMember {
+                cluster: 0,
+                particle: 3
+            }]
+        );
+    }
+}

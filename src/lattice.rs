@@ -1,0 +1,401 @@
+//! The particle lattice of one body: coordinates, the 6-neighbourhood, removal, and
+//! voxelisation of shapes into lattice points (SPEC §1).
+
+use crate::error::{CleaveError, Result, check_finite_vec, check_positive};
+use crate::mesh::TriangleMesh;
+use glam::{IVec3, UVec3, Vec3};
+use std::sync::Arc;
+
+/// Marker for "no particle" in the lattice grid.
+pub const NO_PARTICLE: u32 = u32::MAX;
+
+/// The six lattice directions (voxel edges).
+pub const NEIGHBOUR_OFFSETS: [IVec3; 6] = [
+    IVec3::new(-1, 0, 0),
+    IVec3::new(1, 0, 0),
+    IVec3::new(0, -1, 0),
+    IVec3::new(0, 1, 0),
+    IVec3::new(0, 0, -1),
+    IVec3::new(0, 0, 1),
+];
+
+/// Largest number of lattice cells (bounding box) a body may span.
+pub const MAX_LATTICE_CELLS: u64 = 1 << 27;
+
+/// Dense lattice of one body: maps integer coordinates to particle indices and back.
+///
+/// Particle indices are stable for the life of the body (never reused); a removed
+/// particle keeps its coordinate but is no longer *live*.
+#[derive(Clone, Debug)]
+pub struct Lattice {
+    spacing: f32,
+    min: IVec3,
+    dims: UVec3,
+    grid: Vec<u32>,
+    coords: Vec<IVec3>,
+    live: Vec<bool>,
+    live_count: usize,
+}
+
+impl Lattice {
+    /// Builds a lattice from a list of distinct coordinates; particle `i` gets `coords[i]`.
+    pub fn from_coords(spacing: f32, coords: Vec<IVec3>) -> Result<Self> {
+        check_positive("spacing", spacing)?;
+        let (min, max) = coords.iter().fold((IVec3::MAX, IVec3::MIN), |(lo, hi), c| {
+            (lo.min(*c), hi.max(*c))
+        });
+        let (min, dims) = if coords.is_empty() {
+            (IVec3::ZERO, UVec3::ZERO)
+        } else {
+            (min, (max - min + IVec3::ONE).as_uvec3())
+        };
+        let cells = dims.x as u64 * dims.y as u64 * dims.z as u64;
+        if cells > MAX_LATTICE_CELLS {
+            return Err(CleaveError::TooLarge {
+                field: "shape".into(),
+                cells,
+                max: MAX_LATTICE_CELLS,
+            });
+        }
+        let mut lattice = Self {
+            spacing,
+            min,
+            dims,
+            grid: vec![NO_PARTICLE; cells as usize],
+            live: vec![true; coords.len()],
+            live_count: coords.len(),
+            coords,
+        };
+        for i in 0..lattice.coords.len() {
+            let cell = lattice
+                .cell(lattice.coords[i])
+                .expect("coordinate inside its own bounds");
+            if lattice.grid[cell] != NO_PARTICLE {
+                return Err(CleaveError::InvalidEntity(format!(
+                    "duplicate lattice coordinate {}",
+                    lattice.coords[i]
+                )));
+            }
+            lattice.grid[cell] = i as u32;
+        }
+        Ok(lattice)
+    }
+
+    /// Lattice spacing h.
+    pub fn spacing(&self) -> f32 {
+        self.spacing
+    }
+
+    /// Number of particles ever created (live or removed).
+    pub fn len(&self) -> usize {
+        self.coords.len()
+    }
+
+    /// True when the lattice never had a particle.
+    pub fn is_empty(&self) -> bool {
+        self.coords.is_empty()
+    }
+
+    /// Number of live particles.
+    pub fn live_count(&self) -> usize {
+        self.live_count
+    }
+
+    /// Integer coordinate of particle `i`.
+    pub fn coord(&self, i: u32) -> IVec3 {
+        self.coords[i as usize]
+    }
+
+    /// All particle coordinates by index.
+    pub fn coords(&self) -> &[IVec3] {
+        &self.coords
+    }
+
+    /// Rest position of particle `i` in the body frame: `(coord + ½) × h`.
+    pub fn rest_position(&self, i: u32) -> Vec3 {
+        (self.coords[i as usize].as_vec3() + Vec3::splat(0.5)) * self.spacing
+    }
+
+    /// Whether particle `i` exists and has not been removed.
+    pub fn is_live(&self, i: u32) -> bool {
+        self.live.get(i as usize).copied().unwrap_or(false)
+    }
+
+    /// Iterator over live particle indices, ascending.
+    pub fn live_particles(&self) -> impl Iterator<Item = u32> + '_ {
+        self.live
+            .iter()
+            .enumerate()
+            .filter(|(_, l)| **l)
+            .map(|(i, _)| i as u32)
+    }
+
+    fn cell(&self, c: IVec3) -> Option<usize> {
+        let d = c - self.min;
+        if d.cmplt(IVec3::ZERO).any() || d.as_uvec3().cmpge(self.dims).any() {
+            return None;
+        }
+        let d = d.as_uvec3();
+        Some(((d.z * self.dims.y + d.y) * self.dims.x + d.x) as usize)
+    }
+
+    /// The live particle at coordinate `c`, if any.
+    pub fn at(&self, c: IVec3) -> Option<u32> {
+        let i = self.grid[self.cell(c)?];
+        (i != NO_PARTICLE).then_some(i)
+    }
+
+    /// Live lattice neighbours of particle `i` (6-neighbourhood), in a fixed order.
+    pub fn neighbours(&self, i: u32) -> impl Iterator<Item = u32> + '_ {
+        let c = self.coords[i as usize];
+        NEIGHBOUR_OFFSETS
+            .iter()
+            .filter_map(move |o| self.at(c + *o))
+    }
+
+    /// Removes particle `i`; returns false if it was not live.
+    pub fn remove(&mut self, i: u32) -> bool {
+        if !self.is_live(i) {
+            return false;
+        }
+        let cell = self
+            .cell(self.coords[i as usize])
+            .expect("live particle inside bounds");
+        self.grid[cell] = NO_PARTICLE;
+        self.live[i as usize] = false;
+        self.live_count -= 1;
+        true
+    }
+
+    /// All live lattice edges `(a, b)` with `a < b`, in ascending order of `a`.
+    pub fn edges(&self) -> Vec<(u32, u32)> {
+        let mut out = Vec::new();
+        for a in self.live_particles() {
+            let c = self.coord(a);
+            for o in [IVec3::X, IVec3::Y, IVec3::Z] {
+                if let Some(b) = self.at(c + o) {
+                    out.push((a.min(b), a.max(b)));
+                }
+            }
+        }
+        out.sort_unstable();
+        out
+    }
+}
+
+/// A signed-distance function (negative inside) with the box that bounds its inside.
+#[derive(Clone)]
+pub struct SdfShape {
+    /// The function; non-finite values count as outside.
+    pub sdf: Arc<dyn Fn(Vec3) -> f32 + Send + Sync>,
+    /// Lower corner of a box containing the inside.
+    pub min: Vec3,
+    /// Upper corner of a box containing the inside.
+    pub max: Vec3,
+}
+
+impl std::fmt::Debug for SdfShape {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SdfShape")
+            .field("min", &self.min)
+            .field("max", &self.max)
+            .finish()
+    }
+}
+
+/// A shape to voxelise, in its local frame (centred on the origin for primitives).
+#[derive(Clone, Debug)]
+pub enum Shape {
+    /// Axis-aligned box with the given half extents.
+    Box {
+        /// Half size along each axis.
+        half_extents: Vec3,
+    },
+    /// Sphere of the given radius.
+    Sphere {
+        /// Radius.
+        radius: f32,
+    },
+    /// Capsule along the local X axis.
+    Capsule {
+        /// Radius of the round ends and the shaft.
+        radius: f32,
+        /// Half length of the shaft (without the caps).
+        half_length: f32,
+    },
+    /// Any signed-distance function.
+    Sdf(SdfShape),
+    /// A closed triangle mesh (inside by winding number).
+    Mesh(Arc<TriangleMesh>),
+}
+
+impl Shape {
+    /// A box holding exactly `cells.x × cells.y × cells.z` particles at spacing `h`.
+    pub fn cuboid(cells: UVec3, h: f32) -> Self {
+        Shape::Box {
+            half_extents: cells.as_vec3() * h * 0.5,
+        }
+    }
+
+    fn bounds(&self) -> Result<(Vec3, Vec3)> {
+        Ok(match self {
+            Shape::Box { half_extents } => {
+                check_finite_vec("shape.half_extents", *half_extents)?;
+                (-*half_extents, *half_extents)
+            }
+            Shape::Sphere { radius } => {
+                check_positive("shape.radius", *radius)?;
+                (Vec3::splat(-radius), Vec3::splat(*radius))
+            }
+            Shape::Capsule {
+                radius,
+                half_length,
+            } => {
+                check_positive("shape.radius", *radius)?;
+                crate::error::check_range(
+                    "shape.half_length",
+                    *half_length,
+                    0.0,
+                    f32::MAX,
+                    "finite and ≥ 0",
+                )?;
+                let e = Vec3::new(radius + half_length, *radius, *radius);
+                (-e, e)
+            }
+            Shape::Sdf(s) => {
+                check_finite_vec("shape.min", s.min)?;
+                check_finite_vec("shape.max", s.max)?;
+                (s.min, s.max)
+            }
+            Shape::Mesh(m) => m.bounds(),
+        })
+    }
+
+    /// Signed distance (negative inside); non-finite values mean outside.
+    pub fn signed_distance(&self, p: Vec3) -> f32 {
+        match self {
+            Shape::Box { half_extents } => {
+                let q = p.abs() - *half_extents;
+                q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+            }
+            Shape::Sphere { radius } => p.length() - radius,
+            Shape::Capsule {
+                radius,
+                half_length,
+            } => {
+                let x = p.x.clamp(-half_length, *half_length);
+                (p - Vec3::new(x, 0.0, 0.0)).length() - radius
+            }
+            Shape::Sdf(s) => (s.sdf)(p),
+            Shape::Mesh(m) => {
+                if m.contains(p) {
+                    -1.0
+                } else {
+                    1.0
+                }
+            }
+        }
+    }
+
+    /// Voxelises the shape at spacing `h`: lattice point `k` sits at `(k + ½)·h` in the
+    /// shape's frame and is kept when it lies inside (signed distance ≤ 10⁻⁴·h).
+    pub fn voxelise(&self, h: f32) -> Result<Lattice> {
+        check_positive("spacing", h)?;
+        let (lo, hi) = self.bounds()?;
+        let kmin = (lo / h - Vec3::splat(0.5)).floor();
+        let kmax = (hi / h - Vec3::splat(0.5)).ceil();
+        let extent = (kmax - kmin + Vec3::ONE).max(Vec3::ZERO);
+        let cells = extent.x as f64 * extent.y as f64 * extent.z as f64;
+        if !cells.is_finite() || cells > MAX_LATTICE_CELLS as f64 {
+            return Err(CleaveError::TooLarge {
+                field: "shape".into(),
+                cells: if cells.is_finite() {
+                    cells as u64
+                } else {
+                    u64::MAX
+                },
+                max: MAX_LATTICE_CELLS,
+            });
+        }
+        let (kmin, kmax) = (kmin.as_ivec3(), kmax.as_ivec3());
+        let tolerance = 1e-4 * h;
+        let mut coords = Vec::new();
+        for z in kmin.z..=kmax.z {
+            for y in kmin.y..=kmax.y {
+                for x in kmin.x..=kmax.x {
+                    let k = IVec3::new(x, y, z);
+                    let p = (k.as_vec3() + Vec3::splat(0.5)) * h;
+                    let d = self.signed_distance(p);
+                    if d.is_finite() && d <= tolerance {
+                        coords.push(k);
+                    }
+                }
+            }
+        }
+        if coords.is_empty() {
+            return Err(CleaveError::EmptyShape {
+                field: "shape".into(),
+                spacing: h,
+            });
+        }
+        Lattice::from_coords(h, coords)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cuboid_has_exact_counts_and_edges() {
+        let l = Shape::cuboid(UVec3::new(4, 3, 2), 0.1)
+            .voxelise(0.1)
+            .unwrap();
+        assert_eq!(l.live_count(), 24);
+        // edges of a 4×3×2 grid: 3·3·2 + 4·2·2 + 4·3·1
+        assert_eq!(l.edges().len(), 18 + 16 + 12);
+        let centre: Vec3 = l.live_particles().map(|i| l.rest_position(i)).sum::<Vec3>() / 24.0;
+        assert!(centre.length() < 1e-5, "box is centred: {centre}");
+    }
+
+    #[test]
+    fn removal_updates_neighbours() {
+        let mut l = Shape::cuboid(UVec3::new(3, 1, 1), 1.0)
+            .voxelise(1.0)
+            .unwrap();
+        let mid = l.at(IVec3::new(0, 0, 0)).unwrap();
+        assert_eq!(l.neighbours(mid).count(), 2);
+        let left = l.at(IVec3::new(-1, 0, 0)).unwrap();
+        assert!(l.remove(left));
+        assert!(!l.remove(left));
+        assert_eq!(l.neighbours(mid).count(), 1);
+        assert_eq!(l.live_count(), 2);
+    }
+
+    #[test]
+    fn sphere_and_capsule_are_symmetric() {
+        let s = Shape::Sphere { radius: 3.0 }.voxelise(1.0).unwrap();
+        let c: Vec3 = s.live_particles().map(|i| s.rest_position(i)).sum();
+        assert!(c.length() < 1e-3);
+        let cap = Shape::Capsule {
+            radius: 1.0,
+            half_length: 2.0,
+        }
+        .voxelise(0.5)
+        .unwrap();
+        assert!(cap.live_count() > 0);
+    }
+
+    #[test]
+    fn bad_shapes_are_errors() {
+        assert!(Shape::Sphere { radius: -1.0 }.voxelise(1.0).is_err());
+        assert!(Shape::Sphere { radius: 1.0 }.voxelise(0.0).is_err());
+        assert!(Shape::Sphere { radius: 1.0 }.voxelise(f32::NAN).is_err());
+        let e = Shape::Box {
+            half_extents: Vec3::ZERO,
+        }
+        .voxelise(1.0);
+        assert!(matches!(e, Err(CleaveError::EmptyShape { .. })), "{e:?}");
+        assert!(Shape::Sphere { radius: 1e9 }.voxelise(1e-3).is_err());
+    }
+}

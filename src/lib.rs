@@ -1,0 +1,45 @@
+//! # cleave
+//!
+//! Lattice shape-matching soft bodies with real-time cutting, as ordered bevy_ecs
+//! systems. A body is a voxel lattice of particles; overlapping clusters of particles
+//! are shape-matching constraints (SPEC §2). Cutting tools remove particles; the cut
+//! clusters are rebuilt locally by graph algorithms (SPEC §3–4) so pieces separate while
+//! the body keeps its stiffness.
+//!
+//! Pure algorithms live in plain modules ([`lattice`], [`clustering`], [`reconstruct`],
+//! [`solver`], [`rotation`]); [`systems`] holds the thin ECS stages; [`sim::Simulation`]
+//! is the headless facade.
+#![warn(missing_docs)]
+
+pub mod cluster_store;
+pub mod clustering;
+pub mod components;
+pub mod config;
+pub mod dump;
+pub mod error;
+pub mod graph;
+pub mod invariants;
+pub mod lattice;
+pub mod mesh;
+pub mod reconstruct;
+pub mod resources;
+pub mod rotation;
+pub mod scene;
+pub mod sim;
+pub mod solver;
+pub mod stats;
+#[path = "../systems/mod.rs"]
+pub mod systems;
+pub mod tool;
+
+/// The types most users need.
+pub mod prelude {
+    pub use crate::components::*;
+    pub use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
+    pub use crate::error::{CleaveError, Result};
+    pub use crate::lattice::{SdfShape, Shape};
+    pub use crate::resources::{BodySplit, ClustersRebuilt, ParticlesCut};
+    pub use crate::sim::{BodyDesc, PinRegion, Simulation, ToolDesc, check_invariants};
+    pub use crate::systems::{CleaveSchedule, SimStage, SubstepSchedule, install};
+    pub use crate::tool::{Path, Pose, ToolShape};
+}

@@ -1,0 +1,100 @@
+//! The tightest projection plane of a point set (SPEC §4.1): the eigenvector of the
+//! largest eigenvalue of the covariance matrix is the plane's normal.
+
+use glam::{Mat3, Vec3};
+
+/// Eigen-decomposition of a symmetric 3×3 matrix by cyclic Jacobi rotations.
+/// Returns eigenvalues (ascending) and the matching unit eigenvectors as columns.
+pub fn symmetric_eigen(m: Mat3) -> (Vec3, Mat3) {
+    let mut a = [[0.0f64; 3]; 3];
+    for (c, col) in [m.x_axis, m.y_axis, m.z_axis].iter().enumerate() {
+        for r in 0..3 {
+            a[r][c] = col[r] as f64;
+        }
+    }
+    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0f64]];
+    for _ in 0..50 {
+        let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
+        if off < 1e-14 {
+            break;
+        }
+        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+            if a[p][q].abs() < 1e-300 {
+                continue;
+            }
+            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+            let t = if theta == 0.0 { 1.0 } else { t };
+            let c = 1.0 / (t * t + 1.0).sqrt();
+            let s = t * c;
+            for k in 0..3 {
+                let (akp, akq) = (a[k][p], a[k][q]);
+                a[k][p] = c * akp - s * akq;
+                a[k][q] = s * akp + c * akq;
+            }
+            for k in 0..3 {
+                let (apk, aqk) = (a[p][k], a[q][k]);
+                a[p][k] = c * apk - s * aqk;
+                a[q][k] = s * apk + c * aqk;
+            }
+            for row in &mut v {
+                let (vp, vq) = (row[p], row[q]);
+                row[p] = c * vp - s * vq;
+                row[q] = s * vp + c * vq;
+            }
+        }
+    }
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&i, &j| a[i][i].total_cmp(&a[j][j]));
+    let values = Vec3::new(
+        a[order[0]][order[0]] as f32,
+        a[order[1]][order[1]] as f32,
+        a[order[2]][order[2]] as f32,
+    );
+    let col =
+        |i: usize| Vec3::new(v[0][i] as f32, v[1][i] as f32, v[2][i] as f32).normalize_or(Vec3::X);
+    (
+        values,
+        Mat3::from_cols(col(order[0]), col(order[1]), col(order[2])),
+    )
+}
+
+/// Normal of the tightest projection plane of `points`: the principal (long) axis.
+pub fn split_normal(points: &[Vec3]) -> Vec3 {
+    if points.len() < 2 {
+        return Vec3::X;
+    }
+    let mean = points.iter().copied().sum::<Vec3>() / points.len() as f32;
+    let mut cov = Mat3::ZERO;
+    for p in points {
+        let d = *p - mean;
+        cov += Mat3::from_cols(d * d.x, d * d.y, d * d.z);
+    }
+    symmetric_eigen(cov * (1.0 / points.len() as f32)).1.z_axis
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eigen_reconstructs_matrix() {
+        let m = Mat3::from_cols(
+            Vec3::new(4.0, 1.0, 0.5),
+            Vec3::new(1.0, 3.0, 0.2),
+            Vec3::new(0.5, 0.2, 1.0),
+        );
+        let (vals, vecs) = symmetric_eigen(m);
+        assert!(vals.x <= vals.y && vals.y <= vals.z);
+        let back = vecs * Mat3::from_diagonal(vals) * vecs.transpose();
+        assert!(back.abs_diff_eq(m, 1e-4), "{back:?}");
+    }
+
+    #[test]
+    fn normal_is_long_axis() {
+        let pts: Vec<Vec3> = (0..10)
+            .flat_map(|x| (0..3).map(move |y| Vec3::new(x as f32, y as f32, 0.0)))
+            .collect();
+        assert!(split_normal(&pts).abs().abs_diff_eq(Vec3::X, 1e-4));
+    }
+}

@@ -1,0 +1,283 @@
+//! Splitting an oversized cluster in two (SPEC §3.3, §4): PCA normal on rest positions
+//! (§4.1), geometric partition grown from a random vertex with the normal flip (§4.2),
+//! and topological repair so both halves are connected (§4.3).
+
+use super::pca::split_normal;
+use crate::cluster_store::ClusterStore;
+use crate::graph::position_in;
+use crate::lattice::Lattice;
+use glam::Vec3;
+use rand::Rng;
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, VecDeque};
+
+/// Heap key ordering frontier vertices by signed distance, ties by local index.
+#[derive(Clone, Copy, PartialEq)]
+struct ByDistance(f32, usize);
+impl Eq for ByDistance {}
+impl PartialOrd for ByDistance {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for ByDistance {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
+    }
+}
+
+/// Local adjacency of a member set (indices into `members`).
+fn local_adjacency(members: &[u32], lattice: &Lattice) -> Vec<Vec<usize>> {
+    members
+        .iter()
+        .map(|m| {
+            lattice
+                .neighbours(*m)
+                .filter_map(|n| position_in(members, n))
+                .collect()
+        })
+        .collect()
+}
+
+/// SPEC §4.2: grows a connected set S from `start` whose boundary approximates the
+/// plane through `start` with normal `normal`. Returns membership flags of S.
+pub fn geometric_partition(
+    points: &[Vec3],
+    adjacency: &[Vec<usize>],
+    start: usize,
+    normal: Vec3,
+) -> Vec<bool> {
+    let g = points.len();
+    let mut in_s = vec![false; g];
+    for flip in [1.0f32, -1.0] {
+        let d = |i: usize| flip * normal.dot(points[i] - points[start]);
+        in_s.iter_mut().for_each(|x| *x = false);
+        let mut visited = vec![false; g];
+        let mut size = 1;
+        in_s[start] = true;
+        visited[start] = true;
+        let mut negative = Vec::new();
+        let mut frontier = BinaryHeap::new();
+        let discover = |i: usize,
+                        visited: &mut Vec<bool>,
+                        negative: &mut Vec<usize>,
+                        frontier: &mut BinaryHeap<_>| {
+            for &n in &adjacency[i] {
+                if !visited[n] {
+                    visited[n] = true;
+                    if d(n) < 0.0 {
+                        negative.push(n);
+                    } else {
+                        frontier.push(Reverse(ByDistance(d(n), n)));
+                    }
+                }
+            }
+        };
+        discover(start, &mut visited, &mut negative, &mut frontier);
+        // Step 3: absorb every reachable vertex on the negative side.
+        while let Some(x) = negative.pop() {
+            in_s[x] = true;
+            size += 1;
+            discover(x, &mut visited, &mut negative, &mut frontier);
+        }
+        // Step 4: grow by smallest signed distance until |S| + 1 ≥ |G| / 2.
+        while 2 * (size + 1) < g {
+            let Some(Reverse(ByDistance(_, x))) = frontier.pop() else {
+                break;
+            };
+            in_s[x] = true;
+            size += 1;
+            discover(x, &mut visited, &mut negative, &mut frontier);
+            while let Some(y) = negative.pop() {
+                // Only reachable after a flip: keep S connected, take it in order.
+                frontier.push(Reverse(ByDistance(d(y), y)));
+            }
+        }
+        // Step 5: too big → flip the normal and start again (at most once is needed:
+        // both sides cannot each hold more than half the vertices).
+        if 2 * size <= g + 2 {
+            break;
+        }
+    }
+    in_s
+}
+
+/// SPEC §4.3: moves every component of G − S but the largest into S. Returns
+/// membership flags of M (the remaining component).
+pub fn topological_repair(adjacency: &[Vec<usize>], in_s: &mut [bool]) -> Vec<bool> {
+    let g = in_s.len();
+    let mut label = vec![usize::MAX; g];
+    let mut components: Vec<Vec<usize>> = Vec::new();
+    for start in 0..g {
+        if in_s[start] || label[start] != usize::MAX {
+            continue;
+        }
+        let id = components.len();
+        let mut comp = vec![start];
+        label[start] = id;
+        let mut queue = VecDeque::from([start]);
+        while let Some(i) = queue.pop_front() {
+            for &n in &adjacency[i] {
+                if !in_s[n] && label[n] == usize::MAX {
+                    label[n] = id;
+                    comp.push(n);
+                    queue.push_back(n);
+                }
+            }
+        }
+        components.push(comp);
+    }
+    // Largest stays as M (first one on ties); the rest join S smallest first.
+    let keep = (0..components.len()).max_by_key(|&c| (components[c].len(), Reverse(c)));
+    let mut in_m = vec![false; g];
+    for (c, comp) in components.iter().enumerate() {
+        for &i in comp {
+            if Some(c) == keep {
+                in_m[i] = true;
+            } else {
+                in_s[i] = true;
+            }
+        }
+    }
+    in_m
+}
+
+/// Splits a connected cluster (sorted members, at least 2) into two connected, disjoint
+/// halves that cover it, using rest (lattice) positions (SPEC §4).
+pub fn split_cluster(
+    members: &[u32],
+    lattice: &Lattice,
+    rng: &mut impl Rng,
+) -> (Vec<u32>, Vec<u32>) {
+    if members.len() < 2 {
+        return (members.to_vec(), Vec::new());
+    }
+    let points: Vec<Vec3> = members
+        .iter()
+        .map(|m| lattice.coord(*m).as_vec3())
+        .collect();
+    let adjacency = local_adjacency(members, lattice);
+    let normal = split_normal(&points);
+    let start = rng.random_range(0..members.len());
+    let mut in_s = geometric_partition(&points, &adjacency, start, normal);
+    let in_m = topological_repair(&adjacency, &mut in_s);
+    let pick = |flags: &[bool]| {
+        members
+            .iter()
+            .zip(flags)
+            .filter(|(_, f)| **f)
+            .map(|(m, _)| *m)
+            .collect()
+    };
+    (pick(&in_s), pick(&in_m))
+}
+
+/// SPEC §3.3: splits every cluster in `keys` above `max` members, and the halves again,
+/// until all are at most `max`. Returns every resulting cluster (inputs included).
+pub fn split_oversized<S: ClusterStore>(
+    store: &mut S,
+    lattice: &Lattice,
+    keys: &[S::Key],
+    max: usize,
+    rng: &mut impl Rng,
+) -> Vec<S::Key> {
+    let mut queue: VecDeque<S::Key> = keys.iter().copied().collect();
+    let mut done = Vec::new();
+    while let Some(k) = queue.pop_front() {
+        let members = store.members(k);
+        if members.len() <= max {
+            done.push(k);
+            continue;
+        }
+        let (a, b) = split_cluster(members, lattice, rng);
+        if b.is_empty() {
+            done.push(k);
+            continue;
+        }
+        store.set_members(k, a);
+        let k2 = store.create(b);
+        queue.push_back(k);
+        queue.push_back(k2);
+    }
+    done
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::graph::is_connected;
+    use crate::lattice::Shape;
+    use glam::UVec3;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    fn spread(members: &[u32], lattice: &Lattice, n: Vec3) -> f32 {
+        let d: Vec<f32> = members
+            .iter()
+            .map(|m| n.dot(lattice.coord(*m).as_vec3()))
+            .collect();
+        let mean = d.iter().sum::<f32>() / d.len() as f32;
+        d.iter().map(|x| (x - mean).powi(2)).sum::<f32>() / d.len() as f32
+    }
+
+    #[test]
+    fn halves_connected_disjoint_covering_balanced_and_tighter() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut ratios = Vec::new();
+        for dims in [
+            UVec3::new(6, 3, 3),
+            UVec3::new(4, 4, 4),
+            UVec3::new(7, 5, 2),
+            UVec3::new(9, 2, 2),
+        ] {
+            let lattice = Shape::cuboid(dims, 1.0).voxelise(1.0).unwrap();
+            let members: Vec<u32> = lattice.live_particles().collect();
+            let points: Vec<Vec3> = members
+                .iter()
+                .map(|m| lattice.coord(*m).as_vec3())
+                .collect();
+            let n = split_normal(&points);
+            for _ in 0..50 {
+                let (a, b) = split_cluster(&members, &lattice, &mut rng);
+                assert!(is_connected(&a, &lattice) && is_connected(&b, &lattice));
+                let mut all = [a.clone(), b.clone()].concat();
+                all.sort_unstable();
+                assert_eq!(all, members, "disjoint and covering");
+                let (small, large) = (a.len().min(b.len()), a.len().max(b.len()));
+                ratios.push(small as f32 / large as f32);
+                let parent = spread(&members, &lattice, n);
+                assert!(spread(&a, &lattice, n) < parent && spread(&b, &lattice, n) < parent);
+            }
+        }
+        ratios.sort_by(f32::total_cmp);
+        let median = ratios[ratios.len() / 2];
+        assert!(
+            median >= 0.75,
+            "median smaller/larger {median}, min {}",
+            ratios[0]
+        );
+    }
+
+    #[test]
+    fn split_oversized_respects_max() {
+        let lattice = Shape::cuboid(UVec3::new(10, 6, 3), 1.0)
+            .voxelise(1.0)
+            .unwrap();
+        let mut table = crate::cluster_store::ClusterTable::from_clusters(
+            lattice.len(),
+            vec![lattice.live_particles().collect()],
+        );
+        let out = split_oversized(
+            &mut table,
+            &lattice,
+            &[0],
+            11,
+            &mut ChaCha8Rng::seed_from_u64(1),
+        );
+        assert!(out.len() >= 6);
+        for k in out {
+            let m = table.members(k);
+            assert!(m.len() <= 11 && is_connected(m, &lattice));
+        }
+    }
+}

@@ -1,0 +1,120 @@
+//! ECS resources: settings, RNG, clock, the detect → cut → regroup → split → expand
+//! hand-over buffers, the solver cache, statistics, and the messages sent to outside code.
+
+use crate::config::SimConfig;
+use crate::solver::SolverLayout;
+use bevy_ecs::prelude::*;
+use rand_chacha::ChaCha8Rng;
+
+/// The simulation settings.
+#[derive(Resource, Clone, Debug, Default)]
+pub struct SimSettings(pub SimConfig);
+
+/// The one seeded random stream used by every stage (portable ChaCha8).
+#[derive(Resource, Clone, Debug)]
+pub struct SimRng(pub ChaCha8Rng);
+
+/// Frame counter and simulated time.
+#[derive(Resource, Clone, Copy, Debug, Default)]
+pub struct SimClock {
+    /// Frames completed.
+    pub frame: u64,
+    /// Simulated seconds.
+    pub time: f32,
+}
+
+/// Particles to cut in one body.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BodyCut {
+    /// The body.
+    pub body: Entity,
+    /// Body-local particle indices, ascending.
+    pub particles: Vec<u32>,
+}
+
+/// Output of detect (its only output), input of cut.
+#[derive(Resource, Clone, Debug, Default)]
+pub struct CutList {
+    /// Per body, sorted by body entity.
+    pub cuts: Vec<BodyCut>,
+}
+
+/// What cut did to one body.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BodyCutReport {
+    /// The body.
+    pub body: Entity,
+    /// Removed particle indices.
+    pub removed: Vec<u32>,
+    /// Clusters that contained a removed particle, sorted.
+    pub cut_clusters: Vec<Entity>,
+}
+
+/// Output of cut, input of regroup.
+#[derive(Resource, Clone, Debug, Default)]
+pub struct CutReport {
+    /// One entry per body that lost particles this frame.
+    pub bodies: Vec<BodyCutReport>,
+}
+
+/// Clusters produced by the current cut event (regroup → split → expand hand-over).
+#[derive(Resource, Clone, Debug, Default)]
+pub struct RebuiltClusters {
+    /// `(body, clusters)` per body with a cut event.
+    pub bodies: Vec<(Entity, Vec<Entity>)>,
+}
+
+/// Dense solver state kept between steps; rebuilt only when topology changes.
+#[derive(Resource, Debug, Default)]
+pub struct SolverCache {
+    /// Dense arrays.
+    pub layout: SolverLayout,
+    /// Particle entity per dense index.
+    pub particles: Vec<Entity>,
+    /// `(body, local index)` per dense index.
+    pub owners: Vec<(Entity, u32)>,
+    /// Dense index per entity index (`u32::MAX` if none).
+    pub dense_of: Vec<u32>,
+    /// Cluster entity per dense cluster index.
+    pub clusters: Vec<Entity>,
+    /// Whether the layout matches the current topology.
+    pub valid: bool,
+}
+
+/// Wall-clock timings of cut events, for reports.
+#[derive(Resource, Clone, Debug, Default)]
+pub struct CutTimings {
+    /// Milliseconds of regroup + split + expand per cut event.
+    pub event_ms: Vec<f64>,
+    /// Milliseconds accumulated by the current event so far.
+    pub current_ms: f64,
+}
+
+/// Sent by cut: particles removed from a body.
+#[derive(Message, Clone, Debug)]
+pub struct ParticlesCut {
+    /// The body.
+    pub body: Entity,
+    /// Removed body-local indices.
+    pub particles: Vec<u32>,
+}
+
+/// Sent by expand: the clusters rebuilt by a cut event.
+#[derive(Message, Clone, Debug)]
+pub struct ClustersRebuilt {
+    /// The body.
+    pub body: Entity,
+    /// Clusters created or changed.
+    pub clusters: Vec<Entity>,
+}
+
+/// Sent by cut when a body's number of connected pieces changes.
+#[derive(Message, Clone, Copy, Debug)]
+pub struct BodySplit {
+    /// The body.
+    pub body: Entity,
+    /// Pieces before the cut.
+    pub pieces_before: usize,
+    /// Pieces after the cut.
+    pub pieces_after: usize,
+}

@@ -1,0 +1,106 @@
+//! Rotation extraction by Müller, Bender, Chentanez & Macklin 2016, "A robust method to
+//! extract the rotational part of deformations": iterate
+//! `q ← exp(ω) q` with `ω = Σᵢ rᵢ × aᵢ / (|Σᵢ rᵢ · aᵢ| + ε)` (rᵢ, aᵢ the columns of R(q), A).
+//! Always returns a unit quaternion (a proper rotation), never NaN, for any input.
+
+use glam::{Mat3, Quat, Vec3};
+
+/// Extracts the rotation of `a`, starting from `warm` (the previous result), with at
+/// most `max_iterations` iterations. Zero, rank-deficient, inverted or non-finite
+/// matrices give a proper rotation (for a zero or non-finite `a`, the warm start).
+pub fn extract_rotation(a: &Mat3, warm: Quat, max_iterations: u32) -> Quat {
+    let mut q = if warm.is_finite() && warm.length_squared() > 0.0 {
+        warm.normalize()
+    } else {
+        Quat::IDENTITY
+    };
+    let scale = a.abs().to_cols_array().into_iter().fold(0.0f32, f32::max);
+    if !(scale.is_finite() && scale > 0.0) {
+        return q;
+    }
+    let a = *a * (1.0 / scale);
+    for _ in 0..max_iterations {
+        let r = Mat3::from_quat(q);
+        let omega: Vec3 =
+            r.x_axis.cross(a.x_axis) + r.y_axis.cross(a.y_axis) + r.z_axis.cross(a.z_axis);
+        let dot = r.x_axis.dot(a.x_axis) + r.y_axis.dot(a.y_axis) + r.z_axis.dot(a.z_axis);
+        let omega = omega / (dot.abs() + 1e-9);
+        let w = omega.length();
+        if !(w > 1e-9) || !w.is_finite() {
+            break;
+        }
+        q = (Quat::from_axis_angle(omega / w, w) * q).normalize();
+    }
+    q
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn random_rotation(rng: &mut impl Rng) -> Quat {
+        let v = Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
+        let angle = rng.random_range(0.0..std::f32::consts::PI);
+        Quat::from_axis_angle(v.try_normalize().unwrap_or(Vec3::X), angle)
+    }
+
+    fn is_proper(q: Quat) -> bool {
+        let m = Mat3::from_quat(q);
+        q.is_finite() && (q.length() - 1.0).abs() < 1e-4 && (m.determinant() - 1.0).abs() < 1e-3
+    }
+
+    #[test]
+    fn recovers_rotation_from_rotation_times_stretch() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        for _ in 0..500 {
+            let r = random_rotation(&mut rng);
+            let s = Mat3::from_diagonal(Vec3::new(
+                rng.random_range(0.3..3.0),
+                rng.random_range(0.3..3.0),
+                rng.random_range(0.3..3.0),
+            ));
+            // symmetric positive stretch with random axes: U S Uᵀ
+            let u = Mat3::from_quat(random_rotation(&mut rng));
+            let a = Mat3::from_quat(r) * u * s * u.transpose();
+            let q = extract_rotation(&a, Quat::IDENTITY, 100);
+            assert!(is_proper(q));
+            assert!(q.dot(r).abs() > 0.9999, "expected {r:?} got {q:?}");
+        }
+    }
+
+    #[test]
+    fn degenerate_inputs_give_proper_rotations() {
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        let warm = random_rotation(&mut rng);
+        assert_eq!(extract_rotation(&Mat3::ZERO, warm, 20), warm.normalize());
+        let nan = Mat3::from_cols(Vec3::NAN, Vec3::X, Vec3::Y);
+        assert!(is_proper(extract_rotation(&nan, warm, 20)));
+        let inf = Mat3::from_cols(Vec3::INFINITY, Vec3::X, Vec3::Y);
+        assert!(is_proper(extract_rotation(
+            &inf,
+            Quat::from_xyzw(f32::NAN, 0.0, 0.0, 1.0),
+            20
+        )));
+        for _ in 0..300 {
+            let r = Mat3::from_quat(random_rotation(&mut rng));
+            let inverted = r * Mat3::from_diagonal(Vec3::new(1.0, 1.0, -1.0));
+            let rank1 = Mat3::from_cols(Vec3::X, Vec3::X * 2.0, Vec3::ZERO) * r;
+            let rank2 = r * Mat3::from_diagonal(Vec3::new(2.0, 1.0, 0.0));
+            let tiny = r * 1e-30;
+            let huge = r * 1e30;
+            for a in [inverted, rank1, rank2, tiny, huge] {
+                let q = extract_rotation(&a, random_rotation(&mut rng), 50);
+                assert!(is_proper(q), "{a:?} -> {q:?}");
+            }
+            // A scaled rotation is recovered exactly regardless of scale.
+            let q = extract_rotation(&huge, Quat::IDENTITY, 100);
+            assert!(Mat3::from_quat(q).abs_diff_eq(r, 1e-3));
+        }
+    }
+}

@@ -1,0 +1,289 @@
+//! Built-in scenes: a simulation config, bodies, tools and a default frame count.
+
+use crate::config::{Material, SimConfig, StaticBox};
+use crate::lattice::Shape;
+use crate::sim::{BodyDesc, PinRegion, ToolDesc};
+use crate::tool::{Path, Pose, ToolShape};
+use glam::{Quat, UVec3, Vec3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// A runnable scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// Simulation settings.
+    pub config: SimConfig,
+    /// Bodies to spawn.
+    pub bodies: Vec<BodyDesc>,
+    /// Tools to spawn.
+    pub tools: Vec<ToolDesc>,
+    /// Default number of frames.
+    pub frames: u32,
+}
+
+/// Names and one-line descriptions of the built-in scenes.
+pub const BUILTIN_SCENES: [(&str, &str); 6] = [
+    ("drop", "a 16×8×8 box falls on the ground and settles"),
+    (
+        "cantilever",
+        "a 24×6×6 beam pinned at one end sags under gravity",
+    ),
+    (
+        "slice",
+        "a blade sweeps through a 24×12×12 block on a pedestal: two halves tip off",
+    ),
+    (
+        "dice",
+        "two perpendicular slices through a 24×12×24 block: four pieces",
+    ),
+    (
+        "scoop",
+        "a sphere carves a trench along the top of a block: one piece",
+    ),
+    (
+        "random",
+        "a seeded sequence of random blade and sphere cuts (stress test)",
+    ),
+];
+
+const H: f32 = 0.1;
+
+fn blade_vertical_cut(
+    normal_yaw: f32,
+    centre: Vec3,
+    from_y: f32,
+    to_y: f32,
+    t0: f32,
+    t1: f32,
+) -> ToolDesc {
+    // Blade normal is local Z; yaw it about Y so the normal lies in the XZ plane.
+    let rotation = Quat::from_rotation_y(normal_yaw);
+    let at = |y: f32| Pose {
+        position: Vec3::new(centre.x, y, centre.z),
+        rotation,
+    };
+    ToolDesc {
+        shape: ToolShape::Blade {
+            half_width: 2.0,
+            half_height: 0.3,
+        },
+        cut_width: 1.01 * H,
+        path: Path {
+            keys: vec![(t0, at(from_y)), (t1, at(to_y))],
+        },
+        pose: at(from_y),
+    }
+}
+
+fn block_on_pedestal(cells: UVec3, pedestal: Vec3) -> (BodyDesc, StaticBox) {
+    let height = 0.6;
+    let mut body = BodyDesc::new(Shape::cuboid(cells, H), H);
+    body.position = Vec3::new(0.0, height + cells.y as f32 * H * 0.5, 0.0);
+    let pedestal = StaticBox {
+        min: Vec3::new(-pedestal.x, 0.0, -pedestal.z),
+        max: Vec3::new(pedestal.x, height, pedestal.z),
+        friction: 0.2,
+    };
+    (body, pedestal)
+}
+
+fn cutting_config(seed: u64) -> SimConfig {
+    SimConfig {
+        seed,
+        ..SimConfig::default()
+    }
+}
+
+/// The built-in scene `name`, with the given seed, or `None`.
+pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
+    let config = SimConfig {
+        seed,
+        ..SimConfig::default()
+    };
+    Some(match name {
+        "drop" => {
+            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(16, 8, 8), H), H);
+            body.position = Vec3::new(0.0, 0.4 + 0.5, 0.0);
+            Scene {
+                config,
+                bodies: vec![body],
+                tools: vec![],
+                frames: 300,
+            }
+        }
+        "cantilever" => {
+            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(24, 6, 6), H), H);
+            body.position = Vec3::new(0.0, 1.0, 0.0);
+            body.pins = vec![PinRegion {
+                min: Vec3::new(-1.3, 0.0, -1.0),
+                max: Vec3::new(-1.2 + 2.0 * H, 2.0, 1.0),
+            }];
+            body.material = Material {
+                ..Material::default()
+            };
+            let config = SimConfig {
+                ground: None,
+                iterations: 20,
+                damping: 2.0,
+                ..config
+            };
+            Scene {
+                config,
+                bodies: vec![body],
+                tools: vec![],
+                frames: 600,
+            }
+        }
+        "slice" => {
+            let (body, pedestal) =
+                block_on_pedestal(UVec3::new(24, 12, 12), Vec3::new(0.25, 0.0, 0.5));
+            let top = body.position.y + 0.9;
+            let config = SimConfig {
+                boxes: vec![pedestal],
+                ..cutting_config(seed)
+            };
+            let tool = blade_vertical_cut(
+                std::f32::consts::FRAC_PI_2,
+                Vec3::ZERO,
+                top,
+                body.position.y - 0.9,
+                0.2,
+                0.5,
+            );
+            Scene {
+                config,
+                bodies: vec![body],
+                tools: vec![tool],
+                frames: 300,
+            }
+        }
+        "dice" => {
+            let (body, pedestal) =
+                block_on_pedestal(UVec3::new(24, 12, 24), Vec3::new(0.25, 0.0, 0.25));
+            let (top, bottom) = (body.position.y + 0.9, body.position.y - 0.9);
+            let config = SimConfig {
+                boxes: vec![pedestal],
+                ..cutting_config(seed)
+            };
+            let a = blade_vertical_cut(
+                std::f32::consts::FRAC_PI_2,
+                Vec3::ZERO,
+                top,
+                bottom,
+                0.2,
+                0.5,
+            );
+            let b = blade_vertical_cut(0.0, Vec3::ZERO, top, bottom, 0.2, 0.5);
+            Scene {
+                config,
+                bodies: vec![body],
+                tools: vec![a, b],
+                frames: 300,
+            }
+        }
+        "scoop" => {
+            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(24, 12, 12), H), H);
+            body.position = Vec3::new(0.0, 0.6, 0.0);
+            let y = body.position.y + 0.6;
+            let at = |x: f32| Pose::at(Vec3::new(x, y, 0.0));
+            let tool = ToolDesc {
+                shape: ToolShape::Sphere { radius: 0.3 },
+                cut_width: 0.5 * H,
+                path: Path {
+                    keys: vec![(0.2, at(-1.6)), (1.2, at(1.6))],
+                },
+                pose: at(-1.6),
+            };
+            Scene {
+                config: cutting_config(seed),
+                bodies: vec![body],
+                tools: vec![tool],
+                frames: 120,
+            }
+        }
+        "random" => random_scene(seed),
+        _ => return None,
+    })
+}
+
+/// A seeded sequence of random blade and sphere cuts through a block on the ground.
+fn random_scene(seed: u64) -> Scene {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
+    let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(20, 10, 10), H), H);
+    body.position = Vec3::new(0.0, 0.5, 0.0);
+    let mut tools = Vec::new();
+    for i in 0..8 {
+        let t0 = 0.2 + i as f32 * 0.3;
+        let dir = Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        )
+        .normalize_or(Vec3::X);
+        let start = body.position + dir * 2.0;
+        let end = body.position - dir * 2.0
+            + Vec3::new(
+                rng.random_range(-0.5..0.5),
+                0.0,
+                rng.random_range(-0.5..0.5),
+            );
+        let rotation = Quat::from_rotation_arc(
+            Vec3::Z,
+            Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            )
+            .normalize_or(Vec3::Y),
+        );
+        let (shape, width) = if rng.random_bool(0.5) {
+            (
+                ToolShape::Blade {
+                    half_width: 0.8,
+                    half_height: 0.8,
+                },
+                1.01 * H,
+            )
+        } else {
+            (
+                ToolShape::Sphere {
+                    radius: rng.random_range(0.1..0.3),
+                },
+                0.5 * H,
+            )
+        };
+        let path = Path {
+            keys: vec![
+                (
+                    t0,
+                    Pose {
+                        position: start,
+                        rotation,
+                    },
+                ),
+                (
+                    t0 + 0.25,
+                    Pose {
+                        position: end,
+                        rotation,
+                    },
+                ),
+            ],
+        };
+        tools.push(ToolDesc {
+            shape,
+            cut_width: width,
+            path,
+            pose: Pose {
+                position: start,
+                rotation,
+            },
+        });
+    }
+    Scene {
+        config: cutting_config(seed),
+        bodies: vec![body],
+        tools,
+        frames: 300,
+    }
+}

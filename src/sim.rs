@@ -1,0 +1,264 @@
+//! `Simulation`: a World plus the cleave schedules, for headless use; body and tool
+//! descriptions; `check_invariants` over a World.
+
+use crate::cluster_store::ClusterList;
+use crate::clustering::initial_clusters;
+use crate::components::*;
+use crate::config::{Material, SimConfig};
+use crate::error::{CleaveError, Result, check_finite_vec, check_positive};
+use crate::invariants::{Violation, check_body};
+use crate::lattice::Shape;
+use crate::resources::*;
+use crate::systems::{CleaveSchedule, install};
+use crate::tool::{Path, Pose, ToolShape};
+use bevy_ecs::message::message_update_system;
+use bevy_ecs::prelude::*;
+use glam::{Quat, Vec3};
+
+/// An axis-aligned world-space region whose particles are pinned (inverse mass 0).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PinRegion {
+    /// Minimum corner.
+    pub min: Vec3,
+    /// Maximum corner.
+    pub max: Vec3,
+}
+
+/// Everything needed to spawn a body.
+#[derive(Clone, Debug)]
+pub struct BodyDesc {
+    /// Shape to voxelise (local frame).
+    pub shape: Shape,
+    /// Lattice spacing h (> 0).
+    pub spacing: f32,
+    /// World position of the shape's local origin.
+    pub position: Vec3,
+    /// Initial rotation (rest shape stays unrotated: a rotated body returns to a
+    /// rotated copy of it).
+    pub rotation: Quat,
+    /// Initial velocity.
+    pub velocity: Vec3,
+    /// Material and clustering parameters.
+    pub material: Material,
+    /// Regions of pinned particles (world space, after placement).
+    pub pins: Vec<PinRegion>,
+}
+
+impl BodyDesc {
+    /// A body of the given shape and spacing with default material at the origin.
+    pub fn new(shape: Shape, spacing: f32) -> Self {
+        Self {
+            shape,
+            spacing,
+            position: Vec3::ZERO,
+            rotation: Quat::IDENTITY,
+            velocity: Vec3::ZERO,
+            material: Material::default(),
+            pins: Vec::new(),
+        }
+    }
+}
+
+/// Everything needed to spawn a cutting tool.
+#[derive(Clone, Debug)]
+pub struct ToolDesc {
+    /// Shape.
+    pub shape: ToolShape,
+    /// Width of the cut zone (> 0).
+    pub cut_width: f32,
+    /// Keyframed path; if empty the tool stays at `pose` until game code moves it.
+    pub path: Path,
+    /// Initial pose.
+    pub pose: Pose,
+}
+
+/// A headless simulation: a [`World`] with the cleave resources and schedules.
+pub struct Simulation {
+    world: World,
+}
+
+impl Simulation {
+    /// Validates `config` and builds an empty simulation.
+    pub fn new(config: SimConfig) -> Result<Self> {
+        config.validate()?;
+        let mut world = World::new();
+        install(&mut world, config);
+        Ok(Self { world })
+    }
+
+    /// The world (read).
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    /// The world (write), e.g. to move tools or pin particles from game code.
+    pub fn world_mut(&mut self) -> &mut World {
+        &mut self.world
+    }
+
+    /// The settings in force.
+    pub fn config(&self) -> &SimConfig {
+        &self.world.resource::<SimSettings>().0
+    }
+
+    /// Voxelises, clusters and spawns a body; returns the body entity.
+    pub fn spawn_body(&mut self, desc: &BodyDesc) -> Result<Entity> {
+        spawn_body(&mut self.world, desc)
+    }
+
+    /// Spawns a cutting tool; returns its entity.
+    pub fn spawn_tool(&mut self, desc: &ToolDesc) -> Result<Entity> {
+        desc.shape.validate()?;
+        check_positive("tool.cut_width", desc.cut_width)?;
+        desc.path.validate()?;
+        check_finite_vec("tool.pose.position", desc.pose.position)?;
+        let pose = desc
+            .path
+            .sample(self.world.resource::<SimClock>().time)
+            .unwrap_or(desc.pose);
+        let mut e = self.world.spawn((
+            Tool {
+                shape: desc.shape,
+                cut_width: desc.cut_width,
+            },
+            ToolPose {
+                current: pose,
+                last: pose,
+            },
+        ));
+        if !desc.path.keys.is_empty() {
+            e.insert(ToolPath(desc.path.clone()));
+        }
+        Ok(e.id())
+    }
+
+    /// Advances one frame.
+    pub fn step(&mut self) {
+        self.world.run_system_cached(message_update_system).ok();
+        self.world.run_schedule(CleaveSchedule);
+    }
+
+    /// Advances `frames` frames.
+    pub fn run(&mut self, frames: u32) {
+        for _ in 0..frames {
+            self.step();
+        }
+    }
+}
+
+/// Spawns a body into any world prepared with [`crate::systems::install`].
+pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
+    desc.material.validate()?;
+    check_positive("spacing", desc.spacing)?;
+    check_finite_vec("body.position", desc.position)?;
+    check_finite_vec("body.velocity", desc.velocity)?;
+    if !desc.rotation.is_finite() || desc.rotation.length() < 1e-6 {
+        return Err(crate::error::out_of_range(
+            "body.rotation",
+            desc.rotation,
+            "finite, non-zero quaternion",
+        ));
+    }
+    let lattice = desc.shape.voxelise(desc.spacing)?;
+    let table = {
+        let mut rng = world.resource_mut::<SimRng>();
+        initial_clusters(&lattice, &desc.material, &mut rng.0)
+    };
+    let rotation = desc.rotation.normalize();
+    let body = world
+        .spawn(Body {
+            material: desc.material.clone(),
+        })
+        .id();
+    let particles: Vec<Entity> = (0..lattice.len() as u32)
+        .map(|i| {
+            let rest = lattice.rest_position(i);
+            let x = desc.position + rotation * rest;
+            let pinned = desc
+                .pins
+                .iter()
+                .any(|r| x.cmpge(r.min).all() && x.cmple(r.max).all());
+            world
+                .spawn((
+                    Particle { body, index: i },
+                    Position(x),
+                    PrevPosition(x),
+                    Velocity(desc.velocity),
+                    InvMass(if pinned {
+                        0.0
+                    } else {
+                        1.0 / desc.material.particle_mass
+                    }),
+                    RestPosition(rest),
+                    LatticeCoord(lattice.coord(i)),
+                ))
+                .id()
+        })
+        .collect();
+    let mut index = vec![ClusterList::<Entity>::new(); lattice.len()];
+    for (_, members) in table.iter() {
+        let e = world
+            .spawn((
+                ClusterMembers(members.to_vec()),
+                ClusterOf(body),
+                Stiffness(desc.material.stiffness),
+            ))
+            .id();
+        crate::cluster_store::index_add(&mut index, members, e);
+    }
+    let pieces = crate::graph::body_pieces(&lattice).1;
+    world.entity_mut(body).insert((
+        BodyLattice {
+            lattice,
+            particles,
+            pieces,
+        },
+        ParticleClusters(index),
+    ));
+    Ok(body)
+}
+
+/// Checks SPEC §1/§3 invariants of every body in `world`; returns `(body, violation)`.
+pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
+    let mut clusters_by_body: std::collections::BTreeMap<Entity, Vec<(u64, &[u32])>> =
+        Default::default();
+    let Some(mut q) = world.try_query::<(Entity, &ClusterMembers, &ClusterOf)>() else {
+        return Vec::new();
+    };
+    for (e, m, of) in q.iter(world) {
+        clusters_by_body
+            .entry(of.0)
+            .or_default()
+            .push((e.to_bits(), m.0.as_slice()));
+    }
+    let Some(mut bodies) = world.try_query::<(Entity, &Body, &BodyLattice)>() else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for (e, body, lattice) in bodies.iter(world) {
+        let clusters = clusters_by_body.remove(&e).unwrap_or_default();
+        for v in check_body(
+            &lattice.lattice,
+            clusters,
+            body.material.max_cluster_size as usize,
+        ) {
+            out.push((e, v));
+        }
+    }
+    out
+}
+
+/// Finds the single body of a world, or an error naming how many there are.
+pub fn only_body(world: &mut World) -> Result<Entity> {
+    let bodies: Vec<Entity> = world
+        .query_filtered::<Entity, With<Body>>()
+        .iter(world)
+        .collect();
+    match bodies[..] {
+        [b] => Ok(b),
+        _ => Err(CleaveError::InvalidEntity(format!(
+            "expected one body, found {}",
+            bodies.len()
+        ))),
+    }
+}

@@ -1,0 +1,101 @@
+//! [`ClusterStore`] over ECS cluster entities: member lists live in `ClusterMembers`
+//! components, the particle index in the body's `ParticleClusters`. New clusters get
+//! reserved entities whose components are inserted by [`EcsClusterStore::finish`].
+
+use crate::cluster_store::{ClusterStore, index_add, index_remove, normalise};
+use crate::components::{ClusterMembers, ClusterOf, Stiffness};
+use bevy_ecs::prelude::*;
+use std::collections::{BTreeMap, HashSet};
+
+/// The clusters of one body, editable by the reconstruction algorithms.
+pub struct EcsClusterStore<'a, 'd, 'qw, 'qs, 'cw, 'cs> {
+    body: Entity,
+    stiffness: f32,
+    index: &'a mut Vec<crate::cluster_store::ClusterList<Entity>>,
+    clusters: &'a mut Query<'qw, 'qs, &'d mut ClusterMembers>,
+    commands: &'a mut Commands<'cw, 'cs>,
+    created: BTreeMap<Entity, Vec<u32>>,
+    removed: HashSet<Entity>,
+}
+
+impl<'a, 'd, 'qw, 'qs, 'cw, 'cs> EcsClusterStore<'a, 'd, 'qw, 'qs, 'cw, 'cs> {
+    /// Wraps one body's clusters; new clusters get `stiffness`.
+    pub fn new(
+        body: Entity,
+        stiffness: f32,
+        index: &'a mut Vec<crate::cluster_store::ClusterList<Entity>>,
+        clusters: &'a mut Query<'qw, 'qs, &'d mut ClusterMembers>,
+        commands: &'a mut Commands<'cw, 'cs>,
+    ) -> Self {
+        Self {
+            body,
+            stiffness,
+            index,
+            clusters,
+            commands,
+            created: BTreeMap::new(),
+            removed: HashSet::new(),
+        }
+    }
+
+    /// Inserts the components of the clusters created through this store.
+    pub fn finish(self) {
+        for (e, members) in self.created {
+            self.commands.entity(e).insert((
+                ClusterMembers(members),
+                ClusterOf(self.body),
+                Stiffness(self.stiffness),
+            ));
+        }
+    }
+}
+
+impl ClusterStore for EcsClusterStore<'_, '_, '_, '_, '_, '_> {
+    type Key = Entity;
+
+    fn clusters_of(&self, p: u32) -> &[Entity] {
+        self.index
+            .get(p as usize)
+            .map(|l| l.as_slice())
+            .unwrap_or(&[])
+    }
+
+    fn members(&self, k: Entity) -> &[u32] {
+        if self.removed.contains(&k) {
+            return &[];
+        }
+        if let Some(m) = self.created.get(&k) {
+            return m;
+        }
+        self.clusters.get(k).map(|m| m.0.as_slice()).unwrap_or(&[])
+    }
+
+    fn set_members(&mut self, k: Entity, members: Vec<u32>) {
+        let members = normalise(members);
+        let old = self.members(k).to_vec();
+        index_remove(self.index, &old, k);
+        index_add(self.index, &members, k);
+        if let Some(m) = self.created.get_mut(&k) {
+            *m = members;
+        } else if let Ok(mut m) = self.clusters.get_mut(k) {
+            m.0 = members;
+        }
+    }
+
+    fn create(&mut self, members: Vec<u32>) -> Entity {
+        let members = normalise(members);
+        let e = self.commands.spawn_empty().id();
+        index_add(self.index, &members, e);
+        self.created.insert(e, members);
+        e
+    }
+
+    fn remove(&mut self, k: Entity) {
+        let old = self.members(k).to_vec();
+        index_remove(self.index, &old, k);
+        if self.created.remove(&k).is_none() {
+            self.removed.insert(k);
+        }
+        self.commands.entity(k).despawn();
+    }
+}

@@ -1,0 +1,57 @@
+//! Stage expand (SPEC §3.4): rebuilt clusters grow by random adjacent particles; then
+//! every piece's cluster-overlap graph is made connected (the guarantee §3.4 aims at).
+//! Writes cluster data only.
+
+use super::ecs_store::EcsClusterStore;
+use crate::clustering::link_isolated_clusters;
+use crate::components::{Body, BodyLattice, ClusterMembers, ParticleClusters};
+use crate::reconstruct;
+use crate::resources::{ClustersRebuilt, CutTimings, RebuiltClusters, SimRng};
+use bevy_ecs::prelude::*;
+use std::time::Instant;
+
+/// Runs [`reconstruct::expand_clusters`] and [`link_isolated_clusters`].
+pub fn expand(
+    mut commands: Commands,
+    mut rng: ResMut<SimRng>,
+    rebuilt: Res<RebuiltClusters>,
+    mut timings: ResMut<CutTimings>,
+    mut bodies: Query<(&Body, &BodyLattice, &mut ParticleClusters)>,
+    mut clusters: Query<&mut ClusterMembers>,
+    mut messages: MessageWriter<ClustersRebuilt>,
+) {
+    if rebuilt.bodies.is_empty() {
+        return;
+    }
+    let start = Instant::now();
+    for (body_entity, keys) in &rebuilt.bodies {
+        let Ok((body, lattice, mut index)) = bodies.get_mut(*body_entity) else {
+            continue;
+        };
+        let m = &body.material;
+        let mut store = EcsClusterStore::new(
+            *body_entity,
+            m.stiffness,
+            &mut index.0,
+            &mut clusters,
+            &mut commands,
+        );
+        reconstruct::expand_clusters(
+            &mut store,
+            &lattice.lattice,
+            keys,
+            m.expand_count as usize,
+            m.max_cluster_size as usize,
+            &mut rng.0,
+        );
+        link_isolated_clusters(&mut store, &lattice.lattice, m.max_cluster_size as usize);
+        store.finish();
+        messages.write(ClustersRebuilt {
+            body: *body_entity,
+            clusters: keys.clone(),
+        });
+    }
+    let total = timings.current_ms + start.elapsed().as_secs_f64() * 1e3;
+    timings.event_ms.push(total);
+    timings.current_ms = 0.0;
+}

@@ -1,0 +1,146 @@
+//! The ECS stages of SPEC §2 as ordered system sets, and the schedules that run them.
+//!
+//! [`CleaveSchedule`] runs once per frame: [`SimStage::Substeps`] (an exclusive system
+//! that runs [`SubstepSchedule`] — predict → shape-match — `substeps` times), then
+//! `MoveTools → Detect → Cut → Regroup → Split → Expand`, chained, then the optional
+//! invariant check. Access contract (tested in `tests/schedule_access.rs`): predict and
+//! shape-match write particle data only; detect writes only its `CutList`; cut writes
+//! no cluster data; regroup/split/expand write no particle data.
+
+pub mod cut;
+pub mod detect;
+pub mod ecs_store;
+pub mod expand;
+pub mod move_tools;
+pub mod predict;
+pub mod regroup;
+pub mod shape_match;
+pub mod split;
+
+use crate::resources::*;
+use bevy_ecs::message::MessageRegistry;
+use bevy_ecs::prelude::*;
+use bevy_ecs::schedule::{LogLevel, ScheduleBuildSettings, ScheduleLabel, SingleThreadedExecutor};
+use rand::SeedableRng;
+
+/// The stages, in order.
+#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SimStage {
+    /// Forces, damping, predicted positions (in [`SubstepSchedule`]).
+    Predict,
+    /// Shape-matching constraint iterations and colliders (in [`SubstepSchedule`]).
+    ShapeMatch,
+    /// Runs the substep schedule (in [`CleaveSchedule`]).
+    Substeps,
+    /// Advances keyframed tools.
+    MoveTools,
+    /// Read-only collision detection producing the `CutList`.
+    Detect,
+    /// Removes the listed particles.
+    Cut,
+    /// SPEC §3.1–3.2.
+    Regroup,
+    /// SPEC §3.3, §4.
+    Split,
+    /// SPEC §3.4.
+    Expand,
+    /// Optional invariant check (debug / tests).
+    Verify,
+}
+
+/// Runs once per frame.
+#[derive(ScheduleLabel, Clone, Debug, PartialEq, Eq, Hash)]
+pub struct CleaveSchedule;
+
+/// Runs `substeps` times per frame: predict → shape-match.
+#[derive(ScheduleLabel, Clone, Debug, PartialEq, Eq, Hash)]
+pub struct SubstepSchedule;
+
+fn strict(schedule: &mut Schedule) {
+    schedule.set_build_settings(ScheduleBuildSettings {
+        ambiguity_detection: LogLevel::Error,
+        ..Default::default()
+    });
+    schedule.set_executor(SingleThreadedExecutor::new());
+}
+
+/// Builds the substep schedule (predict → shape-match).
+pub fn build_substep_schedule() -> Schedule {
+    let mut s = Schedule::new(SubstepSchedule);
+    strict(&mut s);
+    s.configure_sets((SimStage::Predict, SimStage::ShapeMatch).chain());
+    s.add_systems(predict::predict.in_set(SimStage::Predict));
+    s.add_systems(shape_match::shape_match.in_set(SimStage::ShapeMatch));
+    s
+}
+
+/// Builds the frame schedule (substeps, then detect → … → expand).
+pub fn build_schedule() -> Schedule {
+    let mut s = Schedule::new(CleaveSchedule);
+    strict(&mut s);
+    s.configure_sets(
+        (
+            SimStage::Substeps,
+            SimStage::MoveTools,
+            SimStage::Detect,
+            SimStage::Cut,
+            SimStage::Regroup,
+            SimStage::Split,
+            SimStage::Expand,
+            SimStage::Verify,
+        )
+            .chain(),
+    );
+    s.add_systems(run_substeps.in_set(SimStage::Substeps));
+    s.add_systems(move_tools::move_tools.in_set(SimStage::MoveTools));
+    s.add_systems(detect::detect.in_set(SimStage::Detect));
+    s.add_systems(cut::cut.in_set(SimStage::Cut));
+    s.add_systems(regroup::regroup.in_set(SimStage::Regroup));
+    s.add_systems(split::split.in_set(SimStage::Split));
+    s.add_systems(expand::expand.in_set(SimStage::Expand));
+    s.add_systems(
+        verify
+            .in_set(SimStage::Verify)
+            .run_if(invariant_checks_enabled),
+    );
+    s
+}
+
+/// Inserts every resource, registers the messages and adds both schedules to `world`.
+/// Afterwards `world.run_schedule(CleaveSchedule)` advances one frame.
+pub fn install(world: &mut World, config: crate::config::SimConfig) {
+    world.insert_resource(SimRng(rand_chacha::ChaCha8Rng::seed_from_u64(config.seed)));
+    world.insert_resource(SimSettings(config));
+    world.init_resource::<SimClock>();
+    world.init_resource::<CutList>();
+    world.init_resource::<CutReport>();
+    world.init_resource::<RebuiltClusters>();
+    world.init_resource::<SolverCache>();
+    world.init_resource::<CutTimings>();
+    MessageRegistry::register_message::<ParticlesCut>(world);
+    MessageRegistry::register_message::<ClustersRebuilt>(world);
+    MessageRegistry::register_message::<BodySplit>(world);
+    world.add_schedule(build_substep_schedule());
+    world.add_schedule(build_schedule());
+}
+
+/// Exclusive system: runs the substep schedule `substeps` times and advances the clock.
+pub fn run_substeps(world: &mut World) {
+    let config = world.resource::<SimSettings>().0.clone();
+    for _ in 0..config.substeps {
+        world.run_schedule(SubstepSchedule);
+    }
+    let mut clock = world.resource_mut::<SimClock>();
+    clock.frame += 1;
+    clock.time += config.dt;
+}
+
+fn invariant_checks_enabled(settings: Res<SimSettings>) -> bool {
+    settings.0.check_invariants_every_frame
+}
+
+/// Panics with the list of violations if any invariant is broken.
+pub fn verify(world: &World) {
+    let violations = crate::sim::check_invariants(world);
+    assert!(violations.is_empty(), "invariants violated: {violations:?}");
+}

@@ -1,0 +1,137 @@
+//! Stage shape-match (SPEC §2.2): gathers particles into the dense solver layout
+//! (rebuilt only when topology changes), runs the iterations with colliders, derives
+//! velocities, and scatters back. Writes particle data and its own cache only.
+
+use crate::components::*;
+use crate::resources::{SimSettings, SolverCache};
+use crate::solver::{ClusterSpec, Colliders, SolverLayout};
+use bevy_ecs::prelude::*;
+use glam::{Quat, Vec3, Vec3A};
+use std::collections::HashMap;
+
+/// Clusters that changed since the last run (any body).
+type TopologyChanged<'w, 's> = Query<
+    'w,
+    's,
+    (),
+    Or<(
+        Changed<ClusterMembers>,
+        Changed<Stiffness>,
+        Changed<BodyLattice>,
+    )>,
+>;
+
+/// One solver substep over all bodies.
+#[allow(clippy::too_many_arguments)]
+pub fn shape_match(
+    settings: Res<SimSettings>,
+    mut cache: ResMut<SolverCache>,
+    bodies: Query<(Entity, &BodyLattice)>,
+    clusters: Query<(Entity, &ClusterMembers, &ClusterOf, &Stiffness)>,
+    changed: TopologyChanged,
+    mut removed_clusters: RemovedComponents<ClusterMembers>,
+    mut removed_bodies: RemovedComponents<BodyLattice>,
+    mut particles: Query<(
+        Entity,
+        &mut Position,
+        &mut Velocity,
+        &PrevPosition,
+        &InvMass,
+    )>,
+) {
+    let removed = removed_clusters.read().count() + removed_bodies.read().count() > 0;
+    if !cache.valid || removed || !changed.is_empty() {
+        rebuild(&mut cache, &bodies, &clusters);
+    }
+    let config = &settings.0;
+    let cache = &mut *cache;
+    for (e, x, _, prev, inv_mass) in &particles {
+        if let Some(&d) = cache.dense_of.get(e.index_u32() as usize)
+            && d != u32::MAX
+        {
+            cache.layout.positions[d as usize] = Vec3A::from(x.0);
+            cache.layout.previous[d as usize] = Vec3A::from(prev.0);
+            cache.layout.inv_mass[d as usize] = inv_mass.0;
+        }
+    }
+    let colliders = Colliders {
+        ground: config.ground,
+        boxes: config.boxes.clone(),
+    };
+    cache.layout.solve(config.iterations, &colliders);
+    let inv_dt = config.substeps as f32 / config.dt;
+    for (e, mut x, mut v, prev, _) in &mut particles {
+        if let Some(&d) = cache.dense_of.get(e.index_u32() as usize)
+            && d != u32::MAX
+        {
+            let p = Vec3::from(cache.layout.positions[d as usize]);
+            v.0 = (p - prev.0) * inv_dt;
+            x.0 = p;
+        }
+    }
+}
+
+/// Rebuilds the dense layout from the ECS, keeping warm-start rotations by cluster.
+fn rebuild(
+    cache: &mut SolverCache,
+    bodies: &Query<(Entity, &BodyLattice)>,
+    clusters: &Query<(Entity, &ClusterMembers, &ClusterOf, &Stiffness)>,
+) {
+    let warm: HashMap<Entity, Quat> = cache
+        .clusters
+        .iter()
+        .copied()
+        .zip(cache.layout.rotations.iter().copied())
+        .collect();
+    let mut body_list: Vec<(Entity, &BodyLattice)> = bodies.iter().collect();
+    body_list.sort_unstable_by_key(|(e, _)| *e);
+    let mut rest = Vec::new();
+    let mut particles = Vec::new();
+    let mut owners = Vec::new();
+    let mut local_to_dense: HashMap<Entity, Vec<u32>> = HashMap::new();
+    for (body, lattice) in &body_list {
+        let l = &lattice.lattice;
+        let mut map = vec![u32::MAX; l.len()];
+        for i in l.live_particles() {
+            map[i as usize] = rest.len() as u32;
+            rest.push(l.rest_position(i));
+            particles.push(lattice.particles[i as usize]);
+            owners.push((*body, i));
+        }
+        local_to_dense.insert(*body, map);
+    }
+    let mut cluster_list: Vec<(Entity, Entity, Vec<u32>, f32)> = clusters
+        .iter()
+        .filter_map(|(e, members, of, stiffness)| {
+            let map = local_to_dense.get(&of.0)?;
+            let dense: Vec<u32> = members
+                .0
+                .iter()
+                .filter_map(|m| map.get(*m as usize).copied().filter(|d| *d != u32::MAX))
+                .collect();
+            (!dense.is_empty()).then_some((of.0, e, dense, stiffness.0.clamp(0.0, 1.0)))
+        })
+        .collect();
+    cluster_list.sort_unstable_by_key(|(body, e, _, _)| (*body, *e));
+    let specs = cluster_list
+        .iter()
+        .map(|(_, e, members, stiffness)| ClusterSpec {
+            members,
+            stiffness: *stiffness,
+            rotation: warm.get(e).copied().unwrap_or(Quat::IDENTITY),
+        });
+    cache.layout = SolverLayout::new(&rest, specs);
+    let max_index = particles
+        .iter()
+        .map(|e| e.index_u32() as usize + 1)
+        .max()
+        .unwrap_or(0);
+    cache.dense_of = vec![u32::MAX; max_index];
+    for (d, e) in particles.iter().enumerate() {
+        cache.dense_of[e.index_u32() as usize] = d as u32;
+    }
+    cache.particles = particles;
+    cache.owners = owners;
+    cache.clusters = cluster_list.into_iter().map(|(_, e, _, _)| e).collect();
+    cache.valid = true;
+}
