@@ -48,9 +48,11 @@ pub const BUILTIN_SCENES: [(&str, &str); 6] = [
 
 const H: f32 = 0.1;
 
+/// A blade through the vertical axis, its normal yawed `normal_yaw` from +Z, moving
+/// down from `from_y` to `to_y` between times `t0` and `t1`, then leaving below the ground.
 fn blade_vertical_cut(
     normal_yaw: f32,
-    centre: Vec3,
+    width: f32,
     from_y: f32,
     to_y: f32,
     t0: f32,
@@ -59,7 +61,7 @@ fn blade_vertical_cut(
     // Blade normal is local Z; yaw it about Y so the normal lies in the XZ plane.
     let rotation = Quat::from_rotation_y(normal_yaw);
     let at = |y: f32| Pose {
-        position: Vec3::new(centre.x, y, centre.z),
+        position: Vec3::new(0.0, y, 0.0),
         rotation,
     };
     ToolDesc {
@@ -67,9 +69,9 @@ fn blade_vertical_cut(
             half_width: 2.0,
             half_height: 0.3,
         },
-        cut_width: 1.01 * H,
+        cut_width: width,
         path: Path {
-            keys: vec![(t0, at(from_y)), (t1, at(to_y))],
+            keys: vec![(t0, at(from_y)), (t1, at(to_y)), (t1 + 0.05, at(-5.0))],
         },
         pose: at(from_y),
     }
@@ -136,20 +138,14 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
         }
         "slice" => {
             let (body, pedestal) =
-                block_on_pedestal(UVec3::new(24, 12, 12), Vec3::new(0.25, 0.0, 0.5));
+                block_on_pedestal(UVec3::new(24, 12, 12), Vec3::new(0.4, 0.0, 0.8));
             let top = body.position.y + 0.9;
             let config = SimConfig {
                 boxes: vec![pedestal],
                 ..cutting_config(seed)
             };
-            let tool = blade_vertical_cut(
-                std::f32::consts::FRAC_PI_2,
-                Vec3::ZERO,
-                top,
-                body.position.y - 0.9,
-                0.2,
-                0.5,
-            );
+            let (bottom, half_pi) = (body.position.y - 0.9, std::f32::consts::FRAC_PI_2);
+            let tool = blade_vertical_cut(half_pi, 1.01 * H, top, bottom, 0.2, 0.5);
             Scene {
                 config,
                 bodies: vec![body],
@@ -159,21 +155,15 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
         }
         "dice" => {
             let (body, pedestal) =
-                block_on_pedestal(UVec3::new(24, 12, 24), Vec3::new(0.25, 0.0, 0.25));
+                block_on_pedestal(UVec3::new(24, 12, 24), Vec3::new(0.4, 0.0, 0.4));
             let (top, bottom) = (body.position.y + 0.9, body.position.y - 0.9);
             let config = SimConfig {
                 boxes: vec![pedestal],
                 ..cutting_config(seed)
             };
-            let a = blade_vertical_cut(
-                std::f32::consts::FRAC_PI_2,
-                Vec3::ZERO,
-                top,
-                bottom,
-                0.2,
-                0.5,
-            );
-            let b = blade_vertical_cut(0.0, Vec3::ZERO, top, bottom, 0.2, 0.5);
+            let a =
+                blade_vertical_cut(std::f32::consts::FRAC_PI_2, 1.5 * H, top, bottom, 0.2, 0.25);
+            let b = blade_vertical_cut(0.0, 1.5 * H, top, bottom, 0.2, 0.25);
             Scene {
                 config,
                 bodies: vec![body],

@@ -71,8 +71,8 @@ struct Summary {
     tip_drop_h_half: f64,
     tip_drop_h_end: f64,
     pinned_max_displacement_h: f64,
-    piece_spread_start_h: f64,
-    piece_spread_end_h: f64,
+    piece_separation_start_h: f64,
+    piece_separation_end_h: f64,
     cut_events: usize,
     cut_event_ms_median: f64,
     cut_event_ms_max: f64,
@@ -87,18 +87,44 @@ fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
-/// Mean distance of the piece centroids from their common mean, in units of h.
-fn piece_spread(stats: &BodyStats, h: f32) -> f64 {
-    let c = &stats.piece_centroids;
-    if c.len() < 2 {
-        return 0.0;
+/// Mean pairwise distance between the centroids of the final pieces, in units of h,
+/// with the centroids taken over the same particles at the start and at the end.
+fn piece_separation(
+    lattice: &cleave::lattice::Lattice,
+    start: &[glam::Vec3],
+    end: &[glam::Vec3],
+    h: f32,
+) -> (f64, f64) {
+    let (labels, pieces) = cleave::graph::body_pieces(lattice);
+    if pieces < 2 {
+        return (0.0, 0.0);
     }
-    let mean = c.iter().map(|p| glam::Vec3::from(*p)).sum::<glam::Vec3>() / c.len() as f32;
-    (c.iter()
-        .map(|p| glam::Vec3::from(*p).distance(mean))
-        .sum::<f32>()
-        / c.len() as f32
-        / h) as f64
+    let centroids = |pos: &[glam::Vec3]| {
+        let mut sum = vec![(glam::Vec3::ZERO, 0usize); pieces];
+        for i in lattice.live_particles() {
+            let s = &mut sum[labels[i as usize] as usize];
+            s.0 += pos[i as usize];
+            s.1 += 1;
+        }
+        sum.into_iter()
+            .map(|(v, n)| v / n as f32)
+            .collect::<Vec<_>>()
+    };
+    let mean_distance = |c: &[glam::Vec3]| {
+        let mut total = 0.0;
+        let mut pairs = 0;
+        for a in 0..c.len() {
+            for b in a + 1..c.len() {
+                total += c[a].distance(c[b]);
+                pairs += 1;
+            }
+        }
+        (total / pairs as f32 / h) as f64
+    };
+    (
+        mean_distance(&centroids(start)),
+        mean_distance(&centroids(end)),
+    )
 }
 
 fn run(
@@ -149,6 +175,12 @@ fn run(
         .filter_map(|i| Some((i, position_of(&sim, i)?)))
         .collect();
     let before = body_stats(sim.world_mut(), body).ok_or("no body")?;
+    let all_positions = |sim: &Simulation| -> Vec<glam::Vec3> {
+        (0..lattice.lattice.len() as u32)
+            .map(|i| position_of(sim, i).unwrap_or(glam::Vec3::ZERO))
+            .collect()
+    };
+    let start_positions = all_positions(&sim);
     let mut step_ms = Vec::new();
     let mut half = before.clone();
     let mut tip_half = 0.0;
@@ -182,6 +214,13 @@ fn run(
         .filter_map(|(i, p0)| Some(position_of(&sim, *i)?.distance(*p0) / h))
         .fold(0.0f32, f32::max) as f64;
     let violations = check_invariants(sim.world());
+    let final_lattice = sim
+        .world()
+        .get::<BodyLattice>(body)
+        .ok_or("no lattice")?
+        .lattice
+        .clone();
+    let separation = piece_separation(&final_lattice, &start_positions, &all_positions(&sim), h);
     let mut events = sim.world().resource::<CutTimings>().event_ms.clone();
     let summary = Summary {
         scene: scene_name.into(),
@@ -197,8 +236,8 @@ fn run(
         final_shape_error_h: after.shape_error_h,
         lowest_particle_y_h: after.lowest_y / h as f64,
         finite: after.finite,
-        piece_spread_start_h: piece_spread(&half, h).min(piece_spread(&before, h)),
-        piece_spread_end_h: piece_spread(&after, h),
+        piece_separation_start_h: separation.0,
+        piece_separation_end_h: separation.1,
         half_time: half,
         tip_drop_h_half: tip_half,
         tip_drop_h_end: tip_end,
@@ -270,6 +309,10 @@ fn run(
         summary.cut_events,
         summary.cut_event_ms_median,
         summary.cut_event_ms_max
+    );
+    println!(
+        "  piece centroids {:.2} h apart at start, {:.2} h at end",
+        separation.0, separation.1
     );
     println!(
         "  tip drop {:.3} h at half time, {:.3} h at end; pinned moved ≤ {:.4} h; invariant violations {}",
