@@ -46,8 +46,13 @@ pub struct SolverLayout {
     pub positions: Vec<Vec3A>,
     /// Positions at the start of the substep.
     pub previous: Vec<Vec3A>,
+    /// Velocities after prediction; [`SolverLayout::update_velocities`] adds the
+    /// solver's corrections.
+    pub velocities: Vec<Vec3A>,
     /// Inverse masses (0 = pinned).
     pub inv_mass: Vec<f32>,
+    /// Total position correction per particle during the last [`SolverLayout::solve`].
+    pub corrections: Vec<Vec3A>,
     /// Warm-start rotation per cluster.
     pub rotations: Vec<Quat>,
     cluster_start: Vec<u32>,
@@ -55,6 +60,8 @@ pub struct SolverLayout {
     rest_offset: Vec<Vec3A>,
     member_weight: Vec<f32>,
     stiffness: Vec<f32>,
+    offset_bias: Vec<Vec3A>,
+    weight_sum: Vec<f32>,
     particle_start: Vec<u32>,
     particle_slots: Vec<u32>,
     inv_count: Vec<f32>,
@@ -89,6 +96,8 @@ impl SolverLayout {
         let mut layout = SolverLayout {
             positions: rest.iter().map(|r| Vec3A::from(*r)).collect(),
             previous: rest.iter().map(|r| Vec3A::from(*r)).collect(),
+            velocities: vec![Vec3A::ZERO; n],
+            corrections: vec![Vec3A::ZERO; n],
             inv_mass: vec![1.0; n],
             inv_count: count
                 .iter()
@@ -111,16 +120,20 @@ impl SolverLayout {
                 .map(|(m, w)| rest[*m as usize] * *w)
                 .sum::<Vec3>()
                 / total;
+            let (mut bias, mut weight_sum) = (glam::DVec3::ZERO, 0.0f64);
             for (m, w) in c.members.iter().zip(&weights) {
+                let (weight, offset) = (w / total, Vec3A::from(rest[*m as usize] - centroid));
                 layout.member_particle.push(*m);
-                layout.member_weight.push(w / total);
-                layout
-                    .rest_offset
-                    .push(Vec3A::from(rest[*m as usize] - centroid));
+                layout.member_weight.push(weight);
+                layout.rest_offset.push(offset);
+                bias += Vec3::from(offset).as_dvec3() * weight as f64;
+                weight_sum += weight as f64;
             }
             layout
                 .cluster_start
                 .push(layout.member_particle.len() as u32);
+            layout.offset_bias.push(Vec3A::from(bias.as_vec3()));
+            layout.weight_sum.push(weight_sum as f32);
             layout.stiffness.push(c.stiffness);
             layout.rotations.push(c.rotation);
         }
@@ -163,15 +176,31 @@ impl SolverLayout {
 
     /// Runs `iterations` Jacobi shape-matching iterations, each followed by collisions.
     pub fn solve(&mut self, iterations: u32, colliders: &Colliders) {
+        self.corrections.iter_mut().for_each(|c| *c = Vec3A::ZERO);
         for _ in 0..iterations {
             self.match_clusters();
             self.move_particles(colliders);
         }
     }
 
+    /// Adds the last solve's corrections to the velocities: `v += Σ Δp / dt`.
+    ///
+    /// Deriving velocity from the corrections rather than from `(p − p_prev) / dt` keeps
+    /// the rounding of large absolute positions out of the velocities, so momentum is
+    /// conserved to the precision of the (small) corrections.
+    pub fn update_velocities(&mut self, inv_dt: f32) {
+        let corrections = &self.corrections;
+        self.velocities
+            .par_iter_mut()
+            .zip(corrections)
+            .with_min_len(PARTICLES_PER_TASK)
+            .for_each(|(v, c)| *v += *c * inv_dt);
+    }
+
     /// Cluster pass: optimal rotation per cluster and goal displacement per membership.
     fn match_clusters(&mut self) {
         let positions = &self.positions;
+        let (bias, weight_sum) = (&self.offset_bias, &self.weight_sum);
         let (start, members, offsets, weights, stiffness) = (
             &self.cluster_start,
             &self.member_particle,
@@ -196,10 +225,14 @@ impl SolverLayout {
                 for (i, rotation) in rotations.iter_mut().enumerate() {
                     let k = first_cluster + i;
                     let range = start[k] as usize..start[k + 1] as usize;
+                    // Work relative to the first member: differences of nearby positions
+                    // are exact, so A and the goals keep full precision far from the
+                    // origin. Σ w·q = 0, so the reference point does not change A.
+                    let origin = positions[members[range.start] as usize];
                     let mut centroid = Vec3A::ZERO;
                     let mut a = Mat3A::ZERO;
                     for s in range.clone() {
-                        let p = positions[members[s] as usize];
+                        let p = positions[members[s] as usize] - origin;
                         let w = weights[s];
                         centroid += p * w;
                         let wq = offsets[s] * w;
@@ -209,9 +242,11 @@ impl SolverLayout {
                     }
                     *rotation = extract_rotation(&Mat3::from(a), *rotation, ROTATION_ITERATIONS);
                     let r = Mat3A::from_quat(*rotation);
+                    // Exact momentum balance in f32: Σw(Rq + c − p) = R·Σwq + c·Σw − Σwp = 0.
+                    let centroid = (centroid - r * bias[k]) / weight_sum[k];
                     let s_k = stiffness[k];
                     for s in range {
-                        let p = positions[members[s] as usize];
+                        let p = positions[members[s] as usize] - origin;
                         deltas[s - first_slot] = (r * offsets[s] + centroid - p) * s_k;
                     }
                 }
@@ -230,10 +265,11 @@ impl SolverLayout {
         );
         self.positions
             .par_chunks_mut(PARTICLES_PER_TASK)
+            .zip(self.corrections.par_chunks_mut(PARTICLES_PER_TASK))
             .enumerate()
-            .for_each(|(task, chunk)| {
+            .for_each(|(task, (chunk, corrections))| {
                 let base = task * PARTICLES_PER_TASK;
-                for (j, p) in chunk.iter_mut().enumerate() {
+                for (j, (p, correction)) in chunk.iter_mut().zip(corrections).enumerate() {
                     let i = base + j;
                     if inv_mass[i] == 0.0 {
                         continue;
@@ -242,8 +278,11 @@ impl SolverLayout {
                     for &slot in &slots[starts[i] as usize..starts[i + 1] as usize] {
                         sum += deltas[slot as usize];
                     }
-                    *p += sum * inv_count[i];
+                    let step = sum * inv_count[i];
+                    *p += step;
+                    let unconstrained = *p;
                     resolve_colliders(p, previous[i], colliders);
+                    *correction += step + (*p - unconstrained);
                 }
             });
     }

@@ -45,12 +45,13 @@ pub fn shape_match(
     }
     let config = &settings.0;
     let cache = &mut *cache;
-    for (e, x, _, prev, inv_mass) in &particles {
+    for (e, x, v, prev, inv_mass) in &particles {
         if let Some(&d) = cache.dense_of.get(e.index_u32() as usize)
             && d != u32::MAX
         {
             cache.layout.positions[d as usize] = Vec3A::from(x.0);
             cache.layout.previous[d as usize] = Vec3A::from(prev.0);
+            cache.layout.velocities[d as usize] = Vec3A::from(v.0);
             cache.layout.inv_mass[d as usize] = inv_mass.0;
         }
     }
@@ -59,14 +60,15 @@ pub fn shape_match(
         boxes: config.boxes.clone(),
     };
     cache.layout.solve(config.iterations, &colliders);
-    let inv_dt = config.substeps as f32 / config.dt;
-    for (e, mut x, mut v, prev, _) in &mut particles {
+    cache
+        .layout
+        .update_velocities(config.substeps as f32 / config.dt);
+    for (e, mut x, mut v, _, _) in &mut particles {
         if let Some(&d) = cache.dense_of.get(e.index_u32() as usize)
             && d != u32::MAX
         {
-            let p = Vec3::from(cache.layout.positions[d as usize]);
-            v.0 = (p - prev.0) * inv_dt;
-            x.0 = p;
+            x.0 = Vec3::from(cache.layout.positions[d as usize]);
+            v.0 = Vec3::from(cache.layout.velocities[d as usize]);
         }
     }
 }
