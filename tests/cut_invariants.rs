@@ -1,0 +1,266 @@
+//! Property tests: SPEC §1/§3 invariants hold after every cut, for hundreds of random
+//! cuts on random shapes — through the pure reconstruction pipeline (arbitrary removed
+//! sets: single survivors, everything removed) and through the ECS with real tools.
+
+use cleave::cluster_store::{ClusterStore, ClusterTable};
+use cleave::clustering::{initial_clusters, link_isolated_clusters};
+use cleave::config::Material;
+use cleave::invariants::check_body;
+use cleave::lattice::{Lattice, Shape};
+use cleave::prelude::*;
+use cleave::reconstruct::{expand_clusters, regroup, split_oversized};
+use glam::{Quat, UVec3, Vec3};
+use proptest::prelude::*;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+fn shape_strategy() -> impl Strategy<Value = Shape> {
+    prop_oneof![
+        (2u32..9, 1u32..7, 1u32..7).prop_map(|(x, y, z)| Shape::cuboid(UVec3::new(x, y, z), 1.0)),
+        (1.0f32..4.5).prop_map(|radius| Shape::Sphere { radius }),
+        (0.8f32..2.5, 0.0f32..3.0).prop_map(|(radius, half_length)| Shape::Capsule {
+            radius,
+            half_length
+        }),
+    ]
+}
+
+fn material_strategy() -> impl Strategy<Value = Material> {
+    (1u32..3, 0u32..3, 2u32..60, 0u32..8).prop_map(|(r, o, max, expand)| Material {
+        cluster_radius: r,
+        cluster_overlap: o.min(2 * r),
+        max_cluster_size: max,
+        expand_count: expand,
+        ..Material::default()
+    })
+}
+
+/// One cut: remove the particles selected by a plane slab, a ball, or a random subset.
+#[derive(Clone, Debug)]
+enum Cut {
+    Slab {
+        normal: Vec3,
+        offset: f32,
+        width: f32,
+    },
+    Ball {
+        centre: Vec3,
+        radius: f32,
+    },
+    Random {
+        keep_one_in: u32,
+        seed: u64,
+    },
+}
+
+fn cut_strategy() -> impl Strategy<Value = Cut> {
+    prop_oneof![
+        (
+            prop::array::uniform3(-1.0f32..1.0),
+            -3.0f32..3.0,
+            1.0f32..2.5
+        )
+            .prop_map(|(n, offset, width)| Cut::Slab {
+                normal: Vec3::from(n).normalize_or(Vec3::X),
+                offset,
+                width
+            }),
+        (prop::array::uniform3(-4.0f32..4.0), 0.5f32..6.0).prop_map(|(c, radius)| Cut::Ball {
+            centre: Vec3::from(c),
+            radius
+        }),
+        (1u32..6, any::<u64>()).prop_map(|(keep_one_in, seed)| Cut::Random { keep_one_in, seed }),
+    ]
+}
+
+fn selected(cut: &Cut, lattice: &Lattice) -> Vec<u32> {
+    let mut rng = ChaCha8Rng::seed_from_u64(match cut {
+        Cut::Random { seed, .. } => *seed,
+        _ => 0,
+    });
+    lattice
+        .live_particles()
+        .filter(|&i| {
+            let x = lattice.rest_position(i);
+            match cut {
+                Cut::Slab {
+                    normal,
+                    offset,
+                    width,
+                } => (normal.dot(x) - offset).abs() <= width * 0.5,
+                Cut::Ball { centre, radius } => x.distance(*centre) <= *radius,
+                Cut::Random { keep_one_in, .. } => {
+                    rand::Rng::random_ratio(&mut rng, *keep_one_in - 1, *keep_one_in)
+                        || *keep_one_in == 1
+                }
+            }
+        })
+        .collect()
+}
+
+fn violations(table: &ClusterTable, lattice: &Lattice, max: u32) -> Vec<String> {
+    check_body(
+        lattice,
+        table.iter().map(|(k, m)| (k as u64, m)),
+        max as usize,
+    )
+    .iter()
+    .map(|v| v.to_string())
+    .collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+
+    /// Pure pipeline: regroup → split → expand → link after each of several cuts.
+    #[test]
+    fn invariants_hold_after_every_cut(shape in shape_strategy(), material in material_strategy(), cuts in prop::collection::vec(cut_strategy(), 1..5), seed in any::<u64>()) {
+        let mut lattice = shape.voxelise(1.0).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut table = initial_clusters(&lattice, &material, &mut rng);
+        let max = material.max_cluster_size;
+        prop_assert_eq!(violations(&table, &lattice, max), Vec::<String>::new());
+        for cut in &cuts {
+            let removed = selected(cut, &lattice);
+            let mut cut_clusters: Vec<u32> = removed.iter().flat_map(|p| table.clusters_of(*p).to_vec()).collect();
+            cut_clusters.sort_unstable();
+            cut_clusters.dedup();
+            for p in &removed {
+                lattice.remove(*p);
+            }
+            let produced = regroup(&mut table, &lattice, &cut_clusters, &mut rng);
+            let produced = split_oversized(&mut table, &lattice, &produced, max as usize, &mut rng);
+            expand_clusters(&mut table, &lattice, &produced, material.expand_count as usize, max as usize, &mut rng);
+            link_isolated_clusters(&mut table, &lattice, max as usize);
+            let v = violations(&table, &lattice, max);
+            prop_assert!(v.is_empty(), "after {:?}: {:?}", cut, v);
+        }
+    }
+}
+
+type ToolCase = (bool, [f32; 3], [f32; 3], f32);
+
+/// Whole ECS schedule with real tools (blades at random angles, spheres); the schedule's
+/// Verify stage checks the invariants every frame and panics on a violation.
+fn run_ecs_case(cells: (u32, u32, u32), tools: &[ToolCase], seed: u64) -> (usize, usize) {
+    let config = SimConfig {
+        seed,
+        iterations: 3,
+        check_invariants_every_frame: true,
+        ..SimConfig::default()
+    };
+    let mut sim = Simulation::new(config).unwrap();
+    let h = 0.1;
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(cells.0, cells.1, cells.2), h), h);
+    desc.position = Vec3::new(0.0, 0.5, 0.0);
+    desc.material.max_cluster_size = 30;
+    let body = sim.spawn_body(&desc).unwrap();
+    for (i, (blade, dir, offset, size)) in tools.iter().enumerate() {
+        let rotation = Quat::from_rotation_arc(Vec3::Z, Vec3::from(*dir).normalize_or(Vec3::Y));
+        let centre = desc.position + Vec3::from(*offset);
+        let (shape, width) = if *blade {
+            (
+                ToolShape::Blade {
+                    half_width: 2.0,
+                    half_height: 2.0,
+                },
+                1.01 * h,
+            )
+        } else {
+            (ToolShape::Sphere { radius: *size }, 0.5 * h)
+        };
+        let away = Pose {
+            position: centre + Vec3::Y * 3.0,
+            rotation,
+        };
+        let t0 = 0.05 + i as f32 * 0.25;
+        let path = Path {
+            keys: vec![
+                (t0, away),
+                (
+                    t0 + 0.1,
+                    Pose {
+                        position: centre,
+                        rotation,
+                    },
+                ),
+                (t0 + 0.2, away),
+            ],
+        };
+        sim.spawn_tool(&ToolDesc {
+            shape,
+            cut_width: width,
+            path,
+            pose: away,
+        })
+        .unwrap();
+    }
+    let before = cleave::stats::body_stats(sim.world_mut(), body)
+        .unwrap()
+        .particles;
+    sim.run(60);
+    assert!(check_invariants(sim.world()).is_empty());
+    (
+        before,
+        cleave::stats::body_stats(sim.world_mut(), body)
+            .unwrap()
+            .particles,
+    )
+}
+
+#[test]
+fn ecs_cuts_keep_invariants() {
+    use proptest::test_runner::{Config, TestRunner};
+    let tool = (
+        any::<bool>(),
+        prop::array::uniform3(-1.0f32..1.0),
+        prop::array::uniform3(-0.4f32..0.4),
+        0.05f32..0.4,
+    );
+    let strategy = (
+        (3u32..9, 2u32..7, 2u32..7),
+        prop::collection::vec(tool, 1..4),
+        any::<u64>(),
+    );
+    let mut runner = TestRunner::new(Config {
+        cases: 60,
+        ..Config::default()
+    });
+    let cut_cases = std::cell::Cell::new(0);
+    runner
+        .run(&strategy, |(cells, tools, seed)| {
+            let (before, after) = run_ecs_case(cells, &tools, seed);
+            cut_cases.set(cut_cases.get() + usize::from(after < before));
+            Ok(())
+        })
+        .unwrap();
+    assert!(
+        cut_cases.get() >= 45,
+        "only {} of 60 cases cut anything",
+        cut_cases.get()
+    );
+}
+
+#[test]
+fn a_cut_that_removes_everything_leaves_a_legal_empty_body() {
+    let mut sim = Simulation::new(SimConfig {
+        check_invariants_every_frame: true,
+        ..SimConfig::default()
+    })
+    .unwrap();
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(4, 4, 4), 0.1), 0.1);
+    desc.position = Vec3::new(0.0, 1.0, 0.0);
+    let body = sim.spawn_body(&desc).unwrap();
+    let pose = Pose::at(desc.position);
+    sim.spawn_tool(&ToolDesc {
+        shape: ToolShape::Sphere { radius: 2.0 },
+        cut_width: 0.1,
+        path: Path::default(),
+        pose,
+    })
+    .unwrap();
+    sim.run(3);
+    let stats = cleave::stats::body_stats(sim.world_mut(), body).unwrap();
+    assert_eq!((stats.particles, stats.clusters, stats.pieces), (0, 0, 0));
+    assert!(check_invariants(sim.world()).is_empty());
+}
