@@ -26,7 +26,7 @@ pub fn extract_rotation(a: &Mat3, warm: Quat, max_iterations: u32) -> Quat {
         let dot = r.x_axis.dot(a.x_axis) + r.y_axis.dot(a.y_axis) + r.z_axis.dot(a.z_axis);
         let omega = omega / (dot.abs() + 1e-9);
         let w = omega.length();
-        if !(w > 1e-9) || !w.is_finite() {
+        if w.is_nan() || w <= 1e-9 || !w.is_finite() {
             break;
         }
         q = (Quat::from_axis_angle(omega / w, w) * q).normalize();
