@@ -14,8 +14,15 @@ use rand_chacha::ChaCha8Rng;
 /// A body and its clusters before the cut, the slab of particles to cut, and the cut lattice.
 fn prepared(n: u32) -> (Lattice, ClusterTable, Vec<u32>, Lattice) {
     let lattice = Shape::cuboid(UVec3::splat(n), 1.0).voxelise(1.0).unwrap();
-    let table = initial_clusters(&lattice, &Material::default(), &mut ChaCha8Rng::seed_from_u64(1));
-    let slab: Vec<u32> = lattice.live_particles().filter(|i| matches!(lattice.coord(*i).x, -1 | 0)).collect();
+    let table = initial_clusters(
+        &lattice,
+        &Material::default(),
+        &mut ChaCha8Rng::seed_from_u64(1),
+    );
+    let slab: Vec<u32> = lattice
+        .live_particles()
+        .filter(|i| matches!(lattice.coord(*i).x, -1 | 0))
+        .collect();
     let mut cut = lattice.clone();
     for p in &slab {
         cut.remove(*p);
@@ -25,13 +32,23 @@ fn prepared(n: u32) -> (Lattice, ClusterTable, Vec<u32>, Lattice) {
 
 fn cut_event(lattice: &Lattice, table: &mut ClusterTable, slab: &[u32], material: &Material) {
     let mut rng = ChaCha8Rng::seed_from_u64(2);
-    let mut cut_clusters: Vec<u32> = slab.iter().flat_map(|p| table.clusters_of(*p).to_vec()).collect();
+    let mut cut_clusters: Vec<u32> = slab
+        .iter()
+        .flat_map(|p| table.clusters_of(*p).to_vec())
+        .collect();
     cut_clusters.sort_unstable();
     cut_clusters.dedup();
     let max = material.max_cluster_size as usize;
     let produced = regroup(table, lattice, &cut_clusters, &mut rng);
     let produced = split_oversized(table, lattice, &produced, max, &mut rng);
-    expand_clusters(table, lattice, &produced, material.expand_count as usize, max, &mut rng);
+    expand_clusters(
+        table,
+        lattice,
+        &produced,
+        material.expand_count as usize,
+        max,
+        &mut rng,
+    );
     link_isolated_clusters(table, lattice, max);
 }
 
@@ -42,7 +59,11 @@ fn cut(c: &mut Criterion) {
     for n in [32u32, 64] {
         let (_, table, slab, cut) = prepared(n);
         group.bench_function(format!("slice_event/{n}^3"), |b| {
-            b.iter_batched(|| table.clone(), |mut t| cut_event(&cut, &mut t, &slab, &material), BatchSize::LargeInput)
+            b.iter_batched(
+                || table.clone(),
+                |mut t| cut_event(&cut, &mut t, &slab, &material),
+                BatchSize::LargeInput,
+            )
         });
         group.bench_function(format!("recluster/{n}^3"), |b| {
             b.iter(|| initial_clusters(&cut, &material, &mut ChaCha8Rng::seed_from_u64(1)))

@@ -17,9 +17,17 @@ fn step(c: &mut Criterion) {
         desc.position = Vec3::new(0.0, n as f32 * 0.05 + 0.2, 0.0);
         sim.spawn_body(&desc).unwrap();
         sim.step();
-        let memberships: usize = sim.world_mut().query::<&ClusterMembers>().iter(sim.world()).map(|m| m.0.len()).sum();
+        let memberships: usize = sim
+            .world_mut()
+            .query::<&ClusterMembers>()
+            .iter(sim.world())
+            .map(|m| m.0.len())
+            .sum();
         let per_step = memberships as u64 * (config.substeps * config.iterations) as u64;
-        eprintln!("step/{n}: {} particles, {memberships} memberships, {per_step} membership-iterations per step", n * n * n);
+        eprintln!(
+            "step/{n}: {} particles, {memberships} memberships, {per_step} membership-iterations per step",
+            n * n * n
+        );
         group.bench_function(format!("{n}^3"), |b| b.iter(|| sim.step()));
     }
     group.finish();

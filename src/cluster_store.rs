@@ -20,6 +20,8 @@ pub trait ClusterStore {
     fn members(&self, k: Self::Key) -> &[u32];
     /// Replaces the members of `k` (the list is sorted and deduplicated here).
     fn set_members(&mut self, k: Self::Key, members: Vec<u32>);
+    /// Adds `extra` (sorted) to the members of `k`; only new particles touch the index.
+    fn add_members(&mut self, k: Self::Key, extra: &[u32]);
     /// Creates a cluster with the given members.
     fn create(&mut self, members: Vec<u32>) -> Self::Key;
     /// Deletes cluster `k`.
@@ -31,6 +33,20 @@ pub fn normalise(mut members: Vec<u32>) -> Vec<u32> {
     members.sort_unstable();
     members.dedup();
     members
+}
+
+/// Merges sorted `extra` into sorted `members`; returns the particles that were new.
+pub fn merge_sorted(members: &mut Vec<u32>, extra: &[u32]) -> Vec<u32> {
+    let new: Vec<u32> = extra
+        .iter()
+        .copied()
+        .filter(|p| members.binary_search(p).is_err())
+        .collect();
+    if !new.is_empty() {
+        members.extend_from_slice(&new);
+        members.sort_unstable();
+    }
+    new
 }
 
 /// Helpers that keep a particle → clusters index in step with member edits.
@@ -128,6 +144,13 @@ impl ClusterStore for ClusterTable {
         }
         index_add(&mut self.of_particle, &members, k);
         self.slots[k as usize] = Some(members);
+    }
+
+    fn add_members(&mut self, k: u32, extra: &[u32]) {
+        if let Some(Some(members)) = self.slots.get_mut(k as usize) {
+            let new = merge_sorted(members, extra);
+            index_add(&mut self.of_particle, &new, k);
+        }
     }
 
     fn create(&mut self, members: Vec<u32>) -> u32 {

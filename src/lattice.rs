@@ -211,6 +211,12 @@ pub enum Shape {
         /// Half size along each axis.
         half_extents: Vec3,
     },
+    /// Exactly `cells.x × cells.y × cells.z` lattice points, centred on the origin for
+    /// even counts and offset by h/2 along axes with an odd count.
+    Cells {
+        /// Particles along each axis.
+        cells: UVec3,
+    },
     /// Sphere of the given radius.
     Sphere {
         /// Radius.
@@ -231,10 +237,14 @@ pub enum Shape {
 
 impl Shape {
     /// A box holding exactly `cells.x × cells.y × cells.z` particles at spacing `h`.
-    pub fn cuboid(cells: UVec3, h: f32) -> Self {
-        Shape::Box {
-            half_extents: cells.as_vec3() * h * 0.5,
-        }
+    pub fn cuboid(cells: UVec3, _h: f32) -> Self {
+        Shape::Cells { cells }
+    }
+
+    /// Lattice coordinate range `[lo, hi)` of a [`Shape::Cells`] block.
+    fn cells_range(cells: UVec3) -> (IVec3, IVec3) {
+        let lo = -(cells / 2).as_ivec3();
+        (lo, lo + cells.as_ivec3())
     }
 
     fn bounds(&self) -> Result<(Vec3, Vec3)> {
@@ -243,6 +253,7 @@ impl Shape {
                 check_finite_vec("shape.half_extents", *half_extents)?;
                 (-*half_extents, *half_extents)
             }
+            Shape::Cells { .. } => (Vec3::ZERO, Vec3::ZERO),
             Shape::Sphere { radius } => {
                 check_positive("shape.radius", *radius)?;
                 (Vec3::splat(-radius), Vec3::splat(*radius))
@@ -278,6 +289,13 @@ impl Shape {
                 let q = p.abs() - *half_extents;
                 q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
             }
+            // In lattice units (h = 1): cells are placed on the lattice directly.
+            Shape::Cells { cells } => {
+                let (lo, hi) = Self::cells_range(*cells);
+                let centre = (lo + hi).as_vec3() * 0.5;
+                let q = (p - centre).abs() - cells.as_vec3() * 0.5;
+                q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+            }
             Shape::Sphere { radius } => p.length() - radius,
             Shape::Capsule {
                 radius,
@@ -301,6 +319,32 @@ impl Shape {
     /// shape's frame and is kept when it lies inside (signed distance ≤ 10⁻⁴·h).
     pub fn voxelise(&self, h: f32) -> Result<Lattice> {
         check_positive("spacing", h)?;
+        if let Shape::Cells { cells } = self {
+            let total = cells.x as u64 * cells.y as u64 * cells.z as u64;
+            if total == 0 {
+                return Err(CleaveError::EmptyShape {
+                    field: "shape.cells".into(),
+                    spacing: h,
+                });
+            }
+            if total > MAX_LATTICE_CELLS {
+                return Err(CleaveError::TooLarge {
+                    field: "shape.cells".into(),
+                    cells: total,
+                    max: MAX_LATTICE_CELLS,
+                });
+            }
+            let (lo, hi) = Self::cells_range(*cells);
+            let mut coords = Vec::with_capacity(total as usize);
+            for z in lo.z..hi.z {
+                for y in lo.y..hi.y {
+                    for x in lo.x..hi.x {
+                        coords.push(IVec3::new(x, y, z));
+                    }
+                }
+            }
+            return Lattice::from_coords(h, coords);
+        }
         let (lo, hi) = self.bounds()?;
         let kmin = (lo / h - Vec3::splat(0.5)).floor();
         let kmax = (hi / h - Vec3::splat(0.5)).ceil();
@@ -355,7 +399,11 @@ mod tests {
         // edges of a 4×3×2 grid: 3·3·2 + 4·2·2 + 4·3·1
         assert_eq!(l.edges().len(), 18 + 16 + 12);
         let centre: Vec3 = l.live_particles().map(|i| l.rest_position(i)).sum::<Vec3>() / 24.0;
-        assert!(centre.length() < 1e-5, "box is centred: {centre}");
+        // even axes (x, z) are centred; the odd axis (y) is offset by h/2
+        assert!(
+            (centre - Vec3::new(0.0, 0.05, 0.0)).length() < 1e-5,
+            "centre {centre}"
+        );
     }
 
     #[test]

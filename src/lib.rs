@@ -43,3 +43,8 @@ pub mod prelude {
     pub use crate::systems::{CleaveSchedule, SimStage, SubstepSchedule, install};
     pub use crate::tool::{Path, Pose, ToolShape};
 }
+
+/// The README's code blocks, compiled and run as doctests.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;

@@ -2,7 +2,7 @@
 //! components, the particle index in the body's `ParticleClusters`. New clusters get
 //! reserved entities whose components are inserted by [`EcsClusterStore::finish`].
 
-use crate::cluster_store::{ClusterStore, index_add, index_remove, normalise};
+use crate::cluster_store::{ClusterStore, index_add, index_remove, merge_sorted, normalise};
 use crate::components::{ClusterMembers, ClusterOf, Stiffness};
 use bevy_ecs::prelude::*;
 use std::collections::{BTreeMap, HashSet};
@@ -80,6 +80,17 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_, '_, '_, '_> {
         } else if let Ok(mut m) = self.clusters.get_mut(k) {
             m.0 = members;
         }
+    }
+
+    fn add_members(&mut self, k: Entity, extra: &[u32]) {
+        let new = if let Some(m) = self.created.get_mut(&k) {
+            merge_sorted(m, extra)
+        } else if let Ok(mut m) = self.clusters.get_mut(k) {
+            merge_sorted(&mut m.0, extra)
+        } else {
+            return;
+        };
+        index_add(self.index, &new, k);
     }
 
     fn create(&mut self, members: Vec<u32>) -> Entity {

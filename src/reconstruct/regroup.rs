@@ -62,11 +62,9 @@ pub fn regroup<S: ClusterStore>(
         match neighbour {
             None => produced.push(p),
             Some(target) => {
-                let mut union = store.members(target).to_vec();
-                union.extend_from_slice(store.members(p));
+                let piece = store.members(p).to_vec();
                 store.remove(p);
-                store.set_members(target, union);
-                produced.retain(|k| *k != p);
+                store.add_members(target, &piece);
                 produced.push(target);
             }
         }
