@@ -2,7 +2,6 @@
 //! iterations). Prints memberships so ns per membership-iteration can be derived:
 //! `time / (memberships × substeps × iterations)`.
 
-use bevy_ecs::prelude::*;
 use cleave::prelude::*;
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{UVec3, Vec3};
