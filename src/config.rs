@@ -11,6 +11,10 @@ pub enum SolverMode {
     /// the (mass-weighted) average of its clusters' goals. Parallel and deterministic.
     #[default]
     Jacobi,
+    /// Clusters are coloured so that clusters of one colour share no particle; colour
+    /// after colour, each cluster moves its members to its goals at once. Converges in
+    /// fewer iterations; parallel inside a colour and deterministic.
+    GaussSeidel,
 }
 
 /// A horizontal ground plane `y = height` with Coulomb friction.

@@ -11,6 +11,7 @@
 //! is the headless facade.
 #![warn(missing_docs)]
 
+pub mod bench;
 pub mod cluster_store;
 pub mod clustering;
 pub mod components;

@@ -3,25 +3,32 @@
 //! `q ← exp(ω) q` with `ω = Σᵢ rᵢ × aᵢ / (|Σᵢ rᵢ · aᵢ| + ε)` (rᵢ, aᵢ the columns of R(q), A).
 //! Always returns a unit quaternion (a proper rotation), never NaN, for any input.
 
-use glam::{Mat3, Quat, Vec3};
+use glam::{Mat3A, Quat, Vec3A};
 
 /// Extracts the rotation of `a`, starting from `warm` (the previous result), with at
 /// most `max_iterations` iterations. Zero, rank-deficient, inverted or non-finite
 /// matrices give a proper rotation (for a zero or non-finite `a`, the warm start).
-pub fn extract_rotation(a: &Mat3, warm: Quat, max_iterations: u32) -> Quat {
+/// Works on SIMD columns (`Mat3A`); convert a `Mat3` with `Mat3A::from`.
+#[inline]
+pub fn extract_rotation(a: Mat3A, warm: Quat, max_iterations: u32) -> Quat {
     let mut q = if warm.is_finite() && warm.length_squared() > 0.0 {
         warm.normalize()
     } else {
         Quat::IDENTITY
     };
-    let scale = a.abs().to_cols_array().into_iter().fold(0.0f32, f32::max);
+    let scale = a
+        .x_axis
+        .abs()
+        .max(a.y_axis.abs())
+        .max(a.z_axis.abs())
+        .max_element();
     if !(scale.is_finite() && scale > 0.0) {
         return q;
     }
-    let a = *a * (1.0 / scale);
+    let a = a * (1.0 / scale);
     for _ in 0..max_iterations {
-        let r = Mat3::from_quat(q);
-        let omega: Vec3 =
+        let r = Mat3A::from_quat(q);
+        let omega: Vec3A =
             r.x_axis.cross(a.x_axis) + r.y_axis.cross(a.y_axis) + r.z_axis.cross(a.z_axis);
         let dot = r.x_axis.dot(a.x_axis) + r.y_axis.dot(a.y_axis) + r.z_axis.dot(a.z_axis);
         let omega = omega / (dot.abs() + 1e-9);
@@ -29,7 +36,7 @@ pub fn extract_rotation(a: &Mat3, warm: Quat, max_iterations: u32) -> Quat {
         if w.is_nan() || w <= 1e-9 || !w.is_finite() {
             break;
         }
-        q = (Quat::from_axis_angle(omega / w, w) * q).normalize();
+        q = (Quat::from_axis_angle((omega / w).into(), w) * q).normalize();
     }
     q
 }
@@ -37,6 +44,7 @@ pub fn extract_rotation(a: &Mat3, warm: Quat, max_iterations: u32) -> Quat {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::{Mat3, Vec3};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -68,7 +76,7 @@ mod tests {
             // symmetric positive stretch with random axes: U S Uᵀ
             let u = Mat3::from_quat(random_rotation(&mut rng));
             let a = Mat3::from_quat(r) * u * s * u.transpose();
-            let q = extract_rotation(&a, Quat::IDENTITY, 100);
+            let q = extract_rotation(Mat3A::from(a), Quat::IDENTITY, 100);
             assert!(is_proper(q));
             assert!(q.dot(r).abs() > 0.9999, "expected {r:?} got {q:?}");
         }
@@ -78,12 +86,12 @@ mod tests {
     fn degenerate_inputs_give_proper_rotations() {
         let mut rng = ChaCha8Rng::seed_from_u64(8);
         let warm = random_rotation(&mut rng);
-        assert_eq!(extract_rotation(&Mat3::ZERO, warm, 20), warm.normalize());
+        assert_eq!(extract_rotation(Mat3A::ZERO, warm, 20), warm.normalize());
         let nan = Mat3::from_cols(Vec3::NAN, Vec3::X, Vec3::Y);
-        assert!(is_proper(extract_rotation(&nan, warm, 20)));
+        assert!(is_proper(extract_rotation(Mat3A::from(nan), warm, 20)));
         let inf = Mat3::from_cols(Vec3::INFINITY, Vec3::X, Vec3::Y);
         assert!(is_proper(extract_rotation(
-            &inf,
+            Mat3A::from(inf),
             Quat::from_xyzw(f32::NAN, 0.0, 0.0, 1.0),
             20
         )));
@@ -95,11 +103,11 @@ mod tests {
             let tiny = r * 1e-30;
             let huge = r * 1e30;
             for a in [inverted, rank1, rank2, tiny, huge] {
-                let q = extract_rotation(&a, random_rotation(&mut rng), 50);
+                let q = extract_rotation(Mat3A::from(a), random_rotation(&mut rng), 50);
                 assert!(is_proper(q), "{a:?} -> {q:?}");
             }
             // A scaled rotation is recovered exactly regardless of scale.
-            let q = extract_rotation(&huge, Quat::IDENTITY, 100);
+            let q = extract_rotation(Mat3A::from(huge), Quat::IDENTITY, 100);
             assert!(Mat3::from_quat(q).abs_diff_eq(r, 1e-3));
         }
     }

@@ -49,7 +49,7 @@ pub fn rigid_fit_error(rest: &[Vec3], current: &[Vec3]) -> f32 {
         let (q, p) = (*r - rc, *c - cc);
         a += Mat3::from_cols(p * q.x, p * q.y, p * q.z);
     }
-    let rot = extract_rotation(&a, Quat::IDENTITY, 200);
+    let rot = extract_rotation(glam::Mat3A::from(a), Quat::IDENTITY, 200);
     let sum: f32 = rest
         .iter()
         .zip(current)

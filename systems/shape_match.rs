@@ -3,6 +3,7 @@
 //! velocities, and scatters back. Writes particle data and its own cache only.
 
 use crate::components::*;
+use crate::config::SolverMode;
 use crate::resources::{SimSettings, SolverCache};
 use crate::solver::{ClusterSpec, Colliders, SolverLayout};
 use bevy_ecs::prelude::*;
@@ -40,10 +41,10 @@ pub fn shape_match(
     )>,
 ) {
     let removed = removed_clusters.read().count() + removed_bodies.read().count() > 0;
-    if !cache.valid || removed || !changed.is_empty() {
-        rebuild(&mut cache, &bodies, &clusters);
-    }
     let config = &settings.0;
+    if !cache.valid || removed || !changed.is_empty() || cache.layout.mode() != config.solver {
+        rebuild(&mut cache, &bodies, &clusters, config.solver);
+    }
     let cache = &mut *cache;
     for (e, x, v, prev, inv_mass) in &particles {
         if let Some(&d) = cache.dense_of.get(e.index_u32() as usize)
@@ -78,6 +79,7 @@ fn rebuild(
     cache: &mut SolverCache,
     bodies: &Query<(Entity, &BodyLattice)>,
     clusters: &Query<(Entity, &ClusterMembers, &ClusterOf, &Stiffness)>,
+    mode: SolverMode,
 ) {
     let warm: HashMap<Entity, Quat> = cache
         .clusters
@@ -94,7 +96,11 @@ fn rebuild(
     for (body, lattice) in &body_list {
         let l = &lattice.lattice;
         let mut map = vec![u32::MAX; l.len()];
-        for i in l.live_particles() {
+        // Morton order keeps the members of a cluster, and the clusters of a particle,
+        // close in memory.
+        let mut order: Vec<u32> = l.live_particles().collect();
+        order.sort_by_cached_key(|i| morton_code(l.coord(*i)));
+        for i in order {
             map[i as usize] = rest.len() as u32;
             rest.push(l.rest_position(i));
             particles.push(lattice.particles[i as usize]);
@@ -114,7 +120,9 @@ fn rebuild(
             (!dense.is_empty()).then_some((of.0, e, dense, stiffness.0.clamp(0.0, 1.0)))
         })
         .collect();
-    cluster_list.sort_unstable_by_key(|(body, e, _, _)| (*body, *e));
+    // Clusters in the order of their first member (then entity, for determinism).
+    cluster_list
+        .sort_unstable_by_key(|(body, e, members, _)| (*body, members.iter().min().copied(), *e));
     let specs = cluster_list
         .iter()
         .map(|(_, e, members, stiffness)| ClusterSpec {
@@ -122,7 +130,7 @@ fn rebuild(
             stiffness: *stiffness,
             rotation: warm.get(e).copied().unwrap_or(Quat::IDENTITY),
         });
-    cache.layout = SolverLayout::new(&rest, specs);
+    cache.layout = SolverLayout::new(&rest, specs, mode);
     let max_index = particles
         .iter()
         .map(|e| e.index_u32() as usize + 1)
@@ -136,4 +144,18 @@ fn rebuild(
     cache.owners = owners;
     cache.clusters = cluster_list.into_iter().map(|(_, e, _, _)| e).collect();
     cache.valid = true;
+}
+
+/// Interleaves the bits of a lattice coordinate (offset to non-negative) into a
+/// Z-order key.
+fn morton_code(c: glam::IVec3) -> u64 {
+    fn spread(v: i32) -> u64 {
+        let mut x = (v as i64 + (1 << 20)) as u64 & 0x1f_ffff;
+        x = (x | (x << 32)) & 0x1f_0000_0000_ffff;
+        x = (x | (x << 16)) & 0x1f_0000_ff00_00ff;
+        x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
+        x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
+        (x | (x << 2)) & 0x1249_2492_4924_9249
+    }
+    spread(c.x) | (spread(c.y) << 1) | (spread(c.z) << 2)
 }

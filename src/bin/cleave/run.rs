@@ -1,7 +1,8 @@
-//! The `cleave` command-line program: run built-in scenes and write a summary.
+//! `cleave run`: simulate a built-in scene, write `summary.json` (and optionally the
+//! state dump), print a table.
 
 use bevy_ecs::prelude::*;
-use clap::{Parser, Subcommand};
+use cleave::bench::median;
 use cleave::components::{BodyLattice, InvMass, Position};
 use cleave::dump::dump_body;
 use cleave::resources::{CutTimings, ParticlesCut};
@@ -10,45 +11,7 @@ use cleave::sim::{Simulation, check_invariants, only_body};
 use cleave::stats::{BodyStats, body_stats};
 use serde::Serialize;
 use std::path::PathBuf;
-use std::process::ExitCode;
 use std::time::Instant;
-
-#[derive(Parser)]
-#[command(
-    name = "cleave",
-    version,
-    about = "Lattice soft bodies with real-time cutting"
-)]
-struct Cli {
-    #[command(subcommand)]
-    command: Command,
-}
-
-#[derive(Subcommand)]
-enum Command {
-    /// Run a built-in scene and write a summary.
-    Run {
-        /// Scene name (see `cleave scenes`).
-        scene: String,
-        /// Frames to simulate (default: the scene's).
-        #[arg(long)]
-        frames: Option<u32>,
-        /// Output directory for summary.json.
-        #[arg(long, default_value = "out")]
-        out: PathBuf,
-        /// Random seed.
-        #[arg(long, default_value_t = 0)]
-        seed: u64,
-        /// Worker threads (default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Write the final state (cleave-state/1 JSON) to this file.
-        #[arg(long)]
-        dump_state: Option<PathBuf>,
-    },
-    /// List the built-in scenes.
-    Scenes,
-}
 
 #[derive(Serialize)]
 struct Summary {
@@ -77,14 +40,6 @@ struct Summary {
     cut_event_ms_median: f64,
     cut_event_ms_max: f64,
     invariant_violations: usize,
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 /// Mean pairwise distance between the centroids of the final pieces, in units of h,
@@ -127,7 +82,8 @@ fn piece_separation(
     )
 }
 
-fn run(
+/// Runs `scene_name` and writes the outputs.
+pub fn run(
     scene_name: &str,
     frames: Option<u32>,
     out: PathBuf,
@@ -326,37 +282,4 @@ fn run(
         return Err("non-finite particle positions".into());
     }
     Ok(())
-}
-
-fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let result = match cli.command {
-        Command::Scenes => {
-            for (name, description) in BUILTIN_SCENES {
-                println!("{name:<12} {description}");
-            }
-            Ok(())
-        }
-        Command::Run {
-            scene,
-            frames,
-            out,
-            seed,
-            threads,
-            dump_state,
-        } => {
-            let threads = threads.unwrap_or_else(rayon::current_num_threads).max(1);
-            match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
-                Ok(pool) => pool.install(|| run(&scene, frames, out, seed, dump_state, threads)),
-                Err(e) => Err(format!("cannot start {threads} threads: {e}")),
-            }
-        }
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("cleave: {e}");
-            ExitCode::from(2)
-        }
-    }
 }

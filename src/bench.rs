@@ -1,0 +1,268 @@
+//! The measurements behind `cleave bench`: step time of boxes of n³ particles in the
+//! engine and, in the same run, in a bare dense kernel on the same clusters; memory per
+//! particle; a full slice cut event against re-clustering; and a convergence table of
+//! the two solver schemes.
+
+use crate::clustering::initial_clusters;
+use crate::components::{BodyLattice, ClusterMembers};
+use crate::config::{Material, SimConfig, SolverMode};
+use crate::error::Result;
+use crate::lattice::Shape;
+use crate::resources::{CutTimings, SimSettings, SolverCache};
+use crate::sim::{BodyDesc, Simulation, ToolDesc};
+use crate::solver::{ClusterSpec, Colliders, SolverLayout};
+use crate::stats::rigid_fit_error;
+use crate::tool::{Path, Pose, ToolShape};
+use glam::{Quat, UVec3, Vec3, Vec3A};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+use std::time::Instant;
+
+/// Lattice spacing of the bench boxes.
+const H: f32 = 0.1;
+
+/// One line of the bench report.
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchRow {
+    /// Edge length of the box in particles.
+    pub size: u32,
+    /// Worker threads.
+    pub threads: usize,
+    /// Solver scheme.
+    pub solver: SolverMode,
+    /// Particles.
+    pub particles: usize,
+    /// Clusters.
+    pub clusters: usize,
+    /// Memberships (sum of cluster sizes).
+    pub memberships: usize,
+    /// Solver iterations per step (substeps × iterations).
+    pub iterations: u32,
+    /// Median wall time of one engine step (ECS schedule), ms.
+    pub ms_per_step: f64,
+    /// `ms_per_step / (memberships × iterations)`, ns.
+    pub ns_per_membership_iteration: f64,
+    /// Median wall time of one step of the bare kernel, ms.
+    pub bare_ms_per_step: f64,
+    /// The bare kernel's ns per membership-iteration.
+    pub bare_ns_per_membership_iteration: f64,
+    /// `ms_per_step / bare_ms_per_step`.
+    pub engine_over_bare: f64,
+    /// Peak resident memory of the process so far / particles (sizes run ascending).
+    pub bytes_per_particle: f64,
+    /// Regroup + split + expand of a full slice through the middle, ms.
+    pub cut_event_ms: f64,
+    /// Initial clustering of the cut body from scratch, ms.
+    pub recluster_ms: f64,
+}
+
+/// The median of `samples` (0 for none).
+pub fn median(samples: &mut [f64]) -> f64 {
+    if samples.is_empty() {
+        return 0.0;
+    }
+    samples.sort_by(f64::total_cmp);
+    samples[samples.len() / 2]
+}
+
+/// Milliseconds of `f`, run `runs` times, median.
+fn time_ms(runs: usize, mut f: impl FnMut()) -> f64 {
+    let mut samples: Vec<f64> = (0..runs)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    median(&mut samples)
+}
+
+/// Peak resident set size of this process in bytes (Linux `VmHWM`), if known.
+pub fn peak_resident_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// A simulation with one n³ box resting just above the ground.
+fn box_simulation(n: u32, config: &SimConfig) -> Result<Simulation> {
+    let mut sim = Simulation::new(config.clone())?;
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(n), H), H);
+    desc.position = Vec3::new(0.0, n as f32 * H * 0.5 + 0.05, 0.0);
+    sim.spawn_body(&desc)?;
+    Ok(sim)
+}
+
+/// One step of the bare kernel: the engine's predict and solve on dense arrays only.
+fn bare_step(layout: &mut SolverLayout, config: &SimConfig, colliders: &Colliders) {
+    let dt = config.dt / config.substeps as f32;
+    let keep = (-config.damping * dt).exp();
+    let dv = Vec3A::from(config.gravity * dt);
+    for _ in 0..config.substeps {
+        for (((x, prev), v), inv_mass) in layout
+            .positions
+            .iter_mut()
+            .zip(layout.previous.iter_mut())
+            .zip(layout.velocities.iter_mut())
+            .zip(&layout.inv_mass)
+        {
+            *prev = *x;
+            if *inv_mass == 0.0 {
+                *v = Vec3A::ZERO;
+                continue;
+            }
+            *v = (*v + dv) * keep;
+            *x += *v * dt;
+        }
+        layout.solve(config.iterations, colliders);
+        layout.update_velocities(1.0 / dt);
+    }
+}
+
+/// Measures one box size; `steps` ≥ 1 timed steps after 3 warm-up steps.
+pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> {
+    let mut sim = box_simulation(n, config)?;
+    for _ in 0..3 {
+        sim.step();
+    }
+    let ms_per_step = time_ms(steps, || sim.step());
+    let world = sim.world_mut();
+    let memberships: usize = world
+        .query::<&ClusterMembers>()
+        .iter(world)
+        .map(|m| m.0.len())
+        .sum();
+    let cache = world.resource::<SolverCache>();
+    let (particles, clusters) = (cache.layout.particle_count(), cache.layout.cluster_count());
+    let mut layout = cache.layout.clone();
+    let colliders = Colliders {
+        ground: config.ground,
+        boxes: config.boxes.clone(),
+    };
+    let bare_ms_per_step = time_ms(steps, || bare_step(&mut layout, config, &colliders));
+    drop(layout);
+    let bytes_per_particle = peak_resident_bytes().unwrap_or(0) as f64 / particles as f64;
+    let (cut_event_ms, recluster_ms) = slice_event(&mut sim, n)?;
+    let iterations = config.substeps * config.iterations;
+    let per_step = (memberships as f64) * iterations as f64;
+    Ok(BenchRow {
+        size: n,
+        threads: rayon::current_num_threads(),
+        solver: config.solver,
+        particles,
+        clusters,
+        memberships,
+        iterations,
+        ms_per_step,
+        ns_per_membership_iteration: ms_per_step * 1e6 / per_step,
+        bare_ms_per_step,
+        bare_ns_per_membership_iteration: bare_ms_per_step * 1e6 / per_step,
+        engine_over_bare: ms_per_step / bare_ms_per_step,
+        bytes_per_particle,
+        cut_event_ms,
+        recluster_ms,
+    })
+}
+
+/// Drops a blade through the middle of the box in one frame (a full slice), then times
+/// re-clustering the cut body from scratch. Returns `(cut event ms, recluster ms)`.
+fn slice_event(sim: &mut Simulation, n: u32) -> Result<(f64, f64)> {
+    let now = sim.world().resource::<crate::resources::SimClock>().time;
+    let dt = sim.world().resource::<SimSettings>().0.dt;
+    let half = n as f32 * H;
+    let at = |y: f32| Pose {
+        position: Vec3::new(0.0, y, 0.0),
+        rotation: Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+    };
+    sim.spawn_tool(&ToolDesc {
+        shape: ToolShape::Blade {
+            half_width: half + 1.0,
+            half_height: 0.05,
+        },
+        cut_width: 2.0 * H,
+        path: Path {
+            keys: vec![(now, at(2.0 * half + 1.0)), (now + dt, at(-1.0))],
+        },
+        pose: at(2.0 * half + 1.0),
+    })?;
+    sim.world_mut()
+        .resource_mut::<CutTimings>()
+        .event_ms
+        .clear();
+    sim.step();
+    let cut_event_ms = sim
+        .world()
+        .resource::<CutTimings>()
+        .event_ms
+        .last()
+        .copied()
+        .unwrap_or(f64::NAN);
+    let world = sim.world_mut();
+    let lattice = world
+        .query::<&BodyLattice>()
+        .iter(world)
+        .next()
+        .map(|l| l.lattice.clone());
+    let recluster_ms = match lattice {
+        Some(l) => time_ms(3, || {
+            initial_clusters(&l, &Material::default(), &mut ChaCha8Rng::seed_from_u64(1));
+        }),
+        None => f64::NAN,
+    };
+    Ok((cut_event_ms, recluster_ms))
+}
+
+/// Shape error (RMS distance to the best rigid fit, in h) of a twisted n³ box after each
+/// of `iteration_counts` solver iterations, for Jacobi and coloured Gauss–Seidel.
+/// Returns `(iterations, jacobi error, gauss–seidel error)` rows.
+pub fn convergence_table(n: u32, iteration_counts: &[u32]) -> Result<Vec<(u32, f64, f64)>> {
+    let lattice = Shape::cuboid(UVec3::splat(n), H).voxelise(H)?;
+    let table = initial_clusters(
+        &lattice,
+        &Material::default(),
+        &mut ChaCha8Rng::seed_from_u64(1),
+    );
+    let live: Vec<u32> = lattice.live_particles().collect();
+    let rest: Vec<Vec3> = live.iter().map(|i| lattice.rest_position(*i)).collect();
+    let centre = rest.iter().sum::<Vec3>() / rest.len() as f32;
+    // a quarter turn about Y from one end to the other
+    let twisted: Vec<Vec3A> = rest
+        .iter()
+        .map(|r| {
+            let t = (r.y - centre.y) / (n as f32 * H);
+            Vec3A::from(Quat::from_rotation_y(t * std::f32::consts::FRAC_PI_2) * (*r - centre))
+        })
+        .collect();
+    let mut dense = vec![u32::MAX; lattice.len()];
+    for (d, i) in live.iter().enumerate() {
+        dense[*i as usize] = d as u32;
+    }
+    let members: Vec<Vec<u32>> = table
+        .iter()
+        .map(|(_, m)| m.iter().map(|i| dense[*i as usize]).collect())
+        .collect();
+    let error_after = |mode: SolverMode, iterations: u32| {
+        let specs = members.iter().map(|m| ClusterSpec {
+            members: m,
+            stiffness: 1.0,
+            rotation: Quat::IDENTITY,
+        });
+        let mut layout = SolverLayout::new(&rest, specs, mode);
+        layout.positions.clone_from(&twisted);
+        layout.solve(iterations, &Colliders::default());
+        let current: Vec<Vec3> = layout.positions.iter().map(|p| Vec3::from(*p)).collect();
+        (rigid_fit_error(&rest, &current) / H) as f64
+    };
+    Ok(iteration_counts
+        .iter()
+        .map(|&k| {
+            (
+                k,
+                error_after(SolverMode::Jacobi, k),
+                error_after(SolverMode::GaussSeidel, k),
+            )
+        })
+        .collect())
+}

@@ -1,0 +1,98 @@
+//! `cleave bench`: the report of [`cleave::bench`] as a table or as JSON lines.
+
+use cleave::bench::{bench_size, convergence_table};
+use cleave::config::{SimConfig, SolverMode};
+
+/// Iteration counts of the convergence table.
+const CONVERGENCE_ITERATIONS: [u32; 6] = [1, 2, 5, 10, 20, 50];
+
+/// Benchmarks every size (ascending, so peak memory belongs to the current size).
+pub fn bench(
+    sizes: &[u32],
+    steps: usize,
+    solver: SolverMode,
+    json: bool,
+    convergence: bool,
+) -> Result<(), String> {
+    if steps == 0 {
+        return Err("--steps must be at least 1".into());
+    }
+    if let Some(bad) = sizes.iter().find(|n| !(2..=256).contains(*n)) {
+        return Err(format!(
+            "--sizes: {bad} is out of range (allowed 2 ≤ size ≤ 256)"
+        ));
+    }
+    let mut sizes = sizes.to_vec();
+    sizes.sort_unstable();
+    sizes.dedup();
+    let config = SimConfig {
+        solver,
+        ..SimConfig::default()
+    };
+    if !json {
+        println!(
+            "cleave bench: {:?}, {} substeps × {} iterations, {} timed steps, {} thread(s)",
+            solver,
+            config.substeps,
+            config.iterations,
+            steps,
+            rayon::current_num_threads()
+        );
+        println!(
+            "{:>5} {:>9} {:>8} {:>11} {:>10} {:>9} {:>10} {:>9} {:>7} {:>8} {:>9} {:>11}",
+            "size",
+            "particles",
+            "clusters",
+            "memberships",
+            "ms/step",
+            "ns/m-it",
+            "bare ms",
+            "bare ns",
+            "ratio",
+            "B/part",
+            "cut ms",
+            "recluster"
+        );
+    }
+    for n in sizes {
+        let row = bench_size(n, steps, &config).map_err(|e| e.to_string())?;
+        if json {
+            println!(
+                "{}",
+                serde_json::to_string(&row).map_err(|e| e.to_string())?
+            );
+        } else {
+            println!(
+                "{:>5} {:>9} {:>8} {:>11} {:>10.3} {:>9.3} {:>10.3} {:>9.3} {:>7.3} {:>8.0} {:>9.3} {:>11.3}",
+                row.size,
+                row.particles,
+                row.clusters,
+                row.memberships,
+                row.ms_per_step,
+                row.ns_per_membership_iteration,
+                row.bare_ms_per_step,
+                row.bare_ns_per_membership_iteration,
+                row.engine_over_bare,
+                row.bytes_per_particle,
+                row.cut_event_ms,
+                row.recluster_ms
+            );
+        }
+    }
+    if convergence {
+        let table = convergence_table(32, &CONVERGENCE_ITERATIONS).map_err(|e| e.to_string())?;
+        let mut out = String::from(
+            "convergence on a twisted 32³ box (shape error in h after k iterations)\n",
+        );
+        out += &format!("{:>6} {:>12} {:>14}\n", "k", "jacobi", "gauss-seidel");
+        for (k, jacobi, gs) in table {
+            out += &format!("{k:>6} {jacobi:>12.4} {gs:>14.4}\n");
+        }
+        if json {
+            eprint!("{out}");
+        } else {
+            print!("{out}");
+        }
+    }
+    Ok(())
+}

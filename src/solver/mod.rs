@@ -1,0 +1,512 @@
+//! The dense shape-matching kernel (SPEC §2.2): positions, rest positions and weights in
+//! contiguous per-particle arrays, cluster members as index ranges, particle → cluster
+//! ranges. Built once per topology, then iterated many times.
+//!
+//! A cluster fit computes, from the current positions, the optimal rotation `R` (Müller
+//! 2016, warm-started) and the weighted centroid `c`; member `i`'s goal is
+//! `R (x̄ᵢ − x̄_c) + c` with `x̄` rest positions. Two schemes share that fit:
+//! - **Jacobi** ([`jacobi`]): every cluster is fitted to the same positions; each
+//!   particle then moves by `(1/nᵢ) Σₖ sₖ (gᵢₖ − pᵢ)` (nᵢ clusters). With matching
+//!   weights `1/nᵢ` (FastLSM) every cluster's pull has zero momentum, so the scheme
+//!   conserves linear momentum. Parallel over clusters, then over particles.
+//! - **Coloured Gauss–Seidel** ([`gauss_seidel`]): clusters are coloured so that clusters of
+//!   one colour share no particle; colour after colour, each cluster is fitted and moves
+//!   its members by `sₖ (gᵢₖ − pᵢ)` at once (uniform weights, so again zero momentum).
+//!
+//! Both are deterministic for any number of threads: every sum runs in a fixed order.
+//! Per-cluster work is done relative to the cluster's first member so that goals keep
+//! full precision far from the origin.
+
+mod colliders;
+mod colouring;
+mod gauss_seidel;
+mod jacobi;
+
+pub use colliders::{Colliders, resolve_colliders};
+pub use colouring::colour_clusters;
+
+use crate::config::SolverMode;
+use crate::rotation::extract_rotation;
+use glam::{Mat3A, Quat, Vec3, Vec3A, Vec4};
+use rayon::prelude::*;
+
+/// Müller iterations per cluster per solver iteration (warm-started, so one suffices).
+pub const ROTATION_ITERATIONS: u32 = 1;
+
+/// Relative size of rounding noise: if a particle's total correction over a solve is at
+/// most `ROUNDING_FLOOR × (|p|∞ + |x̄|∞)` (16 ulps of the coordinates that enter it), it
+/// is rounding, not physics, and the particle keeps its predicted position. So a body at
+/// rest stays exactly at rest instead of creeping. Real corrections are orders of
+/// magnitude larger (gravity alone moves a particle 7·10⁻⁴ m per substep at 120 Hz).
+pub const ROUNDING_FLOOR: f32 = 16.0 * f32::EPSILON;
+
+/// Clusters per parallel task.
+const CLUSTERS_PER_TASK: usize = 128;
+/// Particles per parallel task.
+const PARTICLES_PER_TASK: usize = 2048;
+
+/// One cluster as given to [`SolverLayout::new`].
+#[derive(Clone, Copy, Debug)]
+pub struct ClusterSpec<'a> {
+    /// Dense particle indices of the members.
+    pub members: &'a [u32],
+    /// Stiffness in [0, 1].
+    pub stiffness: f32,
+    /// Warm-start rotation.
+    pub rotation: Quat,
+}
+
+/// The result of one cluster fit, premultiplied by the stiffness `s`: member `i`'s pull
+/// `s (gᵢ − pᵢ)` is `scaled_rotation · x̄ᵢ + scaled_translation − s·pᵢ`.
+#[derive(Clone, Copy, Debug, Default)]
+struct ClusterFrame {
+    scaled_rotation: Mat3A,
+    scaled_translation: Vec3A,
+}
+
+impl ClusterFrame {
+    /// `S x̄ + T`; the caller subtracts `s·p`.
+    #[inline(always)]
+    fn scaled_goal(&self, rest: Vec3A) -> Vec3A {
+        madd(
+            self.scaled_rotation.z_axis,
+            Vec3A::splat(rest.z),
+            madd(
+                self.scaled_rotation.y_axis,
+                Vec3A::splat(rest.y),
+                madd(
+                    self.scaled_rotation.x_axis,
+                    Vec3A::splat(rest.x),
+                    self.scaled_translation,
+                ),
+            ),
+        )
+    }
+}
+
+/// `a·b + c`, fused where the target has FMA.
+#[inline(always)]
+fn madd(a: Vec3A, b: Vec3A, c: Vec3A) -> Vec3A {
+    #[cfg(target_feature = "fma")]
+    {
+        a.mul_add(b, c)
+    }
+    #[cfg(not(target_feature = "fma"))]
+    {
+        a * b + c
+    }
+}
+
+/// Dense arrays for the solver; see the module docs.
+#[derive(Clone, Debug, Default)]
+pub struct SolverLayout {
+    /// Particle positions (predicted during a substep).
+    pub positions: Vec<Vec3A>,
+    /// Positions at the start of the substep.
+    pub previous: Vec<Vec3A>,
+    /// Positions at the start of the last solve (the predicted positions).
+    predicted: Vec<Vec3A>,
+    /// Velocities after prediction; [`SolverLayout::update_velocities`] adds the
+    /// solver's corrections.
+    pub velocities: Vec<Vec3A>,
+    /// Inverse masses (0 = pinned).
+    pub inv_mass: Vec<f32>,
+    /// Total position correction per particle during the last [`SolverLayout::solve`].
+    pub corrections: Vec<Vec3A>,
+    /// Warm-start rotation per cluster.
+    pub rotations: Vec<Quat>,
+    mode: SolverMode,
+    /// Rest position per particle.
+    rest: Vec<Vec3A>,
+    /// `1/nᵢ` per particle (0 for a particle in no cluster).
+    inv_count: Vec<f32>,
+    /// `Σₖ sₖ` over the particle's clusters.
+    stiffness_sum: Vec<f32>,
+    cluster_start: Vec<u32>,
+    member_particle: Vec<u32>,
+    /// Per membership: `(w q, w)` with `q = x̄ − x̄_c` and `w` the matching weight.
+    member_moment: Vec<Vec4>,
+    rest_centroid: Vec<Vec3A>,
+    offset_bias: Vec<Vec3A>,
+    inv_weight_sum: Vec<f32>,
+    stiffness: Vec<f32>,
+    frames: Vec<ClusterFrame>,
+    particle_start: Vec<u32>,
+    particle_clusters: Vec<u32>,
+    colour_order: Vec<u32>,
+    colour_start: Vec<u32>,
+}
+
+impl SolverLayout {
+    /// Builds the layout for particles with the given rest positions and clusters, for
+    /// the given scheme. Members must be valid indices into `rest`.
+    pub fn new<'a>(
+        rest: &[Vec3],
+        clusters: impl IntoIterator<Item = ClusterSpec<'a>>,
+        mode: SolverMode,
+    ) -> Self {
+        let clusters: Vec<ClusterSpec<'a>> = clusters.into_iter().collect();
+        let n = rest.len();
+        let mut count = vec![0u32; n];
+        for c in &clusters {
+            for &m in c.members {
+                count[m as usize] += 1;
+            }
+        }
+        let inv_count: Vec<f32> = count
+            .iter()
+            .map(|c| if *c > 0 { 1.0 / *c as f32 } else { 0.0 })
+            .collect();
+        let weight = match mode {
+            SolverMode::Jacobi => inv_count.clone(),
+            SolverMode::GaussSeidel => vec![1.0; n],
+        };
+        let rest: Vec<Vec3A> = rest.iter().map(|r| Vec3A::from(*r)).collect();
+        let mut layout = SolverLayout {
+            positions: rest.clone(),
+            previous: rest.clone(),
+            velocities: vec![Vec3A::ZERO; n],
+            corrections: vec![Vec3A::ZERO; n],
+            inv_mass: vec![1.0; n],
+            mode,
+            inv_count,
+            ..Default::default()
+        };
+        let mut stiffness_sum = vec![0.0f32; n];
+        layout.cluster_start.push(0);
+        for c in &clusters {
+            let total: f32 = c.members.iter().map(|m| weight[*m as usize]).sum();
+            let centroid = c
+                .members
+                .iter()
+                .map(|m| rest[*m as usize] * weight[*m as usize])
+                .sum::<Vec3A>()
+                / total;
+            // Σ w (x̄ − x̄_c) is zero up to rounding; the fit subtracts its rotated
+            // rounding residue so that every cluster's pull has exactly zero momentum.
+            let bias: Vec3A = c
+                .members
+                .iter()
+                .map(|m| (rest[*m as usize] - centroid) * weight[*m as usize])
+                .sum();
+            layout.member_particle.extend_from_slice(c.members);
+            layout.member_moment.extend(c.members.iter().map(|m| {
+                let w = weight[*m as usize];
+                ((rest[*m as usize] - centroid) * w).extend(w)
+            }));
+            for &m in c.members {
+                stiffness_sum[m as usize] += c.stiffness;
+            }
+            layout
+                .cluster_start
+                .push(layout.member_particle.len() as u32);
+            layout.rest_centroid.push(centroid);
+            layout.offset_bias.push(bias);
+            layout.inv_weight_sum.push(1.0 / total);
+            layout.stiffness.push(c.stiffness);
+            layout.rotations.push(c.rotation);
+        }
+        layout.rest = rest;
+        layout.stiffness_sum = stiffness_sum;
+        layout.frames = vec![ClusterFrame::default(); clusters.len()];
+        // particle → clusters
+        layout.particle_start = Vec::with_capacity(n + 1);
+        let mut start = 0u32;
+        for c in &count {
+            layout.particle_start.push(start);
+            start += c;
+        }
+        layout.particle_start.push(start);
+        let mut fill = layout.particle_start.clone();
+        layout.particle_clusters = vec![0; start as usize];
+        for (k, c) in clusters.iter().enumerate() {
+            for &m in c.members {
+                layout.particle_clusters[fill[m as usize] as usize] = k as u32;
+                fill[m as usize] += 1;
+            }
+        }
+        if mode == SolverMode::GaussSeidel {
+            (layout.colour_order, layout.colour_start) = colour_clusters(
+                &layout.cluster_start,
+                &layout.member_particle,
+                &layout.particle_start,
+                &layout.particle_clusters,
+            );
+        }
+        layout
+    }
+
+    /// The scheme this layout was built for.
+    pub fn mode(&self) -> SolverMode {
+        self.mode
+    }
+
+    /// Number of particles.
+    pub fn particle_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Number of clusters.
+    pub fn cluster_count(&self) -> usize {
+        self.stiffness.len()
+    }
+
+    /// Number of memberships (sum of cluster sizes).
+    pub fn membership_count(&self) -> usize {
+        self.member_particle.len()
+    }
+
+    /// Number of colours (Gauss–Seidel layouts; 0 for Jacobi).
+    pub fn colour_count(&self) -> usize {
+        self.colour_start.len().saturating_sub(1)
+    }
+
+    /// Heap bytes held by the layout's arrays.
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of;
+        let v3 = size_of::<Vec3A>();
+        self.positions.capacity() * v3 * 6
+            + self.inv_mass.capacity() * 4 * 3
+            + self.member_moment.capacity() * size_of::<Vec4>()
+            + self.rotations.capacity() * size_of::<Quat>()
+            + (self.cluster_start.capacity()
+                + self.member_particle.capacity()
+                + self.particle_start.capacity()
+                + self.particle_clusters.capacity()
+                + self.colour_order.capacity()
+                + self.colour_start.capacity())
+                * 4
+            + self.rest_centroid.capacity() * v3 * 2
+            + self.inv_weight_sum.capacity() * 4 * 2
+            + self.frames.capacity() * size_of::<ClusterFrame>()
+    }
+
+    /// Runs `iterations` iterations of the layout's scheme, each followed by collisions,
+    /// and records the total correction per particle in [`SolverLayout::corrections`].
+    pub fn solve(&mut self, iterations: u32, colliders: &Colliders) {
+        self.corrections.iter_mut().for_each(|c| *c = Vec3A::ZERO);
+        self.predicted.clone_from(&self.positions);
+        for _ in 0..iterations {
+            match self.mode {
+                SolverMode::Jacobi => {
+                    self.fit_all_clusters();
+                    self.move_particles_jacobi(colliders);
+                }
+                SolverMode::GaussSeidel => {
+                    self.sweep_colours();
+                    self.collide_particles(colliders);
+                }
+            }
+        }
+        self.drop_rounding_noise();
+    }
+
+    /// Restores the predicted position of every particle whose total correction is below
+    /// the rounding floor (see [`ROUNDING_FLOOR`]).
+    fn drop_rounding_noise(&mut self) {
+        let (predicted, rest) = (&self.predicted, &self.rest);
+        self.positions
+            .par_iter_mut()
+            .zip(self.corrections.par_iter_mut())
+            .zip(predicted.par_iter().zip(rest))
+            .with_min_len(PARTICLES_PER_TASK)
+            .for_each(|((p, correction), (start, rest))| {
+                let floor = ROUNDING_FLOOR * (start.abs().max_element() + rest.abs().max_element());
+                if correction.abs().max_element() <= floor {
+                    *p = *start;
+                    *correction = Vec3A::ZERO;
+                }
+            });
+    }
+
+    /// Adds the last solve's corrections to the velocities: `v += Σ Δp / dt`.
+    ///
+    /// Deriving velocity from the corrections rather than from `(p − p_prev) / dt` keeps
+    /// the rounding of large absolute positions out of the velocities, so momentum is
+    /// conserved to the precision of the (small) corrections.
+    pub fn update_velocities(&mut self, inv_dt: f32) {
+        let corrections = &self.corrections;
+        self.velocities
+            .par_iter_mut()
+            .zip(corrections)
+            .with_min_len(PARTICLES_PER_TASK)
+            .for_each(|(v, c)| *v += *c * inv_dt);
+    }
+
+    /// Applies the colliders to every particle, adding their push to the corrections.
+    fn collide_particles(&mut self, colliders: &Colliders) {
+        if colliders.ground.is_none() && colliders.boxes.is_empty() {
+            return;
+        }
+        let previous = &self.previous;
+        self.positions
+            .par_iter_mut()
+            .zip(self.corrections.par_iter_mut())
+            .zip(previous.par_iter())
+            .with_min_len(PARTICLES_PER_TASK)
+            .for_each(|((p, correction), prev)| {
+                let before = *p;
+                resolve_colliders(p, *prev, colliders);
+                *correction += *p - before;
+            });
+    }
+}
+
+/// Fits one cluster to the current positions (read through `position`): accumulates
+/// the weighted centroid and the moment matrix `A = Σ w (p − o)(x̄ − x̄_c)ᵀ` relative to
+/// the first member `o`, updates the warm-started rotation, and returns the frame that
+/// gives every member's pull.
+#[inline(always)]
+fn fit_cluster(
+    members: &[u32],
+    moments: &[Vec4],
+    position: impl Fn(usize) -> Vec3A,
+    constants: ClusterConstants,
+    rotation: &mut Quat,
+) -> ClusterFrame {
+    let Some(&first) = members.first() else {
+        return ClusterFrame::default();
+    };
+    let origin = position(first as usize);
+    let mut sum = Vec3A::ZERO;
+    let mut a = Mat3A::ZERO;
+    for (&m, moment) in members.iter().zip(moments) {
+        let d = position(m as usize) - origin;
+        let wq = Vec3A::from_vec4(*moment);
+        sum = madd(d, Vec3A::splat(moment.w), sum);
+        a.x_axis = madd(d, Vec3A::splat(wq.x), a.x_axis);
+        a.y_axis = madd(d, Vec3A::splat(wq.y), a.y_axis);
+        a.z_axis = madd(d, Vec3A::splat(wq.z), a.z_axis);
+    }
+    *rotation = extract_rotation(a, *rotation, ROTATION_ITERATIONS);
+    let r = Mat3A::from_quat(*rotation);
+    // Σ w (R q + c − d) = R·bias + c·W − Σ w d = 0 exactly when c = (Σ w d − R·bias)/W.
+    let centroid = (sum - r * constants.offset_bias) * constants.inv_weight_sum + origin;
+    let s = constants.stiffness;
+    ClusterFrame {
+        scaled_rotation: r * s,
+        scaled_translation: (centroid - r * constants.rest_centroid) * s,
+    }
+}
+
+/// Per-cluster constants of a fit.
+#[derive(Clone, Copy)]
+struct ClusterConstants {
+    rest_centroid: Vec3A,
+    offset_bias: Vec3A,
+    inv_weight_sum: f32,
+    stiffness: f32,
+}
+
+impl SolverLayout {
+    /// The fit constants of cluster `k`.
+    #[inline(always)]
+    fn constants(&self, k: usize) -> ClusterConstants {
+        ClusterConstants {
+            rest_centroid: self.rest_centroid[k],
+            offset_bias: self.offset_bias[k],
+            inv_weight_sum: self.inv_weight_sum[k],
+            stiffness: self.stiffness[k],
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bar(n: usize) -> (Vec<Vec3>, Vec<Vec<u32>>) {
+        let rest: Vec<Vec3> = (0..n).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
+        let clusters = (0..n - 2)
+            .map(|i| vec![i as u32, i as u32 + 1, i as u32 + 2])
+            .collect();
+        (rest, clusters)
+    }
+
+    fn perturbed_bar(mode: SolverMode) -> SolverLayout {
+        let (rest, clusters) = bar(8);
+        let spec = clusters.iter().map(|m| ClusterSpec {
+            members: m,
+            stiffness: 1.0,
+            rotation: Quat::IDENTITY,
+        });
+        let mut l = SolverLayout::new(&rest, spec, mode);
+        l.positions[3].y += 0.5;
+        l.positions[6].z -= 0.3;
+        l
+    }
+
+    #[test]
+    fn both_schemes_restore_a_perturbed_bar_and_conserve_momentum() {
+        for mode in [SolverMode::Jacobi, SolverMode::GaussSeidel] {
+            let mut l = perturbed_bar(mode);
+            let momentum = |l: &SolverLayout| l.positions.iter().copied().sum::<Vec3A>();
+            let before = momentum(&l);
+            l.solve(200, &Colliders::default());
+            assert!((momentum(&l) - before).length() < 1e-4, "{mode:?}");
+            // straight again (up to a rigid motion): the ends are 7 apart
+            let d = (l.positions[7] - l.positions[0]).length();
+            assert!((d - 7.0).abs() < 0.05, "{mode:?}: {d}");
+            // corrections add up to the total displacement
+            let moved: Vec3A = l.corrections.iter().map(|c| c.abs()).sum();
+            assert!(moved.max_element() > 0.1, "{mode:?}");
+        }
+    }
+
+    /// A 6×3×3 block with 2×2×2 clusters at every cell, twisted about its long axis.
+    fn twisted_block(mode: SolverMode) -> (Vec<Vec3>, SolverLayout) {
+        let index = |x: u32, y: u32, z: u32| x * 9 + y * 3 + z;
+        let mut rest = vec![];
+        for x in 0..6 {
+            for y in 0..3 {
+                for z in 0..3 {
+                    rest.push(Vec3::new(x as f32, y as f32, z as f32));
+                }
+            }
+        }
+        let mut clusters = vec![];
+        for x in 0..5 {
+            for y in 0..2 {
+                for z in 0..2 {
+                    let mut c = vec![];
+                    for (dx, dy, dz) in (0..8).map(|b| (b & 1, (b >> 1) & 1, b >> 2)) {
+                        c.push(index(x + dx, y + dy, z + dz));
+                    }
+                    clusters.push(c);
+                }
+            }
+        }
+        let spec = clusters.iter().map(|m| ClusterSpec {
+            members: m,
+            stiffness: 1.0,
+            rotation: Quat::IDENTITY,
+        });
+        let mut l = SolverLayout::new(&rest, spec, mode);
+        for (p, r) in l.positions.iter_mut().zip(&rest) {
+            let twist = Quat::from_rotation_x(0.15 * r.x);
+            *p = Vec3A::from(twist * (*r - Vec3::new(0.0, 1.0, 1.0)));
+        }
+        (rest, l)
+    }
+
+    #[test]
+    fn gauss_seidel_converges_faster_than_jacobi_on_a_twisted_block() {
+        let error = |mode, iterations| {
+            let (rest, mut l) = twisted_block(mode);
+            l.solve(iterations, &Colliders::default());
+            let current: Vec<Vec3> = l.positions.iter().map(|p| Vec3::from(*p)).collect();
+            crate::stats::rigid_fit_error(&rest, &current)
+        };
+        let start = error(SolverMode::Jacobi, 0);
+        for k in [2, 5, 10] {
+            let (jacobi, gs) = (
+                error(SolverMode::Jacobi, k),
+                error(SolverMode::GaussSeidel, k),
+            );
+            assert!(
+                jacobi < start && gs < jacobi,
+                "k={k}: start {start} jacobi {jacobi} gs {gs}"
+            );
+        }
+    }
+}

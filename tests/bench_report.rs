@@ -1,0 +1,75 @@
+//! `cleave bench --json` through the binary: one JSON object per size with every key the
+//! report promises, and numbers that are consistent with each other.
+
+use serde_json::Value;
+use std::process::Command;
+
+#[test]
+fn bench_json_has_one_consistent_line_per_size() {
+    let out = Command::new(env!("CARGO_BIN_EXE_cleave"))
+        .args([
+            "bench",
+            "--json",
+            "--sizes",
+            "8,6",
+            "--steps",
+            "3",
+            "--threads",
+            "1",
+        ])
+        .output()
+        .expect("run cleave bench");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
+        .collect();
+    assert_eq!(lines.len(), 2);
+    // ascending sizes
+    assert_eq!(lines[0]["size"], 6);
+    assert_eq!(lines[1]["size"], 8);
+    for row in &lines {
+        let n = row["size"].as_u64().unwrap();
+        let number = |key: &str| {
+            row[key]
+                .as_f64()
+                .unwrap_or_else(|| panic!("missing or non-numeric `{key}` in {row}"))
+        };
+        assert_eq!(number("particles") as u64, n * n * n);
+        assert_eq!(number("threads"), 1.0);
+        assert_eq!(number("iterations"), 20.0);
+        let per_step = number("memberships") * number("iterations");
+        let ns = number("ms_per_step") * 1e6 / per_step;
+        assert!((ns - number("ns_per_membership_iteration")).abs() < 1e-6 * ns);
+        let ratio = number("ms_per_step") / number("bare_ms_per_step");
+        assert!((ratio - number("engine_over_bare")).abs() < 1e-9 * ratio);
+        for key in [
+            "clusters",
+            "bare_ns_per_membership_iteration",
+            "bytes_per_particle",
+            "cut_event_ms",
+            "recluster_ms",
+        ] {
+            assert!(number(key) > 0.0, "{key} in {row}");
+        }
+    }
+    // the convergence table goes to stderr in JSON mode
+    let table = String::from_utf8(out.stderr).unwrap();
+    assert!(table.contains("gauss-seidel"), "{table}");
+}
+
+#[test]
+fn bench_rejects_bad_sizes_with_exit_code_2() {
+    let out = Command::new(env!("CARGO_BIN_EXE_cleave"))
+        .args(["bench", "--sizes", "0", "--steps", "1"])
+        .output()
+        .expect("run cleave bench");
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--sizes") && err.contains("allowed"), "{err}");
+}
