@@ -1,11 +1,11 @@
-//! A full slice cut event (regroup + split + expand + overlap repair) on 32³ and 64³
+//! A full slice cut event (regroup + split + expand + edge-cover repair) on 32³ and 64³
 //! bodies, against re-clustering the cut body from scratch with the initial clustering.
 
 use cleave::cluster_store::{ClusterStore, ClusterTable};
-use cleave::clustering::{initial_clusters, link_isolated_clusters};
+use cleave::clustering::initial_clusters;
 use cleave::config::Material;
 use cleave::lattice::{Lattice, Shape};
-use cleave::reconstruct::{expand_clusters, regroup, split_oversized};
+use cleave::reconstruct::rebuild_after_cut;
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use glam::UVec3;
 use rand::SeedableRng;
@@ -38,18 +38,7 @@ fn cut_event(lattice: &Lattice, table: &mut ClusterTable, slab: &[u32], material
         .collect();
     cut_clusters.sort_unstable();
     cut_clusters.dedup();
-    let max = material.max_cluster_size as usize;
-    let produced = regroup(table, lattice, &cut_clusters, &mut rng);
-    let produced = split_oversized(table, lattice, &produced, max, &mut rng);
-    expand_clusters(
-        table,
-        lattice,
-        &produced,
-        material.expand_count as usize,
-        max,
-        &mut rng,
-    );
-    link_isolated_clusters(table, lattice, max);
+    rebuild_after_cut(table, lattice, &cut_clusters, material, &mut rng);
 }
 
 fn cut(c: &mut Criterion) {

@@ -35,16 +35,38 @@ pub fn normalise(mut members: Vec<u32>) -> Vec<u32> {
     members
 }
 
-/// Merges sorted `extra` into sorted `members`; returns the particles that were new.
+/// Merges sorted `extra` into sorted `members` in linear time; returns the particles
+/// that were new.
 pub fn merge_sorted(members: &mut Vec<u32>, extra: &[u32]) -> Vec<u32> {
-    let new: Vec<u32> = extra
-        .iter()
-        .copied()
-        .filter(|p| members.binary_search(p).is_err())
-        .collect();
+    let mut merged = Vec::with_capacity(members.len() + extra.len());
+    let mut new = Vec::new();
+    let (mut i, mut j) = (0, 0);
+    while i < members.len() || j < extra.len() {
+        match (members.get(i), extra.get(j)) {
+            (Some(&a), Some(&b)) if a == b => {
+                merged.push(a);
+                i += 1;
+                j += 1;
+            }
+            (Some(&a), Some(&b)) if b < a => {
+                merged.push(b);
+                new.push(b);
+                j += 1;
+            }
+            (Some(&a), _) => {
+                merged.push(a);
+                i += 1;
+            }
+            (None, Some(&b)) => {
+                merged.push(b);
+                new.push(b);
+                j += 1;
+            }
+            (None, None) => break,
+        }
+    }
     if !new.is_empty() {
-        members.extend_from_slice(&new);
-        members.sort_unstable();
+        *members = merged;
     }
     new
 }
@@ -164,5 +186,22 @@ impl ClusterStore for ClusterTable {
         if let Some(old) = self.slots.get_mut(k as usize).and_then(Option::take) {
             index_remove(&mut self.of_particle, &old, k);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn merge_sorted_keeps_order_and_reports_new_particles() {
+        let mut m = vec![2, 5, 9];
+        assert_eq!(merge_sorted(&mut m, &[1, 5, 7, 12]), vec![1, 7, 12]);
+        assert_eq!(m, vec![1, 2, 5, 7, 9, 12]);
+        assert!(merge_sorted(&mut m, &[2, 12]).is_empty());
+        assert_eq!(m, vec![1, 2, 5, 7, 9, 12]);
+        let mut empty = vec![];
+        assert_eq!(merge_sorted(&mut empty, &[4]), vec![4]);
+        assert_eq!(empty, vec![4]);
     }
 }

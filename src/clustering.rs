@@ -1,18 +1,17 @@
-//! Initial distance-based clustering (SPEC §1) and the overlap repair that keeps every
+//! Initial distance-based clustering (SPEC §1) and the edge-cover repair that keeps every
 //! piece's clusters linked (no isolated cluster).
 //!
 //! Clusters are Chebyshev balls of radius `r` around seeds on a sub-lattice of stride
 //! `2r + 1 − overlap`, grown by BFS inside the ball so each is connected, truncated at
 //! `max_cluster_size`. Particles left uncovered (concave shapes) seed clusters of their
-//! own. Finally [`link_isolated_clusters`] joins overlap components inside each piece.
+//! own. Finally [`cover_edges`] makes every lattice edge lie inside some cluster.
 
 use crate::cluster_store::{ClusterStore, ClusterTable};
 use crate::config::Material;
 use crate::lattice::Lattice;
 use glam::IVec3;
-use petgraph::unionfind::UnionFind;
 use rand::Rng;
-use std::collections::{HashMap, VecDeque};
+use std::collections::VecDeque;
 
 /// Particles reachable from `seed` by lattice edges without leaving the Chebyshev ball
 /// of radius `radius` around it, nearest (in graph distance) first, at most `max`.
@@ -74,60 +73,72 @@ pub fn initial_clusters(
             add(&mut table, &mut covered, p);
         }
     }
-    link_isolated_clusters(&mut table, lattice, max);
+    cover_edges(
+        &mut table,
+        lattice,
+        lattice.live_particles().collect::<Vec<_>>(),
+        max,
+    );
     table
 }
 
-/// Makes the cluster-overlap graph of every piece connected (SPEC §3.4's goal, enforced).
+/// True when the sorted cluster lists `a` and `b` have a cluster in common.
+fn share_a_cluster<K: Ord>(a: &[K], b: &[K]) -> bool {
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        match a[i].cmp(&b[j]) {
+            std::cmp::Ordering::Less => i += 1,
+            std::cmp::Ordering::Greater => j += 1,
+            std::cmp::Ordering::Equal => return true,
+        }
+    }
+    false
+}
+
+/// Makes every live lattice edge at the given particles *covered*: both ends in a
+/// common cluster. Returns the number of edges that needed a bridge.
 ///
-/// Particles are joined in a union–find whenever they share a cluster. Then every live
-/// lattice edge `(a, b)` whose ends are still in different sets is bridged: `b` joins the
-/// smallest cluster of `a` that has room (the cluster stays connected through the edge),
-/// or, when all are full, a new two-particle cluster `{a, b}` is made. Returns the
-/// number of bridges added. Cost: O(memberships + edges).
-pub fn link_isolated_clusters<S: ClusterStore>(
+/// Edge coverage implies SPEC §3.4's goal (no isolated cluster): inside a connected
+/// piece any two particles are joined by a lattice path whose consecutive particles
+/// share a cluster, so the piece's cluster-overlap graph is connected. Unlike that global
+/// property, coverage can be restored locally: a cut event only changes the clusters it
+/// produced, so only edges at their members can have lost their cover.
+///
+/// An uncovered edge `(a, b)` is bridged by adding the other end to the smallest cluster
+/// of `a` or `b` that has room (it stays connected through the edge), or, when all are
+/// full, by a new two-particle cluster `{a, b}`.
+pub fn cover_edges<S: ClusterStore>(
     store: &mut S,
     lattice: &Lattice,
+    particles: impl IntoIterator<Item = u32>,
     max: usize,
 ) -> usize {
-    let mut sets = UnionFind::<u32>::new(lattice.len());
-    for p in lattice.live_particles() {
-        for &k in store.clusters_of(p) {
-            if let Some(&first) = store.members(k).first() {
-                sets.union(p, first);
-            }
-        }
-    }
     let mut bridges = 0;
-    let mut grown: HashMap<S::Key, Vec<u32>> = HashMap::new();
-    for (a, b) in lattice.edges() {
-        if sets.equiv(a, b) {
+    for a in particles {
+        if !lattice.is_live(a) {
             continue;
         }
-        let size = |k: &S::Key| grown.get(k).map_or(store.members(*k).len(), Vec::len);
-        let roomy = store
-            .clusters_of(a)
-            .iter()
-            .copied()
-            .filter(|k| size(k) < max)
-            .min_by_key(|k| (size(k), *k));
-        match roomy {
-            Some(k) => {
-                let members = grown.entry(k).or_insert_with(|| store.members(k).to_vec());
-                members.push(b);
-                members.sort_unstable();
+        for b in lattice.neighbours(a) {
+            if share_a_cluster(store.clusters_of(a), store.clusters_of(b)) {
+                continue;
             }
-            None => {
-                store.create(vec![a, b]);
+            let size = |k: &S::Key| store.members(*k).len();
+            let roomy = |p: u32, other: u32| {
+                store
+                    .clusters_of(p)
+                    .iter()
+                    .filter(|k| size(k) < max)
+                    .map(|k| (size(k), *k, other))
+                    .min()
+            };
+            match roomy(a, b).into_iter().chain(roomy(b, a)).min() {
+                Some((_, k, other)) => store.add_members(k, &[other]),
+                None => {
+                    store.create(vec![a.min(b), a.max(b)]);
+                }
             }
+            bridges += 1;
         }
-        sets.union(a, b);
-        bridges += 1;
-    }
-    let mut grown: Vec<_> = grown.into_iter().collect();
-    grown.sort_unstable_by_key(|(k, _)| *k);
-    for (k, members) in grown {
-        store.set_members(k, members);
     }
     bridges
 }
@@ -155,19 +166,23 @@ mod tests {
     }
 
     #[test]
-    fn linking_bridges_two_disjoint_clusters() {
+    fn covering_bridges_uncovered_edges() {
         let l = Shape::cuboid(UVec3::new(4, 1, 1), 1.0)
             .voxelise(1.0)
             .unwrap();
         let mut t = ClusterTable::from_clusters(4, vec![vec![0, 1], vec![2, 3]]);
-        assert_eq!(link_isolated_clusters(&mut t, &l, 3), 1);
+        assert_eq!(cover_edges(&mut t, &l, 0..4, 3), 1);
         assert_eq!(t.members(0), &[0, 1, 2]);
+        assert_eq!(cover_edges(&mut t, &l, 0..4, 3), 0, "idempotent");
         let mut t = ClusterTable::from_clusters(4, vec![vec![0, 1], vec![2, 3]]);
-        assert_eq!(link_isolated_clusters(&mut t, &l, 2), 1);
+        assert_eq!(cover_edges(&mut t, &l, 0..4, 2), 1);
         assert_eq!(
             t.members(2),
             &[1, 2],
             "full clusters get a new 2-particle bridge"
         );
+        // only edges at the given particles are looked at
+        let mut t = ClusterTable::from_clusters(4, vec![vec![0, 1], vec![2, 3]]);
+        assert_eq!(cover_edges(&mut t, &l, [0, 3], 3), 0);
     }
 }

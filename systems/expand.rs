@@ -1,16 +1,16 @@
 //! Stage expand (SPEC §3.4): rebuilt clusters grow by random adjacent particles; then
-//! every piece's cluster-overlap graph is made connected (the guarantee §3.4 aims at).
+//! every lattice edge at their members is covered by a cluster again, which guarantees
+//! what §3.4 aims at (no isolated cluster).
 //! Writes cluster data only.
 
 use super::ecs_store::EcsClusterStore;
-use crate::clustering::link_isolated_clusters;
 use crate::components::{Body, BodyLattice, ClusterMembers, ParticleClusters};
 use crate::reconstruct;
 use crate::resources::{ClustersRebuilt, CutTimings, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
 use std::time::Instant;
 
-/// Runs [`reconstruct::expand_clusters`] and [`link_isolated_clusters`].
+/// Runs [`reconstruct::expand_clusters`] and [`reconstruct::cover_rebuilt`].
 pub fn expand(
     mut commands: Commands,
     mut rng: ResMut<SimRng>,
@@ -44,7 +44,12 @@ pub fn expand(
             m.max_cluster_size as usize,
             &mut rng.0,
         );
-        link_isolated_clusters(&mut store, &lattice.lattice, m.max_cluster_size as usize);
+        reconstruct::cover_rebuilt(
+            &mut store,
+            &lattice.lattice,
+            keys,
+            m.max_cluster_size as usize,
+        );
         store.finish();
         messages.write(ClustersRebuilt {
             body: *body_entity,

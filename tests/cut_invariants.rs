@@ -3,12 +3,12 @@
 //! sets: single survivors, everything removed) and through the ECS with real tools.
 
 use cleave::cluster_store::{ClusterStore, ClusterTable};
-use cleave::clustering::{initial_clusters, link_isolated_clusters};
+use cleave::clustering::initial_clusters;
 use cleave::config::Material;
 use cleave::invariants::check_body;
 use cleave::lattice::{Lattice, Shape};
 use cleave::prelude::*;
-use cleave::reconstruct::{expand_clusters, regroup, split_oversized};
+use cleave::reconstruct::rebuild_after_cut;
 use glam::{Quat, UVec3, Vec3};
 use proptest::prelude::*;
 use rand::SeedableRng;
@@ -112,7 +112,7 @@ fn violations(table: &ClusterTable, lattice: &Lattice, max: u32) -> Vec<String> 
 proptest! {
     #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
 
-    /// Pure pipeline: regroup → split → expand → link after each of several cuts.
+    /// Pure pipeline: regroup → split → expand → cover after each of several cuts.
     #[test]
     fn invariants_hold_after_every_cut(shape in shape_strategy(), material in material_strategy(), cuts in prop::collection::vec(cut_strategy(), 1..5), seed in any::<u64>()) {
         let mut lattice = shape.voxelise(1.0).unwrap();
@@ -128,10 +128,7 @@ proptest! {
             for p in &removed {
                 lattice.remove(*p);
             }
-            let produced = regroup(&mut table, &lattice, &cut_clusters, &mut rng);
-            let produced = split_oversized(&mut table, &lattice, &produced, max as usize, &mut rng);
-            expand_clusters(&mut table, &lattice, &produced, material.expand_count as usize, max as usize, &mut rng);
-            link_isolated_clusters(&mut table, &lattice, max as usize);
+            rebuild_after_cut(&mut table, &lattice, &cut_clusters, &material, &mut rng);
             let v = violations(&table, &lattice, max);
             prop_assert!(v.is_empty(), "after {:?}: {:?}", cut, v);
         }

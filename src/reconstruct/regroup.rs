@@ -6,19 +6,48 @@ use crate::cluster_store::ClusterStore;
 use crate::graph::{connected_components, position_in};
 use crate::lattice::Lattice;
 use rand::Rng;
+use smallvec::SmallVec;
+use std::collections::{BTreeMap, HashMap};
+use std::hash::Hash;
 
-/// The first adjacent particle of a sorted member set (members ascending, neighbours
-/// in lattice order), if any.
-pub fn first_adjacent_particle(members: &[u32], lattice: &Lattice) -> Option<u32> {
+/// Particles adjacent to a sorted member set (not in it), in member order then lattice
+/// neighbour order; a particle may appear more than once.
+pub fn adjacent_in_order<'a>(
+    members: &'a [u32],
+    lattice: &'a Lattice,
+) -> impl Iterator<Item = u32> + 'a {
     members
         .iter()
         .flat_map(|m| lattice.neighbours(*m))
-        .find(|n| position_in(members, *n).is_none())
+        .filter(|n| position_in(members, *n).is_none())
+}
+
+/// Root of `k` in the merge forest, with path compression.
+fn find<K: Copy + Eq + Hash>(parent: &mut HashMap<K, K>, k: K) -> K {
+    let mut root = k;
+    while let Some(&p) = parent.get(&root) {
+        root = p;
+    }
+    let mut x = k;
+    while let Some(&p) = parent.get(&x) {
+        if p == root {
+            break;
+        }
+        parent.insert(x, root);
+        x = p;
+    }
+    root
 }
 
 /// Replaces every cut cluster by its pieces, then merges each piece into a neighbour
 /// cluster (SPEC §3.2). Returns the clusters this produced — the neighbour clusters that
 /// received a merge and the independent pieces — sorted and without duplicates.
+///
+/// Merges are recorded in a union–find over clusters and the members are moved once at
+/// the end, so a chain of merges (a piece merging into a pending cluster that later
+/// merges on, which §3.2 allows) costs its total size, not its length × size. A piece
+/// looks for its adjacent particle around its own members; particles of pieces already
+/// merged into it count as its members, not as neighbours.
 pub fn regroup<S: ClusterStore>(
     store: &mut S,
     lattice: &Lattice,
@@ -43,32 +72,51 @@ pub fn regroup<S: ClusterStore>(
             pending.push(store.create(piece));
         }
     }
-    // 3.2: merge each pending cluster into a random cluster of an adjacent particle.
+    // 3.2: choose every merge first, over the merge forest.
+    let mut parent: HashMap<S::Key, S::Key> = HashMap::new();
     let mut produced: Vec<S::Key> = Vec::new();
-    for p in pending {
-        let members = store.members(p);
-        if members.is_empty() {
-            continue; // already merged away (cannot happen: only `p` itself is removed)
-        }
-        let neighbour = first_adjacent_particle(members, lattice).and_then(|a| {
-            let candidates: Vec<S::Key> = store
+    let mut merged: Vec<S::Key> = Vec::new();
+    for &p in &pending {
+        let own = find(&mut parent, p);
+        let mut target = None;
+        for a in adjacent_in_order(store.members(p), lattice) {
+            let candidates: SmallVec<[S::Key; 8]> = store
                 .clusters_of(a)
                 .iter()
                 .copied()
-                .filter(|k| *k != p)
+                .filter(|k| find(&mut parent, *k) != own)
                 .collect();
-            (!candidates.is_empty()).then(|| candidates[rng.random_range(0..candidates.len())])
-        });
-        match neighbour {
+            if !candidates.is_empty() {
+                target = Some(candidates[rng.random_range(0..candidates.len())]);
+                break;
+            }
+        }
+        match target {
             None => produced.push(p),
-            Some(target) => {
-                let piece = store.members(p).to_vec();
-                store.remove(p);
-                store.add_members(target, &piece);
-                produced.push(target);
+            Some(t) => {
+                let root = find(&mut parent, t);
+                parent.insert(own, root);
+                merged.push(p);
+                produced.push(root);
             }
         }
     }
+    // Move every merged piece into its final cluster, once.
+    let mut incoming: BTreeMap<S::Key, Vec<u32>> = BTreeMap::new();
+    for &p in &merged {
+        let root = find(&mut parent, p);
+        incoming
+            .entry(root)
+            .or_default()
+            .extend_from_slice(store.members(p));
+        store.remove(p);
+    }
+    for (root, mut members) in incoming {
+        members.sort_unstable();
+        members.dedup();
+        store.add_members(root, &members);
+    }
+    let mut produced: Vec<S::Key> = produced.into_iter().map(|k| find(&mut parent, k)).collect();
     produced.sort_unstable();
     produced.dedup();
     produced.retain(|k| !store.members(*k).is_empty());
