@@ -39,7 +39,7 @@ pub fn normalise(mut members: Vec<u32>) -> Vec<u32> {
 /// that were new.
 pub fn merge_sorted(members: &mut Vec<u32>, extra: &[u32]) -> Vec<u32> {
     let mut merged = Vec::with_capacity(members.len() + extra.len());
-    let mut new = Vec::new();
+    let mut new = Vec::with_capacity(extra.len());
     let (mut i, mut j) = (0, 0);
     while i < members.len() || j < extra.len() {
         match (members.get(i), extra.get(j)) {
@@ -69,6 +69,33 @@ pub fn merge_sorted(members: &mut Vec<u32>, extra: &[u32]) -> Vec<u32> {
         *members = merged;
     }
     new
+}
+
+/// Moves the index entries of cluster `k` from the sorted member list `old` to the
+/// sorted list `new`, touching only the particles that left or joined.
+pub fn index_replace<K: Copy + Ord>(index: &mut [ClusterList<K>], old: &[u32], new: &[u32], k: K) {
+    let (mut i, mut j) = (0, 0);
+    while i < old.len() || j < new.len() {
+        match (old.get(i), new.get(j)) {
+            (Some(a), Some(b)) if a == b => {
+                i += 1;
+                j += 1;
+            }
+            (Some(&a), Some(&b)) if a < b => {
+                index_remove(index, &[a], k);
+                i += 1;
+            }
+            (Some(&a), None) => {
+                index_remove(index, &[a], k);
+                i += 1;
+            }
+            (_, Some(&b)) => {
+                index_add(index, &[b], k);
+                j += 1;
+            }
+            (None, None) => break,
+        }
+    }
 }
 
 /// Helpers that keep a particle → clusters index in step with member edits.
@@ -160,11 +187,8 @@ impl ClusterStore for ClusterTable {
 
     fn set_members(&mut self, k: u32, members: Vec<u32>) {
         let members = normalise(members);
-        if let Some(Some(old)) = self.slots.get(k as usize) {
-            let old = old.clone();
-            index_remove(&mut self.of_particle, &old, k);
-        }
-        index_add(&mut self.of_particle, &members, k);
+        let old = self.slots[k as usize].take().unwrap_or_default();
+        index_replace(&mut self.of_particle, &old, &members, k);
         self.slots[k as usize] = Some(members);
     }
 
@@ -195,6 +219,15 @@ mod tests {
 
     #[test]
     fn merge_sorted_keeps_order_and_reports_new_particles() {
+        let mut index: Vec<ClusterList<u32>> = vec![ClusterList::new(); 6];
+        index_add(&mut index, &[0, 2, 3], 7);
+        index_add(&mut index, &[2], 1);
+        index_replace(&mut index, &[0, 2, 3], &[2, 4, 5], 7);
+        let lists: Vec<Vec<u32>> = index.iter().map(|l| l.to_vec()).collect();
+        assert_eq!(
+            lists,
+            [vec![], vec![], vec![1, 7], vec![], vec![7], vec![7]]
+        );
         let mut m = vec![2, 5, 9];
         assert_eq!(merge_sorted(&mut m, &[1, 5, 7, 12]), vec![1, 7, 12]);
         assert_eq!(m, vec![1, 2, 5, 7, 9, 12]);

@@ -2,12 +2,30 @@
 //! subsets: connected components of a cluster, pieces of a body.
 
 use crate::lattice::Lattice;
-use std::collections::VecDeque;
+use std::cell::RefCell;
 
 /// Index of `p` in the sorted slice `set`, if present.
 #[inline]
 pub fn position_in(set: &[u32], p: u32) -> Option<usize> {
     set.binary_search(&p).ok()
+}
+
+thread_local! {
+    /// Per-thread scratch of one slot per lattice particle, `u32::MAX` between uses.
+    static SLOTS: RefCell<Vec<u32>> = const { RefCell::new(Vec::new()) };
+}
+
+/// Runs `f` with a scratch slice of `len` slots, all `u32::MAX`; `f` must give every
+/// slot it sets back to `u32::MAX` before it returns. Lookups are O(1) where a binary
+/// search over the member list would cost a logarithm and a branch miss per step.
+pub fn with_slots<R>(len: usize, f: impl FnOnce(&mut [u32]) -> R) -> R {
+    SLOTS.with(|slots| {
+        let mut slots = slots.borrow_mut();
+        if slots.len() < len {
+            slots.resize(len, u32::MAX);
+        }
+        f(&mut slots[..len])
+    })
 }
 
 /// Maximal connected subgraphs of the live particles in `members` (any order, no
@@ -21,32 +39,39 @@ pub fn connected_components(members: &[u32], lattice: &Lattice) -> Vec<Vec<u32>>
         .collect();
     set.sort_unstable();
     set.dedup();
-    let mut label = vec![u32::MAX; set.len()];
-    let mut components = Vec::new();
-    let mut queue = VecDeque::new();
-    for start in 0..set.len() {
-        if label[start] != u32::MAX {
-            continue;
+    with_slots(lattice.len(), |label| {
+        // label: UNSEEN for members not reached yet, the component id once reached
+        const UNSEEN: u32 = u32::MAX - 1;
+        for &p in &set {
+            label[p as usize] = UNSEEN;
         }
-        let id = components.len() as u32;
-        label[start] = id;
-        queue.push_back(start);
-        let mut component = Vec::new();
-        while let Some(i) = queue.pop_front() {
-            component.push(set[i]);
-            for n in lattice.neighbours(set[i]) {
-                if let Some(j) = position_in(&set, n)
-                    && label[j] == u32::MAX
-                {
-                    label[j] = id;
-                    queue.push_back(j);
+        let mut components = Vec::new();
+        let mut stack = Vec::with_capacity(set.len());
+        for &start in &set {
+            if label[start as usize] != UNSEEN {
+                continue;
+            }
+            let id = components.len() as u32;
+            label[start as usize] = id;
+            stack.push(start);
+            let mut component = Vec::with_capacity(set.len());
+            while let Some(p) = stack.pop() {
+                component.push(p);
+                for n in lattice.neighbours(p) {
+                    if label[n as usize] == UNSEEN {
+                        label[n as usize] = id;
+                        stack.push(n);
+                    }
                 }
             }
+            component.sort_unstable();
+            components.push(component);
         }
-        component.sort_unstable();
-        components.push(component);
-    }
-    components
+        for &p in &set {
+            label[p as usize] = u32::MAX;
+        }
+        components
+    })
 }
 
 /// Whether the live particles of `members` form one connected graph (an empty set is not).
@@ -82,14 +107,25 @@ pub fn body_pieces(lattice: &Lattice) -> (Vec<u32>, usize) {
 /// Live particles adjacent to `members` (sorted) but not in it: the cluster's
 /// *adjacent particles* (SPEC §1), ascending and without duplicates.
 pub fn adjacent_particles(members: &[u32], lattice: &Lattice) -> Vec<u32> {
-    let mut out: Vec<u32> = members
-        .iter()
-        .flat_map(|m| lattice.neighbours(*m))
-        .filter(|n| position_in(members, *n).is_none())
-        .collect();
-    out.sort_unstable();
-    out.dedup();
-    out
+    with_slots(lattice.len(), |mark| {
+        for &m in members {
+            mark[m as usize] = 0;
+        }
+        let mut out = Vec::with_capacity(members.len() * 2);
+        for &m in members {
+            for n in lattice.neighbours(m) {
+                if mark[n as usize] == u32::MAX {
+                    mark[n as usize] = 1;
+                    out.push(n);
+                }
+            }
+        }
+        for &p in members.iter().chain(&out) {
+            mark[p as usize] = u32::MAX;
+        }
+        out.sort_unstable();
+        out
+    })
 }
 
 #[cfg(test)]

@@ -35,6 +35,8 @@ pub struct Lattice {
     coords: Vec<IVec3>,
     live: Vec<bool>,
     live_count: usize,
+    /// Grid cell of each particle.
+    cell_of: Vec<u32>,
 }
 
 impl Lattice {
@@ -47,7 +49,9 @@ impl Lattice {
         let (min, dims) = if coords.is_empty() {
             (IVec3::ZERO, UVec3::ZERO)
         } else {
-            (min, (max - min + IVec3::ONE).as_uvec3())
+            // one empty cell of padding on every side: neighbour cells are always in
+            // the grid, so `neighbours` needs no bounds checks
+            (min - IVec3::ONE, (max - min + IVec3::splat(3)).as_uvec3())
         };
         let cells = dims.x as u64 * dims.y as u64 * dims.z as u64;
         if cells > MAX_LATTICE_CELLS {
@@ -64,6 +68,7 @@ impl Lattice {
             grid: vec![NO_PARTICLE; cells as usize],
             live: vec![true; coords.len()],
             live_count: coords.len(),
+            cell_of: vec![0; coords.len()],
             coords,
         };
         for i in 0..lattice.coords.len() {
@@ -77,6 +82,7 @@ impl Lattice {
                 )));
             }
             lattice.grid[cell] = i as u32;
+            lattice.cell_of[i] = cell as u32;
         }
         Ok(lattice)
     }
@@ -147,10 +153,16 @@ impl Lattice {
 
     /// Live lattice neighbours of particle `i` (6-neighbourhood), in a fixed order.
     pub fn neighbours(&self, i: u32) -> impl Iterator<Item = u32> + '_ {
-        let c = self.coords[i as usize];
-        NEIGHBOUR_OFFSETS
-            .iter()
-            .filter_map(move |o| self.at(c + *o))
+        let cell = self.cell_of[i as usize] as isize;
+        let (dx, dy) = (
+            self.dims.x as isize,
+            self.dims.x as isize * self.dims.y as isize,
+        );
+        // same order as NEIGHBOUR_OFFSETS; padding keeps every neighbour cell in the grid
+        [-1, 1, -dx, dx, -dy, dy]
+            .into_iter()
+            .map(move |d| self.grid[(cell + d) as usize])
+            .filter(|n| *n != NO_PARTICLE)
     }
 
     /// Removes particle `i`; returns false if it was not live.

@@ -2,7 +2,9 @@
 //! components, the particle index in the body's `ParticleClusters`. New clusters get
 //! reserved entities whose components are inserted by [`EcsClusterStore::finish`].
 
-use crate::cluster_store::{ClusterStore, index_add, index_remove, merge_sorted, normalise};
+use crate::cluster_store::{
+    ClusterStore, index_add, index_remove, index_replace, merge_sorted, normalise,
+};
 use crate::components::{ClusterMembers, ClusterOf, Stiffness};
 use bevy_ecs::prelude::*;
 use std::collections::{BTreeMap, HashSet};
@@ -72,12 +74,13 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_, '_, '_, '_> {
 
     fn set_members(&mut self, k: Entity, members: Vec<u32>) {
         let members = normalise(members);
-        let old = self.members(k).to_vec();
-        index_remove(self.index, &old, k);
-        index_add(self.index, &members, k);
         if let Some(m) = self.created.get_mut(&k) {
+            index_replace(self.index, m, &members, k);
             *m = members;
-        } else if let Ok(mut m) = self.clusters.get_mut(k) {
+        } else if !self.removed.contains(&k)
+            && let Ok(mut m) = self.clusters.get_mut(k)
+        {
+            index_replace(self.index, &m.0, &members, k);
             m.0 = members;
         }
     }

@@ -26,13 +26,12 @@ pub fn expand_clusters<S: ClusterStore>(
         if take == 0 {
             continue;
         }
-        let mut grown = members.to_vec();
-        grown.extend(
-            sample(rng, adjacent.len(), take)
-                .into_iter()
-                .map(|i| adjacent[i]),
-        );
-        store.set_members(k, grown);
+        let mut extra: Vec<u32> = sample(rng, adjacent.len(), take)
+            .into_iter()
+            .map(|i| adjacent[i])
+            .collect();
+        extra.sort_unstable();
+        store.add_members(k, &extra);
         added += take;
     }
     added

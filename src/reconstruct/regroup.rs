@@ -7,7 +7,7 @@ use crate::graph::{connected_components, position_in};
 use crate::lattice::Lattice;
 use rand::Rng;
 use smallvec::SmallVec;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::hash::Hash;
 
 /// Particles adjacent to a sorted member set (not in it), in member order then lattice
@@ -76,21 +76,34 @@ pub fn regroup<S: ClusterStore>(
     let mut parent: HashMap<S::Key, S::Key> = HashMap::new();
     let mut produced: Vec<S::Key> = Vec::new();
     let mut merged: Vec<S::Key> = Vec::new();
+    let is_pending: HashSet<S::Key> = pending.iter().copied().collect();
     for &p in &pending {
         let own = find(&mut parent, p);
-        let mut target = None;
+        // The adjacent particle: the first one that belongs to a cluster the cut left
+        // intact, else the first one with any cluster outside this piece's merge set.
+        // (§3.2 leaves the choice open; preferring intact neighbours keeps chains of
+        // merges between pending clusters, and the giant clusters they make, rare.)
+        let mut fallback = None;
+        let mut chosen = None;
         for a in adjacent_in_order(store.members(p), lattice) {
+            let clusters = store.clusters_of(a);
+            if clusters.iter().any(|k| !is_pending.contains(k)) {
+                chosen = Some(a);
+                break;
+            }
+            if fallback.is_none() && clusters.iter().any(|k| find(&mut parent, *k) != own) {
+                fallback = Some(a);
+            }
+        }
+        let target = chosen.or(fallback).and_then(|a| {
             let candidates: SmallVec<[S::Key; 8]> = store
                 .clusters_of(a)
                 .iter()
                 .copied()
                 .filter(|k| find(&mut parent, *k) != own)
                 .collect();
-            if !candidates.is_empty() {
-                target = Some(candidates[rng.random_range(0..candidates.len())]);
-                break;
-            }
-        }
+            (!candidates.is_empty()).then(|| candidates[rng.random_range(0..candidates.len())])
+        });
         match target {
             None => produced.push(p),
             Some(t) => {

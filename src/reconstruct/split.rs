@@ -4,7 +4,7 @@
 
 use super::pca::split_normal;
 use crate::cluster_store::ClusterStore;
-use crate::graph::position_in;
+use crate::graph::with_slots;
 use crate::lattice::Lattice;
 use glam::Vec3;
 use rand::Rng;
@@ -26,24 +26,55 @@ impl Ord for ByDistance {
     }
 }
 
-/// Local adjacency of a member set (indices into `members`).
-fn local_adjacency(members: &[u32], lattice: &Lattice) -> Vec<Vec<usize>> {
-    members
-        .iter()
-        .map(|m| {
-            lattice
-                .neighbours(*m)
-                .filter_map(|n| position_in(members, n))
-                .collect()
-        })
-        .collect()
+/// The lattice graph induced on a member set, in compressed rows; vertices are indices
+/// into the member list.
+pub struct LocalGraph {
+    row: Vec<u32>,
+    next: Vec<u32>,
+}
+
+impl LocalGraph {
+    /// Builds the graph of `members`.
+    pub fn new(members: &[u32], lattice: &Lattice) -> Self {
+        with_slots(lattice.len(), |local| Self::build(members, lattice, local))
+    }
+
+    fn build(members: &[u32], lattice: &Lattice, local: &mut [u32]) -> Self {
+        for (i, &m) in members.iter().enumerate() {
+            local[m as usize] = i as u32;
+        }
+        let mut row = Vec::with_capacity(members.len() + 1);
+        let mut next = Vec::with_capacity(members.len() * 6);
+        row.push(0);
+        for &m in members {
+            next.extend(
+                lattice
+                    .neighbours(m)
+                    .map(|n| local[n as usize])
+                    .filter(|j| *j != u32::MAX),
+            );
+            row.push(next.len() as u32);
+        }
+        for &m in members {
+            local[m as usize] = u32::MAX;
+        }
+        Self { row, next }
+    }
+
+    /// Neighbours of vertex `i`.
+    #[inline]
+    pub fn neighbours(&self, i: usize) -> impl Iterator<Item = usize> + '_ {
+        self.next[self.row[i] as usize..self.row[i + 1] as usize]
+            .iter()
+            .map(|j| *j as usize)
+    }
 }
 
 /// SPEC §4.2: grows a connected set S from `start` whose boundary approximates the
 /// plane through `start` with normal `normal`. Returns membership flags of S.
 pub fn geometric_partition(
     points: &[Vec3],
-    adjacency: &[Vec<usize>],
+    graph: &LocalGraph,
     start: usize,
     normal: Vec3,
 ) -> Vec<bool> {
@@ -62,7 +93,7 @@ pub fn geometric_partition(
                         visited: &mut Vec<bool>,
                         negative: &mut Vec<usize>,
                         frontier: &mut BinaryHeap<_>| {
-            for &n in &adjacency[i] {
+            for n in graph.neighbours(i) {
                 if !visited[n] {
                     visited[n] = true;
                     if d(n) < 0.0 {
@@ -104,7 +135,7 @@ pub fn geometric_partition(
 
 /// SPEC §4.3: moves every component of G − S but the largest into S. Returns
 /// membership flags of M (the remaining component).
-pub fn topological_repair(adjacency: &[Vec<usize>], in_s: &mut [bool]) -> Vec<bool> {
+pub fn topological_repair(graph: &LocalGraph, in_s: &mut [bool]) -> Vec<bool> {
     let g = in_s.len();
     let mut label = vec![usize::MAX; g];
     let mut components: Vec<Vec<usize>> = Vec::new();
@@ -117,7 +148,7 @@ pub fn topological_repair(adjacency: &[Vec<usize>], in_s: &mut [bool]) -> Vec<bo
         label[start] = id;
         let mut queue = VecDeque::from([start]);
         while let Some(i) = queue.pop_front() {
-            for &n in &adjacency[i] {
+            for n in graph.neighbours(i) {
                 if !in_s[n] && label[n] == usize::MAX {
                     label[n] = id;
                     comp.push(n);
@@ -156,11 +187,11 @@ pub fn split_cluster(
         .iter()
         .map(|m| lattice.coord(*m).as_vec3())
         .collect();
-    let adjacency = local_adjacency(members, lattice);
+    let graph = LocalGraph::new(members, lattice);
     let normal = split_normal(&points);
     let start = rng.random_range(0..members.len());
-    let mut in_s = geometric_partition(&points, &adjacency, start, normal);
-    let in_m = topological_repair(&adjacency, &mut in_s);
+    let mut in_s = geometric_partition(&points, &graph, start, normal);
+    let in_m = topological_repair(&graph, &mut in_s);
     let pick = |flags: &[bool]| {
         members
             .iter()
