@@ -1,10 +1,12 @@
 //! The `cleave` command-line program: run scenes, list them, benchmark the engine.
 
 mod bench;
+mod pictures;
 mod run;
 
 use clap::{Parser, Subcommand};
 use cleave::config::SolverMode;
+use cleave::render::ColorMode;
 use cleave::scene::BUILTIN_SCENES;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -41,6 +43,27 @@ enum Command {
         /// Write the final state (cleave-state/1 JSON) to this file.
         #[arg(long)]
         dump_state: Option<PathBuf>,
+        /// Write a PNG every N frames (0: none).
+        #[arg(long, default_value_t = 30)]
+        png_every: u32,
+        /// Add a frame to `run.gif` every N frames (0: no GIF).
+        #[arg(long, default_value_t = 3)]
+        gif_every: u32,
+        /// Colour particles by piece or by cluster.
+        #[arg(long, value_enum, default_value = "pieces")]
+        color: ColorArg,
+        /// Image width in pixels.
+        #[arg(long, default_value_t = 640)]
+        width: u32,
+        /// Image height in pixels.
+        #[arg(long, default_value_t = 480)]
+        height: u32,
+        /// Also export point clouds (`ply`: DIR/ply/frame_NNNNN.ply).
+        #[arg(long, value_enum)]
+        export: Option<ExportArg>,
+        /// With `--export ply`: a point cloud every N frames.
+        #[arg(long, default_value_t = 10)]
+        ply_every: u32,
     },
     /// List the built-in scenes.
     Scenes,
@@ -65,6 +88,19 @@ enum Command {
         #[arg(long)]
         no_convergence: bool,
     },
+}
+
+/// Particle colours on the command line.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum ColorArg {
+    Pieces,
+    Clusters,
+}
+
+/// Export formats.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum ExportArg {
+    Ply,
 }
 
 /// Solver scheme on the command line.
@@ -114,9 +150,39 @@ fn main() -> ExitCode {
             seed,
             threads,
             dump_state,
-        } => with_threads(threads, |threads| {
-            run::run(&scene, frames, out, seed, dump_state, threads)
-        }),
+            png_every,
+            gif_every,
+            color,
+            width,
+            height,
+            export,
+            ply_every,
+        } => {
+            let args = run::RunArgs {
+                scene,
+                frames,
+                out,
+                seed,
+                dump_state,
+                pictures: pictures::PictureOptions {
+                    png_every,
+                    gif_every,
+                    ply_every: if export == Some(ExportArg::Ply) {
+                        ply_every
+                    } else {
+                        0
+                    },
+                    color: match color {
+                        ColorArg::Pieces => ColorMode::Pieces,
+                        ColorArg::Clusters => ColorMode::Clusters,
+                    },
+                    width,
+                    height,
+                    dt: 1.0 / 60.0,
+                },
+            };
+            with_threads(threads, |threads| run::run(&args, threads))
+        }
         Command::Bench {
             json,
             sizes,

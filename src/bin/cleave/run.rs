@@ -1,6 +1,7 @@
 //! `cleave run`: simulate a built-in scene, write `summary.json` (and optionally the
 //! state dump), print a table.
 
+use crate::pictures::{PictureOptions, Pictures};
 use bevy_ecs::prelude::*;
 use cleave::bench::median;
 use cleave::components::{BodyLattice, InvMass, Position};
@@ -25,6 +26,9 @@ struct Summary {
     pieces: usize,
     cut_particles: usize,
     median_ms_per_step: f64,
+    simulate_ms_total: f64,
+    pictures_ms_total: f64,
+    pictures_written: usize,
     final_shape_error_h: f64,
     lowest_particle_y_h: f64,
     finite: bool,
@@ -82,15 +86,32 @@ fn piece_separation(
     )
 }
 
-/// Runs `scene_name` and writes the outputs.
-pub fn run(
-    scene_name: &str,
-    frames: Option<u32>,
-    out: PathBuf,
-    seed: u64,
-    dump: Option<PathBuf>,
-    threads: usize,
-) -> Result<(), String> {
+/// Arguments of `cleave run`.
+#[derive(Clone, Debug)]
+pub struct RunArgs {
+    /// Built-in scene name.
+    pub scene: String,
+    /// Frames (default: the scene's).
+    pub frames: Option<u32>,
+    /// Output directory.
+    pub out: PathBuf,
+    /// Seed.
+    pub seed: u64,
+    /// State dump file.
+    pub dump_state: Option<PathBuf>,
+    /// Pictures to write.
+    pub pictures: PictureOptions,
+}
+
+/// Runs the scene and writes the outputs.
+pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
+    let (scene_name, frames, out, seed, dump) = (
+        args.scene.as_str(),
+        args.frames,
+        args.out.clone(),
+        args.seed,
+        args.dump_state.clone(),
+    );
     let scene = builtin(scene_name, seed).ok_or_else(|| {
         let names: Vec<&str> = BUILTIN_SCENES.iter().map(|(n, _)| *n).collect();
         format!(
@@ -145,10 +166,19 @@ pub fn run(
         .world()
         .resource::<Messages<ParticlesCut>>()
         .get_cursor();
+    let mut pictures = Pictures::new(
+        &out,
+        PictureOptions {
+            dt: scene.config.dt,
+            ..args.pictures.clone()
+        },
+    )?;
+    pictures.frame(sim.world_mut(), 0)?;
     for frame in 1..=frames {
         let t = Instant::now();
         sim.step();
         step_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        pictures.frame(sim.world_mut(), frame)?;
         cut_particles += cursor
             .read(sim.world().resource::<Messages<ParticlesCut>>())
             .map(|m| m.particles.len())
@@ -188,6 +218,9 @@ pub fn run(
         memberships: after.memberships,
         pieces: after.pieces,
         cut_particles,
+        simulate_ms_total: step_ms.iter().sum(),
+        pictures_ms_total: pictures.ms,
+        pictures_written: pictures.files,
         median_ms_per_step: median(&mut step_ms),
         final_shape_error_h: after.shape_error_h,
         lowest_particle_y_h: after.lowest_y / h as f64,
@@ -277,7 +310,15 @@ pub fn run(
         summary.pinned_max_displacement_h,
         summary.invariant_violations
     );
-    println!("  wrote {}", path.display());
+    println!(
+        "  simulated in {:.0} ms; {} picture file(s) in {:.0} ms",
+        summary.simulate_ms_total, summary.pictures_written, summary.pictures_ms_total
+    );
+    println!(
+        "  wrote {} (and pictures in {})",
+        path.display(),
+        out.display()
+    );
     if !summary.finite {
         return Err("non-finite particle positions".into());
     }

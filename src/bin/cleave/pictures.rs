@@ -1,0 +1,125 @@
+//! What `cleave run` writes for people to look at: PNG frames, an animated GIF, and
+//! optionally PLY point clouds, with the time spent on them.
+
+use bevy_ecs::prelude::*;
+use cleave::export::write_ply;
+use cleave::render::camera::Camera;
+use cleave::render::encode::{GifWriter, write_png};
+use cleave::render::{ColorMode, frame_camera, render, snapshot};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Which pictures to write.
+#[derive(Clone, Debug)]
+pub struct PictureOptions {
+    /// A PNG every this many frames (0: none).
+    pub png_every: u32,
+    /// A GIF frame every this many frames (0: no GIF).
+    pub gif_every: u32,
+    /// A PLY point cloud every this many frames (0: none).
+    pub ply_every: u32,
+    /// Particle colours.
+    pub color: ColorMode,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Seconds per simulated frame (sets the GIF speed).
+    pub dt: f32,
+}
+
+/// Writes pictures as the run goes.
+pub struct Pictures {
+    options: PictureOptions,
+    dir: PathBuf,
+    camera: Option<Camera>,
+    gif: Option<GifWriter>,
+    /// Milliseconds spent reading, drawing and encoding.
+    pub ms: f64,
+    /// Files written.
+    pub files: usize,
+}
+
+impl Pictures {
+    /// Prepares the output directory.
+    pub fn new(dir: &Path, options: PictureOptions) -> Result<Self, String> {
+        if options.width == 0
+            || options.height == 0
+            || options.width > 8192
+            || options.height > 8192
+        {
+            return Err(format!(
+                "--width/--height {}×{} out of range (allowed 1 to 8192)",
+                options.width, options.height
+            ));
+        }
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create `{}`: {e}", dir.display()))?;
+        if options.ply_every > 0 {
+            let ply = dir.join("ply");
+            std::fs::create_dir_all(&ply)
+                .map_err(|e| format!("cannot create `{}`: {e}", ply.display()))?;
+        }
+        Ok(Self {
+            options,
+            dir: dir.to_path_buf(),
+            camera: None,
+            gif: None,
+            ms: 0.0,
+            files: 0,
+        })
+    }
+
+    /// Writes whatever is due at `frame` (frame 0 is the initial state).
+    pub fn frame(&mut self, world: &mut World, frame: u32) -> Result<(), String> {
+        let due = |every: u32| every > 0 && frame % every == 0;
+        let o = &self.options;
+        let (png, gif, ply) = (due(o.png_every), due(o.gif_every), due(o.ply_every));
+        if !(png || gif || ply) {
+            return Ok(());
+        }
+        let start = Instant::now();
+        let snap = snapshot(world, o.color);
+        let (width, height) = (o.width, o.height);
+        if ply {
+            write_ply(
+                &self.dir.join(format!("ply/frame_{frame:05}.ply")),
+                &snap.spheres,
+            )?;
+            self.files += 1;
+        }
+        if png || gif {
+            let camera = *self
+                .camera
+                .get_or_insert_with(|| frame_camera(&snap, width, height));
+            let canvas = render(&snap, &camera, width, height).ok_or("cannot allocate image")?;
+            let rgba = canvas.pixmap.data();
+            if png {
+                write_png(
+                    &self.dir.join(format!("frame_{frame:05}.png")),
+                    width,
+                    height,
+                    rgba,
+                )?;
+                self.files += 1;
+            }
+            if gif {
+                if self.gif.is_none() {
+                    let delay = (self.options.gif_every as f32 * self.options.dt * 100.0).round();
+                    self.gif = Some(GifWriter::create(
+                        &self.dir.join("run.gif"),
+                        width,
+                        height,
+                        delay.clamp(2.0, 500.0) as u16,
+                    )?);
+                    self.files += 1;
+                }
+                if let Some(g) = &mut self.gif {
+                    g.add_frame(rgba)?;
+                }
+            }
+        }
+        self.ms += start.elapsed().as_secs_f64() * 1e3;
+        Ok(())
+    }
+}
