@@ -72,7 +72,7 @@ impl Pictures {
 
     /// Writes whatever is due at `frame` (frame 0 is the initial state).
     pub fn frame(&mut self, world: &mut World, frame: u32) -> Result<(), String> {
-        let due = |every: u32| every > 0 && frame % every == 0;
+        let due = |every: u32| every > 0 && frame.is_multiple_of(every);
         let o = &self.options;
         let (png, gif, ply) = (due(o.png_every), due(o.gif_every), due(o.ply_every));
         if !(png || gif || ply) {
