@@ -28,6 +28,7 @@ pub mod render;
 pub mod resources;
 pub mod rotation;
 pub mod scene;
+pub mod scene_file;
 pub mod sim;
 pub mod solver;
 pub mod stats;

@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 use cleave::config::SolverMode;
 use cleave::render::ColorMode;
 use cleave::scene::BUILTIN_SCENES;
+use cleave::scene_file::SceneFile;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -24,9 +25,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run a built-in scene and write a summary.
+    /// Run a built-in scene or a scene file and write a summary and pictures.
     Run {
-        /// Scene name (see `cleave scenes`).
+        /// Built-in scene name (see `cleave scenes`) or a `.ron` scene file.
         scene: String,
         /// Frames to simulate (default: the scene's).
         #[arg(long)]
@@ -34,9 +35,9 @@ enum Command {
         /// Output directory for summary.json.
         #[arg(long, default_value = "out")]
         out: PathBuf,
-        /// Random seed.
-        #[arg(long, default_value_t = 0)]
-        seed: u64,
+        /// Random seed (default: the scene's; 0 for built-ins).
+        #[arg(long)]
+        seed: Option<u64>,
         /// Worker threads (default: all cores).
         #[arg(long)]
         threads: Option<usize>,
@@ -65,8 +66,11 @@ enum Command {
         #[arg(long, default_value_t = 10)]
         ply_every: u32,
     },
-    /// List the built-in scenes.
-    Scenes,
+    /// List the built-in scenes, or print one as a scene file.
+    Scenes {
+        #[command(subcommand)]
+        action: Option<ScenesAction>,
+    },
     /// Benchmark boxes of n³ particles: engine vs bare kernel, memory, cut event.
     Bench {
         /// Print one JSON object per size (the convergence table goes to stderr).
@@ -87,6 +91,16 @@ enum Command {
         /// Skip the convergence table.
         #[arg(long)]
         no_convergence: bool,
+    },
+}
+
+/// `cleave scenes` actions.
+#[derive(Subcommand)]
+enum ScenesAction {
+    /// Print a built-in scene as RON, to start a scene file from.
+    Show {
+        /// Built-in scene name.
+        name: String,
     },
 }
 
@@ -137,12 +151,19 @@ where
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Scenes => {
+        Command::Scenes { action: None } => {
             for (name, description) in BUILTIN_SCENES {
                 println!("{name:<12} {description}");
             }
             Ok(())
         }
+        Command::Scenes {
+            action: Some(ScenesAction::Show { name }),
+        } => run::builtin_scene(&name, 0).and_then(|scene| {
+            let file = SceneFile::from_scene(&scene).ok_or("scene has no file form")?;
+            print!("{}", file.to_ron());
+            Ok(())
+        }),
         Command::Run {
             scene,
             frames,

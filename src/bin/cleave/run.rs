@@ -7,11 +7,12 @@ use cleave::bench::median;
 use cleave::components::{BodyLattice, InvMass, Position};
 use cleave::dump::dump_body;
 use cleave::resources::{CutTimings, ParticlesCut};
-use cleave::scene::{BUILTIN_SCENES, builtin};
+use cleave::scene::{BUILTIN_SCENES, Scene, builtin};
+use cleave::scene_file::load_scene_file;
 use cleave::sim::{Simulation, check_invariants, only_body};
 use cleave::stats::{BodyStats, body_stats};
 use serde::Serialize;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Serialize)]
@@ -86,6 +87,29 @@ fn piece_separation(
     )
 }
 
+/// The built-in scene `name`, or an error listing the built-ins.
+pub fn builtin_scene(name: &str, seed: u64) -> Result<Scene, String> {
+    builtin(name, seed).ok_or_else(|| {
+        let names: Vec<&str> = BUILTIN_SCENES.iter().map(|(n, _)| *n).collect();
+        format!("unknown scene `{name}` (built-in: {})", names.join(", "))
+    })
+}
+
+/// A built-in scene by name, or a scene file (a name ending in `.ron` or an existing
+/// file); `seed` overrides the scene's.
+fn load_scene(name: &str, seed: Option<u64>) -> Result<Scene, String> {
+    let path = Path::new(name);
+    let mut scene = if name.ends_with(".ron") || path.is_file() {
+        load_scene_file(path)?
+    } else {
+        builtin_scene(name, seed.unwrap_or(0))?
+    };
+    if let Some(seed) = seed {
+        scene.config.seed = seed;
+    }
+    Ok(scene)
+}
+
 /// Arguments of `cleave run`.
 #[derive(Clone, Debug)]
 pub struct RunArgs {
@@ -95,8 +119,8 @@ pub struct RunArgs {
     pub frames: Option<u32>,
     /// Output directory.
     pub out: PathBuf,
-    /// Seed.
-    pub seed: u64,
+    /// Seed (default: the scene's).
+    pub seed: Option<u64>,
     /// State dump file.
     pub dump_state: Option<PathBuf>,
     /// Pictures to write.
@@ -112,13 +136,8 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         args.seed,
         args.dump_state.clone(),
     );
-    let scene = builtin(scene_name, seed).ok_or_else(|| {
-        let names: Vec<&str> = BUILTIN_SCENES.iter().map(|(n, _)| *n).collect();
-        format!(
-            "unknown scene `{scene_name}` (built-in: {})",
-            names.join(", ")
-        )
-    })?;
+    let scene = load_scene(scene_name, seed)?;
+    let seed = scene.config.seed;
     let frames = frames.unwrap_or(scene.frames);
     let mut sim = Simulation::new(scene.config.clone()).map_err(|e| e.to_string())?;
     for b in &scene.bodies {

@@ -1,0 +1,690 @@
+//! Scenes as RON files: the file schema, checked while it is read so that every error
+//! names the file, line, column and field (and, for a value out of range, the allowed
+//! range); conversion to and from [`Scene`], so every built-in scene is also a file.
+
+use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
+use crate::lattice::Shape;
+use crate::mesh::TriangleMesh;
+use crate::scene::Scene;
+use crate::sim::{BodyDesc, PinRegion, ToolDesc};
+use crate::tool::{Path as ToolPath, Pose, ToolShape};
+use glam::{Quat, UVec3, Vec3};
+use serde::de::Error as _;
+use serde::{Deserialize, Deserializer, Serialize};
+use std::path::Path;
+use std::sync::Arc;
+
+/// Checked readers used by the schema (`deserialize_with`).
+mod check {
+    use super::*;
+
+    fn range<'de, D: Deserializer<'de>>(v: f32, ok: bool, allowed: &str) -> Result<f32, D::Error> {
+        if ok && v.is_finite() {
+            Ok(v)
+        } else {
+            Err(D::Error::custom(format!(
+                "{v} is out of range (allowed: {allowed})"
+            )))
+        }
+    }
+    pub fn positive<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+        let v = f32::deserialize(d)?;
+        range::<D>(v, v > 0.0, "> 0")
+    }
+    pub fn finite<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+        let v = f32::deserialize(d)?;
+        range::<D>(v, true, "a finite number")
+    }
+    pub fn unit<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+        let v = f32::deserialize(d)?;
+        range::<D>(v, (0.0..=1.0).contains(&v), "0 ≤ value ≤ 1")
+    }
+    pub fn friction<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+        let v = f32::deserialize(d)?;
+        range::<D>(v, (0.0..=100.0).contains(&v), "0 ≤ friction ≤ 100")
+    }
+    pub fn dt<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+        let v = f32::deserialize(d)?;
+        range::<D>(v, (1e-6..=1.0).contains(&v), "1e-6 ≤ dt ≤ 1 (seconds)")
+    }
+    pub fn damping<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+        let v = f32::deserialize(d)?;
+        range::<D>(
+            v,
+            (0.0..=1000.0).contains(&v),
+            "0 ≤ damping ≤ 1000 (per second)",
+        )
+    }
+    pub fn vec3<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
+        let v = Vec3::deserialize(d)?;
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(D::Error::custom(format!(
+                "{v} is out of range (allowed: finite x, y, z)"
+            )))
+        }
+    }
+    pub fn rotation<'de, D: Deserializer<'de>>(d: D) -> Result<Quat, D::Error> {
+        let q = Quat::deserialize(d)?;
+        if q.is_finite() && q.length() > 1e-6 {
+            // keep unit quaternions bit-exact (files round-trip); normalise the rest
+            Ok(if (q.length() - 1.0).abs() < 1e-5 {
+                q
+            } else {
+                q.normalize()
+            })
+        } else {
+            Err(D::Error::custom(format!(
+                "{q} is out of range (allowed: a finite, non-zero quaternion (x, y, z, w))"
+            )))
+        }
+    }
+    fn count<'de, D: Deserializer<'de>>(
+        d: D,
+        lo: u32,
+        hi: u32,
+        name: &str,
+    ) -> Result<u32, D::Error> {
+        let v = u32::deserialize(d)?;
+        if (lo..=hi).contains(&v) {
+            Ok(v)
+        } else {
+            Err(D::Error::custom(format!(
+                "{v} is out of range (allowed: {lo} ≤ {name} ≤ {hi})"
+            )))
+        }
+    }
+    pub fn substeps<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+        count(d, 1, 1000, "substeps")
+    }
+    pub fn iterations<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+        count(d, 1, 10_000, "iterations")
+    }
+    pub fn cluster_radius<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+        count(d, 1, 8, "cluster_radius")
+    }
+    pub fn max_cluster_size<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+        count(d, 2, 100_000, "max_cluster_size")
+    }
+    pub fn frames<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+        count(d, 0, 10_000_000, "frames")
+    }
+    pub fn cells<'de, D: Deserializer<'de>>(d: D) -> Result<UVec3, D::Error> {
+        let v = UVec3::deserialize(d)?;
+        if v.min_element() >= 1 {
+            Ok(v)
+        } else {
+            Err(D::Error::custom(format!(
+                "{v} is out of range (allowed: at least 1 cell per axis)"
+            )))
+        }
+    }
+    pub fn bodies<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<BodyFile>, D::Error> {
+        let v = Vec::<BodyFile>::deserialize(d)?;
+        if v.is_empty() {
+            Err(D::Error::custom(
+                "the body list is empty (allowed: at least one body)",
+            ))
+        } else {
+            Ok(v)
+        }
+    }
+    pub fn keys<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(f32, PoseFile)>, D::Error> {
+        let keys = Vec::<(f32, PoseFile)>::deserialize(d)?;
+        for (i, (t, _)) in keys.iter().enumerate() {
+            if !t.is_finite() {
+                return Err(D::Error::custom(format!(
+                    "key {i}: time {t} is out of range (allowed: a finite number)"
+                )));
+            }
+            if i > 0 && *t < keys[i - 1].0 {
+                return Err(D::Error::custom(format!(
+                    "key {i}: time {t} is before the previous key (allowed: ascending times)"
+                )));
+            }
+        }
+        Ok(keys)
+    }
+}
+
+fn default_frames() -> u32 {
+    300
+}
+
+/// A scene file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// Random seed (cluster offsets, reconstruction choices).
+    #[serde(default)]
+    pub seed: u64,
+    /// Frames to simulate.
+    #[serde(default = "default_frames", deserialize_with = "check::frames")]
+    pub frames: u32,
+    /// Simulation settings.
+    #[serde(default)]
+    pub settings: SettingsFile,
+    /// At least one body.
+    #[serde(deserialize_with = "check::bodies")]
+    pub bodies: Vec<BodyFile>,
+    /// Cutting tools.
+    #[serde(default)]
+    pub tools: Vec<ToolFile>,
+}
+
+/// Simulation settings ([`SimConfig`] without the seed).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SettingsFile {
+    /// Seconds per frame.
+    #[serde(deserialize_with = "check::dt")]
+    pub dt: f32,
+    /// Substeps per frame.
+    #[serde(deserialize_with = "check::substeps")]
+    pub substeps: u32,
+    /// Solver iterations per substep.
+    #[serde(deserialize_with = "check::iterations")]
+    pub iterations: u32,
+    /// Gravity (m/s²).
+    #[serde(deserialize_with = "check::vec3")]
+    pub gravity: Vec3,
+    /// Velocity damping per second.
+    #[serde(deserialize_with = "check::damping")]
+    pub damping: f32,
+    /// Ground plane, if any.
+    pub ground: Option<GroundFile>,
+    /// Static boxes.
+    pub boxes: Vec<BoxFile>,
+    /// Solver scheme.
+    pub solver: SolverMode,
+    /// Check the invariants after every frame (slow; for tests).
+    pub check_invariants_every_frame: bool,
+}
+
+impl Default for SettingsFile {
+    fn default() -> Self {
+        Self::from_config(&SimConfig::default())
+    }
+}
+
+/// A ground plane.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GroundFile {
+    /// Height of the plane.
+    #[serde(deserialize_with = "check::finite")]
+    pub height: f32,
+    /// Coulomb friction coefficient.
+    #[serde(deserialize_with = "check::friction")]
+    pub friction: f32,
+}
+
+/// A static box.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoxFile {
+    /// Minimum corner.
+    #[serde(deserialize_with = "check::vec3")]
+    pub min: Vec3,
+    /// Maximum corner.
+    #[serde(deserialize_with = "check::vec3")]
+    pub max: Vec3,
+    /// Coulomb friction coefficient.
+    #[serde(deserialize_with = "check::friction")]
+    pub friction: f32,
+}
+
+/// A body.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodyFile {
+    /// Shape to voxelise.
+    pub shape: ShapeFile,
+    /// Lattice spacing h in metres.
+    #[serde(deserialize_with = "check::positive")]
+    pub spacing: f32,
+    /// Position of the shape's origin.
+    #[serde(default, deserialize_with = "check::vec3")]
+    pub position: Vec3,
+    /// Initial rotation, a quaternion (x, y, z, w).
+    #[serde(default, deserialize_with = "check::rotation")]
+    pub rotation: Quat,
+    /// Initial velocity.
+    #[serde(default, deserialize_with = "check::vec3")]
+    pub velocity: Vec3,
+    /// Material and clustering.
+    #[serde(default)]
+    pub material: MaterialFile,
+    /// Pinned regions (world space).
+    #[serde(default)]
+    pub pins: Vec<PinRegion>,
+}
+
+/// A shape.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum ShapeFile {
+    /// Exactly `cells` lattice points per axis, centred on the origin.
+    Cells {
+        /// Cells per axis.
+        #[serde(deserialize_with = "check::cells")]
+        cells: UVec3,
+    },
+    /// An axis-aligned box.
+    Box {
+        /// Half size per axis.
+        #[serde(deserialize_with = "check::vec3")]
+        half_extents: Vec3,
+    },
+    /// A ball.
+    Sphere {
+        /// Radius.
+        #[serde(deserialize_with = "check::positive")]
+        radius: f32,
+    },
+    /// A capsule along X.
+    Capsule {
+        /// Radius.
+        #[serde(deserialize_with = "check::positive")]
+        radius: f32,
+        /// Half length of the shaft.
+        #[serde(deserialize_with = "check::finite")]
+        half_length: f32,
+    },
+    /// A closed triangle mesh from an OBJ file (relative to the scene file).
+    Mesh {
+        /// The OBJ file.
+        path: String,
+    },
+}
+
+/// Material and clustering parameters.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MaterialFile {
+    /// Shape-matching stiffness.
+    #[serde(deserialize_with = "check::unit")]
+    pub stiffness: f32,
+    /// Mass of one particle (kg).
+    #[serde(deserialize_with = "check::positive")]
+    pub particle_mass: f32,
+    /// Cluster radius in lattice units.
+    #[serde(deserialize_with = "check::cluster_radius")]
+    pub cluster_radius: u32,
+    /// Overlap of neighbouring clusters in lattice units (≤ 2·radius).
+    pub cluster_overlap: u32,
+    /// Largest cluster size.
+    #[serde(deserialize_with = "check::max_cluster_size")]
+    pub max_cluster_size: u32,
+    /// Particles added to each rebuilt cluster (SPEC §3.4).
+    pub expand_count: u32,
+}
+
+impl Default for MaterialFile {
+    fn default() -> Self {
+        Self::from_material(&Material::default())
+    }
+}
+
+/// A tool.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ToolFile {
+    /// Shape.
+    pub shape: ToolShapeFile,
+    /// Width of the cut zone.
+    #[serde(deserialize_with = "check::positive")]
+    pub cut_width: f32,
+    /// Keyframes `(time in seconds, pose)`, ascending; empty: the tool stays at `pose`.
+    #[serde(default, deserialize_with = "check::keys")]
+    pub path: Vec<(f32, PoseFile)>,
+    /// Pose before the path starts (default: the first key's).
+    #[serde(default)]
+    pub pose: Option<PoseFile>,
+}
+
+/// A tool shape.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum ToolShapeFile {
+    /// A ball.
+    Sphere {
+        /// Radius.
+        #[serde(deserialize_with = "check::positive")]
+        radius: f32,
+    },
+    /// A capsule along local X.
+    Capsule {
+        /// Radius.
+        #[serde(deserialize_with = "check::positive")]
+        radius: f32,
+        /// Half length of the shaft.
+        #[serde(deserialize_with = "check::positive")]
+        half_length: f32,
+    },
+    /// A thin rectangle in the local XY plane.
+    Blade {
+        /// Half size along local X.
+        #[serde(deserialize_with = "check::positive")]
+        half_width: f32,
+        /// Half size along local Y.
+        #[serde(deserialize_with = "check::positive")]
+        half_height: f32,
+    },
+}
+
+/// A pose.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseFile {
+    /// Position.
+    #[serde(deserialize_with = "check::vec3")]
+    pub position: Vec3,
+    /// Rotation, a quaternion (x, y, z, w).
+    #[serde(default, deserialize_with = "check::rotation")]
+    pub rotation: Quat,
+}
+
+impl From<Pose> for PoseFile {
+    fn from(p: Pose) -> Self {
+        Self {
+            position: p.position,
+            rotation: p.rotation,
+        }
+    }
+}
+
+impl From<PoseFile> for Pose {
+    fn from(p: PoseFile) -> Self {
+        Self {
+            position: p.position,
+            rotation: p.rotation,
+        }
+    }
+}
+
+impl SettingsFile {
+    fn from_config(c: &SimConfig) -> Self {
+        Self {
+            dt: c.dt,
+            substeps: c.substeps,
+            iterations: c.iterations,
+            gravity: c.gravity,
+            damping: c.damping,
+            ground: c.ground.map(|g| GroundFile {
+                height: g.height,
+                friction: g.friction,
+            }),
+            boxes: c
+                .boxes
+                .iter()
+                .map(|b| BoxFile {
+                    min: b.min,
+                    max: b.max,
+                    friction: b.friction,
+                })
+                .collect(),
+            solver: c.solver,
+            check_invariants_every_frame: c.check_invariants_every_frame,
+        }
+    }
+
+    fn to_config(&self, seed: u64) -> SimConfig {
+        SimConfig {
+            dt: self.dt,
+            substeps: self.substeps,
+            iterations: self.iterations,
+            gravity: self.gravity,
+            damping: self.damping,
+            ground: self.ground.map(|g| GroundPlane {
+                height: g.height,
+                friction: g.friction,
+            }),
+            boxes: self
+                .boxes
+                .iter()
+                .map(|b| StaticBox {
+                    min: b.min,
+                    max: b.max,
+                    friction: b.friction,
+                })
+                .collect(),
+            solver: self.solver,
+            seed,
+            check_invariants_every_frame: self.check_invariants_every_frame,
+        }
+    }
+}
+
+impl MaterialFile {
+    fn from_material(m: &Material) -> Self {
+        Self {
+            stiffness: m.stiffness,
+            particle_mass: m.particle_mass,
+            cluster_radius: m.cluster_radius,
+            cluster_overlap: m.cluster_overlap,
+            max_cluster_size: m.max_cluster_size,
+            expand_count: m.expand_count,
+        }
+    }
+
+    fn to_material(&self) -> Material {
+        Material {
+            stiffness: self.stiffness,
+            particle_mass: self.particle_mass,
+            cluster_radius: self.cluster_radius,
+            cluster_overlap: self.cluster_overlap,
+            max_cluster_size: self.max_cluster_size,
+            expand_count: self.expand_count,
+        }
+    }
+}
+
+impl From<ToolShape> for ToolShapeFile {
+    fn from(s: ToolShape) -> Self {
+        match s {
+            ToolShape::Sphere { radius } => Self::Sphere { radius },
+            ToolShape::Capsule {
+                radius,
+                half_length,
+            } => Self::Capsule {
+                radius,
+                half_length,
+            },
+            ToolShape::Blade {
+                half_width,
+                half_height,
+            } => Self::Blade {
+                half_width,
+                half_height,
+            },
+        }
+    }
+}
+
+impl From<ToolShapeFile> for ToolShape {
+    fn from(s: ToolShapeFile) -> Self {
+        match s {
+            ToolShapeFile::Sphere { radius } => Self::Sphere { radius },
+            ToolShapeFile::Capsule {
+                radius,
+                half_length,
+            } => Self::Capsule {
+                radius,
+                half_length,
+            },
+            ToolShapeFile::Blade {
+                half_width,
+                half_height,
+            } => Self::Blade {
+                half_width,
+                half_height,
+            },
+        }
+    }
+}
+
+impl SceneFile {
+    /// The file form of `scene`; `None` if a body's shape has no file form (a signed
+    /// distance function, or a mesh given in memory).
+    pub fn from_scene(scene: &Scene) -> Option<Self> {
+        let bodies = scene
+            .bodies
+            .iter()
+            .map(|b| {
+                let shape = match &b.shape {
+                    Shape::Cells { cells } => ShapeFile::Cells { cells: *cells },
+                    Shape::Box { half_extents } => ShapeFile::Box {
+                        half_extents: *half_extents,
+                    },
+                    Shape::Sphere { radius } => ShapeFile::Sphere { radius: *radius },
+                    Shape::Capsule {
+                        radius,
+                        half_length,
+                    } => ShapeFile::Capsule {
+                        radius: *radius,
+                        half_length: *half_length,
+                    },
+                    Shape::Sdf(_) | Shape::Mesh(_) => return None,
+                };
+                Some(BodyFile {
+                    shape,
+                    spacing: b.spacing,
+                    position: b.position,
+                    rotation: b.rotation,
+                    velocity: b.velocity,
+                    material: MaterialFile::from_material(&b.material),
+                    pins: b.pins.clone(),
+                })
+            })
+            .collect::<Option<Vec<_>>>()?;
+        let tools = scene
+            .tools
+            .iter()
+            .map(|t| ToolFile {
+                shape: t.shape.into(),
+                cut_width: t.cut_width,
+                path: t.path.keys.iter().map(|(k, p)| (*k, (*p).into())).collect(),
+                pose: Some(t.pose.into()),
+            })
+            .collect();
+        Some(Self {
+            seed: scene.config.seed,
+            frames: scene.frames,
+            settings: SettingsFile::from_config(&scene.config),
+            bodies,
+            tools,
+        })
+    }
+
+    /// The scene; mesh paths are resolved against `base_dir`.
+    pub fn to_scene(&self, base_dir: &Path) -> Result<Scene, String> {
+        let mut bodies = Vec::new();
+        for (i, b) in self.bodies.iter().enumerate() {
+            let shape = match &b.shape {
+                ShapeFile::Cells { cells } => Shape::Cells { cells: *cells },
+                ShapeFile::Box { half_extents } => Shape::Box {
+                    half_extents: *half_extents,
+                },
+                ShapeFile::Sphere { radius } => Shape::Sphere { radius: *radius },
+                ShapeFile::Capsule {
+                    radius,
+                    half_length,
+                } => Shape::Capsule {
+                    radius: *radius,
+                    half_length: *half_length,
+                },
+                ShapeFile::Mesh { path } => {
+                    let file = base_dir.join(path);
+                    let mesh = TriangleMesh::load_obj(&file)
+                        .map_err(|e| format!("bodies[{i}].shape.path: {e}"))?;
+                    Shape::Mesh(Arc::new(mesh))
+                }
+            };
+            let material = b.material.to_material();
+            material
+                .validate()
+                .map_err(|e| format!("bodies[{i}]: {e}"))?;
+            bodies.push(BodyDesc {
+                shape,
+                spacing: b.spacing,
+                position: b.position,
+                rotation: b.rotation,
+                velocity: b.velocity,
+                material,
+                pins: b.pins.clone(),
+            });
+        }
+        let tools = self
+            .tools
+            .iter()
+            .map(|t| {
+                let keys: Vec<(f32, Pose)> =
+                    t.path.iter().map(|(k, p)| (*k, (*p).into())).collect();
+                let pose = t
+                    .pose
+                    .map(Pose::from)
+                    .or_else(|| keys.first().map(|k| k.1))
+                    .unwrap_or(Pose::at(Vec3::ZERO));
+                ToolDesc {
+                    shape: t.shape.into(),
+                    cut_width: t.cut_width,
+                    path: ToolPath { keys },
+                    pose,
+                }
+            })
+            .collect();
+        let config = self.settings.to_config(self.seed);
+        config.validate().map_err(|e| e.to_string())?;
+        Ok(Scene {
+            config,
+            bodies,
+            tools,
+            frames: self.frames,
+        })
+    }
+
+    /// Pretty RON text with a short header.
+    pub fn to_ron(&self) -> String {
+        let pretty = ron::ser::PrettyConfig::new()
+            .depth_limit(4)
+            .struct_names(false);
+        let body = ron::ser::to_string_pretty(self, pretty).unwrap_or_default();
+        format!(
+            "// cleave scene (RON). Units: metres, seconds. Rotations are quaternions (x, y, z, w).\n\
+             // Run it with `cleave run FILE.ron`.\n{body}\n"
+        )
+    }
+
+    /// Parses RON text; errors read `LINE:COLUMN: FIELD: MESSAGE`.
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let mut de = ron::Deserializer::from_str(text).map_err(|e| spanned(&e, ""))?;
+        let file: Self = serde_path_to_error::deserialize(&mut de).map_err(|e| {
+            let path = e.path().to_string();
+            let span = de.span_error(e.into_inner());
+            spanned(&span, &path)
+        })?;
+        de.end().map_err(|e| spanned(&de.span_error(e), ""))?;
+        Ok(file)
+    }
+}
+
+fn spanned(e: &ron::error::SpannedError, path: &str) -> String {
+    let field = if path.is_empty() || path == "." || path == "?" {
+        String::new()
+    } else {
+        format!(" {path}:")
+    };
+    format!("{}:{}:{field} {}", e.position.line, e.position.col, e.code)
+}
+
+/// Reads a scene file; errors name the file.
+pub fn load_scene_file(path: &Path) -> Result<Scene, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let file = SceneFile::parse(&text).map_err(|e| format!("{}:{e}", path.display()))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    file.to_scene(base)
+        .map_err(|e| format!("{}: {e}", path.display()))
+}

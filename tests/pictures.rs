@@ -1,0 +1,135 @@
+//! What `cleave run` writes for people: PNG frames and a GIF in which the pieces of a
+//! cut show in different colours, and PLY point clouds that a PLY reader loads.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn run_slice(dir: &Path, extra: &[&str]) {
+    let out = Command::new(env!("CARGO_BIN_EXE_cleave"))
+        .args(["run", "slice", "--out"])
+        .arg(dir)
+        .args(extra)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("cleave-pictures-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+/// Counts pixels that are clearly blue (piece 0) and clearly orange (piece 1).
+fn blue_and_orange(path: &Path) -> (usize, usize) {
+    let img = image::open(path).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (320, 240));
+    let (mut blue, mut orange) = (0, 0);
+    for p in img.pixels() {
+        let [r, g, b] = p.0.map(i32::from);
+        if b > r + 40 && b > g + 10 {
+            blue += 1;
+        }
+        if r > g + 40 && r > b + 60 {
+            orange += 1;
+        }
+    }
+    (blue, orange)
+}
+
+#[test]
+fn frames_show_one_piece_before_the_cut_and_two_after() {
+    let dir = temp("png");
+    run_slice(
+        &dir,
+        &[
+            "--png-every",
+            "150",
+            "--gif-every",
+            "30",
+            "--width",
+            "320",
+            "--height",
+            "240",
+        ],
+    );
+    let (blue, orange) = blue_and_orange(&dir.join("frame_00000.png"));
+    assert!(
+        blue > 500 && orange == 0,
+        "before: blue {blue}, orange {orange}"
+    );
+    let (blue, orange) = blue_and_orange(&dir.join("frame_00300.png"));
+    assert!(
+        blue > 300 && orange > 300,
+        "after: blue {blue}, orange {orange}"
+    );
+    // the GIF holds frames 0, 30, …, 300
+    let file = std::fs::File::open(dir.join("run.gif")).unwrap();
+    let mut decoder = gif::DecodeOptions::new().read_info(file).unwrap();
+    let mut frames = 0;
+    while let Some(frame) = decoder.read_next_frame().unwrap() {
+        assert_eq!((frame.width, frame.height), (320, 240));
+        frames += 1;
+    }
+    assert_eq!(frames, 11);
+}
+
+/// A small PLY reader: the header's vertex count and property names, then the rows.
+fn read_ply(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("ply"));
+    assert_eq!(lines.next(), Some("format ascii 1.0"));
+    let (mut count, mut names) = (0usize, Vec::new());
+    for line in lines.by_ref() {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        match words.as_slice() {
+            ["element", "vertex", n] => count = n.parse().unwrap(),
+            ["property", _, name] => names.push(name.to_string()),
+            ["end_header"] => break,
+            ["comment", ..] => {}
+            other => panic!("unexpected header line {other:?}"),
+        }
+    }
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split_whitespace().map(|w| w.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), count);
+    (names, rows)
+}
+
+#[test]
+fn ply_frames_load_with_positions_colours_and_pieces() {
+    let dir = temp("ply");
+    run_slice(
+        &dir,
+        &[
+            "--frames",
+            "300",
+            "--export",
+            "ply",
+            "--ply-every",
+            "300",
+            "--png-every",
+            "0",
+            "--gif-every",
+            "0",
+        ],
+    );
+    let (names, rows) = read_ply(&dir.join("ply/frame_00000.ply"));
+    assert_eq!(names, ["x", "y", "z", "red", "green", "blue", "piece"]);
+    assert_eq!(rows.len(), 24 * 12 * 12);
+    assert!(rows.iter().all(|r| r.len() == 7 && r[6] == 0.0));
+    let (_, rows) = read_ply(&dir.join("ply/frame_00300.ply"));
+    let pieces: std::collections::BTreeSet<i64> = rows.iter().map(|r| r[6] as i64).collect();
+    assert_eq!(pieces.into_iter().collect::<Vec<_>>(), [0, 1]);
+    assert!(rows.iter().all(|r| r[..3].iter().all(|v| v.is_finite())));
+    assert!(
+        rows.iter()
+            .all(|r| r[3..6].iter().all(|c| (0.0..=255.0).contains(c)))
+    );
+}
