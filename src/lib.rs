@@ -23,6 +23,7 @@ pub mod graph;
 pub mod invariants;
 pub mod lattice;
 pub mod mesh;
+pub mod profile;
 pub mod reconstruct;
 pub mod render;
 pub mod resources;

@@ -65,6 +65,13 @@ enum Command {
         /// With `--export ply`: a point cloud every N frames.
         #[arg(long, default_value_t = 10)]
         ply_every: u32,
+        /// Print milliseconds per stage (predict, shape-match, detect, cut, regroup,
+        /// split, expand).
+        #[arg(long)]
+        profile: bool,
+        /// No progress bar and no report table.
+        #[arg(long)]
+        quiet: bool,
     },
     /// List the built-in scenes, or print one as a scene file.
     Scenes {
@@ -178,6 +185,8 @@ fn main() -> ExitCode {
             height,
             export,
             ply_every,
+            profile,
+            quiet,
         } => {
             let args = run::RunArgs {
                 scene,
@@ -201,6 +210,8 @@ fn main() -> ExitCode {
                     height,
                     dt: 1.0 / 60.0,
                 },
+                profile,
+                quiet,
             };
             with_threads(threads, |threads| run::run(&args, threads))
         }

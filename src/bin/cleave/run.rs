@@ -6,12 +6,15 @@ use bevy_ecs::prelude::*;
 use cleave::bench::median;
 use cleave::components::{BodyLattice, InvMass, Position};
 use cleave::dump::dump_body;
+use cleave::profile::StageProfile;
 use cleave::resources::{CutTimings, ParticlesCut};
 use cleave::scene::{BUILTIN_SCENES, Scene, builtin};
 use cleave::scene_file::load_scene_file;
 use cleave::sim::{Simulation, check_invariants, only_body};
 use cleave::stats::{BodyStats, body_stats};
+use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -125,6 +128,10 @@ pub struct RunArgs {
     pub dump_state: Option<PathBuf>,
     /// Pictures to write.
     pub pictures: PictureOptions,
+    /// Print milliseconds per stage.
+    pub profile: bool,
+    /// No progress bar and no table.
+    pub quiet: bool,
 }
 
 /// Runs the scene and writes the outputs.
@@ -136,6 +143,9 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         args.seed,
         args.dump_state.clone(),
     );
+    // The systems' spans are made when the schedule is built: profile from the start.
+    let profile = StageProfile::default();
+    let _profiling = args.profile.then(|| profile.install());
     let scene = load_scene(scene_name, seed)?;
     let seed = scene.config.seed;
     let frames = frames.unwrap_or(scene.frames);
@@ -193,7 +203,9 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         },
     )?;
     pictures.frame(sim.world_mut(), 0)?;
+    let progress = progress_bar(frames, args.quiet);
     for frame in 1..=frames {
+        progress.inc(1);
         let t = Instant::now();
         sim.step();
         step_ms.push(t.elapsed().as_secs_f64() * 1e3);
@@ -209,6 +221,7 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
             }
         }
     }
+    progress.finish_and_clear();
     let after = body_stats(sim.world_mut(), body).ok_or("no body")?;
     let tip_end = match (tip_start, position_of(&sim, tip_index)) {
         (Some(a), Some(b)) => ((a.y - b.y) / h) as f64,
@@ -272,38 +285,51 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         )
         .map_err(|e| format!("cannot write `{}`: {e}", file.display()))?;
     }
-    println!("scene {scene_name}: {frames} frames, seed {seed}, {threads} thread(s)");
+    if !args.quiet {
+        print_table(&summary, &separation, &path, &out);
+    }
+    if args.profile {
+        print!("{}", profile.table(frames));
+    }
+    if !summary.finite {
+        return Err("non-finite particle positions".into());
+    }
+    Ok(())
+}
+
+/// The short report printed after a run.
+fn print_table(s: &Summary, separation: &(f64, f64), path: &Path, out: &Path) {
+    println!(
+        "scene {}: {} frames, seed {}, {} thread(s)",
+        s.scene, s.frames, s.seed, s.threads
+    );
     println!("  {:<28} {:>12} {:>12}", "", "start", "end");
     let rows: [(&str, f64, f64); 6] = [
         (
             "particles",
-            summary.before.particles as f64,
-            summary.after.particles as f64,
+            s.before.particles as f64,
+            s.after.particles as f64,
         ),
         (
             "clusters",
-            summary.before.clusters as f64,
-            summary.after.clusters as f64,
+            s.before.clusters as f64,
+            s.after.clusters as f64,
         ),
         (
             "mean cluster size",
-            summary.before.mean_cluster_size,
-            summary.after.mean_cluster_size,
+            s.before.mean_cluster_size,
+            s.after.mean_cluster_size,
         ),
         (
             "memberships / particle",
-            summary.before.memberships_per_particle,
-            summary.after.memberships_per_particle,
+            s.before.memberships_per_particle,
+            s.after.memberships_per_particle,
         ),
-        (
-            "pieces",
-            summary.before.pieces as f64,
-            summary.after.pieces as f64,
-        ),
+        ("pieces", s.before.pieces as f64, s.after.pieces as f64),
         (
             "shape error (h)",
-            summary.before.shape_error_h,
-            summary.after.shape_error_h,
+            s.before.shape_error_h,
+            s.after.shape_error_h,
         ),
     ];
     for (name, a, b) in rows {
@@ -311,12 +337,12 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     }
     println!(
         "  median step {:.3} ms; lowest particle {:.3} h; cut particles {}; cut events {} (median {:.3} ms, max {:.3} ms)",
-        summary.median_ms_per_step,
-        summary.lowest_particle_y_h,
-        cut_particles,
-        summary.cut_events,
-        summary.cut_event_ms_median,
-        summary.cut_event_ms_max
+        s.median_ms_per_step,
+        s.lowest_particle_y_h,
+        s.cut_particles,
+        s.cut_events,
+        s.cut_event_ms_median,
+        s.cut_event_ms_max
     );
     println!(
         "  piece centroids {:.2} h apart at start, {:.2} h at end",
@@ -324,22 +350,29 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     );
     println!(
         "  tip drop {:.3} h at half time, {:.3} h at end; pinned moved ≤ {:.4} h; invariant violations {}",
-        summary.tip_drop_h_half,
-        summary.tip_drop_h_end,
-        summary.pinned_max_displacement_h,
-        summary.invariant_violations
+        s.tip_drop_h_half, s.tip_drop_h_end, s.pinned_max_displacement_h, s.invariant_violations
     );
     println!(
         "  simulated in {:.0} ms; {} picture file(s) in {:.0} ms",
-        summary.simulate_ms_total, summary.pictures_written, summary.pictures_ms_total
+        s.simulate_ms_total, s.pictures_written, s.pictures_ms_total
     );
     println!(
         "  wrote {} (and pictures in {})",
         path.display(),
         out.display()
     );
-    if !summary.finite {
-        return Err("non-finite particle positions".into());
+}
+
+/// A progress bar on stderr when it is a terminal (hidden otherwise or with `--quiet`).
+fn progress_bar(frames: u32, quiet: bool) -> ProgressBar {
+    if quiet || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
     }
-    Ok(())
+    let bar = ProgressBar::new(frames as u64);
+    if let Ok(style) =
+        ProgressStyle::with_template("{bar:40} {pos}/{len} frames {elapsed_precise} (eta {eta})")
+    {
+        bar.set_style(style);
+    }
+    bar
 }
