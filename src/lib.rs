@@ -23,6 +23,8 @@ pub mod graph;
 pub mod invariants;
 pub mod lattice;
 pub mod mesh;
+#[cfg(feature = "bevy_app")]
+pub mod plugin;
 pub mod profile;
 pub mod reconstruct;
 pub mod render;

@@ -108,28 +108,7 @@ impl Simulation {
 
     /// Spawns a cutting tool; returns its entity.
     pub fn spawn_tool(&mut self, desc: &ToolDesc) -> Result<Entity> {
-        desc.shape.validate()?;
-        check_positive("tool.cut_width", desc.cut_width)?;
-        desc.path.validate()?;
-        check_finite_vec("tool.pose.position", desc.pose.position)?;
-        let pose = desc
-            .path
-            .sample(self.world.resource::<SimClock>().time)
-            .unwrap_or(desc.pose);
-        let mut e = self.world.spawn((
-            Tool {
-                shape: desc.shape,
-                cut_width: desc.cut_width,
-            },
-            ToolPose {
-                current: pose,
-                last: pose,
-            },
-        ));
-        if !desc.path.keys.is_empty() {
-            e.insert(ToolPath(desc.path.clone()));
-        }
-        Ok(e.id())
+        spawn_tool(&mut self.world, desc)
     }
 
     /// Advances one frame.
@@ -144,6 +123,30 @@ impl Simulation {
             self.step();
         }
     }
+}
+
+/// Spawns a cutting tool into any world prepared with [`crate::systems::install`].
+pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
+    desc.shape.validate()?;
+    check_positive("tool.cut_width", desc.cut_width)?;
+    desc.path.validate()?;
+    check_finite_vec("tool.pose.position", desc.pose.position)?;
+    let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time);
+    let pose = desc.path.sample(now).unwrap_or(desc.pose);
+    let mut e = world.spawn((
+        Tool {
+            shape: desc.shape,
+            cut_width: desc.cut_width,
+        },
+        ToolPose {
+            current: pose,
+            last: pose,
+        },
+    ));
+    if !desc.path.keys.is_empty() {
+        e.insert(ToolPath(desc.path.clone()));
+    }
+    Ok(e.id())
 }
 
 /// Spawns a body into any world prepared with [`crate::systems::install`].

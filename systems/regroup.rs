@@ -8,7 +8,7 @@ use crate::resources::{CutReport, CutTimings, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
 use std::time::Instant;
 
-/// Runs [`reconstruct::regroup`] on every body that lost particles.
+/// Runs [`reconstruct::regroup()`] on every body that lost particles.
 pub fn regroup(
     mut commands: Commands,
     report: Res<CutReport>,

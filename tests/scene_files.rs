@@ -147,3 +147,18 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
         }
     }
 }
+
+#[test]
+fn the_readme_scene_file_parses() {
+    let readme = include_str!("../README.md");
+    let start = readme.find("```ron\n").expect("a RON block in the README") + 7;
+    let end = start + readme[start..].find("```").unwrap();
+    let scene = SceneFile::parse(&readme[start..end])
+        .unwrap()
+        .to_scene(Path::new("."))
+        .unwrap();
+    assert_eq!(
+        (scene.frames, scene.bodies.len(), scene.tools.len()),
+        (240, 1, 1)
+    );
+}

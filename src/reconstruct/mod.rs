@@ -1,6 +1,7 @@
 //! Cluster reconstruction after a cut (SPEC §3–4), as pure functions over a
-//! [`ClusterStore`](crate::cluster_store::ClusterStore):
-//! [`regroup`] (pieces and merge, §3.1–3.2), [`split`] (§3.3 and §4), [`expand`] (§3.4),
+//! [`crate::cluster_store::ClusterStore`]:
+//! [`regroup()`] (pieces and merge, §3.1–3.2), [`split_oversized`] (§3.3 and §4),
+//! [`expand_clusters`] (§3.4),
 //! then [`cover_rebuilt`] (the local edge-cover repair). [`rebuild_after_cut`] runs all
 //! four in order, as the ECS stages do one per system.
 

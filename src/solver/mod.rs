@@ -5,11 +5,11 @@
 //! A cluster fit computes, from the current positions, the optimal rotation `R` (Müller
 //! 2016, warm-started) and the weighted centroid `c`; member `i`'s goal is
 //! `R (x̄ᵢ − x̄_c) + c` with `x̄` rest positions. Two schemes share that fit:
-//! - **Jacobi** ([`jacobi`]): every cluster is fitted to the same positions; each
+//! - **Jacobi**: every cluster is fitted to the same positions; each
 //!   particle then moves by `(1/nᵢ) Σₖ sₖ (gᵢₖ − pᵢ)` (nᵢ clusters). With matching
 //!   weights `1/nᵢ` (FastLSM) every cluster's pull has zero momentum, so the scheme
 //!   conserves linear momentum. Parallel over clusters, then over particles.
-//! - **Coloured Gauss–Seidel** ([`gauss_seidel`]): clusters are coloured so that clusters of
+//! - **Coloured Gauss–Seidel**: clusters are coloured so that clusters of
 //!   one colour share no particle; colour after colour, each cluster is fitted and moves
 //!   its members by `sₖ (gᵢₖ − pᵢ)` at once (uniform weights, so again zero momentum).
 //!
