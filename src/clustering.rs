@@ -8,6 +8,7 @@
 
 use crate::cluster_store::{ClusterStore, ClusterTable};
 use crate::config::Material;
+use crate::graph::with_slots;
 use crate::lattice::Lattice;
 use glam::IVec3;
 use rand::Rng;
@@ -113,34 +114,46 @@ pub fn cover_edges<S: ClusterStore>(
     particles: impl IntoIterator<Item = u32>,
     max: usize,
 ) -> usize {
-    let mut bridges = 0;
-    for a in particles {
-        if !lattice.is_live(a) {
-            continue;
+    let particles: Vec<u32> = particles
+        .into_iter()
+        .filter(|p| lattice.is_live(*p))
+        .collect();
+    with_slots(lattice.len(), |listed| {
+        for &p in &particles {
+            listed[p as usize] = 0;
         }
-        for b in lattice.neighbours(a) {
-            if share_a_cluster(store.clusters_of(a), store.clusters_of(b)) {
-                continue;
-            }
-            let size = |k: &S::Key| store.members(*k).len();
-            let roomy = |p: u32, other: u32| {
-                store
-                    .clusters_of(p)
-                    .iter()
-                    .filter(|k| size(k) < max)
-                    .map(|k| (size(k), *k, other))
-                    .min()
-            };
-            match roomy(a, b).into_iter().chain(roomy(b, a)).min() {
-                Some((_, k, other)) => store.add_members(k, &[other]),
-                None => {
-                    store.create(vec![a.min(b), a.max(b)]);
+        let mut bridges = 0;
+        for &a in &particles {
+            for b in lattice.neighbours(a) {
+                // an edge between two listed particles is looked at once, from its lower end
+                if (listed[b as usize] == 0 && b < a)
+                    || share_a_cluster(store.clusters_of(a), store.clusters_of(b))
+                {
+                    continue;
                 }
+                let size = |k: &S::Key| store.members(*k).len();
+                let roomy = |p: u32, other: u32| {
+                    store
+                        .clusters_of(p)
+                        .iter()
+                        .filter(|k| size(k) < max)
+                        .map(|k| (size(k), *k, other))
+                        .min()
+                };
+                match roomy(a, b).into_iter().chain(roomy(b, a)).min() {
+                    Some((_, k, other)) => store.add_members(k, &[other]),
+                    None => {
+                        store.create(vec![a.min(b), a.max(b)]);
+                    }
+                }
+                bridges += 1;
             }
-            bridges += 1;
         }
-    }
-    bridges
+        for &p in &particles {
+            listed[p as usize] = u32::MAX;
+        }
+        bridges
+    })
 }
 
 #[cfg(test)]

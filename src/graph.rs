@@ -16,7 +16,8 @@ thread_local! {
 }
 
 /// Runs `f` with a scratch slice of `len` slots, all `u32::MAX`; `f` must give every
-/// slot it sets back to `u32::MAX` before it returns. Lookups are O(1) where a binary
+/// slot it sets back to `u32::MAX` before it returns, and must not call `with_slots`
+/// itself (the scratch is borrowed while `f` runs). Lookups are O(1) where a binary
 /// search over the member list would cost a logarithm and a branch miss per step.
 pub fn with_slots<R>(len: usize, f: impl FnOnce(&mut [u32]) -> R) -> R {
     SLOTS.with(|slots| {
@@ -104,8 +105,9 @@ pub fn body_pieces(lattice: &Lattice) -> (Vec<u32>, usize) {
     (label, pieces as usize)
 }
 
-/// Live particles adjacent to `members` (sorted) but not in it: the cluster's
-/// *adjacent particles* (SPEC §1), ascending and without duplicates.
+/// Live particles adjacent to `members` but not in it: the cluster's *adjacent
+/// particles* (SPEC §1), without duplicates, in discovery order (members in the given
+/// order, each one's neighbours in lattice order) — deterministic without a sort.
 pub fn adjacent_particles(members: &[u32], lattice: &Lattice) -> Vec<u32> {
     with_slots(lattice.len(), |mark| {
         for &m in members {
@@ -123,7 +125,6 @@ pub fn adjacent_particles(members: &[u32], lattice: &Lattice) -> Vec<u32> {
         for &p in members.iter().chain(&out) {
             mark[p as usize] = u32::MAX;
         }
-        out.sort_unstable();
         out
     })
 }
