@@ -49,7 +49,8 @@ pub struct BenchRow {
     pub bare_ns_per_membership_iteration: f64,
     /// `ms_per_step / bare_ms_per_step`.
     pub engine_over_bare: f64,
-    /// Peak resident memory of the process so far / particles (sizes run ascending).
+    /// Peak resident memory of the process / particles, read after the engine's steps
+    /// and before the bare kernel runs (sizes run ascending, so earlier sizes are smaller).
     pub bytes_per_particle: f64,
     /// Regroup + split + expand of a full slice through the middle, ms.
     pub cut_event_ms: f64,
@@ -136,6 +137,8 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
         .sum();
     let cache = world.resource::<SolverCache>();
     let (particles, clusters) = (cache.layout.particle_count(), cache.layout.cluster_count());
+    // before the bare kernel's copy of the layout exists
+    let bytes_per_particle = peak_resident_bytes().unwrap_or(0) as f64 / particles as f64;
     let mut layout = cache.layout.clone();
     let colliders = Colliders {
         ground: config.ground,
@@ -143,7 +146,6 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
     };
     let bare_ms_per_step = time_ms(steps, || bare_step(&mut layout, config, &colliders));
     drop(layout);
-    let bytes_per_particle = peak_resident_bytes().unwrap_or(0) as f64 / particles as f64;
     let (cut_event_ms, recluster_ms) = slice_event(&mut sim, n)?;
     let iterations = config.substeps * config.iterations;
     let per_step = (memberships as f64) * iterations as f64;
