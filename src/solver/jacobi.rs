@@ -1,73 +1,71 @@
-//! The Jacobi scheme: fit every cluster to the same positions (parallel over clusters),
-//! then move every particle by the average of its clusters' pulls (parallel over
-//! particles) and apply the colliders.
+//! The Jacobi scheme: every cluster is fitted to the same positions and adds its pull
+//! `sₖ (gᵢ − pᵢ)` to each member's accumulator (clusters of one colour in parallel, so
+//! no two write the same accumulator and each particle sums its pulls in a fixed colour
+//! order); then every particle moves by the average pull and the colliders apply.
 
 use super::{
-    CLUSTERS_PER_TASK, ClusterFrame, Colliders, PARTICLES_PER_TASK, SolverLayout, fit_cluster,
-    resolve_colliders,
+    Colliders, Disjoint, PARTICLES_PER_TASK, SolverLayout, fit_cluster, resolve_colliders,
 };
-use glam::Vec3A;
+use glam::{Quat, Vec3A};
 use rayon::prelude::*;
 
 impl SolverLayout {
-    /// Cluster pass: one frame per cluster from the current positions.
-    pub(super) fn fit_all_clusters(&mut self) {
-        let mut frames = std::mem::take(&mut self.frames);
-        let mut rotations = std::mem::take(&mut self.rotations);
+    /// Cluster pass: fit every cluster and accumulate its pulls.
+    pub(super) fn accumulate_pulls(&mut self) {
+        let pulls = Disjoint::new(&mut self.pulls);
+        let rotations = Disjoint::new(&mut self.rotations);
         let this = &*self;
-        frames
-            .par_chunks_mut(CLUSTERS_PER_TASK)
-            .zip(rotations.par_chunks_mut(CLUSTERS_PER_TASK))
-            .enumerate()
-            .for_each(|(task, (frames, rotations))| {
-                let first = task * CLUSTERS_PER_TASK;
-                for (i, (frame, rotation)) in frames.iter_mut().zip(rotations).enumerate() {
-                    let k = first + i;
-                    let range = this.cluster_start[k] as usize..this.cluster_start[k + 1] as usize;
-                    *frame = fit_cluster(
-                        &this.member_particle[range.clone()],
-                        &this.member_moment[range],
-                        |m| this.positions[m],
-                        this.constants(k),
-                        rotation,
-                    );
-                }
-            });
-        self.frames = frames;
-        self.rotations = rotations;
+        this.for_each_cluster_by_colour(|k| this.pull_members(k, pulls, rotations));
     }
 
-    /// Particle pass: `pᵢ += (1/nᵢ) Σₖ sₖ (gᵢₖ − pᵢ)`, then the colliders.
-    pub(super) fn move_particles_jacobi(&mut self, colliders: &Colliders) {
-        let frames: &[ClusterFrame] = &self.frames;
-        let (starts, clusters, inv_count, stiffness_sum, inv_mass, previous, rest) = (
-            &self.particle_start,
-            &self.particle_clusters,
-            &self.inv_count,
-            &self.stiffness_sum,
-            &self.inv_mass,
-            &self.previous,
-            &self.rest,
+    /// Fits cluster `k` to the positions (which no task writes in this pass) and adds
+    /// `s (g − p)` to each member's pull.
+    #[inline]
+    fn pull_members(&self, k: usize, pulls: Disjoint<Vec3A>, rotations: Disjoint<Quat>) {
+        let range = self.cluster_start[k] as usize..self.cluster_start[k + 1] as usize;
+        let members = &self.member_particle[range.clone()];
+        let constants = self.constants(k);
+        // SAFETY: rotation `k` and the pulls of `k`'s members belong to this task for the
+        // colour (see `Disjoint`); indices were bounds-checked when the layout was built.
+        let mut rotation = unsafe { rotations.read(k) };
+        let frame = fit_cluster(
+            members,
+            &self.member_moment[range],
+            |m| self.positions[m],
+            constants,
+            &mut rotation,
         );
+        unsafe { rotations.write(k, rotation) };
+        for &m in members {
+            let m = m as usize;
+            let pull = frame.scaled_goal(self.rest[m]) - self.positions[m] * constants.stiffness;
+            // SAFETY: as above.
+            unsafe { pulls.write(m, pulls.read(m) + pull) };
+        }
+    }
+
+    /// Particle pass: `pᵢ += (1/nᵢ) Σₖ sₖ (gᵢₖ − pᵢ)`, then the colliders; clears the
+    /// accumulators.
+    pub(super) fn move_particles_jacobi(&mut self, colliders: &Colliders) {
+        let (inv_count, inv_mass, previous) = (&self.inv_count, &self.inv_mass, &self.previous);
         let collide = colliders.ground.is_some() || !colliders.boxes.is_empty();
         self.positions
             .par_chunks_mut(PARTICLES_PER_TASK)
             .zip(self.corrections.par_chunks_mut(PARTICLES_PER_TASK))
+            .zip(self.pulls.par_chunks_mut(PARTICLES_PER_TASK))
             .enumerate()
-            .for_each(|(task, (chunk, corrections))| {
+            .for_each(|(task, ((chunk, corrections), pulls))| {
                 let base = task * PARTICLES_PER_TASK;
-                for (j, (p, correction)) in chunk.iter_mut().zip(corrections).enumerate() {
+                for (j, ((p, correction), pull)) in
+                    chunk.iter_mut().zip(corrections).zip(pulls).enumerate()
+                {
                     let i = base + j;
+                    let step = *pull * inv_count[i];
+                    *pull = Vec3A::ZERO;
                     if inv_mass[i] == 0.0 {
                         continue;
                     }
-                    let (x, r) = (*p, rest[i]);
-                    let mut goals = Vec3A::ZERO;
-                    for &k in &clusters[starts[i] as usize..starts[i + 1] as usize] {
-                        goals += frames[k as usize].scaled_goal(r);
-                    }
-                    let step = (goals - x * stiffness_sum[i]) * inv_count[i];
-                    *p = x + step;
+                    *p += step;
                     *correction += step;
                     if collide {
                         let unconstrained = *p;

@@ -120,8 +120,8 @@ pub struct SolverLayout {
     rest: Vec<Vec3A>,
     /// `1/nᵢ` per particle (0 for a particle in no cluster).
     inv_count: Vec<f32>,
-    /// `Σₖ sₖ` over the particle's clusters.
-    stiffness_sum: Vec<f32>,
+    /// Jacobi: the sum of the clusters' pulls on each particle in this iteration.
+    pulls: Vec<Vec3A>,
     cluster_start: Vec<u32>,
     member_particle: Vec<u32>,
     /// Per membership: `(w q, w)` with `q = x̄ − x̄_c` and `w` the matching weight.
@@ -130,9 +130,6 @@ pub struct SolverLayout {
     offset_bias: Vec<Vec3A>,
     inv_weight_sum: Vec<f32>,
     stiffness: Vec<f32>,
-    frames: Vec<ClusterFrame>,
-    particle_start: Vec<u32>,
-    particle_clusters: Vec<u32>,
     colour_order: Vec<u32>,
     colour_start: Vec<u32>,
 }
@@ -172,7 +169,6 @@ impl SolverLayout {
             inv_count,
             ..Default::default()
         };
-        let mut stiffness_sum = vec![0.0f32; n];
         layout.cluster_start.push(0);
         for c in &clusters {
             let total: f32 = c.members.iter().map(|m| weight[*m as usize]).sum();
@@ -194,9 +190,6 @@ impl SolverLayout {
                 let w = weight[*m as usize];
                 ((rest[*m as usize] - centroid) * w).extend(w)
             }));
-            for &m in c.members {
-                stiffness_sum[m as usize] += c.stiffness;
-            }
             layout
                 .cluster_start
                 .push(layout.member_particle.len() as u32);
@@ -207,32 +200,29 @@ impl SolverLayout {
             layout.rotations.push(c.rotation);
         }
         layout.rest = rest;
-        layout.stiffness_sum = stiffness_sum;
-        layout.frames = vec![ClusterFrame::default(); clusters.len()];
-        // particle → clusters
-        layout.particle_start = Vec::with_capacity(n + 1);
+        layout.pulls = vec![Vec3A::ZERO; n];
+        // particle → clusters, only to colour the clusters
+        let mut particle_start = Vec::with_capacity(n + 1);
         let mut start = 0u32;
         for c in &count {
-            layout.particle_start.push(start);
+            particle_start.push(start);
             start += c;
         }
-        layout.particle_start.push(start);
-        let mut fill = layout.particle_start.clone();
-        layout.particle_clusters = vec![0; start as usize];
+        particle_start.push(start);
+        let mut fill = particle_start.clone();
+        let mut particle_clusters = vec![0; start as usize];
         for (k, c) in clusters.iter().enumerate() {
             for &m in c.members {
-                layout.particle_clusters[fill[m as usize] as usize] = k as u32;
+                particle_clusters[fill[m as usize] as usize] = k as u32;
                 fill[m as usize] += 1;
             }
         }
-        if mode == SolverMode::GaussSeidel {
-            (layout.colour_order, layout.colour_start) = colour_clusters(
-                &layout.cluster_start,
-                &layout.member_particle,
-                &layout.particle_start,
-                &layout.particle_clusters,
-            );
-        }
+        (layout.colour_order, layout.colour_start) = colour_clusters(
+            &layout.cluster_start,
+            &layout.member_particle,
+            &particle_start,
+            &particle_clusters,
+        );
         layout
     }
 
@@ -256,7 +246,7 @@ impl SolverLayout {
         self.member_particle.len()
     }
 
-    /// Number of colours (Gauss–Seidel layouts; 0 for Jacobi).
+    /// Number of cluster colours.
     pub fn colour_count(&self) -> usize {
         self.colour_start.len().saturating_sub(1)
     }
@@ -265,20 +255,17 @@ impl SolverLayout {
     pub fn heap_bytes(&self) -> usize {
         use std::mem::size_of;
         let v3 = size_of::<Vec3A>();
-        self.positions.capacity() * v3 * 6
-            + self.inv_mass.capacity() * 4 * 3
+        self.positions.capacity() * v3 * 7
+            + self.inv_mass.capacity() * 4 * 2
             + self.member_moment.capacity() * size_of::<Vec4>()
             + self.rotations.capacity() * size_of::<Quat>()
             + (self.cluster_start.capacity()
                 + self.member_particle.capacity()
-                + self.particle_start.capacity()
-                + self.particle_clusters.capacity()
                 + self.colour_order.capacity()
                 + self.colour_start.capacity())
                 * 4
             + self.rest_centroid.capacity() * v3 * 2
             + self.inv_weight_sum.capacity() * 4 * 2
-            + self.frames.capacity() * size_of::<ClusterFrame>()
     }
 
     /// Runs `iterations` iterations of the layout's scheme, each followed by collisions,
@@ -289,7 +276,7 @@ impl SolverLayout {
         for _ in 0..iterations {
             match self.mode {
                 SolverMode::Jacobi => {
-                    self.fit_all_clusters();
+                    self.accumulate_pulls();
                     self.move_particles_jacobi(colliders);
                 }
                 SolverMode::GaussSeidel => {
@@ -349,6 +336,58 @@ impl SolverLayout {
                 resolve_colliders(p, *prev, colliders);
                 *correction += *p - before;
             });
+    }
+}
+
+/// A per-particle or per-cluster array written by the tasks of one colour.
+///
+/// Soundness rests on the colouring: the clusters of one colour have pairwise disjoint
+/// member sets, and a task writes only the entries of its own clusters and of their
+/// members, so no entry is written by two tasks, nor read by one task while another
+/// writes it. No reference to the array is alive while a colour runs.
+#[derive(Clone, Copy)]
+struct Disjoint<T>(*mut T);
+
+// SAFETY: see the type's docs; tasks of one colour touch pairwise disjoint entries.
+unsafe impl<T> Send for Disjoint<T> {}
+// SAFETY: as above.
+unsafe impl<T> Sync for Disjoint<T> {}
+
+impl<T: Copy> Disjoint<T> {
+    fn new(v: &mut [T]) -> Self {
+        Self(v.as_mut_ptr())
+    }
+
+    /// Reads entry `i`.
+    ///
+    /// # Safety
+    /// `i` is in bounds and no other task writes entry `i` during this colour.
+    #[inline(always)]
+    unsafe fn read(self, i: usize) -> T {
+        // SAFETY: guaranteed by the caller.
+        unsafe { self.0.add(i).read() }
+    }
+
+    /// Writes entry `i`.
+    ///
+    /// # Safety
+    /// `i` is in bounds and belongs to the calling task during this colour.
+    #[inline(always)]
+    unsafe fn write(self, i: usize, value: T) {
+        // SAFETY: guaranteed by the caller.
+        unsafe { self.0.add(i).write(value) }
+    }
+}
+
+impl SolverLayout {
+    /// Runs `f(k)` for every cluster `k`, colour after colour; the clusters of one colour
+    /// run in parallel (they share no particle).
+    fn for_each_cluster_by_colour(&self, f: impl Fn(usize) + Sync) {
+        for colour in self.colour_start.windows(2) {
+            self.colour_order[colour[0] as usize..colour[1] as usize]
+                .par_chunks(CLUSTERS_PER_TASK)
+                .for_each(|chunk| chunk.iter().for_each(|&k| f(k as usize)));
+        }
     }
 }
 
