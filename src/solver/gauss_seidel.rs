@@ -38,22 +38,23 @@ impl SolverLayout {
         // and corrections belong to this task for the colour (see `Disjoint`); indices
         // were bounds-checked when the layout was built.
         let mut rotation = unsafe { rotations.read(k) };
+        let moments = &self.member_moment[range];
         let frame = fit_cluster(
             members,
-            &self.member_moment[range],
+            moments,
             |m| unsafe { positions.read(m) },
             constants,
             &mut rotation,
         );
         unsafe { rotations.write(k, rotation) };
-        for &m in members {
+        for (&m, moment) in members.iter().zip(moments) {
             let m = m as usize;
             if self.inv_mass[m] == 0.0 {
                 continue;
             }
             unsafe {
                 let x = positions.read(m);
-                let step = frame.scaled_goal(self.rest[m]) - x * constants.stiffness;
+                let step = frame.scaled_goal(Vec3A::from_vec4(*moment)) - x * constants.stiffness;
                 positions.write(m, x + step);
                 corrections.write(m, corrections.read(m) + step);
             }

@@ -28,17 +28,19 @@ impl SolverLayout {
         // SAFETY: rotation `k` and the pulls of `k`'s members belong to this task for the
         // colour (see `Disjoint`); indices were bounds-checked when the layout was built.
         let mut rotation = unsafe { rotations.read(k) };
+        let moments = &self.member_moment[range];
         let frame = fit_cluster(
             members,
-            &self.member_moment[range],
+            moments,
             |m| self.positions[m],
             constants,
             &mut rotation,
         );
         unsafe { rotations.write(k, rotation) };
-        for &m in members {
+        for (&m, moment) in members.iter().zip(moments) {
             let m = m as usize;
-            let pull = frame.scaled_goal(self.rest[m]) - self.positions[m] * constants.stiffness;
+            let pull = frame.scaled_goal(Vec3A::from_vec4(*moment))
+                - self.positions[m] * constants.stiffness;
             // SAFETY: as above.
             unsafe { pulls.write(m, pulls.read(m) + pull) };
         }

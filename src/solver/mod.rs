@@ -56,8 +56,9 @@ pub struct ClusterSpec<'a> {
     pub rotation: Quat,
 }
 
-/// The result of one cluster fit, premultiplied by the stiffness `s`: member `i`'s pull
-/// `s (gᵢ − pᵢ)` is `scaled_rotation · x̄ᵢ + scaled_translation − s·pᵢ`.
+/// The result of one cluster fit, premultiplied by the stiffness `s`: the pull on the
+/// member with rest offset `q` at `p` is `s (R q + c − p)` =
+/// `scaled_rotation · q + scaled_translation − s·p`.
 #[derive(Clone, Copy, Debug, Default)]
 struct ClusterFrame {
     scaled_rotation: Mat3A,
@@ -65,18 +66,18 @@ struct ClusterFrame {
 }
 
 impl ClusterFrame {
-    /// `S x̄ + T`; the caller subtracts `s·p`.
+    /// `S q + T`; the caller subtracts `s·p`.
     #[inline(always)]
-    fn scaled_goal(&self, rest: Vec3A) -> Vec3A {
+    fn scaled_goal(&self, q: Vec3A) -> Vec3A {
         madd(
             self.scaled_rotation.z_axis,
-            Vec3A::splat(rest.z),
+            Vec3A::splat(q.z),
             madd(
                 self.scaled_rotation.y_axis,
-                Vec3A::splat(rest.y),
+                Vec3A::splat(q.y),
                 madd(
                     self.scaled_rotation.x_axis,
-                    Vec3A::splat(rest.x),
+                    Vec3A::splat(q.x),
                     self.scaled_translation,
                 ),
             ),
@@ -124,9 +125,9 @@ pub struct SolverLayout {
     pulls: Vec<Vec3A>,
     cluster_start: Vec<u32>,
     member_particle: Vec<u32>,
-    /// Per membership: `(w q, w)` with `q = x̄ − x̄_c` and `w` the matching weight.
+    /// Per membership: `(q, w)` with `q = x̄ − x̄_c` the rest offset from the cluster's
+    /// weighted rest centroid and `w` the matching weight.
     member_moment: Vec<Vec4>,
-    rest_centroid: Vec<Vec3A>,
     offset_bias: Vec<Vec3A>,
     inv_weight_sum: Vec<f32>,
     stiffness: Vec<f32>,
@@ -186,14 +187,14 @@ impl SolverLayout {
                 .map(|m| (rest[*m as usize] - centroid) * weight[*m as usize])
                 .sum();
             layout.member_particle.extend_from_slice(c.members);
-            layout.member_moment.extend(c.members.iter().map(|m| {
-                let w = weight[*m as usize];
-                ((rest[*m as usize] - centroid) * w).extend(w)
-            }));
+            layout.member_moment.extend(
+                c.members
+                    .iter()
+                    .map(|m| (rest[*m as usize] - centroid).extend(weight[*m as usize])),
+            );
             layout
                 .cluster_start
                 .push(layout.member_particle.len() as u32);
-            layout.rest_centroid.push(centroid);
             layout.offset_bias.push(bias);
             layout.inv_weight_sum.push(1.0 / total);
             layout.stiffness.push(c.stiffness);
@@ -264,7 +265,7 @@ impl SolverLayout {
                 + self.colour_order.capacity()
                 + self.colour_start.capacity())
                 * 4
-            + self.rest_centroid.capacity() * v3 * 2
+            + self.offset_bias.capacity() * v3
             + self.inv_weight_sum.capacity() * 4 * 2
     }
 
@@ -392,7 +393,7 @@ impl SolverLayout {
 }
 
 /// Fits one cluster to the current positions (read through `position`): accumulates
-/// the weighted centroid and the moment matrix `A = Σ w (p − o)(x̄ − x̄_c)ᵀ` relative to
+/// the weighted centroid and the moment matrix `A = Σ w (p − o) qᵀ` relative to
 /// the first member `o`, updates the warm-started rotation, and returns the frame that
 /// gives every member's pull.
 #[inline(always)]
@@ -410,12 +411,11 @@ fn fit_cluster(
     let mut sum = Vec3A::ZERO;
     let mut a = Mat3A::ZERO;
     for (&m, moment) in members.iter().zip(moments) {
-        let d = position(m as usize) - origin;
-        let wq = Vec3A::from_vec4(*moment);
-        sum = madd(d, Vec3A::splat(moment.w), sum);
-        a.x_axis = madd(d, Vec3A::splat(wq.x), a.x_axis);
-        a.y_axis = madd(d, Vec3A::splat(wq.y), a.y_axis);
-        a.z_axis = madd(d, Vec3A::splat(wq.z), a.z_axis);
+        let wd = (position(m as usize) - origin) * moment.w;
+        sum += wd;
+        a.x_axis = madd(wd, Vec3A::splat(moment.x), a.x_axis);
+        a.y_axis = madd(wd, Vec3A::splat(moment.y), a.y_axis);
+        a.z_axis = madd(wd, Vec3A::splat(moment.z), a.z_axis);
     }
     *rotation = extract_rotation(a, *rotation, ROTATION_ITERATIONS);
     let r = Mat3A::from_quat(*rotation);
@@ -424,14 +424,13 @@ fn fit_cluster(
     let s = constants.stiffness;
     ClusterFrame {
         scaled_rotation: r * s,
-        scaled_translation: (centroid - r * constants.rest_centroid) * s,
+        scaled_translation: centroid * s,
     }
 }
 
 /// Per-cluster constants of a fit.
 #[derive(Clone, Copy)]
 struct ClusterConstants {
-    rest_centroid: Vec3A,
     offset_bias: Vec3A,
     inv_weight_sum: f32,
     stiffness: f32,
@@ -442,7 +441,6 @@ impl SolverLayout {
     #[inline(always)]
     fn constants(&self, k: usize) -> ClusterConstants {
         ClusterConstants {
-            rest_centroid: self.rest_centroid[k],
             offset_bias: self.offset_bias[k],
             inv_weight_sum: self.inv_weight_sum[k],
             stiffness: self.stiffness[k],
