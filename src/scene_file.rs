@@ -120,6 +120,11 @@ mod check {
             )))
         }
     }
+    pub fn tool_shape<'de, D: Deserializer<'de>>(d: D) -> Result<ToolShape, D::Error> {
+        let shape = ToolShape::deserialize(d)?;
+        shape.validate().map_err(D::Error::custom)?;
+        Ok(shape)
+    }
     pub fn bodies<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<BodyFile>, D::Error> {
         let v = Vec::<BodyFile>::deserialize(d)?;
         if v.is_empty() {
@@ -331,8 +336,10 @@ impl Default for MaterialFile {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ToolFile {
-    /// Shape.
-    pub shape: ToolShapeFile,
+    /// Shape: `Sphere(radius)`, `Capsule(radius, half_length)` or
+    /// `Blade(half_width, half_height)`.
+    #[serde(deserialize_with = "check::tool_shape")]
+    pub shape: ToolShape,
     /// Width of the cut zone.
     #[serde(deserialize_with = "check::positive")]
     pub cut_width: f32,
@@ -342,36 +349,6 @@ pub struct ToolFile {
     /// Pose before the path starts (default: the first key's).
     #[serde(default)]
     pub pose: Option<PoseFile>,
-}
-
-/// A tool shape.
-#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub enum ToolShapeFile {
-    /// A ball.
-    Sphere {
-        /// Radius.
-        #[serde(deserialize_with = "check::positive")]
-        radius: f32,
-    },
-    /// A capsule along local X.
-    Capsule {
-        /// Radius.
-        #[serde(deserialize_with = "check::positive")]
-        radius: f32,
-        /// Half length of the shaft.
-        #[serde(deserialize_with = "check::positive")]
-        half_length: f32,
-    },
-    /// A thin rectangle in the local XY plane.
-    Blade {
-        /// Half size along local X.
-        #[serde(deserialize_with = "check::positive")]
-        half_width: f32,
-        /// Half size along local Y.
-        #[serde(deserialize_with = "check::positive")]
-        half_height: f32,
-    },
 }
 
 /// A pose.
@@ -481,50 +458,6 @@ impl MaterialFile {
     }
 }
 
-impl From<ToolShape> for ToolShapeFile {
-    fn from(s: ToolShape) -> Self {
-        match s {
-            ToolShape::Sphere { radius } => Self::Sphere { radius },
-            ToolShape::Capsule {
-                radius,
-                half_length,
-            } => Self::Capsule {
-                radius,
-                half_length,
-            },
-            ToolShape::Blade {
-                half_width,
-                half_height,
-            } => Self::Blade {
-                half_width,
-                half_height,
-            },
-        }
-    }
-}
-
-impl From<ToolShapeFile> for ToolShape {
-    fn from(s: ToolShapeFile) -> Self {
-        match s {
-            ToolShapeFile::Sphere { radius } => Self::Sphere { radius },
-            ToolShapeFile::Capsule {
-                radius,
-                half_length,
-            } => Self::Capsule {
-                radius,
-                half_length,
-            },
-            ToolShapeFile::Blade {
-                half_width,
-                half_height,
-            } => Self::Blade {
-                half_width,
-                half_height,
-            },
-        }
-    }
-}
-
 impl SceneFile {
     /// The file form of `scene`; `None` if a body's shape has no file form (a signed
     /// distance function, or a mesh given in memory).
@@ -563,7 +496,7 @@ impl SceneFile {
             .tools
             .iter()
             .map(|t| ToolFile {
-                shape: t.shape.into(),
+                shape: t.shape,
                 cut_width: t.cut_width,
                 path: t.path.keys.iter().map(|(k, p)| (*k, (*p).into())).collect(),
                 pose: Some(t.pose.into()),
@@ -628,7 +561,7 @@ impl SceneFile {
                     .or_else(|| keys.first().map(|k| k.1))
                     .unwrap_or(Pose::at(Vec3::ZERO));
                 ToolDesc {
-                    shape: t.shape.into(),
+                    shape: t.shape,
                     cut_width: t.cut_width,
                     path: ToolPath { keys },
                     pose,

@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 
 /// Shape of a cutting tool in its local frame.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum ToolShape {
     /// A ball.
     Sphere {

@@ -3,7 +3,7 @@
 //! Clusters of one colour share no particle (see [`super::colour_clusters`]), so they
 //! run in parallel and the result does not depend on their order or the thread count.
 
-use super::{Disjoint, SolverLayout, fit_cluster};
+use super::{Disjoint, SolverLayout};
 use glam::{Quat, Vec3A};
 
 impl SolverLayout {
@@ -31,22 +31,13 @@ impl SolverLayout {
         corrections: Disjoint<Vec3A>,
         rotations: Disjoint<Quat>,
     ) {
-        let range = self.cluster_start[k] as usize..self.cluster_start[k + 1] as usize;
-        let members = &self.member_particle[range.clone()];
-        let constants = self.constants(k);
         // SAFETY (all blocks below): cluster `k`, its rotation and its members' positions
         // and corrections belong to this task for the colour (see `Disjoint`); indices
         // were bounds-checked when the layout was built.
-        let mut rotation = unsafe { rotations.read(k) };
+        let (range, frame, stiffness) =
+            unsafe { self.fit_in_sweep(k, |m| positions.read(m), rotations) };
+        let members = &self.member_particle[range.clone()];
         let moments = &self.member_moment[range];
-        let frame = fit_cluster(
-            members,
-            moments,
-            |m| unsafe { positions.read(m) },
-            constants,
-            &mut rotation,
-        );
-        unsafe { rotations.write(k, rotation) };
         for (&m, moment) in members.iter().zip(moments) {
             let m = m as usize;
             if self.inv_mass[m] == 0.0 {
@@ -54,7 +45,7 @@ impl SolverLayout {
             }
             unsafe {
                 let x = positions.read(m);
-                let step = frame.scaled_goal(Vec3A::from_vec4(*moment)) - x * constants.stiffness;
+                let step = frame.scaled_goal(Vec3A::from_vec4(*moment)) - x * stiffness;
                 positions.write(m, x + step);
                 corrections.write(m, corrections.read(m) + step);
             }

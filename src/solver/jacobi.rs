@@ -3,9 +3,7 @@
 //! no two write the same accumulator and each particle sums its pulls in a fixed colour
 //! order); then every particle moves by the average pull and the colliders apply.
 
-use super::{
-    Colliders, Disjoint, PARTICLES_PER_TASK, SolverLayout, fit_cluster, resolve_colliders,
-};
+use super::{Colliders, Disjoint, PARTICLES_PER_TASK, SolverLayout, resolve_colliders};
 use glam::{Quat, Vec3A};
 use rayon::prelude::*;
 
@@ -22,25 +20,16 @@ impl SolverLayout {
     /// `s (g − p)` to each member's pull.
     #[inline]
     fn pull_members(&self, k: usize, pulls: Disjoint<Vec3A>, rotations: Disjoint<Quat>) {
-        let range = self.cluster_start[k] as usize..self.cluster_start[k + 1] as usize;
-        let members = &self.member_particle[range.clone()];
-        let constants = self.constants(k);
-        // SAFETY: rotation `k` and the pulls of `k`'s members belong to this task for the
+        // SAFETY: this task owns cluster `k`, and so the pulls of its members, for the
         // colour (see `Disjoint`); indices were bounds-checked when the layout was built.
-        let mut rotation = unsafe { rotations.read(k) };
-        let moments = &self.member_moment[range];
-        let frame = fit_cluster(
-            members,
-            moments,
-            |m| self.positions[m],
-            constants,
-            &mut rotation,
-        );
-        unsafe { rotations.write(k, rotation) };
-        for (&m, moment) in members.iter().zip(moments) {
+        let (range, frame, stiffness) =
+            unsafe { self.fit_in_sweep(k, |m| self.positions[m], rotations) };
+        for (&m, moment) in self.member_particle[range.clone()]
+            .iter()
+            .zip(&self.member_moment[range])
+        {
             let m = m as usize;
-            let pull = frame.scaled_goal(Vec3A::from_vec4(*moment))
-                - self.positions[m] * constants.stiffness;
+            let pull = frame.scaled_goal(Vec3A::from_vec4(*moment)) - self.positions[m] * stiffness;
             // SAFETY: as above.
             unsafe { pulls.write(m, pulls.read(m) + pull) };
         }

@@ -381,6 +381,35 @@ impl<T: Copy> Disjoint<T> {
 }
 
 impl SolverLayout {
+    /// Fits cluster `k` inside a colour sweep, reading positions through `position` and
+    /// updating its warm-start rotation through `rotations`. Returns the member range
+    /// (into `member_particle` and `member_moment`), the frame and the stiffness.
+    ///
+    /// # Safety
+    /// The caller is the task that owns cluster `k` in the current colour.
+    #[inline(always)]
+    unsafe fn fit_in_sweep(
+        &self,
+        k: usize,
+        position: impl Fn(usize) -> Vec3A,
+        rotations: Disjoint<Quat>,
+    ) -> (std::ops::Range<usize>, ClusterFrame, f32) {
+        let range = self.cluster_start[k] as usize..self.cluster_start[k + 1] as usize;
+        let constants = self.constants(k);
+        // SAFETY: rotation `k` belongs to the calling task (the caller's contract).
+        let mut rotation = unsafe { rotations.read(k) };
+        let frame = fit_cluster(
+            &self.member_particle[range.clone()],
+            &self.member_moment[range.clone()],
+            position,
+            constants,
+            &mut rotation,
+        );
+        // SAFETY: as above.
+        unsafe { rotations.write(k, rotation) };
+        (range, frame, constants.stiffness)
+    }
+
     /// Runs `f(k)` for every cluster `k`, colour after colour; the clusters of one colour
     /// run in parallel (they share no particle).
     fn for_each_cluster_by_colour(&self, f: impl Fn(usize) + Sync) {
