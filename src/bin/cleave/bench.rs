@@ -1,7 +1,7 @@
 //! `cleave bench`: the report of [`cleave::bench`] as a table or as JSON lines.
 
 use cleave::bench::{bench_size, convergence_table};
-use cleave::config::{SimConfig, SolverMode};
+use cleave::config::SimConfig;
 
 /// Iteration counts of the convergence table.
 const CONVERGENCE_ITERATIONS: [u32; 6] = [1, 2, 5, 10, 20, 50];
@@ -10,7 +10,7 @@ const CONVERGENCE_ITERATIONS: [u32; 6] = [1, 2, 5, 10, 20, 50];
 pub fn bench(
     sizes: &[u32],
     steps: usize,
-    solver: SolverMode,
+    config: SimConfig,
     json: bool,
     convergence: bool,
 ) -> Result<(), String> {
@@ -25,14 +25,10 @@ pub fn bench(
     let mut sizes = sizes.to_vec();
     sizes.sort_unstable();
     sizes.dedup();
-    let config = SimConfig {
-        solver,
-        ..SimConfig::default()
-    };
     if !json {
         println!(
             "cleave bench: {:?}, {} substeps × {} iterations, {} timed steps, {} thread(s)",
-            solver,
+            config.solver,
             config.substeps,
             config.iterations,
             steps,

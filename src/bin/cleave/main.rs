@@ -5,7 +5,7 @@ mod pictures;
 mod run;
 
 use clap::{Parser, Subcommand};
-use cleave::config::SolverMode;
+use cleave::config::{SimConfig, SolverMode};
 use cleave::render::ColorMode;
 use cleave::scene::BUILTIN_SCENES;
 use cleave::scene_file::SceneFile;
@@ -98,6 +98,12 @@ enum Command {
         /// Skip the convergence table.
         #[arg(long)]
         no_convergence: bool,
+        /// Substeps per frame (step).
+        #[arg(long, default_value_t = 2)]
+        substeps: u32,
+        /// Solver iterations per substep.
+        #[arg(long, default_value_t = 10)]
+        iterations: u32,
     },
 }
 
@@ -222,8 +228,17 @@ fn main() -> ExitCode {
             steps,
             solver,
             no_convergence,
+            substeps,
+            iterations,
         } => with_threads(threads, |_| {
-            bench::bench(&sizes, steps, solver.into(), json, !no_convergence)
+            let config = SimConfig {
+                solver: solver.into(),
+                substeps,
+                iterations,
+                ..SimConfig::default()
+            };
+            config.validate().map_err(|e| e.to_string())?;
+            bench::bench(&sizes, steps, config, json, !no_convergence)
         }),
     };
     match result {
