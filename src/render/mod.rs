@@ -92,11 +92,10 @@ fn cluster_colour(bits: u64) -> Vec3 {
 
 /// Reads the particles, tools and colliders of `world`.
 pub fn snapshot(world: &mut World, mode: ColorMode) -> Snapshot {
-    let mut bodies: Vec<(Entity, BodyLattice, Option<ParticleClusters>)> = world
-        .query::<(Entity, &BodyLattice, Option<&ParticleClusters>)>()
-        .iter(world)
-        .map(|(e, l, c)| (e, l.clone(), c.cloned()))
-        .collect();
+    let mut query = world.query::<(Entity, &BodyLattice, Option<&ParticleClusters>)>();
+    let world: &World = world;
+    let mut bodies: Vec<(Entity, &BodyLattice, Option<&ParticleClusters>)> =
+        query.iter(world).collect();
     bodies.sort_by_key(|(e, _, _)| *e);
     let mut spheres = Vec::new();
     let mut piece_offset = 0u32;
@@ -130,9 +129,10 @@ pub fn snapshot(world: &mut World, mode: ColorMode) -> Snapshot {
         }
         piece_offset += pieces as u32;
     }
-    let mut tools: Vec<(Entity, ToolShape, Pose)> = world
-        .query::<(Entity, &Tool, &ToolPose)>()
-        .iter(world)
+    let mut tool_query = world.try_query::<(Entity, &Tool, &ToolPose)>();
+    let mut tools: Vec<(Entity, ToolShape, Pose)> = tool_query
+        .iter_mut()
+        .flat_map(|q| q.iter(world))
         .map(|(e, t, p)| (e, t.shape, p.current))
         .collect();
     tools.sort_by_key(|(e, _, _)| *e);
