@@ -128,7 +128,6 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
     for _ in 0..3 {
         sim.step();
     }
-    let ms_per_step = time_ms(steps, || sim.step());
     let world = sim.world_mut();
     let memberships: usize = world
         .query::<&ClusterMembers>()
@@ -144,8 +143,14 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
         ground: config.ground,
         boxes: config.boxes.clone(),
     };
-    let bare_ms_per_step = time_ms(steps, || bare_step(&mut layout, config, &colliders));
+    // Engine and bare steps alternate, so both see the same machine noise.
+    let (mut engine, mut bare) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
+    for _ in 0..steps {
+        engine.push(time_ms(1, || sim.step()));
+        bare.push(time_ms(1, || bare_step(&mut layout, config, &colliders)));
+    }
     drop(layout);
+    let (ms_per_step, bare_ms_per_step) = (median(&mut engine), median(&mut bare));
     let (cut_event_ms, recluster_ms) = slice_event(&mut sim, n)?;
     let iterations = config.substeps * config.iterations;
     let per_step = (memberships as f64) * iterations as f64;
