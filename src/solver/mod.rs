@@ -1,19 +1,23 @@
-//! The dense shape-matching kernel (SPEC §2.2): positions, rest positions and weights in
-//! contiguous per-particle arrays, cluster members as index ranges, particle → cluster
-//! ranges. Built once per topology, then iterated many times.
+//! The dense shape-matching kernel (SPEC §2.2): positions and rest positions in
+//! contiguous per-particle arrays, cluster members as index ranges with each
+//! membership's rest offset and weight beside it, clusters grouped by colour. Built once
+//! per topology, then iterated many times.
 //!
 //! A cluster fit computes, from the current positions, the optimal rotation `R` (Müller
 //! 2016, warm-started) and the weighted centroid `c`; member `i`'s goal is
 //! `R (x̄ᵢ − x̄_c) + c` with `x̄` rest positions. Two schemes share that fit:
-//! - **Jacobi**: every cluster is fitted to the same positions; each
-//!   particle then moves by `(1/nᵢ) Σₖ sₖ (gᵢₖ − pᵢ)` (nᵢ clusters). With matching
-//!   weights `1/nᵢ` (FastLSM) every cluster's pull has zero momentum, so the scheme
-//!   conserves linear momentum. Parallel over clusters, then over particles.
+//! - **Jacobi**: every cluster is fitted to the same positions and adds its pulls to its
+//!   members' accumulators; each particle then moves by `(1/nᵢ) Σₖ sₖ (gᵢₖ − pᵢ)`
+//!   (nᵢ clusters). With matching weights `1/nᵢ` (FastLSM) every cluster's pull has zero
+//!   momentum, so the scheme conserves linear momentum. Clusters run colour by colour
+//!   (parallel inside a colour), then the particles in parallel.
 //! - **Coloured Gauss–Seidel**: clusters are coloured so that clusters of
 //!   one colour share no particle; colour after colour, each cluster is fitted and moves
 //!   its members by `sₖ (gᵢₖ − pᵢ)` at once (uniform weights, so again zero momentum).
 //!
-//! Both are deterministic for any number of threads: every sum runs in a fixed order.
+//! Clusters of one colour share no particle (see [`colour_clusters`]), which is what
+//! makes the parallel writes of both schemes race-free. Both are deterministic for any
+//! number of threads: every sum runs in a fixed order.
 //! Per-cluster work is done relative to the cluster's first member so that goals keep
 //! full precision far from the origin.
 
