@@ -120,6 +120,18 @@ mod check {
             )))
         }
     }
+    pub fn pins<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<PinRegion>, D::Error> {
+        let pins = Vec::<PinRegion>::deserialize(d)?;
+        for (i, p) in pins.iter().enumerate() {
+            if !(p.min.is_finite() && p.max.is_finite()) {
+                return Err(D::Error::custom(format!(
+                    "pin {i}: ({}, {}) is out of range (allowed: finite corners)",
+                    p.min, p.max
+                )));
+            }
+        }
+        Ok(pins)
+    }
     pub fn tool_shape<'de, D: Deserializer<'de>>(d: D) -> Result<ToolShape, D::Error> {
         let shape = ToolShape::deserialize(d)?;
         shape.validate().map_err(D::Error::custom)?;
@@ -262,7 +274,7 @@ pub struct BodyFile {
     #[serde(default)]
     pub material: MaterialFile,
     /// Pinned regions (world space).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "check::pins")]
     pub pins: Vec<PinRegion>,
 }
 

@@ -162,6 +162,10 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             "finite, non-zero quaternion",
         ));
     }
+    for (i, pin) in desc.pins.iter().enumerate() {
+        check_finite_vec(&format!("body.pins[{i}].min"), pin.min)?;
+        check_finite_vec(&format!("body.pins[{i}].max"), pin.max)?;
+    }
     let lattice = desc.shape.voxelise(desc.spacing)?;
     let table = {
         let mut rng = world.resource_mut::<SimRng>();

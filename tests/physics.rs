@@ -190,6 +190,12 @@ fn bad_input_is_an_error_naming_the_field() {
     assert!(err(sim.spawn_body(&BodyDesc::new(shape.clone(), -1.0))).contains("spacing"));
     let e = err(sim.spawn_body(&BodyDesc::new(Shape::Sphere { radius: 0.01 }, 1.0)));
     assert!(e.contains("empty shape"), "{e}");
+    let mut pinned = BodyDesc::new(shape.clone(), 0.1);
+    pinned.pins = vec![PinRegion {
+        min: Vec3::new(f32::NAN, 0.0, 0.0),
+        max: Vec3::ONE,
+    }];
+    assert!(err(sim.spawn_body(&pinned)).contains("body.pins[0].min"));
     for (material, field) in [
         (
             Material {

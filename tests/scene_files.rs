@@ -94,7 +94,15 @@ fn a_minimal_file_runs() {
 
 #[test]
 fn bad_files_give_one_line_naming_file_position_and_field() {
-    let cases: [(&str, String, &[&str]); 6] = [
+    let cases: [(&str, String, &[&str]); 7] = [
+        (
+            "pin.ron",
+            GOOD.replace(
+                "position: (0.0, 0.5, 0.0))],",
+                "position: (0.0, 0.5, 0.0), pins: [(min: (inf, 0.0, 0.0), max: (1.0, 1.0, 1.0))])],",
+            ),
+            &["pin.ron:3:", "bodies[0].pins", "allowed: finite"],
+        ),
         (
             "syntax.ron",
             GOOD.replace("frames: 2,", "frames: 2,,"),
