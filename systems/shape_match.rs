@@ -122,7 +122,7 @@ fn rebuild(
         .collect();
     // Clusters in the order of their first member (then entity, for determinism).
     cluster_list
-        .sort_unstable_by_key(|(body, e, members, _)| (*body, members.iter().min().copied(), *e));
+        .sort_by_cached_key(|(body, e, members, _)| (*body, members.iter().min().copied(), *e));
     let specs = cluster_list
         .iter()
         .map(|(_, e, members, stiffness)| ClusterSpec {
