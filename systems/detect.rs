@@ -4,7 +4,7 @@
 
 use crate::components::{Tool, ToolPose};
 use crate::resources::{BodyCut, CutList, SolverCache};
-use crate::tool::{Pose, sweep_samples};
+use crate::tool::Sweep;
 use bevy_ecs::prelude::*;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -12,7 +12,7 @@ use rayon::prelude::*;
 /// A tool prepared for testing: its sampled sweep and the bounding box of the sweep.
 struct PreparedTool {
     tool: Tool,
-    samples: Vec<(Pose, glam::Quat)>,
+    sweep: Sweep,
     min: Vec3,
     max: Vec3,
 }
@@ -32,20 +32,17 @@ pub fn detect(cache: Res<SolverCache>, tools: Query<(&Tool, &ToolPose)>, mut out
         .map(|(tool, pose)| {
             let half = tool.cut_width * 0.5;
             let radius = tool.shape.bounding_radius();
-            let samples: Vec<(Pose, glam::Quat)> =
-                sweep_samples(&pose.last, &pose.current, radius, half)
-                    .into_iter()
-                    .map(|p| (p, p.rotation.normalize().inverse()))
-                    .collect();
+            let sweep = Sweep::new(&pose.last, &pose.current, radius, half);
             let reach = Vec3::splat(radius + half);
-            let (min, max) = samples
+            let (min, max) = sweep
+                .samples
                 .iter()
                 .fold((Vec3::MAX, Vec3::MIN), |(lo, hi), (p, _)| {
                     (lo.min(p.position - reach), hi.max(p.position + reach))
                 });
             PreparedTool {
                 tool: *tool,
-                samples,
+                sweep,
                 min,
                 max,
             }
@@ -63,10 +60,7 @@ pub fn detect(cache: Res<SolverCache>, tools: Query<(&Tool, &ToolPose)>, mut out
             prepared.iter().any(|t| {
                 x.cmpge(t.min).all()
                     && x.cmple(t.max).all()
-                    && t.samples.iter().any(|(pose, inverse)| {
-                        t.tool.shape.signed_distance(*inverse * (x - pose.position))
-                            <= t.tool.cut_width * 0.5
-                    })
+                    && t.sweep.hits(&t.tool.shape, x, t.tool.cut_width * 0.5)
             })
         })
         .collect();
