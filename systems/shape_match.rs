@@ -75,6 +75,7 @@ pub fn shape_match(
 }
 
 /// Rebuilds the dense layout from the ECS, keeping warm-start rotations by cluster.
+#[inline(never)]
 fn rebuild(
     cache: &mut SolverCache,
     bodies: &Query<(Entity, &BodyLattice)>,
