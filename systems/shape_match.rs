@@ -74,6 +74,14 @@ pub fn shape_match(
     }
 }
 
+/// One cluster while the layout is rebuilt: sort key `(body, first dense member,
+/// entity)`, its members' range in the flat member array, and its stiffness.
+struct ClusterEntry {
+    order: (Entity, u32, Entity),
+    range: std::ops::Range<usize>,
+    stiffness: f32,
+}
+
 /// Rebuilds the dense layout from the ECS, keeping warm-start rotations by cluster.
 #[inline(never)]
 fn rebuild(
@@ -109,28 +117,36 @@ fn rebuild(
         }
         local_to_dense.insert(*body, map);
     }
-    let mut cluster_list: Vec<(Entity, Entity, Vec<u32>, f32)> = clusters
-        .iter()
-        .filter_map(|(e, members, of, stiffness)| {
-            let map = local_to_dense.get(&of.0)?;
-            let dense: Vec<u32> = members
+    // Every cluster's dense members in one flat array (no allocation per cluster).
+    let total: usize = clusters.iter().map(|(_, m, _, _)| m.0.len()).sum();
+    let mut flat: Vec<u32> = Vec::with_capacity(total);
+    let mut cluster_list: Vec<ClusterEntry> = Vec::new();
+    for (e, members, of, stiffness) in clusters {
+        let Some(map) = local_to_dense.get(&of.0) else {
+            continue;
+        };
+        let start = flat.len();
+        flat.extend(
+            members
                 .0
                 .iter()
-                .filter_map(|m| map.get(*m as usize).copied().filter(|d| *d != u32::MAX))
-                .collect();
-            (!dense.is_empty()).then_some((of.0, e, dense, stiffness.0.clamp(0.0, 1.0)))
-        })
-        .collect();
+                .filter_map(|m| map.get(*m as usize).copied().filter(|d| *d != u32::MAX)),
+        );
+        if let Some(&first) = flat[start..].iter().min() {
+            cluster_list.push(ClusterEntry {
+                order: (of.0, first, e),
+                range: start..flat.len(),
+                stiffness: stiffness.0.clamp(0.0, 1.0),
+            });
+        }
+    }
     // Clusters in the order of their first member (then entity, for determinism).
-    cluster_list
-        .sort_by_cached_key(|(body, e, members, _)| (*body, members.iter().min().copied(), *e));
-    let specs = cluster_list
-        .iter()
-        .map(|(_, e, members, stiffness)| ClusterSpec {
-            members,
-            stiffness: *stiffness,
-            rotation: warm.get(e).copied().unwrap_or(Quat::IDENTITY),
-        });
+    cluster_list.sort_unstable_by_key(|c| c.order);
+    let specs = cluster_list.iter().map(|c| ClusterSpec {
+        members: &flat[c.range.clone()],
+        stiffness: c.stiffness,
+        rotation: warm.get(&c.order.2).copied().unwrap_or(Quat::IDENTITY),
+    });
     cache.layout = SolverLayout::new(&rest, specs, mode);
     let max_index = particles
         .iter()
@@ -143,7 +159,7 @@ fn rebuild(
     }
     cache.particles = particles;
     cache.owners = owners;
-    cache.clusters = cluster_list.into_iter().map(|(_, e, _, _)| e).collect();
+    cache.clusters = cluster_list.into_iter().map(|c| c.order.2).collect();
     cache.valid = true;
 }
 

@@ -174,6 +174,14 @@ impl SolverLayout {
             inv_count,
             ..Default::default()
         };
+        let memberships: usize = clusters.iter().map(|c| c.members.len()).sum();
+        layout.member_particle.reserve_exact(memberships);
+        layout.member_moment.reserve_exact(memberships);
+        layout.cluster_start.reserve_exact(clusters.len() + 1);
+        layout.offset_bias.reserve_exact(clusters.len());
+        layout.inv_weight_sum.reserve_exact(clusters.len());
+        layout.stiffness.reserve_exact(clusters.len());
+        layout.rotations.reserve_exact(clusters.len());
         layout.cluster_start.push(0);
         for c in &clusters {
             let total: f32 = c.members.iter().map(|m| weight[*m as usize]).sum();
