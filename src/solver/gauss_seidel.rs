@@ -3,7 +3,8 @@
 //! Clusters of one colour share no particle (see [`super::colour_clusters`]), so they
 //! run in parallel and the result does not depend on their order or the thread count.
 
-use super::{Disjoint, SolverLayout};
+use super::SolverLayout;
+use super::sweep::Disjoint;
 use glam::{Quat, Vec3A};
 
 impl SolverLayout {

@@ -3,7 +3,8 @@
 //! no two write the same accumulator and each particle sums its pulls in a fixed colour
 //! order); then every particle moves by the average pull and the colliders apply.
 
-use super::{Colliders, Disjoint, PARTICLES_PER_TASK, SolverLayout, resolve_colliders};
+use super::sweep::Disjoint;
+use super::{Colliders, PARTICLES_PER_TASK, SolverLayout, resolve_colliders};
 use glam::{Quat, Vec3A};
 use rayon::prelude::*;
 

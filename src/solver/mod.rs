@@ -23,15 +23,16 @@
 
 mod colliders;
 mod colouring;
+mod fit;
 mod gauss_seidel;
 mod jacobi;
+mod sweep;
 
 pub use colliders::{Colliders, resolve_colliders};
 pub use colouring::colour_clusters;
 
 use crate::config::SolverMode;
-use crate::rotation::extract_rotation;
-use glam::{Mat3A, Quat, Vec3, Vec3A, Vec4};
+use glam::{Quat, Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 
 /// Müller iterations per cluster per solver iteration (warm-started, so one suffices).
@@ -58,48 +59,6 @@ pub struct ClusterSpec<'a> {
     pub stiffness: f32,
     /// Warm-start rotation.
     pub rotation: Quat,
-}
-
-/// The result of one cluster fit, premultiplied by the stiffness `s`: the pull on the
-/// member with rest offset `q` at `p` is `s (R q + c − p)` =
-/// `scaled_rotation · q + scaled_translation − s·p`.
-#[derive(Clone, Copy, Debug, Default)]
-struct ClusterFrame {
-    scaled_rotation: Mat3A,
-    scaled_translation: Vec3A,
-}
-
-impl ClusterFrame {
-    /// `S q + T`; the caller subtracts `s·p`.
-    #[inline(always)]
-    fn scaled_goal(&self, q: Vec3A) -> Vec3A {
-        madd(
-            self.scaled_rotation.z_axis,
-            Vec3A::splat(q.z),
-            madd(
-                self.scaled_rotation.y_axis,
-                Vec3A::splat(q.y),
-                madd(
-                    self.scaled_rotation.x_axis,
-                    Vec3A::splat(q.x),
-                    self.scaled_translation,
-                ),
-            ),
-        )
-    }
-}
-
-/// `a·b + c`, fused where the target has FMA.
-#[inline(always)]
-fn madd(a: Vec3A, b: Vec3A, c: Vec3A) -> Vec3A {
-    #[cfg(target_feature = "fma")]
-    {
-        a.mul_add(b, c)
-    }
-    #[cfg(not(target_feature = "fma"))]
-    {
-        a * b + c
-    }
 }
 
 /// Dense arrays for the solver; see the module docs.
@@ -349,143 +308,6 @@ impl SolverLayout {
                 resolve_colliders(p, *prev, colliders);
                 *correction += *p - before;
             });
-    }
-}
-
-/// A per-particle or per-cluster array written by the tasks of one colour.
-///
-/// Soundness rests on the colouring: the clusters of one colour have pairwise disjoint
-/// member sets, and a task writes only the entries of its own clusters and of their
-/// members, so no entry is written by two tasks, nor read by one task while another
-/// writes it. No reference to the array is alive while a colour runs.
-#[derive(Clone, Copy)]
-struct Disjoint<T>(*mut T);
-
-// SAFETY: see the type's docs; tasks of one colour touch pairwise disjoint entries.
-unsafe impl<T> Send for Disjoint<T> {}
-// SAFETY: as above.
-unsafe impl<T> Sync for Disjoint<T> {}
-
-impl<T: Copy> Disjoint<T> {
-    fn new(v: &mut [T]) -> Self {
-        Self(v.as_mut_ptr())
-    }
-
-    /// Reads entry `i`.
-    ///
-    /// # Safety
-    /// `i` is in bounds and no other task writes entry `i` during this colour.
-    #[inline(always)]
-    unsafe fn read(self, i: usize) -> T {
-        // SAFETY: guaranteed by the caller.
-        unsafe { self.0.add(i).read() }
-    }
-
-    /// Writes entry `i`.
-    ///
-    /// # Safety
-    /// `i` is in bounds and belongs to the calling task during this colour.
-    #[inline(always)]
-    unsafe fn write(self, i: usize, value: T) {
-        // SAFETY: guaranteed by the caller.
-        unsafe { self.0.add(i).write(value) }
-    }
-}
-
-impl SolverLayout {
-    /// Fits cluster `k` inside a colour sweep, reading positions through `position` and
-    /// updating its warm-start rotation through `rotations`. Returns the member range
-    /// (into `member_particle` and `member_moment`), the frame and the stiffness.
-    ///
-    /// # Safety
-    /// The caller is the task that owns cluster `k` in the current colour.
-    #[inline(always)]
-    unsafe fn fit_in_sweep(
-        &self,
-        k: usize,
-        position: impl Fn(usize) -> Vec3A,
-        rotations: Disjoint<Quat>,
-    ) -> (std::ops::Range<usize>, ClusterFrame, f32) {
-        let range = self.cluster_start[k] as usize..self.cluster_start[k + 1] as usize;
-        let constants = self.constants(k);
-        // SAFETY: rotation `k` belongs to the calling task (the caller's contract).
-        let mut rotation = unsafe { rotations.read(k) };
-        let frame = fit_cluster(
-            &self.member_particle[range.clone()],
-            &self.member_moment[range.clone()],
-            position,
-            constants,
-            &mut rotation,
-        );
-        // SAFETY: as above.
-        unsafe { rotations.write(k, rotation) };
-        (range, frame, constants.stiffness)
-    }
-
-    /// Runs `f(k)` for every cluster `k`, colour after colour; the clusters of one colour
-    /// run in parallel (they share no particle).
-    fn for_each_cluster_by_colour(&self, f: impl Fn(usize) + Sync) {
-        for colour in self.colour_start.windows(2) {
-            self.colour_order[colour[0] as usize..colour[1] as usize]
-                .par_chunks(CLUSTERS_PER_TASK)
-                .for_each(|chunk| chunk.iter().for_each(|&k| f(k as usize)));
-        }
-    }
-}
-
-/// Fits one cluster to the current positions (read through `position`): accumulates
-/// the weighted centroid and the moment matrix `A = Σ w (p − o) qᵀ` relative to
-/// the first member `o`, updates the warm-started rotation, and returns the frame that
-/// gives every member's pull.
-#[inline(always)]
-fn fit_cluster(
-    members: &[u32],
-    moments: &[Vec4],
-    position: impl Fn(usize) -> Vec3A,
-    constants: ClusterConstants,
-    rotation: &mut Quat,
-) -> ClusterFrame {
-    let Some(&first) = members.first() else {
-        return ClusterFrame::default();
-    };
-    let origin = position(first as usize);
-    let mut sum = Vec3A::ZERO;
-    let mut a = Mat3A::ZERO;
-    for (&m, moment) in members.iter().zip(moments) {
-        let wd = (position(m as usize) - origin) * moment.w;
-        sum += wd;
-        a.x_axis = madd(wd, Vec3A::splat(moment.x), a.x_axis);
-        a.y_axis = madd(wd, Vec3A::splat(moment.y), a.y_axis);
-        a.z_axis = madd(wd, Vec3A::splat(moment.z), a.z_axis);
-    }
-    *rotation = extract_rotation(a, *rotation, ROTATION_ITERATIONS);
-    let r = Mat3A::from_quat(*rotation);
-    // Σ w (R q + c − d) = R·bias + c·W − Σ w d = 0 exactly when c = (Σ w d − R·bias)/W.
-    let centroid = (sum - r * constants.offset_bias) * constants.inv_weight_sum + origin;
-    let s = constants.stiffness;
-    ClusterFrame {
-        scaled_rotation: r * s,
-        scaled_translation: centroid * s,
-    }
-}
-
-/// Per-cluster constants of a fit.
-#[derive(Clone, Copy)]
-struct ClusterConstants {
-    offset_bias: Vec3A,
-    inv_weight_sum: f32,
-    stiffness: f32,
-}
-
-impl SolverLayout {
-    /// The fit constants of cluster `k`.
-    #[inline(always)]
-    fn constants(&self, k: usize) -> ClusterConstants {
-        ClusterConstants {
-            offset_bias: self.offset_bias[k],
-            inv_weight_sum: self.inv_weight_sum[k],
-            stiffness: self.stiffness[k],
-        }
     }
 }
 
