@@ -1,0 +1,151 @@
+//! Checked readers for the scene-file schema (`deserialize_with`): each one rejects an
+//! out-of-range value with a message that states the allowed range, and the RON reader
+//! adds the file position and the field path.
+
+use super::{BodyFile, PoseFile};
+use crate::sim::PinRegion;
+use crate::tool::ToolShape;
+use glam::{Quat, UVec3, Vec3};
+use serde::de::Error as _;
+use serde::{Deserialize, Deserializer};
+
+fn range<'de, D: Deserializer<'de>>(v: f32, ok: bool, allowed: &str) -> Result<f32, D::Error> {
+    if ok && v.is_finite() {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "{v} is out of range (allowed: {allowed})"
+        )))
+    }
+}
+pub fn positive<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, v > 0.0, "> 0")
+}
+pub fn finite<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, true, "a finite number")
+}
+pub fn unit<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, (0.0..=1.0).contains(&v), "0 ≤ value ≤ 1")
+}
+pub fn friction<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, (0.0..=100.0).contains(&v), "0 ≤ friction ≤ 100")
+}
+pub fn dt<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, (1e-6..=1.0).contains(&v), "1e-6 ≤ dt ≤ 1 (seconds)")
+}
+pub fn damping<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(
+        v,
+        (0.0..=1000.0).contains(&v),
+        "0 ≤ damping ≤ 1000 (per second)",
+    )
+}
+pub fn vec3<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
+    let v = Vec3::deserialize(d)?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "{v} is out of range (allowed: finite x, y, z)"
+        )))
+    }
+}
+pub fn rotation<'de, D: Deserializer<'de>>(d: D) -> Result<Quat, D::Error> {
+    let q = Quat::deserialize(d)?;
+    if q.is_finite() && q.length() > 1e-6 {
+        // keep unit quaternions bit-exact (files round-trip); normalise the rest
+        Ok(if (q.length() - 1.0).abs() < 1e-5 {
+            q
+        } else {
+            q.normalize()
+        })
+    } else {
+        Err(D::Error::custom(format!(
+            "{q} is out of range (allowed: a finite, non-zero quaternion (x, y, z, w))"
+        )))
+    }
+}
+fn count<'de, D: Deserializer<'de>>(d: D, lo: u32, hi: u32, name: &str) -> Result<u32, D::Error> {
+    let v = u32::deserialize(d)?;
+    if (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "{v} is out of range (allowed: {lo} ≤ {name} ≤ {hi})"
+        )))
+    }
+}
+pub fn substeps<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    count(d, 1, 1000, "substeps")
+}
+pub fn iterations<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    count(d, 1, 10_000, "iterations")
+}
+pub fn cluster_radius<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    count(d, 1, 8, "cluster_radius")
+}
+pub fn max_cluster_size<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    count(d, 2, 100_000, "max_cluster_size")
+}
+pub fn frames<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    count(d, 0, 10_000_000, "frames")
+}
+pub fn cells<'de, D: Deserializer<'de>>(d: D) -> Result<UVec3, D::Error> {
+    let v = UVec3::deserialize(d)?;
+    if v.min_element() >= 1 {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "{v} is out of range (allowed: at least 1 cell per axis)"
+        )))
+    }
+}
+pub fn pins<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<PinRegion>, D::Error> {
+    let pins = Vec::<PinRegion>::deserialize(d)?;
+    for (i, p) in pins.iter().enumerate() {
+        if !(p.min.is_finite() && p.max.is_finite()) {
+            return Err(D::Error::custom(format!(
+                "pin {i}: ({}, {}) is out of range (allowed: finite corners)",
+                p.min, p.max
+            )));
+        }
+    }
+    Ok(pins)
+}
+pub fn tool_shape<'de, D: Deserializer<'de>>(d: D) -> Result<ToolShape, D::Error> {
+    let shape = ToolShape::deserialize(d)?;
+    shape.validate().map_err(D::Error::custom)?;
+    Ok(shape)
+}
+pub fn bodies<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<BodyFile>, D::Error> {
+    let v = Vec::<BodyFile>::deserialize(d)?;
+    if v.is_empty() {
+        Err(D::Error::custom(
+            "the body list is empty (allowed: at least one body)",
+        ))
+    } else {
+        Ok(v)
+    }
+}
+pub fn keys<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(f32, PoseFile)>, D::Error> {
+    let keys = Vec::<(f32, PoseFile)>::deserialize(d)?;
+    for (i, (t, _)) in keys.iter().enumerate() {
+        if !t.is_finite() {
+            return Err(D::Error::custom(format!(
+                "key {i}: time {t} is out of range (allowed: a finite number)"
+            )));
+        }
+        if i > 0 && *t < keys[i - 1].0 {
+            return Err(D::Error::custom(format!(
+                "key {i}: time {t} is before the previous key (allowed: ascending times)"
+            )));
+        }
+    }
+    Ok(keys)
+}
