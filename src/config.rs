@@ -19,6 +19,7 @@ pub enum SolverMode {
 
 /// A horizontal ground plane `y = height` with Coulomb friction.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct GroundPlane {
     /// Height of the plane.
     pub height: f32,
@@ -28,6 +29,7 @@ pub struct GroundPlane {
 
 /// A static axis-aligned box that particles cannot enter.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct StaticBox {
     /// Minimum corner.
     pub min: Vec3,

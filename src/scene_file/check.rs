@@ -3,6 +3,7 @@
 //! adds the file position and the field path.
 
 use super::{BodyFile, PoseFile};
+use crate::config::{GroundPlane, StaticBox};
 use crate::sim::PinRegion;
 use crate::tool::ToolShape;
 use glam::{Quat, UVec3, Vec3};
@@ -29,10 +30,6 @@ pub fn finite<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
 pub fn unit<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;
     range::<D>(v, (0.0..=1.0).contains(&v), "0 ≤ value ≤ 1")
-}
-pub fn friction<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(v, (0.0..=100.0).contains(&v), "0 ≤ friction ≤ 100")
 }
 pub fn dt<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;
@@ -105,6 +102,35 @@ pub fn cells<'de, D: Deserializer<'de>>(d: D) -> Result<UVec3, D::Error> {
             "{v} is out of range (allowed: at least 1 cell per axis)"
         )))
     }
+}
+pub fn ground<'de, D: Deserializer<'de>>(d: D) -> Result<Option<GroundPlane>, D::Error> {
+    let ground = Option::<GroundPlane>::deserialize(d)?;
+    if let Some(g) = &ground {
+        range::<D>(g.height, true, "a finite height")?;
+        range::<D>(
+            g.friction,
+            (0.0..=100.0).contains(&g.friction),
+            "0 ≤ friction ≤ 100",
+        )?;
+    }
+    Ok(ground)
+}
+pub fn boxes<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<StaticBox>, D::Error> {
+    let boxes = Vec::<StaticBox>::deserialize(d)?;
+    for (i, b) in boxes.iter().enumerate() {
+        if !(b.min.is_finite() && b.max.is_finite() && b.min.cmple(b.max).all()) {
+            return Err(D::Error::custom(format!(
+                "box {i}: ({}, {}) is out of range (allowed: finite corners, min ≤ max)",
+                b.min, b.max
+            )));
+        }
+        range::<D>(
+            b.friction,
+            (0.0..=100.0).contains(&b.friction),
+            "0 ≤ friction ≤ 100",
+        )?;
+    }
+    Ok(boxes)
 }
 pub fn pins<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<PinRegion>, D::Error> {
     let pins = Vec::<PinRegion>::deserialize(d)?;

@@ -59,10 +59,12 @@ pub struct SettingsFile {
     /// Velocity damping per second.
     #[serde(deserialize_with = "check::damping")]
     pub damping: f32,
-    /// Ground plane, if any.
-    pub ground: Option<GroundFile>,
-    /// Static boxes.
-    pub boxes: Vec<BoxFile>,
+    /// Ground plane `(height, friction)`, if any.
+    #[serde(deserialize_with = "check::ground")]
+    pub ground: Option<GroundPlane>,
+    /// Static boxes `(min, max, friction)`.
+    #[serde(deserialize_with = "check::boxes")]
+    pub boxes: Vec<StaticBox>,
     /// Solver scheme.
     pub solver: SolverMode,
     /// Check the invariants after every frame (slow; for tests).
@@ -73,33 +75,6 @@ impl Default for SettingsFile {
     fn default() -> Self {
         Self::from_config(&SimConfig::default())
     }
-}
-
-/// A ground plane.
-#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct GroundFile {
-    /// Height of the plane.
-    #[serde(deserialize_with = "check::finite")]
-    pub height: f32,
-    /// Coulomb friction coefficient.
-    #[serde(deserialize_with = "check::friction")]
-    pub friction: f32,
-}
-
-/// A static box.
-#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct BoxFile {
-    /// Minimum corner.
-    #[serde(deserialize_with = "check::vec3")]
-    pub min: Vec3,
-    /// Maximum corner.
-    #[serde(deserialize_with = "check::vec3")]
-    pub max: Vec3,
-    /// Coulomb friction coefficient.
-    #[serde(deserialize_with = "check::friction")]
-    pub friction: f32,
 }
 
 /// A body.
@@ -251,19 +226,8 @@ impl SettingsFile {
             iterations: c.iterations,
             gravity: c.gravity,
             damping: c.damping,
-            ground: c.ground.map(|g| GroundFile {
-                height: g.height,
-                friction: g.friction,
-            }),
-            boxes: c
-                .boxes
-                .iter()
-                .map(|b| BoxFile {
-                    min: b.min,
-                    max: b.max,
-                    friction: b.friction,
-                })
-                .collect(),
+            ground: c.ground,
+            boxes: c.boxes.clone(),
             solver: c.solver,
             check_invariants_every_frame: c.check_invariants_every_frame,
         }
@@ -276,19 +240,8 @@ impl SettingsFile {
             iterations: self.iterations,
             gravity: self.gravity,
             damping: self.damping,
-            ground: self.ground.map(|g| GroundPlane {
-                height: g.height,
-                friction: g.friction,
-            }),
-            boxes: self
-                .boxes
-                .iter()
-                .map(|b| StaticBox {
-                    min: b.min,
-                    max: b.max,
-                    friction: b.friction,
-                })
-                .collect(),
+            ground: self.ground,
+            boxes: self.boxes.clone(),
             solver: self.solver,
             seed,
             check_invariants_every_frame: self.check_invariants_every_frame,
