@@ -13,7 +13,7 @@ pub type ClusterList<K> = SmallVec<[K; 8]>;
 /// hold body-local particle indices; implementations keep the particle index in sync.
 pub trait ClusterStore {
     /// Cluster handle (an entity in the ECS, a slot number in [`ClusterTable`]).
-    type Key: Copy + Eq + Ord + Hash + Debug;
+    type Key: Copy + Eq + Ord + Hash + Debug + Send + Sync;
     /// Clusters that contain particle `p`.
     fn clusters_of(&self, p: u32) -> &[Self::Key];
     /// Members of cluster `k` (sorted); empty if `k` does not exist.
@@ -28,45 +28,48 @@ pub trait ClusterStore {
     fn remove(&mut self, k: Self::Key);
 }
 
-/// Sorts and deduplicates a member list.
+/// Sorts and deduplicates a member list (a strictly ascending list is returned as is).
 pub fn normalise(mut members: Vec<u32>) -> Vec<u32> {
-    members.sort_unstable();
-    members.dedup();
+    if !members.is_sorted_by(|a, b| a < b) {
+        members.sort_unstable();
+        members.dedup();
+    }
     members
 }
 
-/// Merges sorted `extra` into sorted `members` in linear time; returns the particles
-/// that were new.
-pub fn merge_sorted(members: &mut Vec<u32>, extra: &[u32]) -> Vec<u32> {
-    let mut merged = Vec::with_capacity(members.len() + extra.len());
-    let mut new = Vec::with_capacity(extra.len());
-    let (mut i, mut j) = (0, 0);
-    while i < members.len() || j < extra.len() {
-        match (members.get(i), extra.get(j)) {
-            (Some(&a), Some(&b)) if a == b => {
-                merged.push(a);
-                i += 1;
-                j += 1;
-            }
-            (Some(&a), Some(&b)) if b < a => {
-                merged.push(b);
-                new.push(b);
-                j += 1;
-            }
-            (Some(&a), _) => {
-                merged.push(a);
-                i += 1;
-            }
-            (None, Some(&b)) => {
-                merged.push(b);
-                new.push(b);
-                j += 1;
-            }
-            (None, None) => break,
+/// Merges sorted `extra` into sorted `members` in place, in linear time and without a
+/// temporary list; returns how many particles were new.
+pub fn merge_sorted(members: &mut Vec<u32>, extra: &[u32]) -> usize {
+    let old_len = members.len();
+    let mut i = 0;
+    let mut new = 0;
+    for &e in extra {
+        while i < old_len && members[i] < e {
+            i += 1;
+        }
+        if i == old_len || members[i] != e {
+            new += 1;
         }
     }
-    if !new.is_empty() {
-        *members = merged;
+    if new == 0 {
+        return 0;
+    }
+    // fill from the back: the write position never overtakes an unread member
+    members.resize(old_len + new, 0);
+    let (mut i, mut j, mut w) = (old_len, extra.len(), old_len + new);
+    while j > 0 {
+        let e = extra[j - 1];
+        w -= 1;
+        if i > 0 && members[i - 1] >= e {
+            if members[i - 1] == e {
+                j -= 1;
+            }
+            members[w] = members[i - 1];
+            i -= 1;
+        } else {
+            members[w] = e;
+            j -= 1;
+        }
     }
     new
 }
@@ -109,7 +112,8 @@ pub fn index_remove<K: Eq>(index: &mut [ClusterList<K>], members: &[u32], k: K) 
     }
 }
 
-/// Adds `k` to the index entry of every particle in `members` (inserted in order).
+/// Adds `k` to the index entry of every particle in `members` (inserted in order;
+/// entries that already hold `k` are left as they are).
 pub fn index_add<K: Copy + Ord>(index: &mut [ClusterList<K>], members: &[u32], k: K) {
     for &m in members {
         let list = &mut index[m as usize];
@@ -193,9 +197,10 @@ impl ClusterStore for ClusterTable {
     }
 
     fn add_members(&mut self, k: u32, extra: &[u32]) {
-        if let Some(Some(members)) = self.slots.get_mut(k as usize) {
-            let new = merge_sorted(members, extra);
-            index_add(&mut self.of_particle, &new, k);
+        if let Some(Some(members)) = self.slots.get_mut(k as usize)
+            && merge_sorted(members, extra) > 0
+        {
+            index_add(&mut self.of_particle, extra, k);
         }
     }
 
@@ -229,12 +234,15 @@ mod tests {
             [vec![], vec![], vec![1, 7], vec![], vec![7], vec![7]]
         );
         let mut m = vec![2, 5, 9];
-        assert_eq!(merge_sorted(&mut m, &[1, 5, 7, 12]), vec![1, 7, 12]);
+        assert_eq!(merge_sorted(&mut m, &[1, 5, 7, 12]), 3);
         assert_eq!(m, vec![1, 2, 5, 7, 9, 12]);
-        assert!(merge_sorted(&mut m, &[2, 12]).is_empty());
+        assert_eq!(merge_sorted(&mut m, &[2, 12]), 0);
         assert_eq!(m, vec![1, 2, 5, 7, 9, 12]);
         let mut empty = vec![];
-        assert_eq!(merge_sorted(&mut empty, &[4]), vec![4]);
+        assert_eq!(merge_sorted(&mut empty, &[4]), 1);
         assert_eq!(empty, vec![4]);
+        let mut m = vec![3, 4];
+        assert_eq!(merge_sorted(&mut m, &[0, 1, 4, 8]), 3);
+        assert_eq!(m, vec![0, 1, 3, 4, 8]);
     }
 }

@@ -102,12 +102,8 @@ fn share_a_cluster<K: Ord>(a: &[K], b: &[K]) -> bool {
 /// Edge coverage implies SPEC §3.4's goal (no isolated cluster): inside a connected
 /// piece any two particles are joined by a lattice path whose consecutive particles
 /// share a cluster, so the piece's cluster-overlap graph is connected. Unlike that global
-/// property, coverage can be restored locally: a cut event only changes the clusters it
-/// produced, so only edges at their members can have lost their cover.
-///
-/// An uncovered edge `(a, b)` is bridged by adding the other end to the smallest cluster
-/// of `a` or `b` that has room (it stays connected through the edge), or, when all are
-/// full, by a new two-particle cluster `{a, b}`.
+/// property, coverage can be restored locally: after a cut only the edges a split
+/// separated can have lost their cover (see [`cover_edge_list`]).
 pub fn cover_edges<S: ClusterStore>(
     store: &mut S,
     lattice: &Lattice,
@@ -126,27 +122,9 @@ pub fn cover_edges<S: ClusterStore>(
         for &a in &particles {
             for b in lattice.neighbours(a) {
                 // an edge between two listed particles is looked at once, from its lower end
-                if (listed[b as usize] == 0 && b < a)
-                    || share_a_cluster(store.clusters_of(a), store.clusters_of(b))
-                {
-                    continue;
+                if !(listed[b as usize] == 0 && b < a) {
+                    bridges += usize::from(cover_edge(store, a, b, max));
                 }
-                let size = |k: &S::Key| store.members(*k).len();
-                let roomy = |p: u32, other: u32| {
-                    store
-                        .clusters_of(p)
-                        .iter()
-                        .filter(|k| size(k) < max)
-                        .map(|k| (size(k), *k, other))
-                        .min()
-                };
-                match roomy(a, b).into_iter().chain(roomy(b, a)).min() {
-                    Some((_, k, other)) => store.add_members(k, &[other]),
-                    None => {
-                        store.create(vec![a.min(b), a.max(b)]);
-                    }
-                }
-                bridges += 1;
             }
         }
         for &p in &particles {
@@ -154,6 +132,62 @@ pub fn cover_edges<S: ClusterStore>(
         }
         bridges
     })
+}
+
+/// Makes each of the given live lattice edges covered (see [`cover_edges`]); returns
+/// the number that needed a bridge.
+///
+/// After a cut these are the edges [`crate::reconstruct::split_oversized`] reports: the
+/// pieces of a cut cluster keep every live edge among their members (an edge joins its
+/// ends into one piece), merging and expanding only add members, so a split is the only
+/// step that can separate the two ends of a covered edge.
+pub fn cover_edge_list<S: ClusterStore>(
+    store: &mut S,
+    lattice: &Lattice,
+    edges: &[(u32, u32)],
+    max: usize,
+) -> usize {
+    edges
+        .iter()
+        .filter(|(a, b)| lattice.is_live(*a) && lattice.is_live(*b))
+        .map(|&(a, b)| usize::from(cover_edge(store, a, b, max)))
+        .sum()
+}
+
+/// Covers the edge `(a, b)` if no cluster holds both ends: adds the other end to the
+/// smallest cluster of `a` or `b` that has room (it stays connected through the edge),
+/// or, when all are full, creates the two-particle cluster `{a, b}`. Returns whether a
+/// bridge was needed.
+fn cover_edge<S: ClusterStore>(store: &mut S, a: u32, b: u32, max: usize) -> bool {
+    if share_a_cluster(store.clusters_of(a), store.clusters_of(b)) {
+        return false;
+    }
+    let size = |k: &S::Key| store.members(*k).len();
+    let roomy = |p: u32, other: u32| {
+        store
+            .clusters_of(p)
+            .iter()
+            .filter(|k| size(k) < max)
+            .map(|k| (size(k), *k, other))
+            .min()
+    };
+    match roomy(a, b).into_iter().chain(roomy(b, a)).min() {
+        Some((_, k, other)) => store.add_members(k, &[other]),
+        None => {
+            store.create(vec![a.min(b), a.max(b)]);
+        }
+    }
+    true
+}
+
+/// The live lattice edges that no cluster covers, ascending (empty when the edge-cover
+/// invariant holds).
+pub fn uncovered_edges<S: ClusterStore>(store: &S, lattice: &Lattice) -> Vec<(u32, u32)> {
+    lattice
+        .edges()
+        .into_iter()
+        .filter(|(a, b)| !share_a_cluster(store.clusters_of(*a), store.clusters_of(*b)))
+        .collect()
 }
 
 #[cfg(test)]

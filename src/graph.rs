@@ -32,47 +32,61 @@ pub fn with_slots<R>(len: usize, f: impl FnOnce(&mut [u32]) -> R) -> R {
 /// Maximal connected subgraphs of the live particles in `members` (any order, no
 /// duplicates), using lattice edges between members. Each component is sorted; the
 /// components are ordered by their smallest particle. Dead particles are dropped.
+///
+/// Sorted input (every member list of a [`crate::cluster_store::ClusterStore`]) costs
+/// no sort: the components are read off the labels in member order.
 pub fn connected_components(members: &[u32], lattice: &Lattice) -> Vec<Vec<u32>> {
     let mut set: Vec<u32> = members
         .iter()
         .copied()
         .filter(|p| lattice.is_live(*p))
         .collect();
-    set.sort_unstable();
-    set.dedup();
-    with_slots(lattice.len(), |label| {
-        // label: UNSEEN for members not reached yet, the component id once reached
+    if !set.is_sorted() {
+        set.sort_unstable();
+        set.dedup();
+    }
+    let (count, components) = with_slots(lattice.len(), |label| {
+        // label: UNSEEN for members not reached yet, the component id once reached;
+        // ids are given in order of each component's smallest member
         const UNSEEN: u32 = u32::MAX - 1;
         for &p in &set {
             label[p as usize] = UNSEEN;
         }
-        let mut components = Vec::new();
-        let mut stack = Vec::with_capacity(set.len());
+        let mut count = 0u32;
+        let mut stack = Vec::new();
         for &start in &set {
             if label[start as usize] != UNSEEN {
                 continue;
             }
-            let id = components.len() as u32;
-            label[start as usize] = id;
+            label[start as usize] = count;
             stack.push(start);
-            let mut component = Vec::with_capacity(set.len());
             while let Some(p) = stack.pop() {
-                component.push(p);
                 for n in lattice.neighbours(p) {
                     if label[n as usize] == UNSEEN {
-                        label[n as usize] = id;
+                        label[n as usize] = count;
                         stack.push(n);
                     }
                 }
             }
-            component.sort_unstable();
-            components.push(component);
+            count += 1;
+        }
+        let mut components = Vec::new();
+        if count > 1 {
+            components = vec![Vec::new(); count as usize];
+            for &p in &set {
+                components[label[p as usize] as usize].push(p);
+            }
         }
         for &p in &set {
             label[p as usize] = u32::MAX;
         }
-        components
-    })
+        (count, components)
+    });
+    match count {
+        0 => Vec::new(),
+        1 => vec![set],
+        _ => components,
+    }
 }
 
 /// Whether the live particles of `members` form one connected graph (an empty set is not).

@@ -60,8 +60,19 @@ pub struct CutReport {
 /// Clusters produced by the current cut event (regroup → split → expand hand-over).
 #[derive(Resource, Clone, Debug, Default)]
 pub struct RebuiltClusters {
-    /// `(body, clusters)` per body with a cut event.
-    pub bodies: Vec<(Entity, Vec<Entity>)>,
+    /// One entry per body with a cut event.
+    pub bodies: Vec<RebuiltBody>,
+}
+
+/// The clusters one body's cut event has produced so far.
+#[derive(Clone, Debug)]
+pub struct RebuiltBody {
+    /// The body.
+    pub body: Entity,
+    /// Clusters produced by regroup, then by split.
+    pub clusters: Vec<Entity>,
+    /// Edges the splits separated (see [`crate::reconstruct::SplitOutcome`]).
+    pub cut_edges: Vec<(u32, u32)>,
 }
 
 /// Dense solver state kept between steps; rebuilt only when topology changes.

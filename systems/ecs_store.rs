@@ -7,7 +7,7 @@ use crate::cluster_store::{
 };
 use crate::components::{ClusterMembers, ClusterOf, Stiffness};
 use bevy_ecs::prelude::*;
-use std::collections::{BTreeMap, HashSet};
+use rustc_hash::{FxHashMap, FxHashSet};
 
 /// The clusters of one body, editable by the reconstruction algorithms.
 pub struct EcsClusterStore<'a, 'd, 'qw, 'qs, 'cw, 'cs> {
@@ -16,8 +16,8 @@ pub struct EcsClusterStore<'a, 'd, 'qw, 'qs, 'cw, 'cs> {
     index: &'a mut Vec<crate::cluster_store::ClusterList<Entity>>,
     clusters: &'a mut Query<'qw, 'qs, &'d mut ClusterMembers>,
     commands: &'a mut Commands<'cw, 'cs>,
-    created: BTreeMap<Entity, Vec<u32>>,
-    removed: HashSet<Entity>,
+    created: FxHashMap<Entity, Vec<u32>>,
+    removed: FxHashSet<Entity>,
 }
 
 impl<'a, 'd, 'qw, 'qs, 'cw, 'cs> EcsClusterStore<'a, 'd, 'qw, 'qs, 'cw, 'cs> {
@@ -35,8 +35,8 @@ impl<'a, 'd, 'qw, 'qs, 'cw, 'cs> EcsClusterStore<'a, 'd, 'qw, 'qs, 'cw, 'cs> {
             index,
             clusters,
             commands,
-            created: BTreeMap::new(),
-            removed: HashSet::new(),
+            created: FxHashMap::default(),
+            removed: FxHashSet::default(),
         }
     }
 
@@ -93,7 +93,9 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_, '_, '_, '_> {
         } else {
             return;
         };
-        index_add(self.index, &new, k);
+        if new > 0 {
+            index_add(self.index, extra, k);
+        }
     }
 
     fn create(&mut self, members: Vec<u32>) -> Entity {

@@ -1,16 +1,18 @@
 //! Stage expand (SPEC §3.4): rebuilt clusters grow by random adjacent particles; then
-//! every lattice edge at their members is covered by a cluster again, which guarantees
+//! every lattice edge a split separated is covered by a cluster again, which guarantees
 //! what §3.4 aims at (no isolated cluster).
 //! Writes cluster data only.
 
 use super::ecs_store::EcsClusterStore;
+use crate::clustering::cover_edge_list;
 use crate::components::{Body, BodyLattice, ClusterMembers, ParticleClusters};
 use crate::reconstruct;
 use crate::resources::{ClustersRebuilt, CutTimings, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
 use std::time::Instant;
 
-/// Runs [`reconstruct::expand_clusters`] and [`reconstruct::cover_rebuilt`].
+/// Runs [`reconstruct::expand_clusters`], then [`cover_edge_list`] on the edges the
+/// splits separated.
 pub fn expand(
     mut commands: Commands,
     mut rng: ResMut<SimRng>,
@@ -24,13 +26,13 @@ pub fn expand(
         return;
     }
     let start = Instant::now();
-    for (body_entity, keys) in &rebuilt.bodies {
-        let Ok((body, lattice, mut index)) = bodies.get_mut(*body_entity) else {
+    for rebuilt in &rebuilt.bodies {
+        let Ok((body, lattice, mut index)) = bodies.get_mut(rebuilt.body) else {
             continue;
         };
         let m = &body.material;
         let mut store = EcsClusterStore::new(
-            *body_entity,
+            rebuilt.body,
             m.stiffness,
             &mut index.0,
             &mut clusters,
@@ -39,21 +41,21 @@ pub fn expand(
         reconstruct::expand_clusters(
             &mut store,
             &lattice.lattice,
-            keys,
+            &rebuilt.clusters,
             m.expand_count as usize,
             m.max_cluster_size as usize,
             &mut rng.0,
         );
-        reconstruct::cover_rebuilt(
+        cover_edge_list(
             &mut store,
             &lattice.lattice,
-            keys,
+            &rebuilt.cut_edges,
             m.max_cluster_size as usize,
         );
         store.finish();
         messages.write(ClustersRebuilt {
-            body: *body_entity,
-            clusters: keys.clone(),
+            body: rebuilt.body,
+            clusters: rebuilt.clusters.clone(),
         });
     }
     let total = timings.current_ms + start.elapsed().as_secs_f64() * 1e3;

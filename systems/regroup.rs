@@ -4,7 +4,7 @@
 use super::ecs_store::EcsClusterStore;
 use crate::components::{Body, BodyLattice, ClusterMembers, ParticleClusters};
 use crate::reconstruct;
-use crate::resources::{CutReport, CutTimings, RebuiltClusters, SimRng};
+use crate::resources::{CutReport, CutTimings, RebuiltBody, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
 use std::time::Instant;
 
@@ -37,7 +37,11 @@ pub fn regroup(
         let produced =
             reconstruct::regroup(&mut store, &lattice.lattice, &cut.cut_clusters, &mut rng.0);
         store.finish();
-        rebuilt.bodies.push((cut.body, produced));
+        rebuilt.bodies.push(RebuiltBody {
+            body: cut.body,
+            clusters: produced,
+            cut_edges: Vec::new(),
+        });
     }
     timings.current_ms = start.elapsed().as_secs_f64() * 1e3;
 }

@@ -21,19 +21,27 @@ pub fn split(
         return;
     }
     let start = Instant::now();
-    for (body_entity, keys) in &mut rebuilt.bodies {
-        let Ok((body, lattice, mut index)) = bodies.get_mut(*body_entity) else {
+    for rebuilt in &mut rebuilt.bodies {
+        let Ok((body, lattice, mut index)) = bodies.get_mut(rebuilt.body) else {
             continue;
         };
         let max = body.material.max_cluster_size as usize;
         let mut store = EcsClusterStore::new(
-            *body_entity,
+            rebuilt.body,
             body.material.stiffness,
             &mut index.0,
             &mut clusters,
             &mut commands,
         );
-        *keys = reconstruct::split_oversized(&mut store, &lattice.lattice, keys, max, &mut rng.0);
+        let outcome = reconstruct::split_oversized(
+            &mut store,
+            &lattice.lattice,
+            &rebuilt.clusters,
+            max,
+            &mut rng.0,
+        );
+        rebuilt.clusters = outcome.clusters;
+        rebuilt.cut_edges = outcome.cut_edges;
         store.finish();
     }
     timings.current_ms += start.elapsed().as_secs_f64() * 1e3;

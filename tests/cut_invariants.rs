@@ -3,7 +3,7 @@
 //! sets: single survivors, everything removed) and through the ECS with real tools.
 
 use cleave::cluster_store::{ClusterStore, ClusterTable};
-use cleave::clustering::initial_clusters;
+use cleave::clustering::{initial_clusters, uncovered_edges};
 use cleave::config::Material;
 use cleave::invariants::check_body;
 use cleave::lattice::{Lattice, Shape};
@@ -131,6 +131,8 @@ proptest! {
             rebuild_after_cut(&mut table, &lattice, &cut_clusters, &material, &mut rng);
             let v = violations(&table, &lattice, max);
             prop_assert!(v.is_empty(), "after {:?}: {:?}", cut, v);
+            // the stronger invariant the local repair relies on: every edge covered
+            prop_assert_eq!(uncovered_edges(&table, &lattice), Vec::<(u32, u32)>::new());
         }
     }
 }

@@ -4,11 +4,17 @@
 use crate::cluster_store::ClusterStore;
 use crate::graph::adjacent_particles;
 use crate::lattice::Lattice;
-use rand::Rng;
 use rand::seq::index::sample;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 
 /// Adds up to `count` random adjacent particles to each cluster in `keys`, never
 /// beyond `max` members. Returns the number of memberships added.
+///
+/// The choices only read the clusters and the lattice, so they are made in parallel, each
+/// cluster with its own generator seeded from `rng` in key order (the result does not
+/// depend on the thread count); the members are then added in key order.
 pub fn expand_clusters<S: ClusterStore>(
     store: &mut S,
     lattice: &Lattice,
@@ -17,22 +23,34 @@ pub fn expand_clusters<S: ClusterStore>(
     max: usize,
     rng: &mut impl Rng,
 ) -> usize {
+    if count == 0 {
+        return 0;
+    }
+    let growing: Vec<(S::Key, &[u32], u64)> = keys
+        .iter()
+        .map(|k| (*k, store.members(*k)))
+        .filter(|(_, m)| m.len() < max)
+        .map(|(k, m)| (k, m, rng.random()))
+        .collect();
+    let additions: Vec<(S::Key, Vec<u32>)> = growing
+        .into_par_iter()
+        .with_min_len(32)
+        .map(|(k, members, seed)| {
+            let adjacent = adjacent_particles(members, lattice);
+            let take = count.min(max - members.len()).min(adjacent.len());
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let mut extra: Vec<u32> = sample(&mut rng, adjacent.len(), take)
+                .into_iter()
+                .map(|i| adjacent[i])
+                .collect();
+            extra.sort_unstable();
+            (k, extra)
+        })
+        .collect();
     let mut added = 0;
-    for &k in keys {
-        let members = store.members(k);
-        let room = max.saturating_sub(members.len());
-        let adjacent = adjacent_particles(members, lattice);
-        let take = count.min(room).min(adjacent.len());
-        if take == 0 {
-            continue;
-        }
-        let mut extra: Vec<u32> = sample(rng, adjacent.len(), take)
-            .into_iter()
-            .map(|i| adjacent[i])
-            .collect();
-        extra.sort_unstable();
+    for (k, extra) in additions {
+        added += extra.len();
         store.add_members(k, &extra);
-        added += take;
     }
     added
 }

@@ -6,9 +6,9 @@ use crate::cluster_store::ClusterStore;
 use crate::graph::{connected_components, position_in};
 use crate::lattice::Lattice;
 use rand::Rng;
+use rayon::prelude::*;
+use rustc_hash::FxHashMap;
 use smallvec::SmallVec;
-use std::collections::{BTreeMap, HashMap, HashSet};
-use std::hash::Hash;
 
 /// Particles adjacent to a sorted member set (not in it), in member order then lattice
 /// neighbour order; a particle may appear more than once.
@@ -22,32 +22,76 @@ pub fn adjacent_in_order<'a>(
         .filter(|n| position_in(members, *n).is_none())
 }
 
-/// Root of `k` in the merge forest, with path compression.
-fn find<K: Copy + Eq + Hash>(parent: &mut HashMap<K, K>, k: K) -> K {
-    let mut root = k;
-    while let Some(&p) = parent.get(&root) {
-        root = p;
-    }
-    let mut x = k;
-    while let Some(&p) = parent.get(&x) {
-        if p == root {
-            break;
+/// The merge forest of §3.2 over local node numbers: the pending clusters are nodes
+/// `0..pending`, clusters the cut left intact become nodes when first chosen as a target
+/// (they never merge on, so they stay roots).
+struct MergeForest<K> {
+    node_of: FxHashMap<K, u32>,
+    key: Vec<K>,
+    parent: Vec<u32>,
+    pending: usize,
+}
+
+impl<K: Copy + Eq + std::hash::Hash> MergeForest<K> {
+    fn new(pending: &[K]) -> Self {
+        Self {
+            node_of: pending
+                .iter()
+                .enumerate()
+                .map(|(i, k)| (*k, i as u32))
+                .collect(),
+            key: pending.to_vec(),
+            parent: (0..pending.len() as u32).collect(),
+            pending: pending.len(),
         }
-        parent.insert(x, root);
-        x = p;
     }
-    root
+
+    fn is_pending(&self, k: K) -> bool {
+        self.node_of
+            .get(&k)
+            .is_some_and(|n| (*n as usize) < self.pending)
+    }
+
+    /// Root node of `node`, with path halving.
+    fn find(&mut self, mut node: u32) -> u32 {
+        while self.parent[node as usize] != node {
+            let grand = self.parent[self.parent[node as usize] as usize];
+            self.parent[node as usize] = grand;
+            node = grand;
+        }
+        node
+    }
+
+    /// Root node of cluster `k`; `None` for an intact cluster that is not a node yet
+    /// (its own root, different from every node's).
+    fn root_of(&mut self, k: K) -> Option<u32> {
+        let node = *self.node_of.get(&k)?;
+        Some(self.find(node))
+    }
+
+    /// The node of `k`, created for an intact cluster on first use.
+    fn node(&mut self, k: K) -> u32 {
+        let next = self.key.len() as u32;
+        let node = *self.node_of.entry(k).or_insert(next);
+        if node == next {
+            self.key.push(k);
+            self.parent.push(next);
+        }
+        node
+    }
 }
 
 /// Replaces every cut cluster by its pieces, then merges each piece into a neighbour
 /// cluster (SPEC §3.2). Returns the clusters this produced — the neighbour clusters that
 /// received a merge and the independent pieces — sorted and without duplicates.
 ///
-/// Merges are recorded in a union–find over clusters and the members are moved once at
-/// the end, so a chain of merges (a piece merging into a pending cluster that later
-/// merges on, which §3.2 allows) costs its total size, not its length × size. A piece
-/// looks for its adjacent particle around its own members; particles of pieces already
-/// merged into it count as its members, not as neighbours.
+/// The pieces of all cut clusters are found in parallel (they only read the lattice);
+/// everything that draws from `rng` runs in cluster order, so the result does not
+/// depend on the thread count. Merges are recorded in a union–find over clusters and the
+/// members are moved once at the end, so a chain of merges (a piece merging into a
+/// pending cluster that later merges on, which §3.2 allows) costs its total size, not its
+/// length × size. A piece looks for its adjacent particle around its own members;
+/// particles of pieces already merged into it count as its members, not as neighbours.
 pub fn regroup<S: ClusterStore>(
     store: &mut S,
     lattice: &Lattice,
@@ -58,9 +102,17 @@ pub fn regroup<S: ClusterStore>(
     cut.sort_unstable();
     cut.dedup();
     // 3.1: pending clusters. The first piece reuses the cut cluster's handle.
-    let mut pending = Vec::new();
-    for k in cut {
-        let mut pieces = connected_components(store.members(k), lattice).into_iter();
+    let pieces: Vec<Vec<Vec<u32>>> = {
+        let lists: Vec<&[u32]> = cut.iter().map(|k| store.members(*k)).collect();
+        lists
+            .par_iter()
+            .with_min_len(64)
+            .map(|members| connected_components(members, lattice))
+            .collect()
+    };
+    let mut pending = Vec::with_capacity(cut.len());
+    for (k, pieces) in cut.into_iter().zip(pieces) {
+        let mut pieces = pieces.into_iter();
         match pieces.next() {
             Some(first) => {
                 store.set_members(k, first);
@@ -73,12 +125,10 @@ pub fn regroup<S: ClusterStore>(
         }
     }
     // 3.2: choose every merge first, over the merge forest.
-    let mut parent: HashMap<S::Key, S::Key> = HashMap::new();
-    let mut produced: Vec<S::Key> = Vec::new();
-    let mut merged: Vec<S::Key> = Vec::new();
-    let is_pending: HashSet<S::Key> = pending.iter().copied().collect();
-    for &p in &pending {
-        let own = find(&mut parent, p);
+    let mut forest = MergeForest::new(&pending);
+    let mut merged: Vec<u32> = Vec::new();
+    for (own, &p) in pending.iter().enumerate() {
+        let own = forest.find(own as u32);
         // The adjacent particle: the first one that belongs to a cluster the cut left
         // intact, else the first one with any cluster outside this piece's merge set.
         // (§3.2 leaves the choice open; preferring intact neighbours keeps chains of
@@ -87,11 +137,11 @@ pub fn regroup<S: ClusterStore>(
         let mut chosen = None;
         for a in adjacent_in_order(store.members(p), lattice) {
             let clusters = store.clusters_of(a);
-            if clusters.iter().any(|k| !is_pending.contains(k)) {
+            if clusters.iter().any(|k| !forest.is_pending(*k)) {
                 chosen = Some(a);
                 break;
             }
-            if fallback.is_none() && clusters.iter().any(|k| find(&mut parent, *k) != own) {
+            if fallback.is_none() && clusters.iter().any(|k| forest.root_of(*k) != Some(own)) {
                 fallback = Some(a);
             }
         }
@@ -100,36 +150,38 @@ pub fn regroup<S: ClusterStore>(
                 .clusters_of(a)
                 .iter()
                 .copied()
-                .filter(|k| find(&mut parent, *k) != own)
+                .filter(|k| forest.root_of(*k) != Some(own))
                 .collect();
             (!candidates.is_empty()).then(|| candidates[rng.random_range(0..candidates.len())])
         });
-        match target {
-            None => produced.push(p),
-            Some(t) => {
-                let root = find(&mut parent, t);
-                parent.insert(own, root);
-                merged.push(p);
-                produced.push(root);
-            }
+        if let Some(t) = target {
+            let target_node = forest.node(t);
+            let root = forest.find(target_node);
+            forest.parent[own as usize] = root;
+            merged.push(own);
         }
     }
-    // Move every merged piece into its final cluster, once.
-    let mut incoming: BTreeMap<S::Key, Vec<u32>> = BTreeMap::new();
-    for &p in &merged {
-        let root = find(&mut parent, p);
-        incoming
-            .entry(root)
-            .or_default()
-            .extend_from_slice(store.members(p));
-        store.remove(p);
+    // Move every merged piece into its final cluster, once, root by root.
+    let mut moves: Vec<(u32, u32)> = merged.iter().map(|&p| (forest.find(p), p)).collect();
+    moves.sort_unstable();
+    let mut incoming: Vec<u32> = Vec::new();
+    for group in moves.chunk_by(|a, b| a.0 == b.0) {
+        incoming.clear();
+        for &(_, p) in group {
+            let key = pending[p as usize];
+            incoming.extend_from_slice(store.members(key));
+            store.remove(key);
+        }
+        incoming.sort_unstable();
+        incoming.dedup();
+        store.add_members(forest.key[group[0].0 as usize], &incoming);
     }
-    for (root, mut members) in incoming {
-        members.sort_unstable();
-        members.dedup();
-        store.add_members(root, &members);
-    }
-    let mut produced: Vec<S::Key> = produced.into_iter().map(|k| find(&mut parent, k)).collect();
+    let mut produced: Vec<S::Key> = (0..pending.len() as u32)
+        .map(|p| {
+            let root = forest.find(p);
+            forest.key[root as usize]
+        })
+        .collect();
     produced.sort_unstable();
     produced.dedup();
     produced.retain(|k| !store.members(*k).is_empty());

@@ -7,7 +7,9 @@ use crate::cluster_store::ClusterStore;
 use crate::graph::with_slots;
 use crate::lattice::Lattice;
 use glam::Vec3;
-use rand::Rng;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, VecDeque};
 
@@ -203,34 +205,108 @@ pub fn split_cluster(
     (pick(&in_s), pick(&in_m))
 }
 
+/// The parts of one connected cluster split (SPEC §3.3) until none has more than `max`
+/// members, and the lattice edges between members that ended in different parts — the
+/// only edges a split can leave without a common cluster.
+pub fn split_until_fits(
+    members: &[u32],
+    lattice: &Lattice,
+    max: usize,
+    rng: &mut impl Rng,
+) -> (Vec<Vec<u32>>, Vec<(u32, u32)>) {
+    let mut parts = Vec::new();
+    let mut queue = VecDeque::from([members.to_vec()]);
+    while let Some(part) = queue.pop_front() {
+        if part.len() <= max {
+            parts.push(part);
+            continue;
+        }
+        let (a, b) = split_cluster(&part, lattice, rng);
+        if b.is_empty() {
+            parts.push(a);
+        } else {
+            queue.push_back(a);
+            queue.push_back(b);
+        }
+    }
+    if parts.len() < 2 {
+        return (parts, Vec::new());
+    }
+    let edges = with_slots(lattice.len(), |part_of| {
+        for (i, part) in parts.iter().enumerate() {
+            for &m in part {
+                part_of[m as usize] = i as u32;
+            }
+        }
+        let mut edges = Vec::new();
+        for &a in members {
+            let own = part_of[a as usize];
+            for b in lattice.neighbours(a) {
+                let other = part_of[b as usize];
+                if a < b && other != u32::MAX && other != own {
+                    edges.push((a, b));
+                }
+            }
+        }
+        for &m in members {
+            part_of[m as usize] = u32::MAX;
+        }
+        edges
+    });
+    (parts, edges)
+}
+
+/// What [`split_oversized`] produced.
+#[derive(Clone, Debug, Default)]
+pub struct SplitOutcome<K> {
+    /// Every resulting cluster: the inputs (first parts keep their handle) and the new ones.
+    pub clusters: Vec<K>,
+    /// Lattice edges whose ends ended in different parts of a split; they may need a
+    /// bridge (see [`crate::clustering::cover_edge_list`]).
+    pub cut_edges: Vec<(u32, u32)>,
+}
+
 /// SPEC §3.3: splits every cluster in `keys` above `max` members, and the halves again,
-/// until all are at most `max`. Returns every resulting cluster (inputs included).
+/// until all are at most `max`.
+///
+/// The splits only read their cluster and the lattice, so they run in parallel, each with
+/// its own generator seeded from `rng` in key order: the result does not depend on the
+/// thread count.
 pub fn split_oversized<S: ClusterStore>(
     store: &mut S,
     lattice: &Lattice,
     keys: &[S::Key],
     max: usize,
     rng: &mut impl Rng,
-) -> Vec<S::Key> {
-    let mut queue: VecDeque<S::Key> = keys.iter().copied().collect();
-    let mut done = Vec::new();
-    while let Some(k) = queue.pop_front() {
-        let members = store.members(k);
-        if members.len() <= max {
-            done.push(k);
-            continue;
+) -> SplitOutcome<S::Key> {
+    let oversized: Vec<(S::Key, &[u32], u64)> = keys
+        .iter()
+        .map(|k| (*k, store.members(*k)))
+        .filter(|(_, m)| m.len() > max)
+        .map(|(k, m)| (k, m, rng.random()))
+        .collect();
+    let splits: Vec<_> = oversized
+        .into_par_iter()
+        .map(|(k, members, seed)| {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            (k, split_until_fits(members, lattice, max, &mut rng))
+        })
+        .collect();
+    let mut outcome = SplitOutcome {
+        clusters: keys.to_vec(),
+        cut_edges: Vec::new(),
+    };
+    for (k, (parts, edges)) in splits {
+        let mut parts = parts.into_iter();
+        if let Some(first) = parts.next() {
+            store.set_members(k, first);
         }
-        let (a, b) = split_cluster(members, lattice, rng);
-        if b.is_empty() {
-            done.push(k);
-            continue;
-        }
-        store.set_members(k, a);
-        let k2 = store.create(b);
-        queue.push_back(k);
-        queue.push_back(k2);
+        outcome
+            .clusters
+            .extend(parts.map(|part| store.create(part)));
+        outcome.cut_edges.extend(edges);
     }
-    done
+    outcome
 }
 
 #[cfg(test)]
@@ -305,8 +381,15 @@ mod tests {
             11,
             &mut ChaCha8Rng::seed_from_u64(1),
         );
-        assert!(out.len() >= 6);
-        for k in out {
+        assert!(out.clusters.len() >= 6);
+        // the cut edges are exactly the lattice edges no cluster covers any more
+        let mut uncovered = crate::clustering::uncovered_edges(&table, &lattice);
+        let mut cut_edges = out.cut_edges.clone();
+        uncovered.sort_unstable();
+        cut_edges.sort_unstable();
+        assert!(!cut_edges.is_empty());
+        assert_eq!(uncovered, cut_edges);
+        for k in out.clusters {
             let m = table.members(k);
             assert!(m.len() <= 11 && is_connected(m, &lattice));
         }
