@@ -4,7 +4,7 @@
 //! the two solver schemes.
 
 use crate::clustering::initial_clusters;
-use crate::components::{BodyLattice, ClusterMembers};
+use crate::components::{BodyLattice, ClusterMembers, ClusterOf, Stiffness};
 use crate::config::{Material, SimConfig, SolverMode};
 use crate::error::Result;
 use crate::lattice::Shape;
@@ -12,7 +12,9 @@ use crate::resources::{CutTimings, SimSettings, SolverCache};
 use crate::sim::{BodyDesc, Simulation, ToolDesc};
 use crate::solver::{ClusterSpec, Colliders, SolverLayout};
 use crate::stats::rigid_fit_error;
+use crate::systems::layout_sync::rebuild_cache;
 use crate::tool::{Path, Pose, ToolShape};
+use bevy_ecs::prelude::Entity;
 use glam::{Quat, UVec3, Vec3, Vec3A};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -56,6 +58,12 @@ pub struct BenchRow {
     pub cut_event_ms: f64,
     /// Initial clustering of the cut body from scratch, ms.
     pub recluster_ms: f64,
+    /// Bringing the solver layout up to date in the step after the cut, ms.
+    pub relayout_ms: f64,
+    /// Whether that update patched the layout (false: a full rebuild).
+    pub relayout_patched: bool,
+    /// A full rebuild of the solver layout of the cut body, for comparison, ms.
+    pub rebuild_ms: f64,
 }
 
 /// The median of `samples` (0 for none).
@@ -152,6 +160,21 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
     drop(layout);
     let (ms_per_step, bare_ms_per_step) = (median(&mut engine), median(&mut bare));
     let (cut_event_ms, recluster_ms) = slice_event(&mut sim, n)?;
+    sim.world_mut().resource_mut::<SolverCache>().last_update = None;
+    sim.step();
+    let update = sim.world().resource::<SolverCache>().last_update;
+    let rebuild_ms = time_ms(1, || {
+        let world = sim.world_mut();
+        let mut bodies = world.query::<(Entity, &BodyLattice)>();
+        let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf, &Stiffness)>();
+        let mut fresh = SolverCache::default();
+        rebuild_cache(
+            &mut fresh,
+            bodies.iter(world),
+            clusters.iter(world),
+            config.solver,
+        );
+    });
     let iterations = config.substeps * config.iterations;
     let per_step = (memberships as f64) * iterations as f64;
     Ok(BenchRow {
@@ -170,6 +193,9 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
         bytes_per_particle,
         cut_event_ms,
         recluster_ms,
+        relayout_ms: update.map_or(f64::NAN, |u| u.ms),
+        relayout_patched: update.is_some_and(|u| u.patched),
+        rebuild_ms,
     })
 }
 

@@ -86,10 +86,28 @@ pub struct SolverCache {
     pub owners: Vec<(Entity, u32)>,
     /// Dense index per entity index (`u32::MAX` if none).
     pub dense_of: Vec<u32>,
-    /// Cluster entity per dense cluster index.
+    /// Whether each dense particle is still in its body (cut particles keep their
+    /// dense slot, frozen, until the next full rebuild).
+    pub live: Vec<bool>,
+    /// Dense particle index per body-local particle index (`u32::MAX` if none), by body.
+    pub body_dense: Vec<(Entity, Vec<u32>)>,
+    /// Cluster entity per cluster slot of the layout (`Entity::PLACEHOLDER` if free).
     pub clusters: Vec<Entity>,
+    /// Cluster slot per cluster entity.
+    pub slot_of: rustc_hash::FxHashMap<Entity, u32>,
     /// Whether the layout matches the current topology.
     pub valid: bool,
+    /// How the layout was last brought up to date, and how long it took.
+    pub last_update: Option<LayoutUpdate>,
+}
+
+/// One update of the solver layout after a topology change.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LayoutUpdate {
+    /// True when only the changed clusters were patched in; false for a full rebuild.
+    pub patched: bool,
+    /// Wall-clock milliseconds it took.
+    pub ms: f64,
 }
 
 /// Wall-clock timings of cut events, for reports.

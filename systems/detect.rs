@@ -56,6 +56,9 @@ pub fn detect(cache: Res<SolverCache>, tools: Query<(&Tool, &ToolPose)>, mut out
         .into_par_iter()
         .with_min_len(4096)
         .filter(|&i| {
+            if !cache.live[i] {
+                return false;
+            }
             let x = Vec3::from(positions[i]);
             prepared.iter().any(|t| {
                 x.cmpge(t.min).all()

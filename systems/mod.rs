@@ -11,6 +11,7 @@ pub mod cut;
 pub mod detect;
 pub mod ecs_store;
 pub mod expand;
+pub mod layout_sync;
 pub mod move_tools;
 pub mod predict;
 pub mod regroup;

@@ -54,9 +54,17 @@ fn bench_json_has_one_consistent_line_per_size() {
             "bytes_per_particle",
             "cut_event_ms",
             "recluster_ms",
+            "relayout_ms",
+            "rebuild_ms",
         ] {
             assert!(number(key) > 0.0, "{key} in {row}");
         }
+        // the cut is patched into the solver layout, not rebuilt
+        assert_eq!(
+            row["relayout_patched"],
+            serde_json::Value::Bool(true),
+            "{row}"
+        );
     }
     // the convergence table goes to stderr in JSON mode
     let table = String::from_utf8(out.stderr).unwrap();

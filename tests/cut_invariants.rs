@@ -18,7 +18,7 @@ fn shape_strategy() -> impl Strategy<Value = Shape> {
     prop_oneof![
         (2u32..9, 1u32..7, 1u32..7).prop_map(|(x, y, z)| Shape::cuboid(UVec3::new(x, y, z), 1.0)),
         (1.0f32..4.5).prop_map(|radius| Shape::Sphere { radius }),
-        (0.8f32..2.5, 0.0f32..3.0).prop_map(|(radius, half_length)| Shape::Capsule {
+        (1.0f32..2.5, 0.0f32..3.0).prop_map(|(radius, half_length)| Shape::Capsule {
             radius,
             half_length
         }),

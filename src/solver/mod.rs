@@ -26,6 +26,7 @@ mod colouring;
 mod fit;
 mod gauss_seidel;
 mod jacobi;
+mod patch;
 mod sweep;
 
 pub use colliders::{Colliders, resolve_colliders};
@@ -44,6 +45,9 @@ pub const ROTATION_ITERATIONS: u32 = 1;
 /// rest stays exactly at rest instead of creeping. Real corrections are orders of
 /// magnitude larger (gravity alone moves a particle 7·10⁻⁴ m per substep at 120 Hz).
 pub const ROUNDING_FLOOR: f32 = 16.0 * f32::EPSILON;
+
+/// Colour of a free cluster slot.
+const FREE_SLOT: u8 = u8::MAX;
 
 /// Clusters per parallel task.
 const CLUSTERS_PER_TASK: usize = 128;
@@ -86,7 +90,19 @@ pub struct SolverLayout {
     inv_count: Vec<f32>,
     /// Jacobi: the sum of the clusters' pulls on each particle in this iteration.
     pulls: Vec<Vec3A>,
-    cluster_start: Vec<u32>,
+    /// Number of clusters each particle is in.
+    member_count: Vec<u32>,
+    /// Per cluster slot: `[start, end)` of its memberships (empty for a free slot).
+    cluster_range: Vec<[u32; 2]>,
+    /// Per cluster slot: its colour ([`FREE_SLOT`] for a free slot).
+    colour_of: Vec<u8>,
+    /// Per particle: bit `c` set when one of its clusters has colour `c` (empty when the
+    /// colouring needs more than 64 colours; such a layout is not patched).
+    particle_colours: Vec<u64>,
+    /// Cluster slots freed by [`SolverLayout::patch`], reused by later additions.
+    free_slots: Vec<u32>,
+    /// Memberships in the member arrays that belong to no cluster any more.
+    garbage: usize,
     member_particle: Vec<u32>,
     /// Per membership: `(q, w)` with `q = x̄ − x̄_c` the rest offset from the cluster's
     /// weighted rest centroid and `w` the matching weight.
@@ -108,20 +124,6 @@ impl SolverLayout {
     ) -> Self {
         let clusters: Vec<ClusterSpec<'a>> = clusters.into_iter().collect();
         let n = rest.len();
-        let mut count = vec![0u32; n];
-        for c in &clusters {
-            for &m in c.members {
-                count[m as usize] += 1;
-            }
-        }
-        let inv_count: Vec<f32> = count
-            .iter()
-            .map(|c| if *c > 0 { 1.0 / *c as f32 } else { 0.0 })
-            .collect();
-        let weight = match mode {
-            SolverMode::Jacobi => inv_count.clone(),
-            SolverMode::GaussSeidel => vec![1.0; n],
-        };
         let rest: Vec<Vec3A> = rest.iter().map(|r| Vec3A::from(*r)).collect();
         let mut layout = SolverLayout {
             positions: rest.clone(),
@@ -129,54 +131,30 @@ impl SolverLayout {
             velocities: vec![Vec3A::ZERO; n],
             corrections: vec![Vec3A::ZERO; n],
             inv_mass: vec![1.0; n],
+            pulls: vec![Vec3A::ZERO; n],
+            member_count: vec![0; n],
             mode,
-            inv_count,
+            rest,
             ..Default::default()
         };
         let memberships: usize = clusters.iter().map(|c| c.members.len()).sum();
         layout.member_particle.reserve_exact(memberships);
         layout.member_moment.reserve_exact(memberships);
-        layout.cluster_start.reserve_exact(clusters.len() + 1);
-        layout.offset_bias.reserve_exact(clusters.len());
-        layout.inv_weight_sum.reserve_exact(clusters.len());
-        layout.stiffness.reserve_exact(clusters.len());
-        layout.rotations.reserve_exact(clusters.len());
-        layout.cluster_start.push(0);
         for c in &clusters {
-            let total: f32 = c.members.iter().map(|m| weight[*m as usize]).sum();
-            let centroid = c
-                .members
-                .iter()
-                .map(|m| rest[*m as usize] * weight[*m as usize])
-                .sum::<Vec3A>()
-                / total;
-            // Σ w (x̄ − x̄_c) is zero up to rounding; the fit subtracts its rotated
-            // rounding residue so that every cluster's pull has exactly zero momentum.
-            let bias: Vec3A = c
-                .members
-                .iter()
-                .map(|m| (rest[*m as usize] - centroid) * weight[*m as usize])
-                .sum();
-            layout.member_particle.extend_from_slice(c.members);
-            layout.member_moment.extend(
-                c.members
-                    .iter()
-                    .map(|m| (rest[*m as usize] - centroid).extend(weight[*m as usize])),
-            );
-            layout
-                .cluster_start
-                .push(layout.member_particle.len() as u32);
-            layout.offset_bias.push(bias);
-            layout.inv_weight_sum.push(1.0 / total);
-            layout.stiffness.push(c.stiffness);
-            layout.rotations.push(c.rotation);
+            layout.push_cluster(c, None, 0);
         }
-        layout.rest = rest;
-        layout.pulls = vec![Vec3A::ZERO; n];
+        layout.inv_count = layout
+            .member_count
+            .iter()
+            .map(|c| if *c > 0 { 1.0 / *c as f32 } else { 0.0 })
+            .collect();
+        for k in 0..clusters.len() {
+            layout.fill_moments(k);
+        }
         // particle → clusters, only to colour the clusters
         let mut particle_start = Vec::with_capacity(n + 1);
         let mut start = 0u32;
-        for c in &count {
+        for c in &layout.member_count {
             particle_start.push(start);
             start += c;
         }
@@ -189,13 +167,92 @@ impl SolverLayout {
                 fill[m as usize] += 1;
             }
         }
+        let cluster_start: Vec<u32> = std::iter::once(0)
+            .chain(layout.cluster_range.iter().map(|r| r[1]))
+            .collect();
         (layout.colour_order, layout.colour_start) = colour_clusters(
-            &layout.cluster_start,
+            &cluster_start,
             &layout.member_particle,
             &particle_start,
             &particle_clusters,
         );
+        layout.colour_of = vec![0; clusters.len()];
+        for (c, group) in layout.colour_start.windows(2).enumerate() {
+            for &k in &layout.colour_order[group[0] as usize..group[1] as usize] {
+                layout.colour_of[k as usize] = c.min(FREE_SLOT as usize - 1) as u8;
+            }
+        }
+        if layout.colour_count() <= 64 {
+            layout.particle_colours = vec![0; n];
+            for (k, c) in clusters.iter().enumerate() {
+                for &m in c.members {
+                    layout.particle_colours[m as usize] |= 1 << layout.colour_of[k];
+                }
+            }
+        }
         layout
+    }
+
+    /// Appends cluster `spec` in `slot` (a new slot when `None`) with colour `colour`;
+    /// counts its memberships. Its moments are filled later ([`Self::fill_moments`]).
+    fn push_cluster(&mut self, spec: &ClusterSpec, slot: Option<usize>, colour: u8) -> usize {
+        let start = self.member_particle.len() as u32;
+        self.member_particle.extend_from_slice(spec.members);
+        self.member_moment
+            .resize(self.member_particle.len(), Vec4::ZERO);
+        for &m in spec.members {
+            self.member_count[m as usize] += 1;
+        }
+        let range = [start, self.member_particle.len() as u32];
+        let stiffness = spec.stiffness;
+        match slot {
+            Some(k) => {
+                self.cluster_range[k] = range;
+                self.colour_of[k] = colour;
+                self.stiffness[k] = stiffness;
+                self.rotations[k] = spec.rotation;
+                k
+            }
+            None => {
+                self.cluster_range.push(range);
+                self.colour_of.push(colour);
+                self.stiffness.push(stiffness);
+                self.rotations.push(spec.rotation);
+                self.offset_bias.push(Vec3A::ZERO);
+                self.inv_weight_sum.push(0.0);
+                self.cluster_range.len() - 1
+            }
+        }
+    }
+
+    /// Computes the rest offsets, weights, offset bias and weight sum of cluster `k`
+    /// from the rest positions and (Jacobi) the current membership counts.
+    fn fill_moments(&mut self, k: usize) {
+        let [start, end] = self.cluster_range[k];
+        let range = start as usize..end as usize;
+        let members = &self.member_particle[range.clone()];
+        let weight = |m: u32| match self.mode {
+            SolverMode::Jacobi => self.inv_count[m as usize],
+            SolverMode::GaussSeidel => 1.0,
+        };
+        let rest = &self.rest;
+        let total: f32 = members.iter().map(|m| weight(*m)).sum();
+        let centroid = members
+            .iter()
+            .map(|m| rest[*m as usize] * weight(*m))
+            .sum::<Vec3A>()
+            / total;
+        // Σ w (x̄ − x̄_c) is zero up to rounding; the fit subtracts its rotated
+        // rounding residue so that every cluster's pull has exactly zero momentum.
+        let bias: Vec3A = members
+            .iter()
+            .map(|m| (rest[*m as usize] - centroid) * weight(*m))
+            .sum();
+        for (moment, &m) in self.member_moment[range].iter_mut().zip(members) {
+            *moment = (rest[m as usize] - centroid).extend(weight(m));
+        }
+        self.offset_bias[k] = bias;
+        self.inv_weight_sum[k] = 1.0 / total;
     }
 
     /// The scheme this layout was built for.
@@ -210,12 +267,12 @@ impl SolverLayout {
 
     /// Number of clusters.
     pub fn cluster_count(&self) -> usize {
-        self.stiffness.len()
+        self.colour_order.len()
     }
 
     /// Number of memberships (sum of cluster sizes).
     pub fn membership_count(&self) -> usize {
-        self.member_particle.len()
+        self.member_particle.len() - self.garbage
     }
 
     /// Number of cluster colours.
@@ -231,7 +288,11 @@ impl SolverLayout {
             + self.inv_mass.capacity() * 4 * 2
             + self.member_moment.capacity() * size_of::<Vec4>()
             + self.rotations.capacity() * size_of::<Quat>()
-            + (self.cluster_start.capacity()
+            + self.cluster_range.capacity() * 8
+            + self.colour_of.capacity()
+            + self.particle_colours.capacity() * 8
+            + (self.member_count.capacity()
+                + self.free_slots.capacity()
                 + self.member_particle.capacity()
                 + self.colour_order.capacity()
                 + self.colour_start.capacity())

@@ -61,7 +61,8 @@ impl SolverLayout {
         position: impl Fn(usize) -> Vec3A,
         rotations: Disjoint<Quat>,
     ) -> (std::ops::Range<usize>, ClusterFrame, f32) {
-        let range = self.cluster_start[k] as usize..self.cluster_start[k + 1] as usize;
+        let [start, end] = self.cluster_range[k];
+        let range = start as usize..end as usize;
         let constants = self.constants(k);
         // SAFETY: rotation `k` belongs to the calling task (the caller's contract).
         let mut rotation = unsafe { rotations.read(k) };

@@ -35,7 +35,7 @@ pub fn bench(
             rayon::current_num_threads()
         );
         println!(
-            "{:>5} {:>9} {:>8} {:>11} {:>10} {:>9} {:>10} {:>9} {:>7} {:>8} {:>9} {:>11}",
+            "{:>5} {:>9} {:>8} {:>11} {:>10} {:>9} {:>10} {:>9} {:>7} {:>8} {:>9} {:>11} {:>10} {:>9}",
             "size",
             "particles",
             "clusters",
@@ -47,7 +47,9 @@ pub fn bench(
             "ratio",
             "B/part",
             "cut ms",
-            "recluster"
+            "recluster",
+            "relayout",
+            "rebuild"
         );
     }
     for n in sizes {
@@ -59,7 +61,7 @@ pub fn bench(
             );
         } else {
             println!(
-                "{:>5} {:>9} {:>8} {:>11} {:>10.3} {:>9.3} {:>10.3} {:>9.3} {:>7.3} {:>8.0} {:>9.3} {:>11.3}",
+                "{:>5} {:>9} {:>8} {:>11} {:>10.3} {:>9.3} {:>10.3} {:>9.3} {:>7.3} {:>8.0} {:>9.3} {:>11.3} {:>9.3}{} {:>9.3}",
                 row.size,
                 row.particles,
                 row.clusters,
@@ -71,7 +73,10 @@ pub fn bench(
                 row.engine_over_bare,
                 row.bytes_per_particle,
                 row.cut_event_ms,
-                row.recluster_ms
+                row.recluster_ms,
+                row.relayout_ms,
+                if row.relayout_patched { "p" } else { "r" },
+                row.rebuild_ms
             );
         }
     }

@@ -1,0 +1,287 @@
+//! Updating a built layout in place after a cut, instead of building it again: removed
+//! clusters free their slots, new clusters take slots and the lowest colour none of their
+//! particles' clusters has, retired particles stop moving, and only the clusters whose
+//! weights changed get new rest offsets. The cost follows the clusters that changed,
+//! not the body (apart from one pass over the membership list to find weight changes).
+
+use super::{ClusterSpec, FREE_SLOT, SolverLayout};
+use crate::config::SolverMode;
+use glam::Vec3A;
+use rayon::prelude::*;
+
+impl SolverLayout {
+    /// Whether [`SolverLayout::patch`] can update this layout (its colouring fits the
+    /// 64 colour bits kept per particle).
+    pub fn can_patch(&self) -> bool {
+        !self.particle_colours.is_empty() || self.rest.is_empty()
+    }
+
+    /// Cluster slots in use, in slot order, with their member particles.
+    pub fn clusters(&self) -> impl Iterator<Item = (usize, &[u32])> {
+        self.cluster_range
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| self.colour_of[*k] != FREE_SLOT)
+            .map(|(k, r)| (k, &self.member_particle[r[0] as usize..r[1] as usize]))
+    }
+
+    /// Rest offsets from the weighted rest centroid and matching weights, `(q, w)`, of
+    /// the members of cluster slot `k` (in the order of [`SolverLayout::clusters`]).
+    pub fn member_moments(&self, k: usize) -> &[glam::Vec4] {
+        let [start, end] = self.cluster_range[k];
+        &self.member_moment[start as usize..end as usize]
+    }
+
+    /// Removes the clusters in slots `removed`, adds `added` (members are particle
+    /// indices of this layout), and freezes the `retired` particles (inverse mass 0; the
+    /// caller guarantees no remaining cluster holds them). Returns the slot of each added
+    /// cluster (`u32::MAX` for one without members), or `None` when the layout cannot be
+    /// patched (see [`SolverLayout::can_patch`], or a new cluster needs a 65th colour);
+    /// the layout must then be built again with [`SolverLayout::new`].
+    pub fn patch(
+        &mut self,
+        removed: &[u32],
+        added: &[ClusterSpec],
+        retired: &[u32],
+    ) -> Option<Vec<u32>> {
+        if !self.can_patch() {
+            return None;
+        }
+        let mut changed = vec![false; self.rest.len()];
+        for &p in retired {
+            self.inv_mass[p as usize] = 0.0;
+            self.velocities[p as usize] = Vec3A::ZERO;
+        }
+        for &k in removed {
+            let k = k as usize;
+            if self.colour_of.get(k).is_none_or(|c| *c == FREE_SLOT) {
+                continue;
+            }
+            let bit = !(1u64 << self.colour_of[k]);
+            let [start, end] = self.cluster_range[k];
+            for &m in &self.member_particle[start as usize..end as usize] {
+                self.member_count[m as usize] -= 1;
+                self.particle_colours[m as usize] &= bit;
+                changed[m as usize] = true;
+            }
+            self.garbage += (end - start) as usize;
+            self.cluster_range[k] = [0, 0];
+            self.colour_of[k] = FREE_SLOT;
+            self.free_slots.push(k as u32);
+        }
+        let mut slots = Vec::with_capacity(added.len());
+        for spec in added {
+            if spec.members.is_empty() {
+                slots.push(u32::MAX);
+                continue;
+            }
+            let used = spec
+                .members
+                .iter()
+                .fold(0u64, |used, m| used | self.particle_colours[*m as usize]);
+            let colour = used.trailing_ones();
+            if colour >= 64 {
+                return None;
+            }
+            for &m in spec.members {
+                self.particle_colours[m as usize] |= 1 << colour;
+                changed[m as usize] = true;
+            }
+            let slot = self.free_slots.pop().map(|k| k as usize);
+            slots.push(self.push_cluster(spec, slot, colour as u8) as u32);
+        }
+        for (p, changed) in changed.iter().enumerate() {
+            if *changed {
+                let count = self.member_count[p];
+                self.inv_count[p] = if count > 0 { 1.0 / count as f32 } else { 0.0 };
+            }
+        }
+        // Jacobi weights are 1/nᵢ: every cluster holding a particle whose count changed
+        // needs new rest offsets; Gauss–Seidel weights are 1, so only the new clusters.
+        let refresh: Vec<usize> = match self.mode {
+            SolverMode::Jacobi => self
+                .cluster_range
+                .par_iter()
+                .enumerate()
+                .filter(|(k, r)| {
+                    self.colour_of[*k] != FREE_SLOT
+                        && self.member_particle[r[0] as usize..r[1] as usize]
+                            .iter()
+                            .any(|m| changed[*m as usize])
+                })
+                .map(|(k, _)| k)
+                .collect(),
+            SolverMode::GaussSeidel => slots
+                .iter()
+                .filter(|k| **k != u32::MAX)
+                .map(|k| *k as usize)
+                .collect(),
+        };
+        for k in refresh {
+            self.fill_moments(k);
+        }
+        if 2 * self.garbage > self.member_particle.len() {
+            self.compact_members();
+        }
+        self.order_by_colour();
+        Some(slots)
+    }
+
+    /// Copies the live clusters' memberships to fresh arrays, dropping the garbage.
+    fn compact_members(&mut self) {
+        let live = self.member_particle.len() - self.garbage;
+        let mut particles = Vec::with_capacity(live);
+        let mut moments = Vec::with_capacity(live);
+        for range in &mut self.cluster_range {
+            let (start, end) = (range[0] as usize, range[1] as usize);
+            let new_start = particles.len() as u32;
+            particles.extend_from_slice(&self.member_particle[start..end]);
+            moments.extend_from_slice(&self.member_moment[start..end]);
+            *range = [new_start, particles.len() as u32];
+        }
+        self.member_particle = particles;
+        self.member_moment = moments;
+        self.garbage = 0;
+    }
+
+    /// Groups the cluster slots in use by colour (ascending slots inside a colour).
+    fn order_by_colour(&mut self) {
+        let colours = self
+            .colour_of
+            .iter()
+            .filter(|c| **c != FREE_SLOT)
+            .map(|c| *c as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let mut start = vec![0u32; colours + 1];
+        for &c in self.colour_of.iter().filter(|c| **c != FREE_SLOT) {
+            start[c as usize + 1] += 1;
+        }
+        for c in 0..colours {
+            start[c + 1] += start[c];
+        }
+        let mut fill = start.clone();
+        let mut order = vec![0u32; start[colours] as usize];
+        for (k, &c) in self.colour_of.iter().enumerate() {
+            if c != FREE_SLOT {
+                order[fill[c as usize] as usize] = k as u32;
+                fill[c as usize] += 1;
+            }
+        }
+        self.colour_order = order;
+        self.colour_start = start;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solver::Colliders;
+    use glam::{Quat, Vec3};
+
+    /// A 10-particle bar with clusters of three consecutive particles.
+    fn bar_clusters() -> (Vec<Vec3>, Vec<Vec<u32>>) {
+        let rest = (0..10).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
+        let clusters = (0..8).map(|i| vec![i, i + 1, i + 2]).collect();
+        (rest, clusters)
+    }
+
+    fn specs(clusters: &[Vec<u32>]) -> Vec<ClusterSpec<'_>> {
+        clusters
+            .iter()
+            .map(|m| ClusterSpec {
+                members: m,
+                stiffness: 1.0,
+                rotation: Quat::IDENTITY,
+            })
+            .collect()
+    }
+
+    /// Each cluster's members with its rest offsets and weights, sorted by members.
+    fn moments(l: &SolverLayout) -> Vec<(Vec<u32>, Vec<glam::Vec4>)> {
+        let mut out: Vec<_> = l
+            .clusters()
+            .map(|(k, m)| {
+                let [s, e] = l.cluster_range[k];
+                (m.to_vec(), l.member_moment[s as usize..e as usize].to_vec())
+            })
+            .collect();
+        out.sort_by(|a, b| a.0.cmp(&b.0));
+        out
+    }
+
+    #[test]
+    fn a_patched_layout_matches_a_rebuilt_one() {
+        for mode in [SolverMode::Jacobi, SolverMode::GaussSeidel] {
+            let (rest, clusters) = bar_clusters();
+            let mut patched = SolverLayout::new(&rest, specs(&clusters), mode);
+            // cut particle 5: clusters 3, 4, 5 hold it; replace them by their pieces
+            let pieces = vec![vec![3, 4], vec![6, 7]];
+            let slots = patched
+                .patch(&[3, 4, 5], &specs(&pieces), &[5])
+                .expect("patchable");
+            assert_eq!(slots.len(), 2);
+            assert_eq!(patched.cluster_count(), 7);
+            assert_eq!(patched.membership_count(), 5 * 3 + 4);
+            let mut kept: Vec<Vec<u32>> = clusters
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| ![3, 4, 5].contains(k))
+                .map(|(_, m)| m.clone())
+                .collect();
+            kept.extend(pieces);
+            let mut rebuilt = SolverLayout::new(&rest, specs(&kept), mode);
+            rebuilt.inv_mass[5] = 0.0;
+            // the same clusters with the same rest offsets and weights (Jacobi weights
+            // 1/nᵢ changed at particles 3, 4, 6, 7 and at their other clusters)
+            let (a, b) = (moments(&patched), moments(&rebuilt));
+            assert_eq!(a.len(), b.len());
+            for ((ma, qa), (mb, qb)) in a.iter().zip(&b) {
+                assert_eq!(ma, mb);
+                for (x, y) in qa.iter().zip(qb) {
+                    assert!((*x - *y).length() < 1e-6, "{mode:?} {ma:?}: {x} vs {y}");
+                }
+            }
+            assert_eq!(patched.inv_count, rebuilt.inv_count);
+            if mode == SolverMode::Jacobi {
+                // Jacobi does not depend on cluster order: the two move alike
+                for l in [&mut patched, &mut rebuilt] {
+                    l.inv_mass[0] = 0.0;
+                    for (i, p) in l.positions.iter_mut().enumerate() {
+                        p.y -= 0.01 * i as f32;
+                    }
+                    l.solve(20, &Colliders::default());
+                }
+                for (p, q) in patched.positions.iter().zip(&rebuilt.positions) {
+                    assert!((*p - *q).length() < 1e-5, "{p} vs {q}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn colours_stay_proper_and_garbage_is_compacted() {
+        let (rest, clusters) = bar_clusters();
+        let mut l = SolverLayout::new(&rest, specs(&clusters), SolverMode::GaussSeidel);
+        // replace every cluster by itself many times: slots are reused, garbage compacted
+        for round in 0..20 {
+            let k = round % 8;
+            let slots = l
+                .patch(&[k as u32], &specs(&clusters[k..k + 1]), &[])
+                .unwrap();
+            assert_eq!(slots, vec![k as u32], "the freed slot is reused");
+            assert!(l.member_particle.len() <= 2 * l.membership_count());
+        }
+        assert_eq!(l.cluster_count(), 8);
+        for group in l.colour_start.windows(2) {
+            let mut seen = vec![false; rest.len()];
+            for &k in &l.colour_order[group[0] as usize..group[1] as usize] {
+                let [s, e] = l.cluster_range[k as usize];
+                for &m in &l.member_particle[s as usize..e as usize] {
+                    assert!(!seen[m as usize], "two clusters of one colour share {m}");
+                    seen[m as usize] = true;
+                }
+            }
+        }
+    }
+}

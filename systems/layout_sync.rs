@@ -1,0 +1,240 @@
+//! Keeps the shape-match stage's dense solver layout in step with the ECS: a full
+//! rebuild when bodies appear or vanish, otherwise a patch of only the clusters that
+//! changed (after a cut) and the particles that were cut.
+
+use crate::components::*;
+use crate::config::SolverMode;
+use crate::resources::{LayoutUpdate, SolverCache};
+use crate::solver::{ClusterSpec, SolverLayout};
+use bevy_ecs::prelude::*;
+use glam::Quat;
+use std::collections::HashMap;
+use std::time::Instant;
+
+/// Cluster data as the shape-match stage reads it.
+pub type ClusterItem<'a> = (Entity, &'a ClusterMembers, &'a ClusterOf, &'a Stiffness);
+
+/// Brings the layout up to date: patches it when that is possible, else rebuilds it.
+/// `changed` are the clusters whose members or stiffness changed (or that are new),
+/// `removed` the cluster entities that lost their members (despawned).
+pub fn sync_layout<'a>(
+    cache: &mut SolverCache,
+    bodies: &Query<(Entity, &BodyLattice)>,
+    changed_bodies: &[Entity],
+    all_clusters: impl Iterator<Item = ClusterItem<'a>>,
+    changed: Vec<ClusterItem<'a>>,
+    removed: &[Entity],
+    mode: SolverMode,
+) {
+    let start = Instant::now();
+    let patched = cache.valid
+        && cache.layout.mode() == mode
+        && patch(cache, bodies, changed_bodies, changed, removed);
+    if !patched {
+        rebuild_cache(cache, bodies.iter(), all_clusters, mode);
+    }
+    cache.last_update = Some(LayoutUpdate {
+        patched,
+        ms: start.elapsed().as_secs_f64() * 1e3,
+    });
+}
+
+/// Dense members of a cluster of `body` (dead particles dropped).
+fn dense_members(map: &[u32], members: &[u32], out: &mut Vec<u32>) {
+    out.extend(
+        members
+            .iter()
+            .filter_map(|m| map.get(*m as usize).copied().filter(|d| *d != u32::MAX)),
+    );
+}
+
+/// Patches the changed clusters and cut particles into the layout; false when a full
+/// rebuild is needed (a body the layout does not know, or the colouring overflows).
+fn patch(
+    cache: &mut SolverCache,
+    bodies: &Query<(Entity, &BodyLattice)>,
+    changed_bodies: &[Entity],
+    mut changed: Vec<ClusterItem>,
+    removed: &[Entity],
+) -> bool {
+    if !cache.layout.can_patch() {
+        return false;
+    }
+    let body_index = |cache: &SolverCache, body: Entity| {
+        cache
+            .body_dense
+            .binary_search_by_key(&body, |(b, _)| *b)
+            .ok()
+    };
+    // Particles cut from their bodies: frozen, and no longer offered to detect.
+    let mut retired = Vec::new();
+    for &body in changed_bodies {
+        let (Some(b), Ok((_, lattice))) = (body_index(cache, body), bodies.get(body)) else {
+            return false;
+        };
+        for (local, &d) in cache.body_dense[b].1.iter().enumerate() {
+            if d != u32::MAX && cache.live[d as usize] && !lattice.lattice.is_live(local as u32) {
+                retired.push(d);
+            }
+        }
+    }
+    let mut removed_slots: Vec<u32> = removed
+        .iter()
+        .filter_map(|e| cache.slot_of.remove(e))
+        .collect();
+    changed.sort_unstable_by_key(|c| c.0);
+    let mut flat = Vec::new();
+    let mut entries = Vec::with_capacity(changed.len());
+    for (e, members, of, stiffness) in changed {
+        let Some(b) = body_index(cache, of.0) else {
+            return false;
+        };
+        let rotation = match cache.slot_of.remove(&e) {
+            Some(slot) => {
+                removed_slots.push(slot);
+                cache.layout.rotations[slot as usize]
+            }
+            None => Quat::IDENTITY,
+        };
+        let start = flat.len();
+        dense_members(&cache.body_dense[b].1, &members.0, &mut flat);
+        entries.push((e, start..flat.len(), stiffness.0.clamp(0.0, 1.0), rotation));
+    }
+    let specs: Vec<ClusterSpec> = entries
+        .iter()
+        .map(|(_, range, stiffness, rotation)| ClusterSpec {
+            members: &flat[range.clone()],
+            stiffness: *stiffness,
+            rotation: *rotation,
+        })
+        .collect();
+    let Some(slots) = cache.layout.patch(&removed_slots, &specs, &retired) else {
+        cache.clusters.clear(); // warm starts no longer match their slots
+        return false;
+    };
+    for &d in &retired {
+        cache.live[d as usize] = false;
+    }
+    for &slot in &removed_slots {
+        cache.clusters[slot as usize] = Entity::PLACEHOLDER;
+    }
+    for ((e, ..), slot) in entries.iter().zip(slots) {
+        if slot == u32::MAX {
+            continue;
+        }
+        if cache.clusters.len() <= slot as usize {
+            cache
+                .clusters
+                .resize(slot as usize + 1, Entity::PLACEHOLDER);
+        }
+        cache.clusters[slot as usize] = *e;
+        cache.slot_of.insert(*e, slot);
+    }
+    true
+}
+
+/// One cluster while the layout is rebuilt: sort key `(body, first dense member,
+/// entity)`, its members' range in the flat member array, and its stiffness.
+struct ClusterEntry {
+    order: (Entity, u32, Entity),
+    range: std::ops::Range<usize>,
+    stiffness: f32,
+}
+
+/// Rebuilds the dense layout from the bodies and clusters, keeping warm-start rotations
+/// by cluster entity.
+#[inline(never)]
+pub fn rebuild_cache<'b, 'c>(
+    cache: &mut SolverCache,
+    bodies: impl Iterator<Item = (Entity, &'b BodyLattice)>,
+    clusters: impl Iterator<Item = ClusterItem<'c>>,
+    mode: SolverMode,
+) {
+    let warm: HashMap<Entity, Quat> = cache
+        .clusters
+        .iter()
+        .copied()
+        .zip(cache.layout.rotations.iter().copied())
+        .collect();
+    let mut body_list: Vec<(Entity, &BodyLattice)> = bodies.collect();
+    body_list.sort_unstable_by_key(|(e, _)| *e);
+    let mut rest = Vec::new();
+    let mut particles = Vec::new();
+    let mut owners = Vec::new();
+    let mut body_dense = Vec::with_capacity(body_list.len());
+    for (body, lattice) in &body_list {
+        let l = &lattice.lattice;
+        let mut map = vec![u32::MAX; l.len()];
+        // Morton order keeps the members of a cluster, and the clusters of a particle,
+        // close in memory.
+        let mut order: Vec<u32> = l.live_particles().collect();
+        order.sort_by_cached_key(|i| morton_code(l.coord(*i)));
+        for i in order {
+            map[i as usize] = rest.len() as u32;
+            rest.push(l.rest_position(i));
+            particles.push(lattice.particles[i as usize]);
+            owners.push((*body, i));
+        }
+        body_dense.push((*body, map));
+    }
+    // Every cluster's dense members in one flat array (no allocation per cluster).
+    let mut flat: Vec<u32> = Vec::new();
+    let mut cluster_list: Vec<ClusterEntry> = Vec::new();
+    for (e, members, of, stiffness) in clusters {
+        let Ok(b) = body_dense.binary_search_by_key(&of.0, |(b, _)| *b) else {
+            continue;
+        };
+        let start = flat.len();
+        dense_members(&body_dense[b].1, &members.0, &mut flat);
+        if let Some(&first) = flat[start..].iter().min() {
+            cluster_list.push(ClusterEntry {
+                order: (of.0, first, e),
+                range: start..flat.len(),
+                stiffness: stiffness.0.clamp(0.0, 1.0),
+            });
+        }
+    }
+    // Clusters in the order of their first member (then entity, for determinism).
+    cluster_list.sort_unstable_by_key(|c| c.order);
+    let specs = cluster_list.iter().map(|c| ClusterSpec {
+        members: &flat[c.range.clone()],
+        stiffness: c.stiffness,
+        rotation: warm.get(&c.order.2).copied().unwrap_or(Quat::IDENTITY),
+    });
+    cache.layout = SolverLayout::new(&rest, specs, mode);
+    let max_index = particles
+        .iter()
+        .map(|e| e.index_u32() as usize + 1)
+        .max()
+        .unwrap_or(0);
+    cache.dense_of = vec![u32::MAX; max_index];
+    for (d, e) in particles.iter().enumerate() {
+        cache.dense_of[e.index_u32() as usize] = d as u32;
+    }
+    cache.live = vec![true; particles.len()];
+    cache.particles = particles;
+    cache.owners = owners;
+    cache.body_dense = body_dense;
+    cache.clusters = cluster_list.into_iter().map(|c| c.order.2).collect();
+    cache.slot_of = cache
+        .clusters
+        .iter()
+        .enumerate()
+        .map(|(k, e)| (*e, k as u32))
+        .collect();
+    cache.valid = true;
+}
+
+/// Interleaves the bits of a lattice coordinate (offset to non-negative) into a
+/// Z-order key.
+fn morton_code(c: glam::IVec3) -> u64 {
+    fn spread(v: i32) -> u64 {
+        let mut x = (v as i64 + (1 << 20)) as u64 & 0x1f_ffff;
+        x = (x | (x << 32)) & 0x1f_0000_0000_ffff;
+        x = (x | (x << 16)) & 0x1f_0000_ff00_00ff;
+        x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
+        x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
+        (x | (x << 2)) & 0x1249_2492_4924_9249
+    }
+    spread(c.x) | (spread(c.y) << 1) | (spread(c.z) << 2)
+}
