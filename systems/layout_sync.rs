@@ -72,8 +72,17 @@ fn patch(
         let (Some(b), Ok((_, lattice))) = (body_index(cache, body), bodies.get(body)) else {
             return false;
         };
-        for (local, &d) in cache.body_dense[b].1.iter().enumerate() {
-            if d != u32::MAX && cache.live[d as usize] && !lattice.lattice.is_live(local as u32) {
+        let map = &cache.body_dense[b].1;
+        if map.len() != lattice.lattice.len() {
+            return false; // a replaced lattice: not a cut
+        }
+        for (local, &d) in map.iter().enumerate() {
+            let live = lattice.lattice.is_live(local as u32);
+            if d == u32::MAX {
+                if live {
+                    return false; // a particle the layout never had
+                }
+            } else if cache.live[d as usize] && !live {
                 retired.push(d);
             }
         }
