@@ -4,18 +4,16 @@
 
 /// Colours clusters greedily in index order. `cluster_start`/`members` are the CSR
 /// cluster → particle lists, `particle_start`/`particle_clusters` the inverse lists.
-/// Returns `(order, colour_start)`: cluster indices grouped by colour (ascending inside
-/// a colour) and the offsets of each colour's group in `order`.
+/// Returns the colour of each cluster.
 pub fn colour_clusters(
     cluster_start: &[u32],
     members: &[u32],
     particle_start: &[u32],
     particle_clusters: &[u32],
-) -> (Vec<u32>, Vec<u32>) {
+) -> Vec<u32> {
     let clusters = cluster_start.len().saturating_sub(1);
     let mut colour = vec![u32::MAX; clusters];
     let mut taken: Vec<bool> = Vec::new();
-    let mut colours = 0u32;
     for k in 0..clusters {
         taken.iter_mut().for_each(|t| *t = false);
         for &m in &members[cluster_start[k] as usize..cluster_start[k + 1] as usize] {
@@ -34,22 +32,32 @@ pub fn colour_clusters(
             taken.push(false);
         }
         colour[k] = c;
-        colours = colours.max(c + 1);
     }
-    let mut colour_start = vec![0u32; colours as usize + 1];
-    for &c in &colour {
-        colour_start[c as usize + 1] += 1;
+    colour
+}
+
+/// Groups the clusters whose colour is not `free` by colour. Returns `(order,
+/// colour_start)`: cluster indices grouped by colour (ascending inside a colour) and the
+/// offsets of each colour's group in `order`.
+pub fn order_by_colour(colour_of: &[u32], free: u32) -> (Vec<u32>, Vec<u32>) {
+    let used = || colour_of.iter().filter(|c| **c != free);
+    let colours = used().map(|c| *c as usize + 1).max().unwrap_or(0);
+    let mut start = vec![0u32; colours + 1];
+    for &c in used() {
+        start[c as usize + 1] += 1;
     }
-    for c in 0..colours as usize {
-        colour_start[c + 1] += colour_start[c];
+    for c in 0..colours {
+        start[c + 1] += start[c];
     }
-    let mut fill = colour_start.clone();
-    let mut order = vec![0u32; clusters];
-    for (k, &c) in colour.iter().enumerate() {
-        order[fill[c as usize] as usize] = k as u32;
-        fill[c as usize] += 1;
+    let mut fill = start.clone();
+    let mut order = vec![0u32; start[colours] as usize];
+    for (k, &c) in colour_of.iter().enumerate() {
+        if c != free {
+            order[fill[c as usize] as usize] = k as u32;
+            fill[c as usize] += 1;
+        }
     }
-    (order, colour_start)
+    (order, start)
 }
 
 #[cfg(test)]
@@ -84,7 +92,7 @@ mod tests {
         clusters.push(vec![0, 5, 10, 15]);
         clusters.push(vec![3, 19]);
         let [cs, m, ps, pc] = csr(&clusters, 20);
-        let (order, colour_start) = colour_clusters(&cs, &m, &ps, &pc);
+        let (order, colour_start) = order_by_colour(&colour_clusters(&cs, &m, &ps, &pc), u32::MAX);
         let mut seen = order.clone();
         seen.sort_unstable();
         assert_eq!(seen, (0..clusters.len() as u32).collect::<Vec<_>>());

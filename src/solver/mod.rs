@@ -30,7 +30,7 @@ mod patch;
 mod sweep;
 
 pub use colliders::{Colliders, resolve_colliders};
-pub use colouring::colour_clusters;
+pub use colouring::{colour_clusters, order_by_colour};
 
 use crate::config::SolverMode;
 use glam::{Quat, Vec3, Vec3A, Vec4};
@@ -47,7 +47,7 @@ pub const ROTATION_ITERATIONS: u32 = 1;
 pub const ROUNDING_FLOOR: f32 = 16.0 * f32::EPSILON;
 
 /// Colour of a free cluster slot.
-const FREE_SLOT: u8 = u8::MAX;
+const FREE_SLOT: u32 = u32::MAX;
 
 /// Clusters per parallel task.
 const CLUSTERS_PER_TASK: usize = 128;
@@ -95,7 +95,7 @@ pub struct SolverLayout {
     /// Per cluster slot: `[start, end)` of its memberships (empty for a free slot).
     cluster_range: Vec<[u32; 2]>,
     /// Per cluster slot: its colour ([`FREE_SLOT`] for a free slot).
-    colour_of: Vec<u8>,
+    colour_of: Vec<u32>,
     /// Per particle: bit `c` set when one of its clusters has colour `c` (empty when the
     /// colouring needs more than 64 colours; such a layout is not patched).
     particle_colours: Vec<u64>,
@@ -170,18 +170,13 @@ impl SolverLayout {
         let cluster_start: Vec<u32> = std::iter::once(0)
             .chain(layout.cluster_range.iter().map(|r| r[1]))
             .collect();
-        (layout.colour_order, layout.colour_start) = colour_clusters(
+        layout.colour_of = colour_clusters(
             &cluster_start,
             &layout.member_particle,
             &particle_start,
             &particle_clusters,
         );
-        layout.colour_of = vec![0; clusters.len()];
-        for (c, group) in layout.colour_start.windows(2).enumerate() {
-            for &k in &layout.colour_order[group[0] as usize..group[1] as usize] {
-                layout.colour_of[k as usize] = c.min(FREE_SLOT as usize - 1) as u8;
-            }
-        }
+        (layout.colour_order, layout.colour_start) = order_by_colour(&layout.colour_of, FREE_SLOT);
         if layout.colour_count() <= 64 {
             layout.particle_colours = vec![0; n];
             for (k, c) in clusters.iter().enumerate() {
@@ -195,7 +190,7 @@ impl SolverLayout {
 
     /// Appends cluster `spec` in `slot` (a new slot when `None`) with colour `colour`;
     /// counts its memberships. Its moments are filled later ([`Self::fill_moments`]).
-    fn push_cluster(&mut self, spec: &ClusterSpec, slot: Option<usize>, colour: u8) -> usize {
+    fn push_cluster(&mut self, spec: &ClusterSpec, slot: Option<usize>, colour: u32) -> usize {
         let start = self.member_particle.len() as u32;
         self.member_particle.extend_from_slice(spec.members);
         self.member_moment
@@ -289,7 +284,7 @@ impl SolverLayout {
             + self.member_moment.capacity() * size_of::<Vec4>()
             + self.rotations.capacity() * size_of::<Quat>()
             + self.cluster_range.capacity() * 8
-            + self.colour_of.capacity()
+            + self.colour_of.capacity() * 4
             + self.particle_colours.capacity() * 8
             + (self.member_count.capacity()
                 + self.free_slots.capacity()

@@ -4,6 +4,7 @@
 //! weights changed get new rest offsets. The cost follows the clusters that changed,
 //! not the body (apart from one pass over the membership list to find weight changes).
 
+use super::colouring::order_by_colour;
 use super::{ClusterSpec, FREE_SLOT, SolverLayout};
 use crate::config::SolverMode;
 use glam::Vec3A;
@@ -88,7 +89,7 @@ impl SolverLayout {
                 changed[m as usize] = true;
             }
             let slot = self.free_slots.pop().map(|k| k as usize);
-            slots.push(self.push_cluster(spec, slot, colour as u8) as u32);
+            slots.push(self.push_cluster(spec, slot, colour) as u32);
         }
         for (p, changed) in changed.iter().enumerate() {
             if *changed {
@@ -123,7 +124,7 @@ impl SolverLayout {
         if 2 * self.garbage > self.member_particle.len() {
             self.compact_members();
         }
-        self.order_by_colour();
+        (self.colour_order, self.colour_start) = order_by_colour(&self.colour_of, FREE_SLOT);
         Some(slots)
     }
 
@@ -142,34 +143,6 @@ impl SolverLayout {
         self.member_particle = particles;
         self.member_moment = moments;
         self.garbage = 0;
-    }
-
-    /// Groups the cluster slots in use by colour (ascending slots inside a colour).
-    fn order_by_colour(&mut self) {
-        let colours = self
-            .colour_of
-            .iter()
-            .filter(|c| **c != FREE_SLOT)
-            .map(|c| *c as usize + 1)
-            .max()
-            .unwrap_or(0);
-        let mut start = vec![0u32; colours + 1];
-        for &c in self.colour_of.iter().filter(|c| **c != FREE_SLOT) {
-            start[c as usize + 1] += 1;
-        }
-        for c in 0..colours {
-            start[c + 1] += start[c];
-        }
-        let mut fill = start.clone();
-        let mut order = vec![0u32; start[colours] as usize];
-        for (k, &c) in self.colour_of.iter().enumerate() {
-            if c != FREE_SLOT {
-                order[fill[c as usize] as usize] = k as u32;
-                fill[c as usize] += 1;
-            }
-        }
-        self.colour_order = order;
-        self.colour_start = start;
     }
 }
 
