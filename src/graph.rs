@@ -41,7 +41,7 @@ pub fn connected_components(members: &[u32], lattice: &Lattice) -> Vec<Vec<u32>>
         .copied()
         .filter(|p| lattice.is_live(*p))
         .collect();
-    if !set.is_sorted() {
+    if !set.is_sorted_by(|a, b| a < b) {
         set.sort_unstable();
         set.dedup();
     }

@@ -140,6 +140,13 @@ impl SolverLayout {
         let memberships: usize = clusters.iter().map(|c| c.members.len()).sum();
         layout.member_particle.reserve_exact(memberships);
         layout.member_moment.reserve_exact(memberships);
+        let count = clusters.len();
+        layout.cluster_range.reserve_exact(count);
+        layout.colour_of.reserve_exact(count);
+        layout.stiffness.reserve_exact(count);
+        layout.rotations.reserve_exact(count);
+        layout.offset_bias.reserve_exact(count);
+        layout.inv_weight_sum.reserve_exact(count);
         for c in &clusters {
             layout.push_cluster(c, None, 0);
         }
