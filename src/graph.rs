@@ -36,11 +36,9 @@ pub fn with_slots<R>(len: usize, f: impl FnOnce(&mut [u32]) -> R) -> R {
 /// Sorted input (every member list of a [`crate::cluster_store::ClusterStore`]) costs
 /// no sort: the components are read off the labels in member order.
 pub fn connected_components(members: &[u32], lattice: &Lattice) -> Vec<Vec<u32>> {
-    let mut set: Vec<u32> = members
-        .iter()
-        .copied()
-        .filter(|p| lattice.is_live(*p))
-        .collect();
+    // sized up front: a filtered collect would grow the list by reallocation
+    let mut set: Vec<u32> = Vec::with_capacity(members.len());
+    set.extend(members.iter().copied().filter(|p| lattice.is_live(*p)));
     if !set.is_sorted_by(|a, b| a < b) {
         set.sort_unstable();
         set.dedup();
