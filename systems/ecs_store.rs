@@ -89,7 +89,13 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_, '_, '_, '_> {
         let new = if let Some(m) = self.created.get_mut(&k) {
             merge_sorted(m, extra)
         } else if let Ok(mut m) = self.clusters.get_mut(k) {
-            merge_sorted(&mut m.0, extra)
+            // marked changed only when it did change: the solver layout re-reads changed
+            // clusters
+            let new = merge_sorted(&mut m.bypass_change_detection().0, extra);
+            if new > 0 {
+                m.set_changed();
+            }
+            new
         } else {
             return;
         };
