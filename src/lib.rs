@@ -21,6 +21,7 @@ pub mod error;
 pub mod export;
 pub mod graph;
 pub mod invariants;
+pub mod lanes;
 pub mod lattice;
 pub mod mesh;
 #[cfg(feature = "bevy_app")]

@@ -5,39 +5,35 @@
 
 use super::sweep::Disjoint;
 use super::{Colliders, PARTICLES_PER_TASK, SolverLayout, resolve_colliders};
-use glam::{Quat, Vec3A};
+use glam::Vec3A;
 use rayon::prelude::*;
 
 impl SolverLayout {
-    /// Cluster pass: fit every cluster and accumulate its pulls.
+    /// Cluster pass: fit every cluster (eight at a time) to the positions, which no task
+    /// writes in this pass, and add `s (g − p)` to each member's pull.
     pub(super) fn accumulate_pulls(&mut self) {
         let pulls = Disjoint::new(&mut self.pulls);
         let rotations = Disjoint::new(&mut self.rotations);
         let this = &*self;
-        this.for_each_cluster_by_colour(|k| this.pull_members(k, pulls, rotations));
+        this.for_each_batch_by_colour(|b, slots, fit_rows| {
+            // SAFETY: this task owns the batch's clusters, their rotations and their
+            // members' pulls for the colour (see `Disjoint`); member indices were
+            // bounds-checked when the layout was built.
+            let size =
+                unsafe { this.fit_batch(b, slots, fit_rows, this.positions.as_ptr(), rotations) };
+            let rows = this.batch_rows(b);
+            for (l, size) in size.iter().enumerate() {
+                for (row, fit) in rows[..*size].iter().zip(fit_rows.iter()) {
+                    let m = row.particle[l] as usize;
+                    // SAFETY: as above.
+                    unsafe { pulls.write(m, pulls.read(m) + fit.pull[l]) };
+                }
+            }
+        });
     }
 
-    /// Fits cluster `k` to the positions (which no task writes in this pass) and adds
-    /// `s (g − p)` to each member's pull.
-    #[inline]
-    fn pull_members(&self, k: usize, pulls: Disjoint<Vec3A>, rotations: Disjoint<Quat>) {
-        // SAFETY: this task owns cluster `k`, and so the pulls of its members, for the
-        // colour (see `Disjoint`); indices were bounds-checked when the layout was built.
-        let (range, frame, stiffness) =
-            unsafe { self.fit_in_sweep(k, |m| self.positions[m], rotations) };
-        for (&m, moment) in self.member_particle[range.clone()]
-            .iter()
-            .zip(&self.member_moment[range])
-        {
-            let m = m as usize;
-            let pull = frame.scaled_goal(Vec3A::from_vec4(*moment)) - self.positions[m] * stiffness;
-            // SAFETY: as above.
-            unsafe { pulls.write(m, pulls.read(m) + pull) };
-        }
-    }
-
-    /// Particle pass: `pᵢ += (1/nᵢ) Σₖ sₖ (gᵢₖ − pᵢ)`, then the colliders; clears the
-    /// accumulators.
+    /// Particle pass: `pᵢ += (1/nᵢ) Σₖ sₖ (gᵢₖ − pᵢ)` (pinned particles stay), then the
+    /// colliders; clears the accumulators.
     pub(super) fn move_particles_jacobi(&mut self, colliders: &Colliders) {
         let (inv_count, inv_mass, previous) = (&self.inv_count, &self.inv_mass, &self.previous);
         let collide = colliders.ground.is_some() || !colliders.boxes.is_empty();
@@ -46,23 +42,33 @@ impl SolverLayout {
             .zip(self.corrections.par_chunks_mut(PARTICLES_PER_TASK))
             .zip(self.pulls.par_chunks_mut(PARTICLES_PER_TASK))
             .enumerate()
-            .for_each(|(task, ((chunk, corrections), pulls))| {
-                let base = task * PARTICLES_PER_TASK;
-                for (j, ((p, correction), pull)) in
-                    chunk.iter_mut().zip(corrections).zip(pulls).enumerate()
-                {
-                    let i = base + j;
-                    let step = *pull * inv_count[i];
-                    *pull = Vec3A::ZERO;
-                    if inv_mass[i] == 0.0 {
-                        continue;
-                    }
+            .for_each(|(task, ((positions, corrections), pulls))| {
+                let range = task * PARTICLES_PER_TASK..task * PARTICLES_PER_TASK + positions.len();
+                let (inv_count, inv_mass) = (&inv_count[range.clone()], &inv_mass[range.clone()]);
+                let (corrections, pulls) = (
+                    &mut corrections[..positions.len()],
+                    &mut pulls[..positions.len()],
+                );
+                for (i, p) in positions.iter_mut().enumerate() {
+                    // a select, not a branch: pinned particles move by zero
+                    let scale = if inv_mass[i] == 0.0 {
+                        0.0
+                    } else {
+                        inv_count[i]
+                    };
+                    let step = pulls[i] * scale;
+                    pulls[i] = Vec3A::ZERO;
                     *p += step;
-                    *correction += step;
-                    if collide {
-                        let unconstrained = *p;
-                        resolve_colliders(p, previous[i], colliders);
-                        *correction += *p - unconstrained;
+                    corrections[i] += step;
+                }
+                if collide {
+                    let previous = &previous[range];
+                    for (i, p) in positions.iter_mut().enumerate() {
+                        if inv_mass[i] != 0.0 {
+                            let unconstrained = *p;
+                            resolve_colliders(p, previous[i], colliders);
+                            corrections[i] += *p - unconstrained;
+                        }
                     }
                 }
             });

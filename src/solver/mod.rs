@@ -21,9 +21,9 @@
 //! Per-cluster work is done relative to the cluster's first member so that goals keep
 //! full precision far from the origin.
 
+mod batch;
 mod colliders;
 mod colouring;
-mod fit;
 mod gauss_seidel;
 mod jacobi;
 mod patch;
@@ -33,6 +33,7 @@ pub use colliders::{Colliders, resolve_colliders};
 pub use colouring::{colour_clusters, order_by_colour};
 
 use crate::config::SolverMode;
+use crate::rotation::warm_start;
 use glam::{Quat, Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 
@@ -112,6 +113,12 @@ pub struct SolverLayout {
     stiffness: Vec<f32>,
     colour_order: Vec<u32>,
     colour_start: Vec<u32>,
+    /// The clusters' memberships in batches of eight clusters (see `batch.rs`).
+    batch_rows: Vec<batch::BatchRow>,
+    /// Per batch (in colour order): its first row; one entry more than batches.
+    batch_start: Vec<u32>,
+    /// Per colour: its first batch; one entry more than colours.
+    colour_batches: Vec<u32>,
 }
 
 impl SolverLayout {
@@ -184,6 +191,7 @@ impl SolverLayout {
             &particle_clusters,
         );
         (layout.colour_order, layout.colour_start) = order_by_colour(&layout.colour_of, FREE_SLOT);
+        layout.build_batches();
         if layout.colour_count() <= 64 {
             layout.particle_colours = vec![0; n];
             for (k, c) in clusters.iter().enumerate() {
@@ -207,19 +215,21 @@ impl SolverLayout {
         }
         let range = [start, self.member_particle.len() as u32];
         let stiffness = spec.stiffness;
+        // the batched fit expects unit warm starts
+        let rotation = warm_start(spec.rotation);
         match slot {
             Some(k) => {
                 self.cluster_range[k] = range;
                 self.colour_of[k] = colour;
                 self.stiffness[k] = stiffness;
-                self.rotations[k] = spec.rotation;
+                self.rotations[k] = rotation;
                 k
             }
             None => {
                 self.cluster_range.push(range);
                 self.colour_of.push(colour);
                 self.stiffness.push(stiffness);
-                self.rotations.push(spec.rotation);
+                self.rotations.push(rotation);
                 self.offset_bias.push(Vec3A::ZERO);
                 self.inv_weight_sum.push(0.0);
                 self.cluster_range.len() - 1

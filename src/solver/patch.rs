@@ -125,6 +125,7 @@ impl SolverLayout {
             self.compact_members();
         }
         (self.colour_order, self.colour_start) = order_by_colour(&self.colour_of, FREE_SLOT);
+        self.build_batches();
         Some(slots)
     }
 

@@ -1,11 +1,5 @@
 //! Colour sweeps: the clusters of one colour share no particle, so their tasks may write
-//! their members' entries in parallel. [`Disjoint`] carries those writes; the sweep runs
-//! the colours one after another and fits each cluster for the caller.
-
-use super::fit::{ClusterFrame, fit_cluster};
-use super::{CLUSTERS_PER_TASK, SolverLayout};
-use glam::{Quat, Vec3A};
-use rayon::prelude::*;
+//! their members' entries in parallel. [`Disjoint`] carries those writes.
 
 /// A per-particle or per-cluster array written by the tasks of one colour.
 ///
@@ -26,6 +20,11 @@ impl<T: Copy> Disjoint<T> {
         Self(v.as_mut_ptr())
     }
 
+    /// The array's first entry.
+    pub(super) fn as_ptr(self) -> *const T {
+        self.0
+    }
+
     /// Reads entry `i`.
     ///
     /// # Safety
@@ -44,47 +43,5 @@ impl<T: Copy> Disjoint<T> {
     pub(super) unsafe fn write(self, i: usize, value: T) {
         // SAFETY: guaranteed by the caller.
         unsafe { self.0.add(i).write(value) }
-    }
-}
-
-impl SolverLayout {
-    /// Fits cluster `k` inside a colour sweep, reading positions through `position` and
-    /// updating its warm-start rotation through `rotations`. Returns the member range
-    /// (into `member_particle` and `member_moment`), the frame and the stiffness.
-    ///
-    /// # Safety
-    /// The caller is the task that owns cluster `k` in the current colour.
-    #[inline(always)]
-    pub(super) unsafe fn fit_in_sweep(
-        &self,
-        k: usize,
-        position: impl Fn(usize) -> Vec3A,
-        rotations: Disjoint<Quat>,
-    ) -> (std::ops::Range<usize>, ClusterFrame, f32) {
-        let [start, end] = self.cluster_range[k];
-        let range = start as usize..end as usize;
-        let constants = self.constants(k);
-        // SAFETY: rotation `k` belongs to the calling task (the caller's contract).
-        let mut rotation = unsafe { rotations.read(k) };
-        let frame = fit_cluster(
-            &self.member_particle[range.clone()],
-            &self.member_moment[range.clone()],
-            position,
-            constants,
-            &mut rotation,
-        );
-        // SAFETY: as above.
-        unsafe { rotations.write(k, rotation) };
-        (range, frame, constants.stiffness)
-    }
-
-    /// Runs `f(k)` for every cluster `k`, colour after colour; the clusters of one colour
-    /// run in parallel (they share no particle).
-    pub(super) fn for_each_cluster_by_colour(&self, f: impl Fn(usize) + Sync) {
-        for colour in self.colour_start.windows(2) {
-            self.colour_order[colour[0] as usize..colour[1] as usize]
-                .par_chunks(CLUSTERS_PER_TASK)
-                .for_each(|chunk| chunk.iter().for_each(|&k| f(k as usize)));
-        }
     }
 }
