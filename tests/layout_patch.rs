@@ -21,7 +21,7 @@ fn clusters_of(cache: &SolverCache) -> Clusters {
             let mut list: Vec<(u32, Vec4)> = members
                 .iter()
                 .zip(cache.layout.member_moments(k))
-                .map(|(d, q)| (cache.owners[*d as usize].1, *q))
+                .map(|(d, q)| (cache.owners[*d as usize].1, q))
                 .collect();
             list.sort_by_key(|(p, _)| *p);
             (cache.clusters[k], list)

@@ -5,20 +5,27 @@
 //! every row's pull `s (R q + c − p)` is computed eight wide; the caller applies the
 //! pulls member by member.
 //!
+//! Batches persist across patches (see `patch.rs`): a removed cluster leaves an empty
+//! lane, new clusters are appended in new batches of their colour, and a cluster whose
+//! weights changed has its lane rewritten; the batches are laid out afresh only when a
+//! quarter of all lanes are empty.
+//!
 //! A fit is done relative to the cluster's first member so that goals keep full
 //! precision far from the origin; a lane's padding rows (past its cluster's size) have
 //! weight 0 and sit at that origin, so they add nothing.
 
 use super::sweep::Disjoint;
-use super::{CLUSTERS_PER_TASK, ROTATION_ITERATIONS, SolverLayout};
+use super::{CLUSTERS_PER_TASK, PATCH_HEADROOM, ROTATION_ITERATIONS, SolverLayout};
 use crate::lanes::{LANES, Mat3x8, Quatx8, Vec3x8};
 use crate::rotation::extract_rotation_x8;
 use glam::{Quat, Vec3A};
 use rayon::prelude::*;
 use wide::f32x8;
 
-/// Member `j` of each of a batch's clusters, as fixed by the layout: rebuilt by
-/// [`SolverLayout::build_batches`] whenever the clusters change.
+/// Lane marker: no cluster.
+const EMPTY_LANE: u32 = u32::MAX;
+
+/// Member `j` of each of a batch's clusters, as fixed by the layout.
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct BatchRow {
     /// Rest offsets `q` from the cluster's rest centroid (padding: 0).
@@ -39,78 +46,251 @@ pub(super) struct FitRow {
     pub(super) pull: [Vec3A; LANES],
 }
 
+/// The clusters in batches of [`LANES`] clusters of one colour.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Batches {
+    /// All batches' rows.
+    rows: Vec<BatchRow>,
+    /// Per batch: its first row; one entry more than batches.
+    start: Vec<u32>,
+    /// Per batch: the cluster slot of each lane ([`EMPTY_LANE`] for none).
+    lanes: Vec<[u32; LANES]>,
+    /// Per colour: its batches.
+    of_colour: Vec<Vec<u32>>,
+    /// Per cluster slot: `batch × LANES + lane`.
+    place: Vec<u32>,
+    /// Lanes without a cluster.
+    empty_lanes: usize,
+}
+
+impl Batches {
+    /// Heap bytes held.
+    pub(super) fn heap_bytes(&self) -> usize {
+        self.rows.capacity() * size_of::<BatchRow>()
+            + self.lanes.capacity() * size_of::<[u32; LANES]>()
+            + (self.start.capacity() + self.place.capacity()) * 4
+            + self
+                .of_colour
+                .iter()
+                .map(|b| b.capacity() * 4)
+                .sum::<usize>()
+    }
+
+    /// Number of batches.
+    #[cfg(test)]
+    pub(super) fn len(&self) -> usize {
+        self.lanes.len()
+    }
+
+    /// Whether cluster slot `k` has a lane.
+    pub(super) fn has_lane(&self, k: usize) -> bool {
+        self.place.get(k).is_some_and(|p| *p != u32::MAX)
+    }
+
+    /// Whether so many lanes are empty that the batches should be laid out afresh.
+    pub(super) fn fragmented(&self) -> bool {
+        4 * self.empty_lanes > self.lanes.len() * LANES
+    }
+}
+
 impl SolverLayout {
     /// Groups each colour's clusters into batches of [`LANES`] (in colour order) and
-    /// lays out their rows; called after every build or patch.
+    /// lays out all rows (in parallel): after a build, or a patch that left the batches
+    /// fragmented.
     pub(super) fn build_batches(&mut self) {
-        let size = |k: u32| {
-            let [start, end] = self.cluster_range[k as usize];
-            (end - start) as usize
+        let old = std::mem::take(&mut self.batches);
+        let mut batches = Batches {
+            place: vec![u32::MAX; self.cluster_range.len()],
+            ..Batches::default()
         };
-        let mut batch_start = vec![0u32];
-        let mut colour_batches = vec![0u32];
+        batches.start.push(0);
         for colour in self.colour_start.windows(2) {
-            for batch in self.colour_order[colour[0] as usize..colour[1] as usize].chunks(LANES) {
-                let rows = batch.iter().map(|k| size(*k)).max().unwrap_or(0);
-                batch_start.push(batch_start[batch_start.len() - 1] + rows as u32);
-            }
-            colour_batches.push(batch_start.len() as u32 - 1);
+            let clusters = &self.colour_order[colour[0] as usize..colour[1] as usize];
+            let ids = clusters
+                .chunks(LANES)
+                .map(|chunk| self.add_batch(&mut batches, chunk))
+                .collect();
+            batches.of_colour.push(ids);
         }
-        let mut rows = vec![BatchRow::default(); batch_start[batch_start.len() - 1] as usize];
-        let batches = self.colour_start.windows(2).flat_map(|colour| {
-            self.colour_order[colour[0] as usize..colour[1] as usize].chunks(LANES)
-        });
-        for (batch, range) in batches.zip(batch_start.windows(2)) {
-            let rows = &mut rows[range[0] as usize..range[1] as usize];
-            for (l, &k) in batch.iter().enumerate() {
-                let [start, end] = self.cluster_range[k as usize];
-                let range = start as usize..end as usize;
-                let members = &self.member_particle[range.clone()];
-                for (row, (&m, moment)) in rows
-                    .iter_mut()
-                    .zip(members.iter().zip(&self.member_moment[range]))
-                {
-                    row.offset.x.as_mut_array()[l] = moment.x;
-                    row.offset.y.as_mut_array()[l] = moment.y;
-                    row.offset.z.as_mut_array()[l] = moment.z;
-                    row.weight.as_mut_array()[l] = moment.w;
-                    row.particle[l] = m;
-                }
-                let first = members.first().copied().unwrap_or(0);
-                for row in &mut rows[members.len()..] {
-                    row.particle[l] = first;
-                }
-            }
+        // the old rows' allocation is reused: a fresh one would page-fault every time
+        let mut rows = old.rows;
+        rows.clear();
+        let len = batches.start[batches.lanes.len()] as usize;
+        rows.reserve(len + len / PATCH_HEADROOM);
+        rows.resize(len, BatchRow::default());
+        let mut rest = rows.as_mut_slice();
+        let mut per_batch = Vec::with_capacity(batches.lanes.len());
+        for range in batches.start.windows(2) {
+            let (head, tail) = rest.split_at_mut((range[1] - range[0]) as usize);
+            per_batch.push(head);
+            rest = tail;
         }
-        self.batch_rows = rows;
-        self.batch_start = batch_start;
-        self.colour_batches = colour_batches;
+        per_batch
+            .into_par_iter()
+            .zip(&batches.lanes)
+            .with_min_len(64)
+            .for_each(|(rows, lanes)| {
+                for (l, &k) in lanes.iter().enumerate() {
+                    if k != EMPTY_LANE {
+                        self.write_lane(rows, l, k as usize);
+                    }
+                }
+            });
+        batches.rows = rows;
+        self.batches = batches;
     }
 
-    /// Runs `f(batch, slots, fit_rows)` for every batch of up to [`LANES`] cluster
-    /// slots, colour after colour; the batches of one colour run in parallel (their
-    /// clusters share no particle). `fit_rows` is scratch for [`Self::fit_batch`].
-    pub(super) fn for_each_batch_by_colour(
-        &self,
-        f: impl Fn(usize, &[u32], &mut Vec<FitRow>) + Sync,
-    ) {
-        for (colour, batches) in self.colour_batches.windows(2).enumerate() {
-            let clusters =
-                self.colour_start[colour] as usize..self.colour_start[colour + 1] as usize;
-            let order = &self.colour_order[clusters];
-            (batches[0] as usize..batches[1] as usize)
-                .into_par_iter()
+    /// Appends a batch of the clusters `slots` (at most [`LANES`]) to `batches` without
+    /// writing its rows (they stay as the caller leaves them); returns its index.
+    fn add_batch(&self, batches: &mut Batches, slots: &[u32]) -> u32 {
+        let b = batches.lanes.len() as u32;
+        let mut lanes = [EMPTY_LANE; LANES];
+        lanes[..slots.len()].copy_from_slice(slots);
+        let rows = slots
+            .iter()
+            .map(|&k| self.cluster_size(k as usize))
+            .max()
+            .unwrap_or(0);
+        for (l, &k) in slots.iter().enumerate() {
+            batches.place[k as usize] = b * LANES as u32 + l as u32;
+        }
+        batches.lanes.push(lanes);
+        batches.empty_lanes += LANES - slots.len();
+        let last = batches.start[batches.start.len() - 1];
+        batches.start.push(last + rows as u32);
+        b
+    }
+
+    /// Number of members of cluster slot `k`.
+    #[inline]
+    fn cluster_size(&self, k: usize) -> usize {
+        let [start, end] = self.cluster_range[k];
+        (end - start) as usize
+    }
+
+    /// Writes lane `l` of a batch's `rows` for cluster slot `k`: its members' rest
+    /// offsets, weights and particles, then padding at its first member.
+    fn write_lane(&self, rows: &mut [BatchRow], l: usize, k: usize) {
+        let [start, end] = self.cluster_range[k];
+        let members = &self.member_particle[start as usize..end as usize];
+        let centroid = self.rest_centroid[k];
+        for (row, &m) in rows.iter_mut().zip(members) {
+            let offset = self.rest[m as usize] - centroid;
+            row.offset.x.as_mut_array()[l] = offset.x;
+            row.offset.y.as_mut_array()[l] = offset.y;
+            row.offset.z.as_mut_array()[l] = offset.z;
+            row.weight.as_mut_array()[l] = self.weight(m);
+            row.particle[l] = m;
+        }
+        let first = members.first().copied().unwrap_or(0);
+        for row in &mut rows[members.len()..] {
+            row.offset.x.as_mut_array()[l] = 0.0;
+            row.offset.y.as_mut_array()[l] = 0.0;
+            row.offset.z.as_mut_array()[l] = 0.0;
+            row.weight.as_mut_array()[l] = 0.0;
+            row.particle[l] = first;
+        }
+    }
+
+    /// The batch and lane of cluster slot `k`.
+    fn place(&self, k: usize) -> (usize, usize) {
+        let place = self.batches.place[k] as usize;
+        (place / LANES, place % LANES)
+    }
+
+    /// `(q, w)` of every member of cluster slot `k`, read from its lane.
+    pub(super) fn lane_moments(&self, k: usize) -> Vec<glam::Vec4> {
+        let (b, l) = self.place(k);
+        self.batch_rows(b)[..self.cluster_size(k)]
+            .iter()
+            .map(|row| {
+                glam::Vec4::new(
+                    row.offset.x.as_array()[l],
+                    row.offset.y.as_array()[l],
+                    row.offset.z.as_array()[l],
+                    row.weight.as_array()[l],
+                )
+            })
+            .collect()
+    }
+
+    /// Patch step: empties the lane of cluster slot `k` (call before the slot is freed).
+    pub(super) fn clear_lane(&mut self, k: usize) {
+        let (b, l) = self.place(k);
+        let range = self.batches.start[b] as usize..self.batches.start[b + 1] as usize;
+        for row in &mut self.batches.rows[range] {
+            row.weight.as_mut_array()[l] = 0.0;
+            row.particle[l] = 0;
+        }
+        self.batches.lanes[b][l] = EMPTY_LANE;
+        self.batches.place[k] = u32::MAX;
+        self.batches.empty_lanes += 1;
+    }
+
+    /// Patch step: rewrites the lane of cluster slot `k` (its weights changed).
+    pub(super) fn rewrite_lane(&mut self, k: usize) {
+        let (b, l) = self.place(k);
+        let range = self.batches.start[b] as usize..self.batches.start[b + 1] as usize;
+        let mut rows = std::mem::take(&mut self.batches.rows);
+        self.write_lane(&mut rows[range], l, k);
+        self.batches.rows = rows;
+    }
+
+    /// Patch step: puts the new clusters `added` (slots) into new batches, grouped by
+    /// colour, or lays all batches out afresh when they are fragmented.
+    pub(super) fn batch_added(&mut self, added: &[u32]) {
+        if self.batches.fragmented() {
+            self.build_batches();
+            return;
+        }
+        let mut added: Vec<u32> = added.to_vec();
+        added.sort_unstable_by_key(|&k| (self.colour_of[k as usize], k));
+        let mut batches = std::mem::take(&mut self.batches);
+        batches.place.resize(self.cluster_range.len(), u32::MAX);
+        for group in
+            added.chunk_by(|a, b| self.colour_of[*a as usize] == self.colour_of[*b as usize])
+        {
+            let colour = self.colour_of[group[0] as usize] as usize;
+            if batches.of_colour.len() <= colour {
+                batches.of_colour.resize(colour + 1, Vec::new());
+            }
+            for chunk in group.chunks(LANES) {
+                let b = self.add_batch(&mut batches, chunk);
+                batches.of_colour[colour].push(b);
+                let rows = batches.start[b as usize + 1] - batches.start[b as usize];
+                batches
+                    .rows
+                    .resize(batches.rows.len() + rows as usize, BatchRow::default());
+                let range =
+                    batches.start[b as usize] as usize..batches.start[b as usize + 1] as usize;
+                for (l, &k) in chunk.iter().enumerate() {
+                    self.write_lane(&mut batches.rows[range.clone()], l, k as usize);
+                }
+            }
+        }
+        self.batches = batches;
+    }
+
+    /// Runs `f(batch, fit_rows)` for every batch, colour after colour; the batches of
+    /// one colour run in parallel (their clusters share no particle). `fit_rows` is
+    /// scratch for [`Self::fit_batch`].
+    pub(super) fn for_each_batch_by_colour(&self, f: impl Fn(usize, &mut Vec<FitRow>) + Sync) {
+        for batches in &self.batches.of_colour {
+            batches
+                .par_iter()
                 .with_min_len(CLUSTERS_PER_TASK / LANES)
-                .for_each_init(Vec::new, |fit_rows, b| {
-                    let first = (b - batches[0] as usize) * LANES;
-                    let slots = &order[first..(first + LANES).min(order.len())];
-                    f(b, slots, fit_rows)
-                });
+                .for_each_init(Vec::new, |fit_rows, &b| f(b as usize, fit_rows));
         }
     }
 
-    /// Fits the clusters of batch `b` (`slots`: its cluster slots) to the particle
-    /// positions at `positions`, updates their warm-start rotations, and leaves in `fit_rows`
+    /// The rows of batch `b`.
+    #[inline(always)]
+    pub(super) fn batch_rows(&self, b: usize) -> &[BatchRow] {
+        let start = &self.batches.start;
+        &self.batches.rows[start[b] as usize..start[b + 1] as usize]
+    }
+
+    /// Fits the clusters of batch `b` to the particle positions at `positions`, updates their warm-start rotations, and leaves in `fit_rows`
     /// every member's position and pull. Returns the size of each lane's cluster (0 for
     /// unused lanes): row `j` of lane `l` is a member for `j < size[l]`, its particle
     /// `self.batch_rows(b)[j].particle[l]`.
@@ -123,7 +303,6 @@ impl SolverLayout {
     pub(super) unsafe fn fit_batch(
         &self,
         b: usize,
-        slots: &[u32],
         fit_rows: &mut Vec<FitRow>,
         positions: *const Vec3A,
         rotations: Disjoint<Quat>,
@@ -137,10 +316,13 @@ impl SolverLayout {
         let mut warm = [Quat::IDENTITY; LANES];
         let mut bias = [Vec3A::ZERO; LANES];
         let (mut inv_weight_sum, mut stiffness) = ([0.0f32; LANES], [0.0f32; LANES]);
-        for (l, &k) in slots.iter().enumerate() {
+        let lanes = &self.batches.lanes[b];
+        for (l, &k) in lanes.iter().enumerate() {
+            if k == EMPTY_LANE {
+                continue;
+            }
             let k = k as usize;
-            let [start, end] = self.cluster_range[k];
-            size[l] = (end - start) as usize;
+            size[l] = self.cluster_size(k);
             // SAFETY: rotation `k` belongs to the calling task (the caller's contract).
             warm[l] = unsafe { rotations.read(k) };
             bias[l] = self.offset_bias[k];
@@ -168,9 +350,11 @@ impl SolverLayout {
             a.z_axis = d.mul_add(row.offset.z, a.z_axis);
         }
         let q = extract_rotation_x8(&a, Quatx8::from_lanes(warm), ROTATION_ITERATIONS);
-        for (l, &k) in slots.iter().enumerate() {
-            // SAFETY: as above.
-            unsafe { rotations.write(k as usize, q.lane(l)) };
+        for (l, &k) in lanes.iter().enumerate() {
+            if k != EMPTY_LANE {
+                // SAFETY: as above.
+                unsafe { rotations.write(k as usize, q.lane(l)) };
+            }
         }
         let r = Mat3x8::from_quat(q);
         // Σ w (R q + c − d) = R·bias + c·W − Σ w d = 0 exactly when c = (Σ w d − R·bias)/W.
@@ -188,11 +372,5 @@ impl SolverLayout {
             fit.pull = (goal - fit.position.scale(s)).to_lanes();
         }
         size
-    }
-
-    /// The rows of batch `b`.
-    #[inline(always)]
-    pub(super) fn batch_rows(&self, b: usize) -> &[BatchRow] {
-        &self.batch_rows[self.batch_start[b] as usize..self.batch_start[b + 1] as usize]
     }
 }

@@ -16,11 +16,11 @@ impl SolverLayout {
         let this = &*self;
         // `self`'s other arrays are only read; positions, corrections and rotations go
         // through the `Disjoint` pointers (no reference to them is alive in a colour).
-        this.for_each_batch_by_colour(|b, slots, fit_rows| {
+        this.for_each_batch_by_colour(|b, fit_rows| {
             // SAFETY (both blocks): this task owns the batch's clusters, their rotations
             // and their members' positions and corrections for the colour (see
             // `Disjoint`); member indices were bounds-checked when the layout was built.
-            let size = unsafe { this.fit_batch(b, slots, fit_rows, positions.as_ptr(), rotations) };
+            let size = unsafe { this.fit_batch(b, fit_rows, positions.as_ptr(), rotations) };
             let rows = this.batch_rows(b);
             for (l, size) in size.iter().enumerate() {
                 for (row, fit) in rows[..*size].iter().zip(fit_rows.iter()) {

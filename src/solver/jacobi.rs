@@ -15,12 +15,11 @@ impl SolverLayout {
         let pulls = Disjoint::new(&mut self.pulls);
         let rotations = Disjoint::new(&mut self.rotations);
         let this = &*self;
-        this.for_each_batch_by_colour(|b, slots, fit_rows| {
+        this.for_each_batch_by_colour(|b, fit_rows| {
             // SAFETY: this task owns the batch's clusters, their rotations and their
             // members' pulls for the colour (see `Disjoint`); member indices were
             // bounds-checked when the layout was built.
-            let size =
-                unsafe { this.fit_batch(b, slots, fit_rows, this.positions.as_ptr(), rotations) };
+            let size = unsafe { this.fit_batch(b, fit_rows, this.positions.as_ptr(), rotations) };
             let rows = this.batch_rows(b);
             for (l, size) in size.iter().enumerate() {
                 for (row, fit) in rows[..*size].iter().zip(fit_rows.iter()) {

@@ -34,7 +34,7 @@ pub use colouring::{colour_clusters, order_by_colour};
 
 use crate::config::SolverMode;
 use crate::rotation::warm_start;
-use glam::{Quat, Vec3, Vec3A, Vec4};
+use glam::{Quat, Vec3, Vec3A};
 use rayon::prelude::*;
 
 /// Müller iterations per cluster per solver iteration (warm-started, so one suffices).
@@ -49,6 +49,10 @@ pub const ROUNDING_FLOOR: f32 = 16.0 * f32::EPSILON;
 
 /// Colour of a free cluster slot.
 const FREE_SLOT: u32 = u32::MAX;
+
+/// Arrays that patches append to are allocated with `1/PATCH_HEADROOM` spare room, so
+/// that a cut does not copy them (tens of megabytes on a large body).
+const PATCH_HEADROOM: usize = 8;
 
 /// Clusters per parallel task.
 const CLUSTERS_PER_TASK: usize = 128;
@@ -105,20 +109,16 @@ pub struct SolverLayout {
     /// Memberships in the member arrays that belong to no cluster any more.
     garbage: usize,
     member_particle: Vec<u32>,
-    /// Per membership: `(q, w)` with `q = x̄ − x̄_c` the rest offset from the cluster's
-    /// weighted rest centroid and `w` the matching weight.
-    member_moment: Vec<Vec4>,
+    /// Per cluster slot: the weighted rest centroid `x̄_c`; member `i`'s rest offset is
+    /// `x̄ᵢ − x̄_c`, its matching weight [`SolverLayout::weight`].
+    rest_centroid: Vec<Vec3A>,
     offset_bias: Vec<Vec3A>,
     inv_weight_sum: Vec<f32>,
     stiffness: Vec<f32>,
     colour_order: Vec<u32>,
     colour_start: Vec<u32>,
-    /// The clusters' memberships in batches of eight clusters (see `batch.rs`).
-    batch_rows: Vec<batch::BatchRow>,
-    /// Per batch (in colour order): its first row; one entry more than batches.
-    batch_start: Vec<u32>,
-    /// Per colour: its first batch; one entry more than colours.
-    colour_batches: Vec<u32>,
+    /// The clusters in batches of eight, as the kernel reads them (see `batch.rs`).
+    batches: batch::Batches,
 }
 
 impl SolverLayout {
@@ -145,14 +145,17 @@ impl SolverLayout {
             ..Default::default()
         };
         let memberships: usize = clusters.iter().map(|c| c.members.len()).sum();
-        layout.member_particle.reserve_exact(memberships);
-        layout.member_moment.reserve_exact(memberships);
+        // headroom for the clusters later patches add: growing the array would copy it
+        layout
+            .member_particle
+            .reserve_exact(memberships + memberships / PATCH_HEADROOM);
         let count = clusters.len();
         layout.cluster_range.reserve_exact(count);
         layout.colour_of.reserve_exact(count);
         layout.stiffness.reserve_exact(count);
         layout.rotations.reserve_exact(count);
         layout.offset_bias.reserve_exact(count);
+        layout.rest_centroid.reserve_exact(count);
         layout.inv_weight_sum.reserve_exact(count);
         for c in &clusters {
             layout.push_cluster(c, None, 0);
@@ -163,7 +166,7 @@ impl SolverLayout {
             .map(|c| if *c > 0 { 1.0 / *c as f32 } else { 0.0 })
             .collect();
         for k in 0..clusters.len() {
-            layout.fill_moments(k);
+            layout.fill_constants(k);
         }
         // particle → clusters, only to colour the clusters
         let mut particle_start = Vec::with_capacity(n + 1);
@@ -204,12 +207,10 @@ impl SolverLayout {
     }
 
     /// Appends cluster `spec` in `slot` (a new slot when `None`) with colour `colour`;
-    /// counts its memberships. Its moments are filled later ([`Self::fill_moments`]).
+    /// counts its memberships. Its constants are filled later ([`Self::fill_constants`]).
     fn push_cluster(&mut self, spec: &ClusterSpec, slot: Option<usize>, colour: u32) -> usize {
         let start = self.member_particle.len() as u32;
         self.member_particle.extend_from_slice(spec.members);
-        self.member_moment
-            .resize(self.member_particle.len(), Vec4::ZERO);
         for &m in spec.members {
             self.member_count[m as usize] += 1;
         }
@@ -231,38 +232,42 @@ impl SolverLayout {
                 self.stiffness.push(stiffness);
                 self.rotations.push(rotation);
                 self.offset_bias.push(Vec3A::ZERO);
+                self.rest_centroid.push(Vec3A::ZERO);
                 self.inv_weight_sum.push(0.0);
                 self.cluster_range.len() - 1
             }
         }
     }
 
-    /// Computes the rest offsets, weights, offset bias and weight sum of cluster `k`
-    /// from the rest positions and (Jacobi) the current membership counts.
-    fn fill_moments(&mut self, k: usize) {
-        let [start, end] = self.cluster_range[k];
-        let range = start as usize..end as usize;
-        let members = &self.member_particle[range.clone()];
-        let weight = |m: u32| match self.mode {
+    /// The matching weight of particle `m` in every cluster: `1/nᵢ` for Jacobi (with
+    /// the current membership counts), 1 for Gauss–Seidel.
+    #[inline]
+    fn weight(&self, m: u32) -> f32 {
+        match self.mode {
             SolverMode::Jacobi => self.inv_count[m as usize],
             SolverMode::GaussSeidel => 1.0,
-        };
+        }
+    }
+
+    /// Computes the weighted rest centroid, offset bias and weight sum of cluster `k`
+    /// from the rest positions and (Jacobi) the current membership counts.
+    fn fill_constants(&mut self, k: usize) {
+        let [start, end] = self.cluster_range[k];
+        let members = &self.member_particle[start as usize..end as usize];
         let rest = &self.rest;
-        let total: f32 = members.iter().map(|m| weight(*m)).sum();
+        let total: f32 = members.iter().map(|m| self.weight(*m)).sum();
         let centroid = members
             .iter()
-            .map(|m| rest[*m as usize] * weight(*m))
+            .map(|m| rest[*m as usize] * self.weight(*m))
             .sum::<Vec3A>()
             / total;
         // Σ w (x̄ − x̄_c) is zero up to rounding; the fit subtracts its rotated
         // rounding residue so that every cluster's pull has exactly zero momentum.
         let bias: Vec3A = members
             .iter()
-            .map(|m| (rest[*m as usize] - centroid) * weight(*m))
+            .map(|m| (rest[*m as usize] - centroid) * self.weight(*m))
             .sum();
-        for (moment, &m) in self.member_moment[range].iter_mut().zip(members) {
-            *moment = (rest[m as usize] - centroid).extend(weight(m));
-        }
+        self.rest_centroid[k] = centroid;
         self.offset_bias[k] = bias;
         self.inv_weight_sum[k] = 1.0 / total;
     }
@@ -298,7 +303,7 @@ impl SolverLayout {
         let v3 = size_of::<Vec3A>();
         self.positions.capacity() * v3 * 7
             + self.inv_mass.capacity() * 4 * 2
-            + self.member_moment.capacity() * size_of::<Vec4>()
+            + self.batches.heap_bytes()
             + self.rotations.capacity() * size_of::<Quat>()
             + self.cluster_range.capacity() * 8
             + self.colour_of.capacity() * 4
@@ -309,7 +314,7 @@ impl SolverLayout {
                 + self.colour_order.capacity()
                 + self.colour_start.capacity())
                 * 4
-            + self.offset_bias.capacity() * v3
+            + (self.offset_bias.capacity() + self.rest_centroid.capacity()) * v3
             + self.inv_weight_sum.capacity() * 4 * 2
     }
 

@@ -27,10 +27,10 @@ impl SolverLayout {
     }
 
     /// Rest offsets from the weighted rest centroid and matching weights, `(q, w)`, of
-    /// the members of cluster slot `k` (in the order of [`SolverLayout::clusters`]).
-    pub fn member_moments(&self, k: usize) -> &[glam::Vec4] {
-        let [start, end] = self.cluster_range[k];
-        &self.member_moment[start as usize..end as usize]
+    /// the members of cluster slot `k` (in the order of [`SolverLayout::clusters`]), as
+    /// the kernel reads them.
+    pub fn member_moments(&self, k: usize) -> Vec<glam::Vec4> {
+        self.lane_moments(k)
     }
 
     /// Removes the clusters in slots `removed`, adds `added` (members are particle
@@ -58,6 +58,7 @@ impl SolverLayout {
             if self.colour_of.get(k).is_none_or(|c| *c == FREE_SLOT) {
                 continue;
             }
+            self.clear_lane(k);
             let bit = !(1u64 << self.colour_of[k]);
             let [start, end] = self.cluster_range[k];
             for &m in &self.member_particle[start as usize..end as usize] {
@@ -98,7 +99,7 @@ impl SolverLayout {
             }
         }
         // Jacobi weights are 1/nᵢ: every cluster holding a particle whose count changed
-        // needs new rest offsets; Gauss–Seidel weights are 1, so only the new clusters.
+        // needs a new rest centroid; Gauss–Seidel weights are 1, so only the new clusters.
         let refresh: Vec<usize> = match self.mode {
             SolverMode::Jacobi => self
                 .cluster_range
@@ -119,13 +120,19 @@ impl SolverLayout {
                 .collect(),
         };
         for k in refresh {
-            self.fill_moments(k);
+            self.fill_constants(k);
+            // a cluster already in a batch: its lane gets the new weights (new clusters
+            // are written when they are batched below)
+            if self.batches.has_lane(k) {
+                self.rewrite_lane(k);
+            }
         }
         if 2 * self.garbage > self.member_particle.len() {
             self.compact_members();
         }
         (self.colour_order, self.colour_start) = order_by_colour(&self.colour_of, FREE_SLOT);
-        self.build_batches();
+        let new: Vec<u32> = slots.iter().copied().filter(|k| *k != u32::MAX).collect();
+        self.batch_added(&new);
         Some(slots)
     }
 
@@ -133,16 +140,13 @@ impl SolverLayout {
     fn compact_members(&mut self) {
         let live = self.member_particle.len() - self.garbage;
         let mut particles = Vec::with_capacity(live);
-        let mut moments = Vec::with_capacity(live);
         for range in &mut self.cluster_range {
             let (start, end) = (range[0] as usize, range[1] as usize);
             let new_start = particles.len() as u32;
             particles.extend_from_slice(&self.member_particle[start..end]);
-            moments.extend_from_slice(&self.member_moment[start..end]);
             *range = [new_start, particles.len() as u32];
         }
         self.member_particle = particles;
-        self.member_moment = moments;
         self.garbage = 0;
     }
 }
@@ -153,10 +157,11 @@ mod tests {
     use crate::solver::Colliders;
     use glam::{Quat, Vec3};
 
-    /// A 10-particle bar with clusters of three consecutive particles.
+    /// A 200-particle bar with clusters of three consecutive particles (enough batches
+    /// for a small patch to update them in place).
     fn bar_clusters() -> (Vec<Vec3>, Vec<Vec<u32>>) {
-        let rest = (0..10).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
-        let clusters = (0..8).map(|i| vec![i, i + 1, i + 2]).collect();
+        let rest = (0..200).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
+        let clusters = (0..198).map(|i| vec![i, i + 1, i + 2]).collect();
         (rest, clusters)
     }
 
@@ -175,10 +180,7 @@ mod tests {
     fn moments(l: &SolverLayout) -> Vec<(Vec<u32>, Vec<glam::Vec4>)> {
         let mut out: Vec<_> = l
             .clusters()
-            .map(|(k, m)| {
-                let [s, e] = l.cluster_range[k];
-                (m.to_vec(), l.member_moment[s as usize..e as usize].to_vec())
-            })
+            .map(|(k, m)| (m.to_vec(), l.member_moments(k)))
             .collect();
         out.sort_by(|a, b| a.0.cmp(&b.0));
         out
@@ -195,8 +197,8 @@ mod tests {
                 .patch(&[3, 4, 5], &specs(&pieces), &[5])
                 .expect("patchable");
             assert_eq!(slots.len(), 2);
-            assert_eq!(patched.cluster_count(), 7);
-            assert_eq!(patched.membership_count(), 5 * 3 + 4);
+            assert_eq!(patched.cluster_count(), 197);
+            assert_eq!(patched.membership_count(), 195 * 3 + 4);
             let mut kept: Vec<Vec<u32>> = clusters
                 .iter()
                 .enumerate()
@@ -206,6 +208,9 @@ mod tests {
             kept.extend(pieces);
             let mut rebuilt = SolverLayout::new(&rest, specs(&kept), mode);
             rebuilt.inv_mass[5] = 0.0;
+            // the patch emptied three lanes and appended batches instead of laying out
+            // all batches again
+            assert!(patched.batches.len() > rebuilt.batches.len());
             // the same clusters with the same rest offsets and weights (Jacobi weights
             // 1/nᵢ changed at particles 3, 4, 6, 7 and at their other clusters)
             let (a, b) = (moments(&patched), moments(&rebuilt));
@@ -246,7 +251,7 @@ mod tests {
             assert_eq!(slots, vec![k as u32], "the freed slot is reused");
             assert!(l.member_particle.len() <= 2 * l.membership_count());
         }
-        assert_eq!(l.cluster_count(), 8);
+        assert_eq!(l.cluster_count(), 198);
         for group in l.colour_start.windows(2) {
             let mut seen = vec![false; rest.len()];
             for &k in &l.colour_order[group[0] as usize..group[1] as usize] {
