@@ -290,8 +290,9 @@ impl SolverLayout {
         &self.batches.rows[start[b] as usize..start[b + 1] as usize]
     }
 
-    /// Fits the clusters of batch `b` to the particle positions at `positions`, updates their warm-start rotations, and leaves in `fit_rows`
-    /// every member's position and pull. Returns the size of each lane's cluster (0 for
+    /// Fits the clusters of batch `b` to the particle positions at `positions`, updates
+    /// their warm-start rotations, and leaves in `fit_rows` every member's position and
+    /// pull. Returns the size of each lane's cluster (0 for
     /// unused lanes): row `j` of lane `l` is a member for `j < size[l]`, its particle
     /// `self.batch_rows(b)[j].particle[l]`.
     ///
