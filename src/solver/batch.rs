@@ -198,8 +198,10 @@ impl SolverLayout {
         (place / LANES, place % LANES)
     }
 
-    /// `(q, w)` of every member of cluster slot `k`, read from its lane.
-    pub(super) fn lane_moments(&self, k: usize) -> Vec<glam::Vec4> {
+    /// Rest offsets from the weighted rest centroid and matching weights, `(q, w)`, of
+    /// the members of cluster slot `k` (in the order of [`SolverLayout::clusters`]), as
+    /// the kernel reads them from the cluster's lane.
+    pub fn member_moments(&self, k: usize) -> Vec<glam::Vec4> {
         let (b, l) = self.place(k);
         self.batch_rows(b)[..self.cluster_size(k)]
             .iter()

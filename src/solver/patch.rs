@@ -26,13 +26,6 @@ impl SolverLayout {
             .map(|(k, r)| (k, &self.member_particle[r[0] as usize..r[1] as usize]))
     }
 
-    /// Rest offsets from the weighted rest centroid and matching weights, `(q, w)`, of
-    /// the members of cluster slot `k` (in the order of [`SolverLayout::clusters`]), as
-    /// the kernel reads them.
-    pub fn member_moments(&self, k: usize) -> Vec<glam::Vec4> {
-        self.lane_moments(k)
-    }
-
     /// Removes the clusters in slots `removed`, adds `added` (members are particle
     /// indices of this layout), and freezes the `retired` particles (inverse mass 0; the
     /// caller guarantees no remaining cluster holds them). Returns the slot of each added
