@@ -38,6 +38,7 @@ pub mod solver;
 pub mod stats;
 #[path = "../systems/mod.rs"]
 pub mod systems;
+pub mod table_rows;
 pub mod tool;
 
 /// The types most users need.

@@ -95,6 +95,8 @@ pub struct SolverCache {
     pub clusters: Vec<Entity>,
     /// Cluster slot per cluster entity.
     pub slot_of: rustc_hash::FxHashMap<Entity, u32>,
+    /// Solver slot ↔ row of the particle table, for the parallel gather and scatter.
+    pub rows: crate::table_rows::TableRows,
     /// Whether the layout matches the current topology.
     pub valid: bool,
     /// How the layout was last brought up to date, and how long it took.

@@ -176,9 +176,7 @@ pub fn rebuild_cache<'b, 'c>(
         let mut map = vec![u32::MAX; l.len()];
         // Morton order keeps the members of a cluster, and the clusters of a particle,
         // close in memory.
-        let mut order: Vec<u32> = l.live_particles().collect();
-        order.sort_by_cached_key(|i| morton_code(l.coord(*i)));
-        for i in order {
+        for i in l.live_in_morton_order() {
             map[i as usize] = rest.len() as u32;
             rest.push(l.rest_position(i));
             particles.push(lattice.particles[i as usize]);
@@ -232,18 +230,4 @@ pub fn rebuild_cache<'b, 'c>(
         .map(|(k, e)| (*e, k as u32))
         .collect();
     cache.valid = true;
-}
-
-/// Interleaves the bits of a lattice coordinate (offset to non-negative) into a
-/// Z-order key.
-fn morton_code(c: glam::IVec3) -> u64 {
-    fn spread(v: i32) -> u64 {
-        let mut x = (v as i64 + (1 << 20)) as u64 & 0x1f_ffff;
-        x = (x | (x << 32)) & 0x1f_0000_0000_ffff;
-        x = (x | (x << 16)) & 0x1f_0000_ff00_00ff;
-        x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
-        x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
-        (x | (x << 2)) & 0x1249_2492_4924_9249
-    }
-    spread(c.x) | (spread(c.y) << 1) | (spread(c.z) << 2)
 }

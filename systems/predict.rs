@@ -1,8 +1,16 @@
 //! Stage predict (SPEC §2.1): gravity, damping, predicted position. Particle data only.
+//!
+//! The particle components are read as whole table columns (bevy's contiguous query
+//! iteration) and advanced in parallel chunks.
 
 use crate::components::{InvMass, Position, PrevPosition, Velocity};
 use crate::resources::SimSettings;
 use bevy_ecs::prelude::*;
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Particles per parallel task.
+const CHUNK: usize = 4096;
 
 /// `v ← (v + g·dt)·e^(−damping·dt)`, `x_prev ← x`, `x ← x + v·dt`; pinned particles stay.
 pub fn predict(
@@ -13,13 +21,21 @@ pub fn predict(
     let dt = config.dt / config.substeps as f32;
     let keep = (-config.damping * dt).exp();
     let dv = config.gravity * dt;
-    for (mut x, mut prev, mut v, inv_mass) in &mut particles {
-        prev.0 = x.0;
-        if inv_mass.0 == 0.0 {
-            v.0 = glam::Vec3::ZERO;
-            continue;
-        }
-        v.0 = (v.0 + dv) * keep;
-        x.0 += v.0 * dt;
+    let columns = particles
+        .contiguous_iter_mut()
+        .expect("particle components are stored in tables");
+    for (mut x, mut prev, mut v, inv_mass) in columns {
+        (&mut *x, &mut *prev, &mut *v, inv_mass)
+            .into_par_iter()
+            .with_min_len(CHUNK)
+            .for_each(|(x, prev, v, inv_mass)| {
+                prev.0 = x.0;
+                v.0 = if inv_mass.0 == 0.0 {
+                    Vec3::ZERO
+                } else {
+                    (v.0 + dv) * keep
+                };
+                x.0 += v.0 * dt;
+            });
     }
 }

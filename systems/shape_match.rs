@@ -7,6 +7,7 @@ use super::layout_sync::sync_layout;
 use crate::components::*;
 use crate::resources::{SimSettings, SolverCache};
 use crate::solver::Colliders;
+use crate::table_rows::ParticleColumns;
 use bevy_ecs::prelude::*;
 use glam::{Vec3, Vec3A};
 
@@ -23,6 +24,15 @@ type ChangedClusters<'w, 's> = Query<
     Or<(Changed<ClusterMembers>, Changed<Stiffness>)>,
 >;
 
+/// Particle data the stage reads and writes.
+type ParticleData = (
+    Entity,
+    &'static mut Position,
+    &'static mut Velocity,
+    &'static PrevPosition,
+    &'static InvMass,
+);
+
 /// One solver substep over all bodies.
 #[allow(clippy::too_many_arguments)]
 pub fn shape_match(
@@ -34,13 +44,7 @@ pub fn shape_match(
     changed_clusters: ChangedClusters,
     mut removed_clusters: RemovedComponents<ClusterMembers>,
     mut removed_bodies: RemovedComponents<BodyLattice>,
-    mut particles: Query<(
-        Entity,
-        &mut Position,
-        &mut Velocity,
-        &PrevPosition,
-        &InvMass,
-    )>,
+    mut particles: Query<ParticleData>,
 ) {
     let config = &settings.0;
     let removed: Vec<Entity> = removed_clusters.read().collect();
@@ -65,15 +69,32 @@ pub fn shape_match(
         );
     }
     let cache = &mut *cache;
-    for (e, x, v, prev, inv_mass) in &particles {
-        if let Some(&d) = cache.dense_of.get(e.index_u32() as usize)
-            && d != u32::MAX
-        {
-            cache.layout.positions[d as usize] = Vec3A::from(x.0);
-            cache.layout.previous[d as usize] = Vec3A::from(prev.0);
-            cache.layout.velocities[d as usize] = Vec3A::from(v.0);
-            cache.layout.inv_mass[d as usize] = inv_mass.0;
+    // Usually every particle sits in one table: its columns are copied in parallel.
+    let one_table = {
+        let mut tables = particles
+            .contiguous_iter()
+            .expect("particle components are stored in tables")
+            .filter(|(entities, ..)| !entities.is_empty());
+        match (tables.next(), tables.next()) {
+            (Some((entities, positions, velocities, previous, inv_mass)), None) => {
+                let table = ParticleColumns {
+                    entities,
+                    positions,
+                    previous,
+                    velocities,
+                    inv_mass,
+                };
+                let slots = &cache.particles;
+                cache
+                    .rows
+                    .load(&mut cache.layout, slots, &cache.dense_of, table);
+                true
+            }
+            _ => false,
         }
+    };
+    if !one_table {
+        gather_entities(cache, &particles);
     }
     let colliders = Colliders {
         ground: config.ground,
@@ -83,7 +104,39 @@ pub fn shape_match(
     cache
         .layout
         .update_velocities(config.substeps as f32 / config.dt);
-    for (e, mut x, mut v, _, _) in &mut particles {
+    if one_table {
+        let tables = particles
+            .contiguous_iter_mut()
+            .expect("particle components are stored in tables");
+        for (_, mut positions, mut velocities, ..) in tables {
+            if !positions.is_empty() {
+                cache
+                    .rows
+                    .store(&cache.layout, &mut positions, &mut velocities);
+            }
+        }
+    } else {
+        scatter_entities(cache, &mut particles);
+    }
+}
+
+/// Copies particle state into the layout entity by entity (particles in several tables).
+fn gather_entities(cache: &mut SolverCache, particles: &Query<ParticleData>) {
+    for (e, x, v, prev, inv_mass) in particles {
+        if let Some(&d) = cache.dense_of.get(e.index_u32() as usize)
+            && d != u32::MAX
+        {
+            cache.layout.positions[d as usize] = Vec3A::from(x.0);
+            cache.layout.previous[d as usize] = Vec3A::from(prev.0);
+            cache.layout.velocities[d as usize] = Vec3A::from(v.0);
+            cache.layout.inv_mass[d as usize] = inv_mass.0;
+        }
+    }
+}
+
+/// Writes the solved state back entity by entity (particles in several tables).
+fn scatter_entities(cache: &SolverCache, particles: &mut Query<ParticleData>) {
+    for (e, mut x, mut v, _, _) in particles {
         if let Some(&d) = cache.dense_of.get(e.index_u32() as usize)
             && d != u32::MAX
         {
