@@ -49,12 +49,12 @@ impl LocalGraph {
         let mut next = Vec::with_capacity(members.len() * 6);
         row.push(0);
         for &m in members {
-            next.extend(
-                lattice
-                    .neighbours(m)
-                    .map(|n| local[n as usize])
-                    .filter(|j| *j != u32::MAX),
-            );
+            for n in lattice.neighbours(m) {
+                let j = local[n as usize];
+                if j != u32::MAX {
+                    next.push(j);
+                }
+            }
             row.push(next.len() as u32);
         }
         for &m in members {
@@ -81,27 +81,36 @@ pub fn geometric_partition(
     normal: Vec3,
 ) -> Vec<bool> {
     let g = points.len();
+    // signed distance to the plane through `start`, before the flip (the flip negates)
+    let distance: Vec<f32> = points
+        .iter()
+        .map(|p| normal.dot(*p - points[start]))
+        .collect();
     let mut in_s = vec![false; g];
+    let mut visited = vec![false; g];
+    let mut negative = Vec::new();
+    let mut frontier = BinaryHeap::new();
     for flip in [1.0f32, -1.0] {
-        let d = |i: usize| flip * normal.dot(points[i] - points[start]);
-        in_s.iter_mut().for_each(|x| *x = false);
-        let mut visited = vec![false; g];
+        let d = |i: usize| flip * distance[i];
+        in_s.fill(false);
+        visited.fill(false);
+        negative.clear();
+        frontier.clear();
         let mut size = 1;
         in_s[start] = true;
         visited[start] = true;
-        let mut negative = Vec::new();
-        let mut frontier = BinaryHeap::new();
         let discover = |i: usize,
-                        visited: &mut Vec<bool>,
+                        visited: &mut [bool],
                         negative: &mut Vec<usize>,
                         frontier: &mut BinaryHeap<_>| {
             for n in graph.neighbours(i) {
                 if !visited[n] {
                     visited[n] = true;
-                    if d(n) < 0.0 {
+                    let dn = d(n);
+                    if dn < 0.0 {
                         negative.push(n);
                     } else {
-                        frontier.push(Reverse(ByDistance(d(n), n)));
+                        frontier.push(Reverse(ByDistance(dn, n)));
                     }
                 }
             }
@@ -138,38 +147,42 @@ pub fn geometric_partition(
 /// SPEC §4.3: moves every component of G − S but the largest into S. Returns
 /// membership flags of M (the remaining component).
 pub fn topological_repair(graph: &LocalGraph, in_s: &mut [bool]) -> Vec<bool> {
+    const UNSEEN: u32 = u32::MAX;
     let g = in_s.len();
-    let mut label = vec![usize::MAX; g];
-    let mut components: Vec<Vec<usize>> = Vec::new();
+    // component of every vertex of G − S, numbered in order of its smallest vertex
+    let mut label = vec![UNSEEN; g];
+    let mut sizes: Vec<usize> = Vec::new();
+    let mut stack = Vec::new();
     for start in 0..g {
-        if in_s[start] || label[start] != usize::MAX {
+        if in_s[start] || label[start] != UNSEEN {
             continue;
         }
-        let id = components.len();
-        let mut comp = vec![start];
+        let id = sizes.len() as u32;
         label[start] = id;
-        let mut queue = VecDeque::from([start]);
-        while let Some(i) = queue.pop_front() {
+        stack.push(start);
+        let mut size = 0;
+        while let Some(i) = stack.pop() {
+            size += 1;
             for n in graph.neighbours(i) {
-                if !in_s[n] && label[n] == usize::MAX {
+                if !in_s[n] && label[n] == UNSEEN {
                     label[n] = id;
-                    comp.push(n);
-                    queue.push_back(n);
+                    stack.push(n);
                 }
             }
         }
-        components.push(comp);
+        sizes.push(size);
     }
-    // Largest stays as M (first one on ties); the rest join S smallest first.
-    let keep = (0..components.len()).max_by_key(|&c| (components[c].len(), Reverse(c)));
+    // Largest stays as M (first one on ties); the rest join S.
+    let keep = (0..sizes.len()).max_by_key(|&c| (sizes[c], Reverse(c)));
     let mut in_m = vec![false; g];
-    for (c, comp) in components.iter().enumerate() {
-        for &i in comp {
-            if Some(c) == keep {
-                in_m[i] = true;
-            } else {
-                in_s[i] = true;
-            }
+    for (i, &l) in label.iter().enumerate() {
+        if l == UNSEEN {
+            continue;
+        }
+        if Some(l as usize) == keep {
+            in_m[i] = true;
+        } else {
+            in_s[i] = true;
         }
     }
     in_m
