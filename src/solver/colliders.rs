@@ -13,6 +13,53 @@ pub struct Colliders {
     pub boxes: Vec<StaticBox>,
 }
 
+impl Colliders {
+    /// Whether a collider reaches into the box `[lo, hi]`; false guarantees that
+    /// [`resolve_colliders`] leaves every point of the box where it is, so the solver
+    /// skips whole blocks of particles far from every collider.
+    pub fn may_touch(&self, lo: Vec3A, hi: Vec3A) -> bool {
+        self.ground.is_some_and(|g| lo.y < g.height)
+            || self
+                .boxes
+                .iter()
+                .any(|b| hi.cmpgt(b.min.into()).all() && lo.cmplt(b.max.into()).all())
+    }
+}
+
+/// The bounding box of positions, grown point by point; a NaN point makes it unbounded
+/// (so a block holding one is never skipped).
+#[derive(Clone, Copy, Debug)]
+pub struct Bounds {
+    lo: Vec3A,
+    hi: Vec3A,
+    nan: bool,
+}
+
+impl Default for Bounds {
+    fn default() -> Self {
+        Self {
+            lo: Vec3A::INFINITY,
+            hi: Vec3A::NEG_INFINITY,
+            nan: false,
+        }
+    }
+}
+
+impl Bounds {
+    /// Grows the box to hold `p`.
+    #[inline(always)]
+    pub fn add(&mut self, p: Vec3A) {
+        self.lo = self.lo.min(p);
+        self.hi = self.hi.max(p);
+        self.nan |= p.is_nan();
+    }
+
+    /// Whether a collider may move a point of the box.
+    pub fn touches(&self, colliders: &Colliders) -> bool {
+        self.nan || colliders.may_touch(self.lo, self.hi)
+    }
+}
+
 /// Pushes `p` out of the ground and static boxes, with Coulomb friction against the
 /// displacement since `previous`.
 #[inline]
@@ -101,5 +148,60 @@ mod tests {
         let mut p = Vec3A::new(0.5, -0.1, 0.0);
         resolve_colliders(&mut p, Vec3A::ZERO, &colliders);
         assert!((p.x - 0.4).abs() < 1e-6 && p.y == 0.0, "{p}");
+    }
+
+    #[test]
+    fn skipped_blocks_are_exactly_the_untouched_ones() {
+        use rand::{Rng, SeedableRng};
+        let colliders = Colliders {
+            ground: Some(GroundPlane {
+                height: 0.0,
+                friction: 0.5,
+            }),
+            boxes: vec![StaticBox {
+                min: glam::Vec3::new(1.0, 0.5, 1.0),
+                max: glam::Vec3::new(2.0, 1.5, 2.0),
+                friction: 0.5,
+            }],
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let (mut skipped, mut touched) = (0, 0);
+        for _ in 0..2000 {
+            // a block of 16 points around a random centre
+            let centre = Vec3A::new(
+                rng.random_range(-1.0..3.0),
+                rng.random_range(-1.0..3.0),
+                rng.random_range(-1.0..3.0),
+            );
+            let block: Vec<Vec3A> = (0..16)
+                .map(|_| centre + Vec3A::splat(0.3) * rng.random_range(-1.0..1.0))
+                .collect();
+            let mut bounds = Bounds::default();
+            block.iter().for_each(|p| bounds.add(*p));
+            let moves = block.iter().any(|p| {
+                let mut q = *p;
+                resolve_colliders(&mut q, *p - Vec3A::X * 0.01, &colliders);
+                q != *p
+            });
+            assert!(
+                bounds.touches(&colliders) || !moves,
+                "a skipped block had a contact"
+            );
+            if bounds.touches(&colliders) {
+                touched += 1;
+            } else {
+                skipped += 1;
+            }
+        }
+        assert!(
+            skipped > 500 && touched > 500,
+            "{skipped} skipped, {touched} touched"
+        );
+        // a NaN point is never skipped over
+        let mut bounds = Bounds::default();
+        bounds.add(Vec3A::new(0.0, 10.0, 0.0));
+        assert!(!bounds.touches(&colliders));
+        bounds.add(Vec3A::NAN);
+        assert!(bounds.touches(&colliders));
     }
 }

@@ -3,6 +3,7 @@
 //! no two write the same accumulator and each particle sums its pulls in a fixed colour
 //! order); then every particle moves by the average pull and the colliders apply.
 
+use super::colliders::Bounds;
 use super::sweep::Disjoint;
 use super::{Colliders, PARTICLES_PER_TASK, SolverLayout, resolve_colliders};
 use glam::Vec3A;
@@ -48,6 +49,7 @@ impl SolverLayout {
                     &mut corrections[..positions.len()],
                     &mut pulls[..positions.len()],
                 );
+                let mut bounds = Bounds::default();
                 for (i, p) in positions.iter_mut().enumerate() {
                     // a select, not a branch: pinned particles move by zero
                     let scale = if inv_mass[i] == 0.0 {
@@ -59,8 +61,11 @@ impl SolverLayout {
                     pulls[i] = Vec3A::ZERO;
                     *p += step;
                     corrections[i] += step;
+                    bounds.add(*p);
                 }
-                if collide {
+                // (Morton order: a task's particles are a compact block, mostly far
+                // from every collider)
+                if collide && bounds.touches(colliders) {
                     let previous = &previous[range];
                     for (i, p) in positions.iter_mut().enumerate() {
                         if inv_mass[i] != 0.0 {

@@ -377,14 +377,20 @@ impl SolverLayout {
         }
         let previous = &self.previous;
         self.positions
-            .par_iter_mut()
-            .zip(self.corrections.par_iter_mut())
-            .zip(previous.par_iter())
-            .with_min_len(PARTICLES_PER_TASK)
-            .for_each(|((p, correction), prev)| {
-                let before = *p;
-                resolve_colliders(p, *prev, colliders);
-                *correction += *p - before;
+            .par_chunks_mut(PARTICLES_PER_TASK)
+            .zip(self.corrections.par_chunks_mut(PARTICLES_PER_TASK))
+            .zip(previous.par_chunks(PARTICLES_PER_TASK))
+            .for_each(|((positions, corrections), previous)| {
+                let mut bounds = colliders::Bounds::default();
+                positions.iter().for_each(|p| bounds.add(*p));
+                if !bounds.touches(colliders) {
+                    return;
+                }
+                for ((p, correction), prev) in positions.iter_mut().zip(corrections).zip(previous) {
+                    let before = *p;
+                    resolve_colliders(p, *prev, colliders);
+                    *correction += *p - before;
+                }
             });
     }
 }
