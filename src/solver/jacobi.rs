@@ -45,33 +45,35 @@ impl SolverLayout {
             .for_each(|(task, ((positions, corrections), pulls))| {
                 let range = task * PARTICLES_PER_TASK..task * PARTICLES_PER_TASK + positions.len();
                 let (inv_count, inv_mass) = (&inv_count[range.clone()], &inv_mass[range.clone()]);
-                let (corrections, pulls) = (
-                    &mut corrections[..positions.len()],
-                    &mut pulls[..positions.len()],
-                );
                 let mut bounds = Bounds::default();
-                for (i, p) in positions.iter_mut().enumerate() {
+                let particles = positions
+                    .iter_mut()
+                    .zip(corrections.iter_mut())
+                    .zip(pulls.iter_mut())
+                    .zip(inv_count)
+                    .zip(inv_mass);
+                for ((((p, correction), pull), &inv_count), &inv_mass) in particles {
                     // a select, not a branch: pinned particles move by zero
-                    let scale = if inv_mass[i] == 0.0 {
-                        0.0
-                    } else {
-                        inv_count[i]
-                    };
-                    let step = pulls[i] * scale;
-                    pulls[i] = Vec3A::ZERO;
+                    let scale = if inv_mass == 0.0 { 0.0 } else { inv_count };
+                    let step = *pull * scale;
+                    *pull = Vec3A::ZERO;
                     *p += step;
-                    corrections[i] += step;
+                    *correction += step;
                     bounds.add(*p);
                 }
                 // (Morton order: a task's particles are a compact block, mostly far
                 // from every collider)
                 if collide && bounds.touches(colliders) {
-                    let previous = &previous[range];
-                    for (i, p) in positions.iter_mut().enumerate() {
-                        if inv_mass[i] != 0.0 {
+                    let particles = positions
+                        .iter_mut()
+                        .zip(corrections.iter_mut())
+                        .zip(&previous[range])
+                        .zip(inv_mass);
+                    for (((p, correction), previous), &inv_mass) in particles {
+                        if inv_mass != 0.0 {
                             let unconstrained = *p;
-                            resolve_colliders(p, previous[i], colliders);
-                            corrections[i] += *p - unconstrained;
+                            resolve_colliders(p, *previous, colliders);
+                            *correction += *p - unconstrained;
                         }
                     }
                 }
