@@ -2,8 +2,8 @@
 //! one colour are fitted at once, one per SIMD lane. Their members are gathered into
 //! rows (row `j` holds member `j` of every lane's cluster), the moment matrices are
 //! accumulated and the rotations extracted (Müller 2016, warm-started) eight wide, and
-//! every row's pull `s (R q + c − p)` is computed eight wide; the caller applies the
-//! pulls member by member.
+//! every row's pull `s (R q + c − p)` is computed eight wide and handed to the caller,
+//! which applies it member by member.
 //!
 //! Batches persist across patches (see `patch.rs`): a removed cluster leaves an empty
 //! lane, new clusters are appended in new batches of their colour, and a cluster whose
@@ -37,13 +37,19 @@ pub(super) struct BatchRow {
     pub(super) particle: [u32; LANES],
 }
 
-/// Member `j` of each of a batch's clusters during one fit: scratch of one task.
-#[derive(Clone, Copy, Debug, Default)]
-pub(super) struct FitRow {
-    /// Current positions.
-    pub(super) position: Vec3x8,
+/// The members' positions of one row during a fit: scratch of one task.
+pub(super) type FitRow = Vec3x8;
+
+/// One row's result of a fit, handed to the caller member by member.
+pub(super) struct RowPulls<'a> {
+    /// The row's particles (see [`BatchRow::particle`]).
+    pub(super) particle: &'a [u32; LANES],
+    /// The members' positions the fit saw.
+    pub(super) position: &'a Vec3x8,
     /// The pull `s (R q + c − p)` of each lane's member.
     pub(super) pull: [Vec3A; LANES],
+    /// Whether each lane's entry is a member (not padding).
+    pub(super) member: [bool; LANES],
 }
 
 /// The clusters in batches of [`LANES`] clusters of one colour.
@@ -293,15 +299,15 @@ impl SolverLayout {
     }
 
     /// Fits the clusters of batch `b` to the particle positions at `positions`, updates
-    /// their warm-start rotations, and leaves in `fit_rows` every member's position and
-    /// pull. Returns the size of each lane's cluster (0 for
-    /// unused lanes): row `j` of lane `l` is a member for `j < size[l]`, its particle
-    /// `self.batch_rows(b)[j].particle[l]`.
+    /// their warm-start rotations, and calls `apply` with every row's pulls, row by row
+    /// (a particle appears in at most one lane of a batch, so `apply` may move it).
     ///
     /// # Safety
     /// The caller is the task that owns the clusters of the batch in the current colour
     /// (see [`Disjoint`]), `positions` points to this layout's particle positions, and no
-    /// task writes them during the call.
+    /// task writes them during the call but `apply`, and only the entries of this
+    /// batch's members once their rows' positions were gathered (all rows are gathered
+    /// before the first `apply`).
     #[inline(always)]
     pub(super) unsafe fn fit_batch(
         &self,
@@ -309,13 +315,14 @@ impl SolverLayout {
         fit_rows: &mut Vec<FitRow>,
         positions: *const Vec3A,
         rotations: Disjoint<Quat>,
-    ) -> [usize; LANES] {
+        mut apply: impl FnMut(RowPulls),
+    ) {
         let rows = self.batch_rows(b);
         if fit_rows.len() < rows.len() {
             fit_rows.resize(rows.len(), FitRow::default());
         }
         let fit_rows = &mut fit_rows[..rows.len()];
-        let mut size = [0usize; LANES];
+        let mut size = [0u32; LANES];
         let mut warm = [Quat::IDENTITY; LANES];
         let mut bias = [Vec3A::ZERO; LANES];
         let (mut inv_weight_sum, mut stiffness) = ([0.0f32; LANES], [0.0f32; LANES]);
@@ -325,7 +332,7 @@ impl SolverLayout {
                 continue;
             }
             let k = k as usize;
-            size[l] = self.cluster_size(k);
+            size[l] = self.cluster_size(k) as u32;
             // SAFETY: rotation `k` belongs to the calling task (the caller's contract).
             warm[l] = unsafe { rotations.read(k) };
             bias[l] = self.offset_bias[k];
@@ -339,14 +346,14 @@ impl SolverLayout {
             Vec3x8::from_lanes([p(0), p(1), p(2), p(3), p(4), p(5), p(6), p(7)])
         };
         let Some(first) = rows.first() else {
-            return size;
+            return;
         };
         let origin = gather(first);
         let mut sum = Vec3x8::ZERO;
         let mut a = Mat3x8::ZERO;
-        for (row, fit) in rows.iter().zip(fit_rows.iter_mut()) {
-            fit.position = gather(row);
-            let d = (fit.position - origin).scale(row.weight);
+        for (row, position) in rows.iter().zip(fit_rows.iter_mut()) {
+            *position = gather(row);
+            let d = (*position - origin).scale(row.weight);
             sum = sum + d;
             a.x_axis = d.mul_add(row.offset.x, a.x_axis);
             a.y_axis = d.mul_add(row.offset.y, a.y_axis);
@@ -370,10 +377,14 @@ impl SolverLayout {
             z_axis: r.z_axis.scale(s),
         };
         let translation = centroid.scale(s);
-        for (row, fit) in rows.iter().zip(fit_rows.iter_mut()) {
+        for (j, (row, position)) in rows.iter().zip(fit_rows.iter()).enumerate() {
             let goal = scaled.mul_vec(row.offset) + translation;
-            fit.pull = (goal - fit.position.scale(s)).to_lanes();
+            apply(RowPulls {
+                particle: &row.particle,
+                position,
+                pull: (goal - position.scale(s)).to_lanes(),
+                member: size.map(|n| (j as u32) < n),
+            });
         }
-        size
     }
 }

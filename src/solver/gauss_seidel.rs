@@ -5,6 +5,7 @@
 
 use super::SolverLayout;
 use super::sweep::Disjoint;
+use crate::lanes::LANES;
 
 impl SolverLayout {
     /// One sweep over all colours: every cluster (eight at a time) is fitted to the
@@ -20,21 +21,18 @@ impl SolverLayout {
             // SAFETY (both blocks): this task owns the batch's clusters, their rotations
             // and their members' positions and corrections for the colour (see
             // `Disjoint`); member indices were bounds-checked when the layout was built.
-            let size = unsafe { this.fit_batch(b, fit_rows, positions.as_ptr(), rotations) };
-            let rows = this.batch_rows(b);
-            for (l, size) in size.iter().enumerate() {
-                for (row, fit) in rows[..*size].iter().zip(fit_rows.iter()) {
-                    let m = row.particle[l] as usize;
-                    if this.inv_mass[m] == 0.0 {
-                        continue;
+            unsafe {
+                this.fit_batch(b, fit_rows, positions.as_ptr(), rotations, |row| {
+                    for l in 0..LANES {
+                        let m = row.particle[l] as usize;
+                        if row.member[l] && this.inv_mass[m] != 0.0 {
+                            let step = row.pull[l];
+                            positions.write(m, row.position.lane(l) + step);
+                            corrections.write(m, corrections.read(m) + step);
+                        }
                     }
-                    let step = fit.pull[l];
-                    unsafe {
-                        positions.write(m, fit.position.lane(l) + step);
-                        corrections.write(m, corrections.read(m) + step);
-                    }
-                }
-            }
+                })
+            };
         });
     }
 }

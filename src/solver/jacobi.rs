@@ -6,6 +6,7 @@
 use super::colliders::Bounds;
 use super::sweep::Disjoint;
 use super::{Colliders, PARTICLES_PER_TASK, SolverLayout, resolve_colliders};
+use crate::lanes::LANES;
 use glam::Vec3A;
 use rayon::prelude::*;
 
@@ -20,15 +21,16 @@ impl SolverLayout {
             // SAFETY: this task owns the batch's clusters, their rotations and their
             // members' pulls for the colour (see `Disjoint`); member indices were
             // bounds-checked when the layout was built.
-            let size = unsafe { this.fit_batch(b, fit_rows, this.positions.as_ptr(), rotations) };
-            let rows = this.batch_rows(b);
-            for (l, size) in size.iter().enumerate() {
-                for (row, fit) in rows[..*size].iter().zip(fit_rows.iter()) {
-                    let m = row.particle[l] as usize;
-                    // SAFETY: as above.
-                    unsafe { pulls.write(m, pulls.read(m) + fit.pull[l]) };
-                }
-            }
+            unsafe {
+                this.fit_batch(b, fit_rows, this.positions.as_ptr(), rotations, |row| {
+                    for l in 0..LANES {
+                        if row.member[l] {
+                            let m = row.particle[l] as usize;
+                            pulls.write(m, pulls.read(m) + row.pull[l]);
+                        }
+                    }
+                })
+            };
         });
     }
 
