@@ -161,7 +161,7 @@ impl Lattice {
     }
 
     /// Live lattice neighbours of particle `i` (6-neighbourhood), in a fixed order.
-    #[inline]
+    #[inline(always)]
     pub fn neighbours(&self, i: u32) -> Neighbours {
         let cell = self.cell_of[i as usize] as usize;
         let (dx, dy) = (
