@@ -5,6 +5,7 @@ use crate::error::{CleaveError, Result, check_finite_vec, check_positive};
 use crate::mesh::TriangleMesh;
 use glam::{IVec3, UVec3, Vec3};
 use std::sync::Arc;
+use wide::u32x8;
 
 /// Marker for "no particle" in the lattice grid.
 pub const NO_PARTICLE: u32 = u32::MAX;
@@ -180,11 +181,14 @@ impl Lattice {
             NO_PARTICLE,
             NO_PARTICLE,
         ];
-        let mut live = 0u8;
-        for (k, id) in ids.iter().enumerate() {
-            live |= u8::from(*id != NO_PARTICLE) << k;
+        // one 8-wide compare: bit k set for an occupied cell
+        let empty = u32x8::new(ids)
+            .simd_eq(u32x8::splat(NO_PARTICLE))
+            .to_bitmask();
+        Neighbours {
+            ids,
+            live: !(empty as u8),
         }
-        Neighbours { ids, live }
     }
 
     /// Removes particle `i`; returns false if it was not live.
