@@ -2,9 +2,11 @@
 //! so the shape-match stage copies particle state between the table's columns and the
 //! dense solver layout in parallel, without an entity lookup per particle.
 //!
-//! The map is checked on every load (each mapped slot's entity must still sit at its
-//! row, and the table must have the length it had) and rebuilt when the table changed:
-//! particles despawned by a cut, or entities spawned into the same table.
+//! The map is checked on every load — the table must have the length it had, each
+//! mapped slot's entity must still sit at its row, and each row that held no particle of
+//! the layout must still hold the same entity, so every row is accounted for — and
+//! rebuilt when the table changed: particles despawned by a cut, or entities spawned
+//! into the same table.
 
 use crate::components::{InvMass, Position, PrevPosition, Velocity};
 use crate::solver::SolverLayout;
@@ -37,6 +39,8 @@ pub struct ParticleColumns<'a> {
 pub struct TableRows {
     row_of_slot: Vec<u32>,
     slot_of_row: Vec<u32>,
+    /// The rows that hold no particle of the layout, and their entities.
+    strangers: Vec<(u32, Entity)>,
 }
 
 impl TableRows {
@@ -90,7 +94,13 @@ impl TableRows {
         slots: &[Entity],
         table: ParticleColumns,
     ) -> bool {
-        if self.slot_of_row.len() != table.entities.len() || self.row_of_slot.len() != slots.len() {
+        if self.slot_of_row.len() != table.entities.len()
+            || self.row_of_slot.len() != slots.len()
+            || self
+                .strangers
+                .iter()
+                .any(|(row, e)| table.entities.get(*row as usize) != Some(e))
+        {
             return false;
         }
         // (zipped to the shortest: every layout array has one entry per slot)
@@ -111,22 +121,20 @@ impl TableRows {
                     .zip(inv_mass)
                     .zip(rows)
                     .zip(entities);
-                let mut matched = true;
                 for (((((x, prev), v), inv_mass), &row), entity) in slots {
                     if row == NONE {
                         continue;
                     }
                     let row = row as usize;
-                    matched &= table.entities.get(row) == Some(entity);
-                    if !matched {
-                        break;
+                    if table.entities.get(row) != Some(entity) {
+                        return false;
                     }
                     *x = Vec3A::from(table.positions[row].0);
                     *prev = Vec3A::from(table.previous[row].0);
                     *v = Vec3A::from(table.velocities[row].0);
                     *inv_mass = table.inv_mass[row].0;
                 }
-                matched
+                true
             })
     }
 
@@ -136,6 +144,7 @@ impl TableRows {
         self.row_of_slot.resize(slots.len(), NONE);
         self.slot_of_row.clear();
         self.slot_of_row.resize(entities.len(), NONE);
+        self.strangers.clear();
         for (row, entity) in entities.iter().enumerate() {
             let slot = slot_of_index
                 .get(entity.index_u32() as usize)
@@ -144,6 +153,8 @@ impl TableRows {
             if slots.get(slot as usize) == Some(entity) {
                 self.row_of_slot[slot as usize] = row as u32;
                 self.slot_of_row[row] = slot;
+            } else {
+                self.strangers.push((row as u32, *entity));
             }
         }
     }
@@ -272,6 +283,22 @@ mod tests {
             };
             assert_eq!(x[row].0, Vec3::splat(expected), "row {row}");
         }
+    }
+
+    #[test]
+    fn a_particle_entering_in_a_strangers_place_is_found() {
+        let mut world = World::new();
+        let (mut layout, slots, map) = layout_and_slots(&mut world, 3);
+        let mut rows = TableRows::default();
+        // slot 1's particle is elsewhere (another table) when the map is built
+        let stranger = world.spawn_empty().id();
+        let table = vec![slots[0], stranger, slots[2]];
+        load(&mut rows, &mut layout, &slots, &map, &table);
+        layout.positions[1] = Vec3A::splat(-1.0);
+        // it comes back where the stranger was: same length, mapped rows unmoved
+        let table = vec![slots[0], slots[1], slots[2]];
+        load(&mut rows, &mut layout, &slots, &map, &table);
+        assert_loaded(&layout, &slots);
     }
 
     #[test]
