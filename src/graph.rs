@@ -51,7 +51,8 @@ pub fn connected_components(members: &[u32], lattice: &Lattice) -> Vec<Vec<u32>>
             label[p as usize] = UNSEEN;
         }
         let mut count = 0u32;
-        let mut stack = Vec::new();
+        // sized up front: grown from empty it would reallocate several times per call
+        let mut stack = Vec::with_capacity(set.len());
         for &start in &set {
             if label[start as usize] != UNSEEN {
                 continue;

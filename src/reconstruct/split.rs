@@ -88,8 +88,9 @@ pub fn geometric_partition(
         .collect();
     let mut in_s = vec![false; g];
     let mut visited = vec![false; g];
-    let mut negative = Vec::new();
-    let mut frontier = BinaryHeap::new();
+    // sized up front (each vertex enters each list at most once per flip)
+    let mut negative = Vec::with_capacity(g);
+    let mut frontier = BinaryHeap::with_capacity(g);
     for flip in [1.0f32, -1.0] {
         let d = |i: usize| flip * distance[i];
         in_s.fill(false);
@@ -151,8 +152,8 @@ pub fn topological_repair(graph: &LocalGraph, in_s: &mut [bool]) -> Vec<bool> {
     let g = in_s.len();
     // component of every vertex of G − S, numbered in order of its smallest vertex
     let mut label = vec![UNSEEN; g];
-    let mut sizes: Vec<usize> = Vec::new();
-    let mut stack = Vec::new();
+    let mut sizes: Vec<usize> = Vec::with_capacity(4);
+    let mut stack = Vec::with_capacity(g);
     for start in 0..g {
         if in_s[start] || label[start] != UNSEEN {
             continue;
@@ -227,8 +228,10 @@ pub fn split_until_fits(
     max: usize,
     rng: &mut impl Rng,
 ) -> (Vec<Vec<u32>>, Vec<(u32, u32)>) {
-    let mut parts = Vec::new();
-    let mut queue = VecDeque::from([members.to_vec()]);
+    // a cluster of up to twice `max` members (the usual case) splits once
+    let mut parts = Vec::with_capacity(4);
+    let mut queue = VecDeque::with_capacity(4);
+    queue.push_back(members.to_vec());
     while let Some(part) = queue.pop_front() {
         if part.len() <= max {
             parts.push(part);
@@ -251,7 +254,7 @@ pub fn split_until_fits(
                 part_of[m as usize] = i as u32;
             }
         }
-        let mut edges = Vec::new();
+        let mut edges = Vec::with_capacity(members.len());
         for &a in members {
             let own = part_of[a as usize];
             for b in lattice.neighbours(a) {
