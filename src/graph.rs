@@ -1,7 +1,7 @@
 //! Graph searches over the particle graph (live lattice edges), restricted to particle
 //! subsets: connected components of a cluster, pieces of a body.
 
-use crate::lattice::Lattice;
+use crate::lattice::{Lattice, NO_PARTICLE};
 use std::cell::RefCell;
 
 /// Index of `p` in the sorted slice `set`, if present.
@@ -60,8 +60,8 @@ pub fn connected_components(members: &[u32], lattice: &Lattice) -> Vec<Vec<u32>>
             label[start as usize] = count;
             stack.push(start);
             while let Some(p) = stack.pop() {
-                for n in lattice.neighbours(p) {
-                    if label[n as usize] == UNSEEN {
+                for n in lattice.neighbour_cells(p) {
+                    if n != NO_PARTICLE && label[n as usize] == UNSEEN {
                         label[n as usize] = count;
                         stack.push(n);
                     }
@@ -128,8 +128,8 @@ pub fn adjacent_particles(members: &[u32], lattice: &Lattice) -> Vec<u32> {
         }
         let mut out = Vec::with_capacity(members.len() * 2);
         for &m in members {
-            for n in lattice.neighbours(m) {
-                if mark[n as usize] == u32::MAX {
+            for n in lattice.neighbour_cells(m) {
+                if n != NO_PARTICLE && mark[n as usize] == u32::MAX {
                     mark[n as usize] = 1;
                     out.push(n);
                 }

@@ -164,23 +164,8 @@ impl Lattice {
     /// Live lattice neighbours of particle `i` (6-neighbourhood), in a fixed order.
     #[inline(always)]
     pub fn neighbours(&self, i: u32) -> Neighbours {
-        let cell = self.cell_of[i as usize] as usize;
-        let (dx, dy) = (
-            self.dims.x as usize,
-            self.dims.x as usize * self.dims.y as usize,
-        );
-        // same order as NEIGHBOUR_OFFSETS; padding keeps every neighbour cell in the grid
-        let g = &self.grid;
-        let ids = [
-            g[cell - 1],
-            g[cell + 1],
-            g[cell - dx],
-            g[cell + dx],
-            g[cell - dy],
-            g[cell + dy],
-            NO_PARTICLE,
-            NO_PARTICLE,
-        ];
+        let [a, b, c, d, e, f] = self.neighbour_cells(i);
+        let ids = [a, b, c, d, e, f, NO_PARTICLE, NO_PARTICLE];
         // one 8-wide compare: bit k set for an occupied cell
         let empty = u32x8::new(ids)
             .simd_eq(u32x8::splat(NO_PARTICLE))
@@ -189,6 +174,28 @@ impl Lattice {
             ids,
             live: !(empty as u8),
         }
+    }
+
+    /// The particles in the six neighbour cells of particle `i`, in the order of
+    /// [`Lattice::neighbours`], with [`NO_PARTICLE`] for an empty cell. Loops that test
+    /// every neighbour anyway (marks, labels) run straight through these six.
+    #[inline(always)]
+    pub fn neighbour_cells(&self, i: u32) -> [u32; 6] {
+        let cell = self.cell_of[i as usize] as usize;
+        let (dx, dy) = (
+            self.dims.x as usize,
+            self.dims.x as usize * self.dims.y as usize,
+        );
+        // same order as NEIGHBOUR_OFFSETS; padding keeps every neighbour cell in the grid
+        let g = &self.grid;
+        [
+            g[cell - 1],
+            g[cell + 1],
+            g[cell - dx],
+            g[cell + dx],
+            g[cell - dy],
+            g[cell + dy],
+        ]
     }
 
     /// Removes particle `i`; returns false if it was not live.

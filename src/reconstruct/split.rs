@@ -5,7 +5,7 @@
 use super::pca::split_normal;
 use crate::cluster_store::ClusterStore;
 use crate::graph::with_slots;
-use crate::lattice::Lattice;
+use crate::lattice::{Lattice, NO_PARTICLE};
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -49,10 +49,9 @@ impl LocalGraph {
         let mut next = Vec::with_capacity(members.len() * 6);
         row.push(0);
         for &m in members {
-            for n in lattice.neighbours(m) {
-                let j = local[n as usize];
-                if j != u32::MAX {
-                    next.push(j);
+            for n in lattice.neighbour_cells(m) {
+                if n != NO_PARTICLE && local[n as usize] != u32::MAX {
+                    next.push(local[n as usize]);
                 }
             }
             row.push(next.len() as u32);
