@@ -113,8 +113,14 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_, '_, '_, '_> {
     }
 
     fn remove(&mut self, k: Entity) {
-        let old = self.members(k).to_vec();
-        index_remove(self.index, &old, k);
+        if !self.removed.contains(&k) {
+            // (the member list and the index are separate fields: no copy of the list)
+            let members = match self.created.get(&k) {
+                Some(m) => m.as_slice(),
+                None => self.clusters.get(k).map(|m| m.0.as_slice()).unwrap_or(&[]),
+            };
+            index_remove(self.index, members, k);
+        }
         if self.created.remove(&k).is_none() {
             self.removed.insert(k);
         }
