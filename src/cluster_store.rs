@@ -20,7 +20,8 @@ pub trait ClusterStore {
     fn members(&self, k: Self::Key) -> &[u32];
     /// Replaces the members of `k` (the list is sorted and deduplicated here).
     fn set_members(&mut self, k: Self::Key, members: Vec<u32>);
-    /// Adds `extra` (sorted) to the members of `k`; only new particles touch the index.
+    /// Adds `extra` (strictly ascending) to the members of `k`; only new particles touch
+    /// the index.
     fn add_members(&mut self, k: Self::Key, extra: &[u32]);
     /// Creates a cluster with the given members.
     fn create(&mut self, members: Vec<u32>) -> Self::Key;
@@ -37,8 +38,8 @@ pub fn normalise(mut members: Vec<u32>) -> Vec<u32> {
     members
 }
 
-/// Merges sorted `extra` into sorted `members` in place, in linear time and without a
-/// temporary list; returns how many particles were new.
+/// Merges strictly ascending `extra` into strictly ascending `members` in place, in
+/// linear time and without a temporary list; returns how many particles were new.
 pub fn merge_sorted(members: &mut Vec<u32>, extra: &[u32]) -> usize {
     let old_len = members.len();
     let mut i = 0;
@@ -221,6 +222,30 @@ impl ClusterStore for ClusterTable {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn merge_sorted_is_a_set_union() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        for _ in 0..2000 {
+            // strictly ascending lists of up to 40 particles out of 60
+            let mut list = || {
+                let n = rng.random_range(0..40);
+                let mut v: Vec<u32> = (0..n).map(|_| rng.random_range(0..60)).collect();
+                v.sort_unstable();
+                v.dedup();
+                v
+            };
+            let (before, extra) = (list(), list());
+            let mut union = [before.clone(), extra.clone()].concat();
+            union.sort_unstable();
+            union.dedup();
+            let mut members = before.clone();
+            let new = merge_sorted(&mut members, &extra);
+            assert_eq!(members, union, "{before:?} + {extra:?}");
+            assert_eq!(new, union.len() - before.len());
+        }
+    }
 
     #[test]
     fn merge_sorted_keeps_order_and_reports_new_particles() {
