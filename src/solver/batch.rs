@@ -46,10 +46,14 @@ pub(super) struct RowPulls<'a> {
     pub(super) particle: &'a [u32; LANES],
     /// The members' positions the fit saw.
     pub(super) position: &'a Vec3x8,
-    /// The pull `s (R q + c − p)` of each lane's member.
+    /// The pull `s (R q + c − p)` of each lane's member; exactly zero on a padding row
+    /// (whose particle is the lane's first member, so adding it changes nothing).
     pub(super) pull: [Vec3A; LANES],
-    /// Whether each lane's entry is a member (not padding).
-    pub(super) member: [bool; LANES],
+    /// The row's index in the batch.
+    pub(super) row: usize,
+    /// Each lane's cluster size (0 for an unused lane): lane `l`'s entry is a member
+    /// when `row < size[l]`.
+    pub(super) size: &'a [u32; LANES],
 }
 
 /// The clusters in batches of [`LANES`] clusters of one colour.
@@ -291,6 +295,12 @@ impl SolverLayout {
         }
     }
 
+    /// Which lanes of batch `b` hold a cluster.
+    #[inline(always)]
+    pub(super) fn lanes_in_use(&self, b: usize) -> [bool; LANES] {
+        self.batches.lanes[b].map(|k| k != EMPTY_LANE)
+    }
+
     /// The rows of batch `b`.
     #[inline(always)]
     pub(super) fn batch_rows(&self, b: usize) -> &[BatchRow] {
@@ -379,11 +389,15 @@ impl SolverLayout {
         let translation = centroid.scale(s);
         for (j, (row, position)) in rows.iter().zip(fit_rows.iter()).enumerate() {
             let goal = scaled.mul_vec(row.offset) + translation;
+            // members have a positive weight, padding rows weight 0
+            let member = row.weight.simd_gt(f32x8::ZERO);
+            let pull = Vec3x8::select(member, goal - position.scale(s), Vec3x8::ZERO);
             apply(RowPulls {
                 particle: &row.particle,
                 position,
-                pull: (goal - position.scale(s)).to_lanes(),
-                member: size.map(|n| (j as u32) < n),
+                pull: pull.to_lanes(),
+                row: j,
+                size: &size,
             });
         }
     }

@@ -25,7 +25,7 @@ impl SolverLayout {
                 this.fit_batch(b, fit_rows, positions.as_ptr(), rotations, |row| {
                     for l in 0..LANES {
                         let m = row.particle[l] as usize;
-                        if row.member[l] && this.inv_mass[m] != 0.0 {
+                        if row.row < row.size[l] as usize && this.inv_mass[m] != 0.0 {
                             let step = row.pull[l];
                             positions.write(m, row.position.lane(l) + step);
                             corrections.write(m, corrections.read(m) + step);

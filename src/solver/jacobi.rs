@@ -21,10 +21,15 @@ impl SolverLayout {
             // SAFETY: this task owns the batch's clusters, their rotations and their
             // members' pulls for the colour (see `Disjoint`); member indices were
             // bounds-checked when the layout was built.
+            // A lane in use adds every row, padding too: a padding row's pull is zero
+            // and its particle the lane's own first member. An unused lane's particles
+            // may belong to other tasks' clusters: it adds nothing.
+            let used = this.lanes_in_use(b);
+            let full = used.iter().all(|u| *u);
             unsafe {
                 this.fit_batch(b, fit_rows, this.positions.as_ptr(), rotations, |row| {
                     for l in 0..LANES {
-                        if row.member[l] {
+                        if full || used[l] {
                             let m = row.particle[l] as usize;
                             pulls.write(m, pulls.read(m) + row.pull[l]);
                         }
