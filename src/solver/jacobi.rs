@@ -6,7 +6,6 @@
 use super::colliders::Bounds;
 use super::sweep::Disjoint;
 use super::{Colliders, PARTICLES_PER_TASK, SolverLayout, resolve_colliders};
-use crate::lanes::LANES;
 use glam::Vec3A;
 use rayon::prelude::*;
 
@@ -28,10 +27,10 @@ impl SolverLayout {
             let full = used.iter().all(|u| *u);
             unsafe {
                 this.fit_batch(b, fit_rows, this.positions.as_ptr(), rotations, |row| {
-                    for l in 0..LANES {
-                        if full || used[l] {
-                            let m = row.particle[l] as usize;
-                            pulls.write(m, pulls.read(m) + row.pull[l]);
+                    let lanes = row.particle.iter().zip(&row.pull).zip(&used);
+                    for ((&m, &pull), &in_use) in lanes {
+                        if full || in_use {
+                            pulls.write(m as usize, pulls.read(m as usize) + pull);
                         }
                     }
                 })
