@@ -481,6 +481,34 @@ mod tests {
     use super::*;
 
     #[test]
+    fn neighbours_are_the_live_particles_at_the_six_offsets() {
+        use rand::{Rng, SeedableRng};
+        let mut l = Shape::cuboid(UVec3::new(7, 5, 4), 1.0)
+            .voxelise(1.0)
+            .unwrap();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+        for _ in 0..40 {
+            let p = rng.random_range(0..l.len() as u32);
+            l.remove(p);
+        }
+        for i in l.live_particles() {
+            let expected: Vec<u32> = NEIGHBOUR_OFFSETS
+                .iter()
+                .filter_map(|d| l.at(l.coord(i) + *d))
+                .collect();
+            let found: Vec<u32> = l.neighbours(i).collect();
+            assert_eq!(found, expected, "particle {i}");
+            assert_eq!(l.neighbours(i).len(), expected.len());
+            let cells: Vec<u32> = l
+                .neighbour_cells(i)
+                .into_iter()
+                .filter(|n| *n != NO_PARTICLE)
+                .collect();
+            assert_eq!(cells, expected);
+        }
+    }
+
+    #[test]
     fn cuboid_has_exact_counts_and_edges() {
         let l = Shape::cuboid(UVec3::new(4, 3, 2), 0.1)
             .voxelise(0.1)
