@@ -370,26 +370,35 @@ impl SolverLayout {
             .for_each(|(v, c)| *v += *c * inv_dt);
     }
 
-    /// Applies the colliders to every particle, adding their push to the corrections.
+    /// Applies the colliders to every unpinned particle, adding their push to the
+    /// corrections (as the Jacobi particle pass does).
     fn collide_particles(&mut self, colliders: &Colliders) {
         if colliders.ground.is_none() && colliders.boxes.is_empty() {
             return;
         }
-        let previous = &self.previous;
+        let (previous, inv_mass) = (&self.previous, &self.inv_mass);
         self.positions
             .par_chunks_mut(PARTICLES_PER_TASK)
             .zip(self.corrections.par_chunks_mut(PARTICLES_PER_TASK))
             .zip(previous.par_chunks(PARTICLES_PER_TASK))
-            .for_each(|((positions, corrections), previous)| {
+            .zip(inv_mass.par_chunks(PARTICLES_PER_TASK))
+            .for_each(|(((positions, corrections), previous), inv_mass)| {
                 let mut bounds = colliders::Bounds::default();
                 positions.iter().for_each(|p| bounds.add(*p));
                 if !bounds.touches(colliders) {
                     return;
                 }
-                for ((p, correction), prev) in positions.iter_mut().zip(corrections).zip(previous) {
-                    let before = *p;
-                    resolve_colliders(p, *prev, colliders);
-                    *correction += *p - before;
+                let particles = positions
+                    .iter_mut()
+                    .zip(corrections)
+                    .zip(previous)
+                    .zip(inv_mass);
+                for (((p, correction), prev), &inv_mass) in particles {
+                    if inv_mass != 0.0 {
+                        let before = *p;
+                        resolve_colliders(p, *prev, colliders);
+                        *correction += *p - before;
+                    }
                 }
             });
     }
@@ -418,6 +427,32 @@ mod tests {
         l.positions[3].y += 0.5;
         l.positions[6].z -= 0.3;
         l
+    }
+
+    #[test]
+    fn colliders_never_move_a_pinned_particle() {
+        for mode in [SolverMode::Jacobi, SolverMode::GaussSeidel] {
+            let mut l = perturbed_bar(mode);
+            // the whole bar sinks below the ground; particle 2 is pinned there
+            for p in &mut l.positions {
+                p.y -= 1.0;
+            }
+            l.inv_mass[2] = 0.0;
+            let pinned = l.positions[2];
+            let colliders = Colliders {
+                ground: Some(crate::config::GroundPlane {
+                    height: 0.0,
+                    friction: 0.0,
+                }),
+                boxes: vec![],
+            };
+            l.solve(5, &colliders);
+            assert_eq!(l.positions[2], pinned, "{mode:?}");
+            assert!(
+                l.positions[7].y > -0.5,
+                "{mode:?}: the free end is pushed up"
+            );
+        }
     }
 
     #[test]
