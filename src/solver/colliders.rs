@@ -60,6 +60,40 @@ impl Bounds {
     }
 }
 
+/// The particles of one block, as the solver's passes hand them to [`collide_block`].
+pub(super) struct Block<'a> {
+    /// Positions, pushed out of the colliders.
+    pub(super) positions: &'a mut [Vec3A],
+    /// Total corrections, which receive the pushes.
+    pub(super) corrections: &'a mut [Vec3A],
+    /// Positions at the start of the substep (friction).
+    pub(super) previous: &'a [Vec3A],
+    /// Inverse masses: pinned particles (0) are never moved.
+    pub(super) inv_mass: &'a [f32],
+}
+
+/// Applies the colliders to every unpinned particle of a block whose bounding box is
+/// `bounds`, adding each push to the particle's correction; a block no collider
+/// reaches is skipped whole.
+pub(super) fn collide_block(block: Block, bounds: &Bounds, colliders: &Colliders) {
+    if !bounds.touches(colliders) {
+        return;
+    }
+    let particles = block
+        .positions
+        .iter_mut()
+        .zip(block.corrections)
+        .zip(block.previous)
+        .zip(block.inv_mass);
+    for (((p, correction), previous), &inv_mass) in particles {
+        if inv_mass != 0.0 {
+            let unconstrained = *p;
+            resolve_colliders(p, *previous, colliders);
+            *correction += *p - unconstrained;
+        }
+    }
+}
+
 /// Pushes `p` out of the ground and static boxes, with Coulomb friction against the
 /// displacement since `previous`.
 #[inline]

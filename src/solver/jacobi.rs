@@ -3,9 +3,9 @@
 //! no two write the same accumulator and each particle sums its pulls in a fixed colour
 //! order); then every particle moves by the average pull and the colliders apply.
 
-use super::colliders::Bounds;
+use super::colliders::{Block, Bounds, collide_block};
 use super::sweep::Disjoint;
-use super::{Colliders, PARTICLES_PER_TASK, SolverLayout, resolve_colliders};
+use super::{Colliders, PARTICLES_PER_TASK, SolverLayout};
 use glam::Vec3A;
 use rayon::prelude::*;
 
@@ -69,19 +69,14 @@ impl SolverLayout {
                 }
                 // (Morton order: a task's particles are a compact block, mostly far
                 // from every collider)
-                if collide && bounds.touches(colliders) {
-                    let particles = positions
-                        .iter_mut()
-                        .zip(corrections.iter_mut())
-                        .zip(&previous[range])
-                        .zip(inv_mass);
-                    for (((p, correction), previous), &inv_mass) in particles {
-                        if inv_mass != 0.0 {
-                            let unconstrained = *p;
-                            resolve_colliders(p, *previous, colliders);
-                            *correction += *p - unconstrained;
-                        }
-                    }
+                if collide {
+                    let block = Block {
+                        positions,
+                        corrections,
+                        previous: &previous[range],
+                        inv_mass,
+                    };
+                    collide_block(block, &bounds, colliders);
                 }
             });
     }

@@ -385,21 +385,13 @@ impl SolverLayout {
             .for_each(|(((positions, corrections), previous), inv_mass)| {
                 let mut bounds = colliders::Bounds::default();
                 positions.iter().for_each(|p| bounds.add(*p));
-                if !bounds.touches(colliders) {
-                    return;
-                }
-                let particles = positions
-                    .iter_mut()
-                    .zip(corrections)
-                    .zip(previous)
-                    .zip(inv_mass);
-                for (((p, correction), prev), &inv_mass) in particles {
-                    if inv_mass != 0.0 {
-                        let before = *p;
-                        resolve_colliders(p, *prev, colliders);
-                        *correction += *p - before;
-                    }
-                }
+                let block = colliders::Block {
+                    positions,
+                    corrections,
+                    previous,
+                    inv_mass,
+                };
+                colliders::collide_block(block, &bounds, colliders);
             });
     }
 }
