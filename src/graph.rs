@@ -13,6 +13,8 @@ pub fn position_in(set: &[u32], p: u32) -> Option<usize> {
 thread_local! {
     /// Per-thread scratch of one slot per lattice particle, `u32::MAX` between uses.
     static SLOTS: RefCell<Vec<u32>> = const { RefCell::new(Vec::new()) };
+    /// Per-thread depth-first stack of [`connected_components`], empty between uses.
+    static STACK: RefCell<Vec<u32>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Runs `f` with a scratch slice of `len` slots, all `u32::MAX`; `f` must give every
@@ -51,8 +53,8 @@ pub fn connected_components(members: &[u32], lattice: &Lattice) -> Vec<Vec<u32>>
             label[p as usize] = UNSEEN;
         }
         let mut count = 0u32;
-        // sized up front: grown from empty it would reallocate several times per call
-        let mut stack = Vec::with_capacity(set.len());
+        // (a thread's stack is reused: one per call would cost an allocation)
+        let mut stack = STACK.with(|s| std::mem::take(&mut *s.borrow_mut()));
         for &start in &set {
             if label[start as usize] != UNSEEN {
                 continue;
@@ -69,6 +71,7 @@ pub fn connected_components(members: &[u32], lattice: &Lattice) -> Vec<Vec<u32>>
             }
             count += 1;
         }
+        STACK.with(|s| *s.borrow_mut() = stack);
         let mut components = Vec::new();
         if count > 1 {
             components = vec![Vec::new(); count as usize];

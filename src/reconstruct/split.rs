@@ -30,6 +30,7 @@ impl Ord for ByDistance {
 
 /// The lattice graph induced on a member set, in compressed rows; vertices are indices
 /// into the member list.
+#[derive(Clone, Debug, Default)]
 pub struct LocalGraph {
     row: Vec<u32>,
     next: Vec<u32>,
@@ -38,15 +39,25 @@ pub struct LocalGraph {
 impl LocalGraph {
     /// Builds the graph of `members`.
     pub fn new(members: &[u32], lattice: &Lattice) -> Self {
-        with_slots(lattice.len(), |local| Self::build(members, lattice, local))
+        let mut graph = Self::default();
+        graph.rebuild(members, lattice);
+        graph
     }
 
-    fn build(members: &[u32], lattice: &Lattice, local: &mut [u32]) -> Self {
+    /// Makes this the graph of `members`, reusing its buffers.
+    pub fn rebuild(&mut self, members: &[u32], lattice: &Lattice) {
+        with_slots(lattice.len(), |local| self.build(members, lattice, local));
+    }
+
+    fn build(&mut self, members: &[u32], lattice: &Lattice, local: &mut [u32]) {
         for (i, &m) in members.iter().enumerate() {
             local[m as usize] = i as u32;
         }
-        let mut row = Vec::with_capacity(members.len() + 1);
-        let mut next = Vec::with_capacity(members.len() * 6);
+        let (row, next) = (&mut self.row, &mut self.next);
+        row.clear();
+        next.clear();
+        row.reserve(members.len() + 1);
+        next.reserve(members.len() * 6);
         row.push(0);
         for &m in members {
             for n in lattice.neighbour_cells(m) {
@@ -59,7 +70,6 @@ impl LocalGraph {
         for &m in members {
             local[m as usize] = u32::MAX;
         }
-        Self { row, next }
     }
 
     /// Neighbours of vertex `i`.
@@ -71,121 +81,182 @@ impl LocalGraph {
     }
 }
 
-/// SPEC §4.2: grows a connected set S from `start` whose boundary approximates the
-/// plane through `start` with normal `normal`. Returns membership flags of S.
-pub fn geometric_partition(
-    points: &[Vec3],
-    graph: &LocalGraph,
-    start: usize,
-    normal: Vec3,
-) -> Vec<bool> {
-    let g = points.len();
-    // signed distance to the plane through `start`, before the flip (the flip negates)
-    let distance: Vec<f32> = points
-        .iter()
-        .map(|p| normal.dot(*p - points[start]))
-        .collect();
-    let mut in_s = vec![false; g];
-    let mut visited = vec![false; g];
-    // sized up front (each vertex enters each list at most once per flip)
-    let mut negative = Vec::with_capacity(g);
-    let mut frontier = BinaryHeap::with_capacity(g);
-    for flip in [1.0f32, -1.0] {
-        let d = |i: usize| flip * distance[i];
-        in_s.fill(false);
-        visited.fill(false);
-        negative.clear();
-        frontier.clear();
-        let mut size = 1;
-        in_s[start] = true;
-        visited[start] = true;
-        let discover = |i: usize,
-                        visited: &mut [bool],
-                        negative: &mut Vec<usize>,
-                        frontier: &mut BinaryHeap<_>| {
-            for n in graph.neighbours(i) {
-                if !visited[n] {
-                    visited[n] = true;
-                    let dn = d(n);
-                    if dn < 0.0 {
-                        negative.push(n);
-                    } else {
-                        frontier.push(Reverse(ByDistance(dn, n)));
+/// Buffers one thread reuses from split to split: once they have grown, a split
+/// allocates only the two halves it returns.
+#[derive(Default)]
+pub struct SplitScratch {
+    /// Rest positions of the members.
+    points: Vec<Vec3>,
+    graph: LocalGraph,
+    /// Signed distance of every member to the plane through the start vertex.
+    distance: Vec<f32>,
+    in_s: Vec<bool>,
+    in_m: Vec<bool>,
+    visited: Vec<bool>,
+    negative: Vec<usize>,
+    frontier: BinaryHeap<Reverse<ByDistance>>,
+    label: Vec<u32>,
+    stack: Vec<usize>,
+    sizes: Vec<usize>,
+}
+
+impl SplitScratch {
+    /// [`split_cluster`] with these buffers.
+    pub fn split(
+        &mut self,
+        members: &[u32],
+        lattice: &Lattice,
+        rng: &mut impl Rng,
+    ) -> (Vec<u32>, Vec<u32>) {
+        if members.len() < 2 {
+            return (members.to_vec(), Vec::new());
+        }
+        self.points.clear();
+        self.points
+            .extend(members.iter().map(|m| lattice.coord(*m).as_vec3()));
+        self.graph.rebuild(members, lattice);
+        let normal = split_normal(&self.points);
+        let start = rng.random_range(0..members.len());
+        self.geometric_partition(start, normal);
+        self.topological_repair();
+        let pick = |flags: &[bool]| {
+            members
+                .iter()
+                .zip(flags)
+                .filter(|(_, f)| **f)
+                .map(|(m, _)| *m)
+                .collect()
+        };
+        (pick(&self.in_s), pick(&self.in_m))
+    }
+
+    /// SPEC §4.2: grows a connected set S (`in_s`) from vertex `start` whose boundary
+    /// approximates the plane through `start` with normal `normal`.
+    fn geometric_partition(&mut self, start: usize, normal: Vec3) {
+        let Self {
+            points,
+            graph,
+            distance,
+            in_s,
+            visited,
+            negative,
+            frontier,
+            ..
+        } = self;
+        let g = points.len();
+        // signed distance to the plane through `start`, before the flip (the flip negates)
+        distance.clear();
+        distance.extend(points.iter().map(|p| normal.dot(*p - points[start])));
+        in_s.resize(g, false);
+        visited.resize(g, false);
+        // (each vertex enters each list at most once per flip)
+        negative.reserve(g);
+        frontier.reserve(g);
+        for flip in [1.0f32, -1.0] {
+            let d = |i: usize| flip * distance[i];
+            in_s.fill(false);
+            visited.fill(false);
+            negative.clear();
+            frontier.clear();
+            let mut size = 1;
+            in_s[start] = true;
+            visited[start] = true;
+            let discover = |i: usize,
+                            visited: &mut [bool],
+                            negative: &mut Vec<usize>,
+                            frontier: &mut BinaryHeap<_>| {
+                for n in graph.neighbours(i) {
+                    if !visited[n] {
+                        visited[n] = true;
+                        let dn = d(n);
+                        if dn < 0.0 {
+                            negative.push(n);
+                        } else {
+                            frontier.push(Reverse(ByDistance(dn, n)));
+                        }
+                    }
+                }
+            };
+            discover(start, visited, negative, frontier);
+            // Step 3: absorb every reachable vertex on the negative side.
+            while let Some(x) = negative.pop() {
+                in_s[x] = true;
+                size += 1;
+                discover(x, visited, negative, frontier);
+            }
+            // Step 4: grow by smallest signed distance until |S| + 1 ≥ |G| / 2.
+            while 2 * (size + 1) < g {
+                let Some(Reverse(ByDistance(_, x))) = frontier.pop() else {
+                    break;
+                };
+                in_s[x] = true;
+                size += 1;
+                discover(x, visited, negative, frontier);
+                while let Some(y) = negative.pop() {
+                    // Only reachable after a flip: keep S connected, take it in order.
+                    frontier.push(Reverse(ByDistance(d(y), y)));
+                }
+            }
+            // Step 5: too big → flip the normal and start again (at most once is
+            // needed: both sides cannot each hold more than half the vertices).
+            if 2 * size <= g + 2 {
+                break;
+            }
+        }
+    }
+
+    /// SPEC §4.3: moves every component of G − S but the largest into S (`in_s`); the
+    /// remaining component is M (`in_m`).
+    fn topological_repair(&mut self) {
+        const UNSEEN: u32 = u32::MAX;
+        let Self {
+            graph,
+            in_s,
+            in_m,
+            label,
+            stack,
+            sizes,
+            ..
+        } = self;
+        let g = in_s.len();
+        // component of every vertex of G − S, numbered in order of its smallest vertex
+        label.clear();
+        label.resize(g, UNSEEN);
+        sizes.clear();
+        for start in 0..g {
+            if in_s[start] || label[start] != UNSEEN {
+                continue;
+            }
+            let id = sizes.len() as u32;
+            label[start] = id;
+            stack.push(start);
+            let mut size = 0;
+            while let Some(i) = stack.pop() {
+                size += 1;
+                for n in graph.neighbours(i) {
+                    if !in_s[n] && label[n] == UNSEEN {
+                        label[n] = id;
+                        stack.push(n);
                     }
                 }
             }
-        };
-        discover(start, &mut visited, &mut negative, &mut frontier);
-        // Step 3: absorb every reachable vertex on the negative side.
-        while let Some(x) = negative.pop() {
-            in_s[x] = true;
-            size += 1;
-            discover(x, &mut visited, &mut negative, &mut frontier);
+            sizes.push(size);
         }
-        // Step 4: grow by smallest signed distance until |S| + 1 ≥ |G| / 2.
-        while 2 * (size + 1) < g {
-            let Some(Reverse(ByDistance(_, x))) = frontier.pop() else {
-                break;
-            };
-            in_s[x] = true;
-            size += 1;
-            discover(x, &mut visited, &mut negative, &mut frontier);
-            while let Some(y) = negative.pop() {
-                // Only reachable after a flip: keep S connected, take it in order.
-                frontier.push(Reverse(ByDistance(d(y), y)));
+        // Largest stays as M (first one on ties); the rest join S.
+        let keep = (0..sizes.len()).max_by_key(|&c| (sizes[c], Reverse(c)));
+        in_m.clear();
+        in_m.resize(g, false);
+        for (i, &l) in label.iter().enumerate() {
+            if l == UNSEEN {
+                continue;
+            }
+            if Some(l as usize) == keep {
+                in_m[i] = true;
+            } else {
+                in_s[i] = true;
             }
         }
-        // Step 5: too big → flip the normal and start again (at most once is needed:
-        // both sides cannot each hold more than half the vertices).
-        if 2 * size <= g + 2 {
-            break;
-        }
     }
-    in_s
-}
-
-/// SPEC §4.3: moves every component of G − S but the largest into S. Returns
-/// membership flags of M (the remaining component).
-pub fn topological_repair(graph: &LocalGraph, in_s: &mut [bool]) -> Vec<bool> {
-    const UNSEEN: u32 = u32::MAX;
-    let g = in_s.len();
-    // component of every vertex of G − S, numbered in order of its smallest vertex
-    let mut label = vec![UNSEEN; g];
-    let mut sizes: Vec<usize> = Vec::with_capacity(4);
-    let mut stack = Vec::with_capacity(g);
-    for start in 0..g {
-        if in_s[start] || label[start] != UNSEEN {
-            continue;
-        }
-        let id = sizes.len() as u32;
-        label[start] = id;
-        stack.push(start);
-        let mut size = 0;
-        while let Some(i) = stack.pop() {
-            size += 1;
-            for n in graph.neighbours(i) {
-                if !in_s[n] && label[n] == UNSEEN {
-                    label[n] = id;
-                    stack.push(n);
-                }
-            }
-        }
-        sizes.push(size);
-    }
-    // Largest stays as M (first one on ties); the rest join S.
-    let keep = (0..sizes.len()).max_by_key(|&c| (sizes[c], Reverse(c)));
-    let mut in_m = vec![false; g];
-    for (i, &l) in label.iter().enumerate() {
-        if l == UNSEEN {
-            continue;
-        }
-        if Some(l as usize) == keep {
-            in_m[i] = true;
-        } else {
-            in_s[i] = true;
-        }
-    }
-    in_m
 }
 
 /// Splits a connected cluster (sorted members, at least 2) into two connected, disjoint
@@ -195,27 +266,7 @@ pub fn split_cluster(
     lattice: &Lattice,
     rng: &mut impl Rng,
 ) -> (Vec<u32>, Vec<u32>) {
-    if members.len() < 2 {
-        return (members.to_vec(), Vec::new());
-    }
-    let points: Vec<Vec3> = members
-        .iter()
-        .map(|m| lattice.coord(*m).as_vec3())
-        .collect();
-    let graph = LocalGraph::new(members, lattice);
-    let normal = split_normal(&points);
-    let start = rng.random_range(0..members.len());
-    let mut in_s = geometric_partition(&points, &graph, start, normal);
-    let in_m = topological_repair(&graph, &mut in_s);
-    let pick = |flags: &[bool]| {
-        members
-            .iter()
-            .zip(flags)
-            .filter(|(_, f)| **f)
-            .map(|(m, _)| *m)
-            .collect()
-    };
-    (pick(&in_s), pick(&in_m))
+    SplitScratch::default().split(members, lattice, rng)
 }
 
 /// The parts of one connected cluster split (SPEC §3.3) until none has more than `max`
@@ -226,6 +277,7 @@ pub fn split_until_fits(
     lattice: &Lattice,
     max: usize,
     rng: &mut impl Rng,
+    scratch: &mut SplitScratch,
 ) -> (Vec<Vec<u32>>, Vec<(u32, u32)>) {
     // a cluster of up to twice `max` members (the usual case) splits once
     let mut parts = Vec::with_capacity(4);
@@ -236,7 +288,7 @@ pub fn split_until_fits(
             parts.push(part);
             continue;
         }
-        let (a, b) = split_cluster(&part, lattice, rng);
+        let (a, b) = scratch.split(&part, lattice, rng);
         if b.is_empty() {
             parts.push(a);
         } else {
@@ -302,9 +354,12 @@ pub fn split_oversized<S: ClusterStore>(
         .collect();
     let splits: Vec<_> = oversized
         .into_par_iter()
-        .map(|(k, members, seed)| {
+        .map_init(SplitScratch::default, |scratch, (k, members, seed)| {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            (k, split_until_fits(members, lattice, max, &mut rng))
+            (
+                k,
+                split_until_fits(members, lattice, max, &mut rng, scratch),
+            )
         })
         .collect();
     let mut outcome = SplitOutcome {
