@@ -129,7 +129,8 @@ pub fn adjacent_particles(members: &[u32], lattice: &Lattice) -> Vec<u32> {
         for &m in members {
             mark[m as usize] = 0;
         }
-        let mut out = Vec::with_capacity(members.len() * 2);
+        // (room for every neighbour cell: the list never grows by reallocation)
+        let mut out = Vec::with_capacity(members.len() * 6);
         for &m in members {
             for n in lattice.neighbour_cells(m) {
                 if n != NO_PARTICLE && mark[n as usize] == u32::MAX {
@@ -138,7 +139,11 @@ pub fn adjacent_particles(members: &[u32], lattice: &Lattice) -> Vec<u32> {
                 }
             }
         }
-        for &p in members.iter().chain(&out) {
+        // two plain loops: a chained iterator tests which half it is in at every step
+        for &p in members {
+            mark[p as usize] = u32::MAX;
+        }
+        for &p in &out {
             mark[p as usize] = u32::MAX;
         }
         out
