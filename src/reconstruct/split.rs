@@ -31,21 +31,14 @@ impl Ord for ByDistance {
 /// The lattice graph induced on a member set, in compressed rows; vertices are indices
 /// into the member list.
 #[derive(Clone, Debug, Default)]
-pub struct LocalGraph {
+struct LocalGraph {
     row: Vec<u32>,
     next: Vec<u32>,
 }
 
 impl LocalGraph {
-    /// Builds the graph of `members`.
-    pub fn new(members: &[u32], lattice: &Lattice) -> Self {
-        let mut graph = Self::default();
-        graph.rebuild(members, lattice);
-        graph
-    }
-
     /// Makes this the graph of `members`, reusing its buffers.
-    pub fn rebuild(&mut self, members: &[u32], lattice: &Lattice) {
+    fn rebuild(&mut self, members: &[u32], lattice: &Lattice) {
         with_slots(lattice.len(), |local| self.build(members, lattice, local));
     }
 
@@ -74,7 +67,7 @@ impl LocalGraph {
 
     /// Neighbours of vertex `i`.
     #[inline]
-    pub fn neighbours(&self, i: usize) -> impl Iterator<Item = usize> + '_ {
+    fn neighbours(&self, i: usize) -> impl Iterator<Item = usize> + '_ {
         self.next[self.row[i] as usize..self.row[i + 1] as usize]
             .iter()
             .map(|j| *j as usize)
