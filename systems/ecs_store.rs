@@ -66,10 +66,7 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_, '_, '_, '_> {
         if self.removed.contains(&k) {
             return &[];
         }
-        if let Some(m) = self.created.get(&k) {
-            return m;
-        }
-        self.clusters.get(k).map(|m| m.0.as_slice()).unwrap_or(&[])
+        stored_members(&self.created, self.clusters, k)
     }
 
     fn set_members(&mut self, k: Entity, members: Vec<u32>) {
@@ -115,15 +112,26 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_, '_, '_, '_> {
     fn remove(&mut self, k: Entity) {
         if !self.removed.contains(&k) {
             // (the member list and the index are separate fields: no copy of the list)
-            let members = match self.created.get(&k) {
-                Some(m) => m.as_slice(),
-                None => self.clusters.get(k).map(|m| m.0.as_slice()).unwrap_or(&[]),
-            };
+            let members = stored_members(&self.created, self.clusters, k);
             index_remove(self.index, members, k);
         }
         if self.created.remove(&k).is_none() {
             self.removed.insert(k);
         }
         self.commands.entity(k).despawn();
+    }
+}
+
+/// The members of cluster `k` as stored: in `created` if this store made it, else in
+/// its `ClusterMembers` component (empty if it has none). Takes the fields, not the
+/// store, so that the index can be edited while the list is borrowed.
+fn stored_members<'x>(
+    created: &'x FxHashMap<Entity, Vec<u32>>,
+    clusters: &'x Query<'_, '_, &mut ClusterMembers>,
+    k: Entity,
+) -> &'x [u32] {
+    match created.get(&k) {
+        Some(m) => m,
+        None => clusters.get(k).map(|m| m.0.as_slice()).unwrap_or(&[]),
     }
 }
