@@ -13,6 +13,10 @@ use rayon::prelude::*;
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, VecDeque};
 
+/// Spare capacity of each half a split returns: the expansion (SPEC §3.4) adds a few
+/// particles to it next, which would otherwise reallocate the list.
+const HALF_HEADROOM: usize = 8;
+
 /// Heap key ordering frontier vertices by signed distance, ties by local index.
 #[derive(Clone, Copy, PartialEq)]
 struct ByDistance(f32, usize);
@@ -113,12 +117,12 @@ impl SplitScratch {
         self.geometric_partition(start, normal);
         self.topological_repair();
         let pick = |flags: &[bool]| {
-            members
-                .iter()
-                .zip(flags)
-                .filter(|(_, f)| **f)
-                .map(|(m, _)| *m)
-                .collect()
+            // sized up front (a filtered collect would grow it by reallocation), with
+            // room for the few particles the expansion adds next (SPEC §3.4)
+            let size = flags.iter().filter(|f| **f).count();
+            let mut half = Vec::with_capacity(size + HALF_HEADROOM);
+            half.extend(members.iter().zip(flags).filter(|(_, f)| **f).map(|(m, _)| *m));
+            half
         };
         (pick(&self.in_s), pick(&self.in_m))
     }
