@@ -14,8 +14,16 @@ pub type ClusterList<K> = SmallVec<[K; 8]>;
 pub trait ClusterStore {
     /// Cluster handle (an entity in the ECS, a slot number in [`ClusterTable`]).
     type Key: Copy + Eq + Ord + Hash + Debug + Send + Sync;
-    /// Clusters that contain particle `p`.
-    fn clusters_of(&self, p: u32) -> &[Self::Key];
+    /// The particle → clusters index: entry `p` lists the clusters that contain particle
+    /// `p`, ascending. Plain data, so parallel readers can share it.
+    fn particle_index(&self) -> &[ClusterList<Self::Key>];
+    /// Clusters that contain particle `p` (none for a particle out of range).
+    fn clusters_of(&self, p: u32) -> &[Self::Key] {
+        self.particle_index()
+            .get(p as usize)
+            .map(|l| l.as_slice())
+            .unwrap_or(&[])
+    }
     /// Members of cluster `k` (sorted); empty if `k` does not exist.
     fn members(&self, k: Self::Key) -> &[u32];
     /// Replaces the members of `k` (the list is sorted and deduplicated here).
@@ -176,11 +184,8 @@ impl ClusterTable {
 impl ClusterStore for ClusterTable {
     type Key = u32;
 
-    fn clusters_of(&self, p: u32) -> &[u32] {
-        self.of_particle
-            .get(p as usize)
-            .map(|l| l.as_slice())
-            .unwrap_or(&[])
+    fn particle_index(&self) -> &[ClusterList<u32>] {
+        &self.of_particle
     }
 
     fn members(&self, k: u32) -> &[u32] {

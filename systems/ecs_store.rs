@@ -3,7 +3,7 @@
 //! reserved entities whose components are inserted by [`EcsClusterStore::finish`].
 
 use crate::cluster_store::{
-    ClusterStore, index_add, index_remove, index_replace, merge_sorted, normalise,
+    ClusterList, ClusterStore, index_add, index_remove, index_replace, merge_sorted, normalise,
 };
 use crate::components::{ClusterMembers, ClusterOf, Stiffness};
 use bevy_ecs::prelude::*;
@@ -13,7 +13,7 @@ use rustc_hash::{FxHashMap, FxHashSet};
 pub struct EcsClusterStore<'a, 'd, 'qw, 'qs, 'cw, 'cs> {
     body: Entity,
     stiffness: f32,
-    index: &'a mut Vec<crate::cluster_store::ClusterList<Entity>>,
+    index: &'a mut Vec<ClusterList<Entity>>,
     clusters: &'a mut Query<'qw, 'qs, &'d mut ClusterMembers>,
     commands: &'a mut Commands<'cw, 'cs>,
     created: FxHashMap<Entity, Vec<u32>>,
@@ -25,7 +25,7 @@ impl<'a, 'd, 'qw, 'qs, 'cw, 'cs> EcsClusterStore<'a, 'd, 'qw, 'qs, 'cw, 'cs> {
     pub fn new(
         body: Entity,
         stiffness: f32,
-        index: &'a mut Vec<crate::cluster_store::ClusterList<Entity>>,
+        index: &'a mut Vec<ClusterList<Entity>>,
         clusters: &'a mut Query<'qw, 'qs, &'d mut ClusterMembers>,
         commands: &'a mut Commands<'cw, 'cs>,
     ) -> Self {
@@ -55,11 +55,8 @@ impl<'a, 'd, 'qw, 'qs, 'cw, 'cs> EcsClusterStore<'a, 'd, 'qw, 'qs, 'cw, 'cs> {
 impl ClusterStore for EcsClusterStore<'_, '_, '_, '_, '_, '_> {
     type Key = Entity;
 
-    fn clusters_of(&self, p: u32) -> &[Entity] {
+    fn particle_index(&self) -> &[ClusterList<Entity>] {
         self.index
-            .get(p as usize)
-            .map(|l| l.as_slice())
-            .unwrap_or(&[])
     }
 
     fn members(&self, k: Entity) -> &[u32] {

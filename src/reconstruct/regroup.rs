@@ -7,7 +7,7 @@ use crate::graph::{connected_components, position_in};
 use crate::lattice::Lattice;
 use rand::Rng;
 use rayon::prelude::*;
-use rustc_hash::FxHashMap;
+use rustc_hash::{FxHashMap, FxHashSet};
 use smallvec::SmallVec;
 
 /// Particles adjacent to a sorted member set (not in it), in member order then lattice
@@ -29,7 +29,6 @@ struct MergeForest<K> {
     node_of: FxHashMap<K, u32>,
     key: Vec<K>,
     parent: Vec<u32>,
-    pending: usize,
 }
 
 impl<K: Copy + Eq + std::hash::Hash> MergeForest<K> {
@@ -42,14 +41,7 @@ impl<K: Copy + Eq + std::hash::Hash> MergeForest<K> {
                 .collect(),
             key: pending.to_vec(),
             parent: (0..pending.len() as u32).collect(),
-            pending: pending.len(),
         }
-    }
-
-    fn is_pending(&self, k: K) -> bool {
-        self.node_of
-            .get(&k)
-            .is_some_and(|n| (*n as usize) < self.pending)
     }
 
     /// Root node of `node`, with path halving.
@@ -101,17 +93,38 @@ pub fn regroup<S: ClusterStore>(
     let mut cut: Vec<S::Key> = cut_clusters.to_vec();
     cut.sort_unstable();
     cut.dedup();
-    // 3.1: pending clusters. The first piece reuses the cut cluster's handle.
-    let pieces: Vec<Vec<Vec<u32>>> = {
+    // 3.1: pending clusters, and for each the adjacent particle in an intact cluster
+    // (see below). Both only read the clusters, so they are found in parallel; a piece
+    // sees the index before the cut clusters are replaced by their pieces, which holds
+    // the same intact clusters.
+    let found: Vec<(Vec<Vec<u32>>, SmallVec<[Option<u32>; 2]>)> = {
         let lists: Vec<&[u32]> = cut.iter().map(|k| store.members(*k)).collect();
+        let index = store.particle_index();
+        let cut_set: FxHashSet<S::Key> = cut.iter().copied().collect();
         lists
             .par_iter()
             .with_min_len(64)
-            .map(|members| connected_components(members, lattice))
+            .map(|members| {
+                let pieces = connected_components(members, lattice);
+                let intact = pieces
+                    .iter()
+                    .map(|piece| {
+                        adjacent_in_order(piece, lattice).find(|a| {
+                            index
+                                .get(*a as usize)
+                                .is_some_and(|l| l.iter().any(|k| !cut_set.contains(k)))
+                        })
+                    })
+                    .collect();
+                (pieces, intact)
+            })
             .collect()
     };
+    // The first piece reuses the cut cluster's handle.
     let mut pending = Vec::with_capacity(cut.len());
-    for (k, pieces) in cut.into_iter().zip(pieces) {
+    let mut intact_neighbour = Vec::with_capacity(cut.len());
+    for (k, (pieces, intact)) in cut.into_iter().zip(found) {
+        intact_neighbour.extend(intact);
         let mut pieces = pieces.into_iter();
         match pieces.next() {
             Some(first) => {
@@ -128,23 +141,21 @@ pub fn regroup<S: ClusterStore>(
     let mut forest = MergeForest::new(&pending);
     let mut merged: Vec<u32> = Vec::new();
     for (own, &p) in pending.iter().enumerate() {
+        let chosen = intact_neighbour[own];
         let own = forest.find(own as u32);
         // The adjacent particle: the first one that belongs to a cluster the cut left
         // intact, else the first one with any cluster outside this piece's merge set.
         // (§3.2 leaves the choice open; preferring intact neighbours keeps chains of
         // merges between pending clusters, and the giant clusters they make, rare.)
-        let mut fallback = None;
-        let mut chosen = None;
-        for a in adjacent_in_order(store.members(p), lattice) {
-            let clusters = store.clusters_of(a);
-            if clusters.iter().any(|k| !forest.is_pending(*k)) {
-                chosen = Some(a);
-                break;
-            }
-            if fallback.is_none() && clusters.iter().any(|k| forest.root_of(*k) != Some(own)) {
-                fallback = Some(a);
-            }
-        }
+        let fallback = match chosen {
+            Some(_) => None,
+            None => adjacent_in_order(store.members(p), lattice).find(|a| {
+                store
+                    .clusters_of(*a)
+                    .iter()
+                    .any(|k| forest.root_of(*k) != Some(own))
+            }),
+        };
         let target = chosen.or(fallback).and_then(|a| {
             let candidates: SmallVec<[S::Key; 8]> = store
                 .clusters_of(a)

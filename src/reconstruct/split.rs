@@ -121,7 +121,13 @@ impl SplitScratch {
             // room for the few particles the expansion adds next (SPEC §3.4)
             let size = flags.iter().filter(|f| **f).count();
             let mut half = Vec::with_capacity(size + HALF_HEADROOM);
-            half.extend(members.iter().zip(flags).filter(|(_, f)| **f).map(|(m, _)| *m));
+            half.extend(
+                members
+                    .iter()
+                    .zip(flags)
+                    .filter(|(_, f)| **f)
+                    .map(|(m, _)| *m),
+            );
             half
         };
         (pick(&self.in_s), pick(&self.in_m))
