@@ -22,6 +22,10 @@ pub fn adjacent_in_order<'a>(
         .filter(|n| position_in(members, *n).is_none())
 }
 
+/// Per piece of one cut cluster, its first adjacent particle (in the order of
+/// [`adjacent_in_order`]) that belongs to a cluster the cut left intact.
+type IntactNeighbours = SmallVec<[Option<u32>; 2]>;
+
 /// The merge forest of §3.2 over local node numbers: the pending clusters are nodes
 /// `0..pending`, clusters the cut left intact become nodes when first chosen as a target
 /// (they never merge on, so they stay roots).
@@ -97,7 +101,7 @@ pub fn regroup<S: ClusterStore>(
     // (see below). Both only read the clusters, so they are found in parallel; a piece
     // sees the index before the cut clusters are replaced by their pieces, which holds
     // the same intact clusters.
-    let found: Vec<(Vec<Vec<u32>>, SmallVec<[Option<u32>; 2]>)> = {
+    let found: Vec<(Vec<Vec<u32>>, IntactNeighbours)> = {
         let lists: Vec<&[u32]> = cut.iter().map(|k| store.members(*k)).collect();
         let index = store.particle_index();
         let cut_set: FxHashSet<S::Key> = cut.iter().copied().collect();
