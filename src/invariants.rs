@@ -1,6 +1,8 @@
 //! The invariants of SPEC §1 and §3 on plain data: every cluster connected, no dead
-//! member, every live particle covered, no isolated cluster, no oversized cluster.
+//! member, every live particle covered, no isolated cluster, no oversized cluster; and
+//! the particle → clusters index in step with the member lists.
 
+use crate::cluster_store::ClusterList;
 use crate::graph::{body_pieces, is_connected};
 use crate::lattice::Lattice;
 use petgraph::unionfind::UnionFind;
@@ -42,6 +44,12 @@ pub enum Violation {
         /// The limit.
         max: usize,
     },
+    /// The particle → clusters index does not list exactly the clusters whose members
+    /// hold this particle (in ascending order).
+    IndexMismatch {
+        /// The particle.
+        particle: u32,
+    },
 }
 
 impl fmt::Display for Violation {
@@ -62,6 +70,10 @@ impl fmt::Display for Violation {
             Violation::Oversized { cluster, size, max } => {
                 write!(f, "cluster {cluster} has {size} members (max {max})")
             }
+            Violation::IndexMismatch { particle } => write!(
+                f,
+                "the cluster index entry of particle {particle} disagrees with the members"
+            ),
         }
     }
 }
@@ -124,6 +136,31 @@ pub fn check_body<'a>(
     out
 }
 
+/// Checks a particle → clusters index against the member lists it indexes: entry `p`
+/// must list, ascending and once each, the clusters whose members hold `p`.
+pub fn check_index<'a, K: Copy + Ord + 'a>(
+    clusters: impl IntoIterator<Item = (K, &'a [u32])>,
+    index: &[ClusterList<K>],
+) -> Vec<Violation> {
+    let mut expected: Vec<Vec<K>> = vec![Vec::new(); index.len()];
+    let mut out = Vec::new();
+    for (k, members) in clusters {
+        for &m in members {
+            match expected.get_mut(m as usize) {
+                Some(list) => list.push(k),
+                None => out.push(Violation::IndexMismatch { particle: m }),
+            }
+        }
+    }
+    for (p, (mut want, have)) in expected.into_iter().zip(index).enumerate() {
+        want.sort_unstable();
+        if want[..] != have[..] {
+            out.push(Violation::IndexMismatch { particle: p as u32 });
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -172,6 +209,28 @@ mod tests {
                 cluster: 0,
                 particle: 3
             }]
+        );
+    }
+
+    #[test]
+    fn index_mismatches_are_detected() {
+        let clusters: [(u32, &[u32]); 2] = [(0, &[0, 1]), (5, &[1, 2])];
+        let list = |ks: &[u32]| ClusterList::from_slice(ks);
+        let good = [list(&[0]), list(&[0, 5]), list(&[5])];
+        assert!(check_index(clusters, &good).is_empty());
+        // a missing entry, an extra entry, the wrong order, a member beyond the index
+        let missing = [list(&[0]), list(&[5]), list(&[5])];
+        let extra = [list(&[0, 5]), list(&[0, 5]), list(&[5])];
+        let unsorted = [list(&[0]), list(&[5, 0]), list(&[5])];
+        for (bad, particle) in [(missing, 1), (extra, 0), (unsorted, 1)] {
+            assert_eq!(
+                check_index(clusters, &bad),
+                vec![Violation::IndexMismatch { particle }]
+            );
+        }
+        assert_eq!(
+            check_index([(0u32, &[0u32, 3][..])], &good[..1]),
+            vec![Violation::IndexMismatch { particle: 3 }]
         );
     }
 }

@@ -6,7 +6,7 @@ use crate::clustering::initial_clusters;
 use crate::components::*;
 use crate::config::{Material, SimConfig};
 use crate::error::{CleaveError, Result, check_finite_vec, check_positive};
-use crate::invariants::{Violation, check_body};
+use crate::invariants::{Violation, check_body, check_index};
 use crate::lattice::Shape;
 use crate::resources::*;
 use crate::systems::{CleaveSchedule, install};
@@ -229,7 +229,8 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     Ok(body)
 }
 
-/// Checks SPEC §1/§3 invariants of every body in `world`; returns `(body, violation)`.
+/// Checks SPEC §1/§3 invariants of every body in `world`, and that each body's
+/// particle → clusters index matches its clusters' members; returns `(body, violation)`.
 pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
     let mut clusters_by_body: std::collections::BTreeMap<Entity, Vec<(u64, &[u32])>> =
         Default::default();
@@ -242,12 +243,18 @@ pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
             .or_default()
             .push((e.to_bits(), m.0.as_slice()));
     }
-    let Some(mut bodies) = world.try_query::<(Entity, &Body, &BodyLattice)>() else {
+    let Some(mut bodies) =
+        world.try_query::<(Entity, &Body, &BodyLattice, Option<&ParticleClusters>)>()
+    else {
         return Vec::new();
     };
     let mut out = Vec::new();
-    for (e, body, lattice) in bodies.iter(world) {
+    for (e, body, lattice, index) in bodies.iter(world) {
         let clusters = clusters_by_body.remove(&e).unwrap_or_default();
+        if let Some(index) = index {
+            let by_entity = clusters.iter().map(|(id, m)| (Entity::from_bits(*id), *m));
+            out.extend(check_index(by_entity, &index.0).into_iter().map(|v| (e, v)));
+        }
         for v in check_body(
             &lattice.lattice,
             clusters,

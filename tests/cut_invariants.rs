@@ -5,7 +5,7 @@
 use cleave::cluster_store::{ClusterStore, ClusterTable};
 use cleave::clustering::{initial_clusters, uncovered_edges};
 use cleave::config::Material;
-use cleave::invariants::check_body;
+use cleave::invariants::{check_body, check_index};
 use cleave::lattice::{Lattice, Shape};
 use cleave::prelude::*;
 use cleave::reconstruct::rebuild_after_cut;
@@ -131,6 +131,9 @@ proptest! {
             rebuild_after_cut(&mut table, &lattice, &cut_clusters, &material, &mut rng);
             let v = violations(&table, &lattice, max);
             prop_assert!(v.is_empty(), "after {:?}: {:?}", cut, v);
+            // the particle index the merges read stays in step with the members
+            let v = check_index(table.iter(), table.particle_index());
+            prop_assert!(v.is_empty(), "index after {:?}: {:?}", cut, v);
             // the stronger invariant the local repair relies on: every edge covered
             prop_assert_eq!(uncovered_edges(&table, &lattice), Vec::<(u32, u32)>::new());
         }
