@@ -232,7 +232,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
 /// Checks SPEC §1/§3 invariants of every body in `world`, and that each body's
 /// particle → clusters index matches its clusters' members; returns `(body, violation)`.
 pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
-    let mut clusters_by_body: std::collections::BTreeMap<Entity, Vec<(u64, &[u32])>> =
+    let mut clusters_by_body: std::collections::BTreeMap<Entity, Vec<(Entity, &[u32])>> =
         Default::default();
     let Some(mut q) = world.try_query::<(Entity, &ClusterMembers, &ClusterOf)>() else {
         return Vec::new();
@@ -241,7 +241,7 @@ pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
         clusters_by_body
             .entry(of.0)
             .or_default()
-            .push((e.to_bits(), m.0.as_slice()));
+            .push((e, m.0.as_slice()));
     }
     let Some(mut bodies) =
         world.try_query::<(Entity, &Body, &BodyLattice, Option<&ParticleClusters>)>()
@@ -252,12 +252,12 @@ pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
     for (e, body, lattice, index) in bodies.iter(world) {
         let clusters = clusters_by_body.remove(&e).unwrap_or_default();
         if let Some(index) = index {
-            let by_entity = clusters.iter().map(|(id, m)| (Entity::from_bits(*id), *m));
-            out.extend(check_index(by_entity, &index.0).into_iter().map(|v| (e, v)));
+            let violations = check_index(clusters.iter().copied(), &index.0);
+            out.extend(violations.into_iter().map(|v| (e, v)));
         }
         for v in check_body(
             &lattice.lattice,
-            clusters,
+            clusters.iter().map(|(k, m)| (k.to_bits(), *m)),
             body.material.max_cluster_size as usize,
         ) {
             out.push((e, v));
