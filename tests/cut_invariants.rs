@@ -1,6 +1,7 @@
-//! Property tests: SPEC §1/§3 invariants hold after every cut, for hundreds of random
-//! cuts on random shapes — through the pure reconstruction pipeline (arbitrary removed
-//! sets: single survivors, everything removed) and through the ECS with real tools.
+//! Property tests: SPEC §1/§3 invariants, and the particle → cluster index, hold after
+//! every cut, for hundreds of random cuts on random shapes — through the pure
+//! reconstruction pipeline (arbitrary removed sets: single survivors, everything removed)
+//! and through the ECS with real tools.
 
 use cleave::cluster_store::{ClusterStore, ClusterTable};
 use cleave::clustering::{initial_clusters, uncovered_edges};
