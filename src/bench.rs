@@ -56,6 +56,9 @@ pub struct BenchRow {
     pub bytes_per_particle: f64,
     /// Regroup + split + expand of a full slice through the middle, ms.
     pub cut_event_ms: f64,
+    /// The whole step in which that slice happens (detection, removal, the cut event,
+    /// the deferred despawns, the layout update and the solve), ms.
+    pub cut_frame_ms: f64,
     /// Initial clustering of the cut body from scratch, ms.
     pub recluster_ms: f64,
     /// Bringing the solver layout up to date in the step after the cut, ms.
@@ -159,7 +162,7 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
     }
     drop(layout);
     let (ms_per_step, bare_ms_per_step) = (median(&mut engine), median(&mut bare));
-    let (cut_event_ms, recluster_ms) = slice_event(&mut sim, n)?;
+    let (cut_event_ms, cut_frame_ms, recluster_ms) = slice_event(&mut sim, n)?;
     sim.world_mut().resource_mut::<SolverCache>().last_update = None;
     sim.step();
     let update = sim.world().resource::<SolverCache>().last_update;
@@ -192,6 +195,7 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
         engine_over_bare: ms_per_step / bare_ms_per_step,
         bytes_per_particle,
         cut_event_ms,
+        cut_frame_ms,
         recluster_ms,
         relayout_ms: update.map_or(f64::NAN, |u| u.ms),
         relayout_patched: update.is_some_and(|u| u.patched),
@@ -200,8 +204,9 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
 }
 
 /// Drops a blade through the middle of the box in one frame (a full slice), then times
-/// re-clustering the cut body from scratch. Returns `(cut event ms, recluster ms)`.
-fn slice_event(sim: &mut Simulation, n: u32) -> Result<(f64, f64)> {
+/// re-clustering the cut body from scratch. Returns `(cut event ms, cut frame ms,
+/// recluster ms)`.
+fn slice_event(sim: &mut Simulation, n: u32) -> Result<(f64, f64, f64)> {
     let now = sim.world().resource::<crate::resources::SimClock>().time;
     let dt = sim.world().resource::<SimSettings>().0.dt;
     let half = n as f32 * H;
@@ -224,7 +229,7 @@ fn slice_event(sim: &mut Simulation, n: u32) -> Result<(f64, f64)> {
         .resource_mut::<CutTimings>()
         .event_ms
         .clear();
-    sim.step();
+    let cut_frame_ms = time_ms(1, || sim.step());
     let cut_event_ms = sim
         .world()
         .resource::<CutTimings>()
@@ -244,7 +249,7 @@ fn slice_event(sim: &mut Simulation, n: u32) -> Result<(f64, f64)> {
         }),
         None => f64::NAN,
     };
-    Ok((cut_event_ms, recluster_ms))
+    Ok((cut_event_ms, cut_frame_ms, recluster_ms))
 }
 
 /// Shape error (RMS distance to the best rigid fit, in h) of a twisted n³ box after each

@@ -53,12 +53,15 @@ fn bench_json_has_one_consistent_line_per_size() {
             "bare_ns_per_membership_iteration",
             "bytes_per_particle",
             "cut_event_ms",
+            "cut_frame_ms",
             "recluster_ms",
             "relayout_ms",
             "rebuild_ms",
         ] {
             assert!(number(key) > 0.0, "{key} in {row}");
         }
+        // the cut frame contains the cut event
+        assert!(number("cut_frame_ms") >= number("cut_event_ms"), "{row}");
         // the cut is patched into the solver layout, not rebuilt
         assert_eq!(
             row["relayout_patched"],

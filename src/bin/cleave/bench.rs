@@ -35,7 +35,7 @@ pub fn bench(
             rayon::current_num_threads()
         );
         println!(
-            "{:>5} {:>9} {:>8} {:>11} {:>10} {:>9} {:>10} {:>9} {:>7} {:>8} {:>9} {:>11} {:>10} {:>9}",
+            "{:>5} {:>9} {:>8} {:>11} {:>10} {:>9} {:>10} {:>9} {:>7} {:>8} {:>9} {:>9} {:>11} {:>10} {:>9}",
             "size",
             "particles",
             "clusters",
@@ -47,6 +47,7 @@ pub fn bench(
             "ratio",
             "B/part",
             "cut ms",
+            "cut frame",
             "recluster",
             "relayout",
             "rebuild"
@@ -61,7 +62,7 @@ pub fn bench(
             );
         } else {
             println!(
-                "{:>5} {:>9} {:>8} {:>11} {:>10.3} {:>9.3} {:>10.3} {:>9.3} {:>7.3} {:>8.0} {:>9.3} {:>11.3} {:>9.3}{} {:>9.3}",
+                "{:>5} {:>9} {:>8} {:>11} {:>10.3} {:>9.3} {:>10.3} {:>9.3} {:>7.3} {:>8.0} {:>9.3} {:>9.3} {:>11.3} {:>9.3}{} {:>9.3}",
                 row.size,
                 row.particles,
                 row.clusters,
@@ -73,6 +74,7 @@ pub fn bench(
                 row.engine_over_bare,
                 row.bytes_per_particle,
                 row.cut_event_ms,
+                row.cut_frame_ms,
                 row.recluster_ms,
                 row.relayout_ms,
                 if row.relayout_patched { "p" } else { "r" },
