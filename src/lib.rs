@@ -16,6 +16,7 @@ pub mod cluster_store;
 pub mod clustering;
 pub mod components;
 pub mod config;
+pub mod detection;
 pub mod dump;
 pub mod error;
 pub mod export;
