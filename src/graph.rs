@@ -157,6 +157,43 @@ mod tests {
     use glam::{IVec3, UVec3};
 
     #[test]
+    fn piece_count_agrees_with_labelling_the_pieces() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+        let mut counts = std::collections::BTreeSet::new();
+        for case in 0..300 {
+            // random occupancy of a small box (sparse to dense), then random removals
+            let dims = IVec3::new(
+                rng.random_range(1..9),
+                rng.random_range(1..9),
+                rng.random_range(1..9),
+            );
+            let fill = rng.random_range(0.2..1.0);
+            let mut coords = Vec::new();
+            for z in 0..dims.z {
+                for y in 0..dims.y {
+                    for x in 0..dims.x {
+                        if rng.random_bool(fill) {
+                            coords.push(IVec3::new(x, y, z) - dims / 2);
+                        }
+                    }
+                }
+            }
+            let mut l = Lattice::from_coords(1.0, coords).unwrap();
+            for p in 0..l.len() as u32 {
+                if rng.random_bool(0.2) {
+                    l.remove(p);
+                }
+            }
+            let pieces = body_pieces(&l).1;
+            assert_eq!(l.piece_count(), pieces, "case {case}");
+            counts.insert(pieces.min(4));
+        }
+        // empty, one, and several pieces all occurred
+        assert_eq!(counts.into_iter().collect::<Vec<_>>(), [0, 1, 2, 3, 4]);
+    }
+
+    #[test]
     fn components_of_a_cut_bar() {
         let mut l = Shape::cuboid(UVec3::new(5, 1, 1), 1.0)
             .voxelise(1.0)

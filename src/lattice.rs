@@ -212,6 +212,78 @@ impl Lattice {
         true
     }
 
+    /// Number of pieces: connected components of the live particles under the
+    /// 6-neighbourhood (the count of [`crate::graph::body_pieces`], without labelling
+    /// every particle). Works on runs of occupied cells along x: one pass over the grid,
+    /// then a union–find over the runs, joining each run to the overlapping runs of the
+    /// row below and of the slice below — a few operations per run instead of a search
+    /// step per particle.
+    pub fn piece_count(&self) -> usize {
+        let (nx, ny) = (self.dims.x as usize, self.dims.y as usize);
+        if self.live_count == 0 || nx == 0 {
+            return 0;
+        }
+        // runs of occupied cells per row (`first`, `last` x, inclusive); the grid's
+        // padding keeps every run inside its row
+        let mut runs: Vec<(u32, u32)> = Vec::new();
+        let mut row_start: Vec<u32> = Vec::with_capacity(self.grid.len() / nx + 1);
+        for row in self.grid.chunks_exact(nx) {
+            row_start.push(runs.len() as u32);
+            let mut x = 0;
+            while x < nx {
+                if row[x] == NO_PARTICLE {
+                    x += 1;
+                    continue;
+                }
+                let first = x;
+                while x < nx && row[x] != NO_PARTICLE {
+                    x += 1;
+                }
+                runs.push((first as u32, (x - 1) as u32));
+            }
+        }
+        row_start.push(runs.len() as u32);
+        let mut parent: Vec<u32> = (0..runs.len() as u32).collect();
+        let find = |parent: &mut [u32], mut i: u32| {
+            while parent[i as usize] != i {
+                let grand = parent[parent[i as usize] as usize];
+                parent[i as usize] = grand;
+                i = grand;
+            }
+            i
+        };
+        let mut pieces = runs.len();
+        let range = |r: usize| row_start[r] as usize..row_start[r + 1] as usize;
+        for r in 0..row_start.len() - 1 {
+            // the row at y − 1 (same slice) and the row at z − 1 (same y)
+            let below = [(r % ny != 0).then(|| r - 1), r.checked_sub(ny)];
+            for other in below.into_iter().flatten() {
+                let (mut i, mut j) = (range(r).start, range(other).start);
+                let (end_i, end_j) = (range(r).end, range(other).end);
+                while i < end_i && j < end_j {
+                    let (a, b) = (runs[i], runs[j]);
+                    if a.1 < b.0 {
+                        i += 1;
+                    } else if b.1 < a.0 {
+                        j += 1;
+                    } else {
+                        let (ra, rb) = (find(&mut parent, i as u32), find(&mut parent, j as u32));
+                        if ra != rb {
+                            parent[ra.max(rb) as usize] = ra.min(rb);
+                            pieces -= 1;
+                        }
+                        if a.1 < b.1 {
+                            i += 1;
+                        } else {
+                            j += 1;
+                        }
+                    }
+                }
+            }
+        }
+        pieces
+    }
+
     /// All live lattice edges `(a, b)` with `a < b`, in ascending order of `a`.
     pub fn edges(&self) -> Vec<(u32, u32)> {
         let mut out = Vec::new();

@@ -217,7 +217,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             .id();
         crate::cluster_store::index_add(&mut index, members, e);
     }
-    let pieces = crate::graph::body_pieces(&lattice).1;
+    let pieces = lattice.piece_count();
     world.entity_mut(body).insert((
         BodyLattice {
             lattice,

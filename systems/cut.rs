@@ -3,7 +3,6 @@
 //! particle → clusters index to name the cut clusters).
 
 use crate::components::{BodyLattice, ParticleClusters};
-use crate::graph::body_pieces;
 use crate::resources::{BodyCutReport, BodySplit, CutList, CutReport, ParticlesCut};
 use bevy_ecs::prelude::*;
 
@@ -38,7 +37,7 @@ pub fn cut(
         cut_clusters.sort_unstable();
         cut_clusters.dedup();
         let before = body.pieces;
-        body.pieces = body_pieces(&body.lattice).1;
+        body.pieces = body.lattice.piece_count();
         if body.pieces != before {
             body_split.write(BodySplit {
                 body: cut.body,
