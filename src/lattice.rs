@@ -156,9 +156,14 @@ impl Lattice {
     /// space are close in the list. The solver lays its arrays out in this order, and
     /// bodies spawn their particle entities in it, so both walk memory the same way.
     pub fn live_in_morton_order(&self) -> Vec<u32> {
-        let mut order: Vec<u32> = self.live_particles().collect();
-        order.sort_by_cached_key(|i| morton_code(self.coord(*i)));
-        order
+        let mut keyed: Vec<(u64, u32)> = Vec::with_capacity(self.live_count);
+        keyed.extend(
+            self.live_particles()
+                .map(|i| (morton_code(self.coord(i)), i)),
+        );
+        // (codes of distinct coordinates are distinct: the order is unique)
+        sort_by_key_radix(&mut keyed);
+        keyed.into_iter().map(|(_, i)| i).collect()
     }
 
     /// Live lattice neighbours of particle `i` (6-neighbourhood), in a fixed order.
@@ -503,11 +508,70 @@ impl Shape {
     }
 }
 
+/// Sorts `(key, value)` pairs by key; pairs with equal keys keep their order (so a list
+/// ordered by value comes out ordered by key, then value, as `sort_unstable` orders it).
+/// A least-significant-digit radix sort over 11-bit digits of the key (skipping digits
+/// that every key shares) for long lists, a comparison sort for short ones.
+fn sort_by_key_radix(items: &mut Vec<(u64, u32)>) {
+    const BITS: u32 = 11;
+    const DIGITS: usize = 64_u32.div_ceil(BITS) as usize;
+    const BUCKETS: usize = 1 << BITS;
+    if items.len() < 4 * BUCKETS {
+        items.sort_by_key(|(key, _)| *key);
+        return;
+    }
+    let digit = |key: u64, d: usize| ((key >> (d as u32 * BITS)) as usize) & (BUCKETS - 1);
+    let mut counts = vec![[0u32; BUCKETS]; DIGITS];
+    for (key, _) in items.iter() {
+        for (d, count) in counts.iter_mut().enumerate() {
+            count[digit(*key, d)] += 1;
+        }
+    }
+    let mut spare = vec![(0, 0); items.len()];
+    for (d, count) in counts.iter_mut().enumerate() {
+        if count.iter().any(|c| *c as usize == items.len()) {
+            continue; // every key has this digit: the pass would change nothing
+        }
+        let mut start = 0;
+        for c in count.iter_mut() {
+            (*c, start) = (start, start + *c);
+        }
+        for &(key, value) in items.iter() {
+            let slot = &mut count[digit(key, d)];
+            spare[*slot as usize] = (key, value);
+            *slot += 1;
+        }
+        std::mem::swap(items, &mut spare);
+    }
+}
+
 /// Interleaves the bits of a lattice coordinate (offset to non-negative) into a
-/// Z-order key.
-fn morton_code(c: glam::IVec3) -> u64 {
+/// Z-order key: bit `b` of x, y, z lands at bit `3b`, `3b + 1`, `3b + 2`.
+fn morton_code(c: IVec3) -> u64 {
+    #[cfg(all(target_arch = "x86_64", target_feature = "bmi2"))]
+    // SAFETY: BMI2 is enabled at compile time (the cfg above).
+    unsafe {
+        use std::arch::x86_64::_pdep_u64;
+        const X_BITS: u64 = 0x1249_2492_4924_9249;
+        _pdep_u64(morton_offset(c.x), X_BITS)
+            | _pdep_u64(morton_offset(c.y), X_BITS << 1)
+            | _pdep_u64(morton_offset(c.z), X_BITS << 2)
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "bmi2")))]
+    morton_code_portable(c)
+}
+
+/// A coordinate offset to non-negative, 21 bits.
+#[inline(always)]
+fn morton_offset(v: i32) -> u64 {
+    (v as i64 + (1 << 20)) as u64 & 0x1f_ffff
+}
+
+/// [`morton_code`] by shifts and masks, for CPUs without BMI2 (and to check it).
+#[cfg(any(test, not(all(target_arch = "x86_64", target_feature = "bmi2"))))]
+fn morton_code_portable(c: IVec3) -> u64 {
     fn spread(v: i32) -> u64 {
-        let mut x = (v as i64 + (1 << 20)) as u64 & 0x1f_ffff;
+        let mut x = morton_offset(v);
         x = (x | (x << 32)) & 0x1f_0000_0000_ffff;
         x = (x | (x << 16)) & 0x1f_0000_ff00_00ff;
         x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
@@ -551,6 +615,49 @@ impl ExactSizeIterator for Neighbours {}
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn morton_codes_interleave_the_coordinate_bits() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(6);
+        assert_eq!(
+            morton_code_portable(IVec3::new(-(1 << 20), -(1 << 20), -(1 << 20))),
+            0
+        );
+        // x = 1, y = 0, z = 0 after the offset: bit 0; y: bit 1; z: bit 2
+        let origin = IVec3::splat(-(1 << 20));
+        assert_eq!(morton_code_portable(origin + IVec3::X), 1);
+        assert_eq!(morton_code_portable(origin + IVec3::Y), 2);
+        assert_eq!(morton_code_portable(origin + IVec3::Z), 4);
+        assert_eq!(morton_code_portable(origin + IVec3::new(2, 0, 0)), 8);
+        for _ in 0..10_000 {
+            let c = IVec3::new(
+                rng.random_range(-5000..5000),
+                rng.random_range(-5000..5000),
+                rng.random_range(-5000..5000),
+            );
+            assert_eq!(morton_code(c), morton_code_portable(c), "{c}");
+        }
+    }
+
+    #[test]
+    fn radix_sort_agrees_with_a_comparison_sort() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
+        for len in [0, 5, 9000, 40_000] {
+            // keys in a narrow band (few digits differ) and over all 64 bits
+            for spread in [1u64 << 20, u64::MAX] {
+                let base: u64 = rng.random();
+                let mut items: Vec<(u64, u32)> = (0..len)
+                    .map(|i| (base.wrapping_add(rng.random_range(0..=spread / 2)), i))
+                    .collect();
+                let mut expected = items.clone();
+                expected.sort_unstable();
+                sort_by_key_radix(&mut items);
+                assert_eq!(items, expected, "{len} keys, spread {spread}");
+            }
+        }
+    }
 
     #[test]
     fn neighbours_are_the_live_particles_at_the_six_offsets() {
