@@ -36,6 +36,57 @@ pub fn colour_clusters(
     colour
 }
 
+/// [`colour_clusters`] with one bit per colour per particle instead of the inverse lists:
+/// a cluster takes the lowest colour that none of its members' earlier clusters has, the
+/// same choice. Returns the colours and every particle's colour bits (of `particles`
+/// particles), or `None` when some cluster would need a 65th colour.
+pub fn colour_clusters_by_bits(
+    cluster_start: &[u32],
+    members: &[u32],
+    particles: usize,
+) -> Option<(Vec<u32>, Vec<u64>)> {
+    let mut bits = vec![0u64; particles];
+    let colours = cluster_start
+        .windows(2)
+        .map(|range| {
+            let members = &members[range[0] as usize..range[1] as usize];
+            let taken = members.iter().fold(0, |taken, m| taken | bits[*m as usize]);
+            let colour = taken.trailing_ones();
+            let bit = 1u64.checked_shl(colour).filter(|_| colour < 64)?;
+            for &m in members {
+                bits[m as usize] |= bit;
+            }
+            Some(colour)
+        })
+        .collect::<Option<Vec<u32>>>()?;
+    Some((colours, bits))
+}
+
+/// [`colour_clusters`] from the cluster → particle lists alone: builds the inverse lists
+/// (over `particles` particles) first.
+pub fn colour_clusters_by_lists(
+    cluster_start: &[u32],
+    members: &[u32],
+    particles: usize,
+) -> Vec<u32> {
+    let mut particle_start = vec![0u32; particles + 1];
+    for &m in members {
+        particle_start[m as usize + 1] += 1;
+    }
+    for p in 0..particles {
+        particle_start[p + 1] += particle_start[p];
+    }
+    let mut fill = particle_start.clone();
+    let mut particle_clusters = vec![0; members.len()];
+    for (k, range) in cluster_start.windows(2).enumerate() {
+        for &m in &members[range[0] as usize..range[1] as usize] {
+            particle_clusters[fill[m as usize] as usize] = k as u32;
+            fill[m as usize] += 1;
+        }
+    }
+    colour_clusters(cluster_start, members, &particle_start, &particle_clusters)
+}
+
 /// Groups the clusters whose colour is not `free` by colour. Returns `(order,
 /// colour_start)`: cluster indices grouped by colour (ascending inside a colour) and the
 /// offsets of each colour's group in `order`.
@@ -83,6 +134,55 @@ mod tests {
             particle_start.push(particle_clusters.len() as u32);
         }
         [cluster_start, members, particle_start, particle_clusters]
+    }
+
+    #[test]
+    fn colouring_by_bits_makes_the_greedy_choice() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let (mut fitted, mut overflowed) = (false, false);
+        for case in 0..200 {
+            let n = rng.random_range(1..60);
+            let clusters: Vec<Vec<u32>> = (0..rng.random_range(0..300))
+                .map(|_| {
+                    let mut c: Vec<u32> = (0..rng.random_range(1..8))
+                        .map(|_| rng.random_range(0..n))
+                        .collect();
+                    c.sort_unstable();
+                    c.dedup();
+                    c
+                })
+                .collect();
+            let [cs, m, ps, pc] = csr(&clusters, n as usize);
+            let greedy = colour_clusters(&cs, &m, &ps, &pc);
+            assert_eq!(colour_clusters_by_lists(&cs, &m, n as usize), greedy);
+            match colour_clusters_by_bits(&cs, &m, n as usize) {
+                Some((colours, bits)) => {
+                    fitted = true;
+                    assert_eq!(colours, greedy, "case {case}");
+                    for p in 0..n {
+                        let expected = clusters
+                            .iter()
+                            .zip(&colours)
+                            .filter(|(c, _)| c.contains(&p))
+                            .fold(0u64, |b, (_, colour)| b | 1 << colour);
+                        assert_eq!(bits[p as usize], expected, "case {case}, particle {p}");
+                    }
+                }
+                None => {
+                    assert!(greedy.iter().any(|c| *c >= 64), "case {case}");
+                    overflowed = true;
+                }
+            }
+        }
+        // both outcomes occurred
+        assert!(fitted && overflowed);
+        // 64 clusters sharing a particle fit in 64 colours; a 65th does not
+        let crowded: Vec<Vec<u32>> = (0..65).map(|k| vec![0, k + 1]).collect();
+        let [cs, m, ..] = csr(&crowded[..64], 66);
+        assert!(colour_clusters_by_bits(&cs, &m, 66).is_some());
+        let [cs, m, ..] = csr(&crowded, 66);
+        assert!(colour_clusters_by_bits(&cs, &m, 66).is_none());
     }
 
     #[test]

@@ -30,7 +30,9 @@ mod patch;
 mod sweep;
 
 pub use colliders::{Colliders, resolve_colliders};
-pub use colouring::{colour_clusters, order_by_colour};
+pub use colouring::{
+    colour_clusters, colour_clusters_by_bits, colour_clusters_by_lists, order_by_colour,
+};
 
 use crate::config::SolverMode;
 use crate::rotation::warm_start;
@@ -168,41 +170,23 @@ impl SolverLayout {
         for k in 0..clusters.len() {
             layout.fill_constants(k);
         }
-        // particle → clusters, only to colour the clusters
-        let mut particle_start = Vec::with_capacity(n + 1);
-        let mut start = 0u32;
-        for c in &layout.member_count {
-            particle_start.push(start);
-            start += c;
-        }
-        particle_start.push(start);
-        let mut fill = particle_start.clone();
-        let mut particle_clusters = vec![0; start as usize];
-        for (k, c) in clusters.iter().enumerate() {
-            for &m in c.members {
-                particle_clusters[fill[m as usize] as usize] = k as u32;
-                fill[m as usize] += 1;
-            }
-        }
         let cluster_start: Vec<u32> = std::iter::once(0)
             .chain(layout.cluster_range.iter().map(|r| r[1]))
             .collect();
-        layout.colour_of = colour_clusters(
-            &cluster_start,
-            &layout.member_particle,
-            &particle_start,
-            &particle_clusters,
-        );
-        (layout.colour_order, layout.colour_start) = order_by_colour(&layout.colour_of, FREE_SLOT);
-        layout.build_batches();
-        if layout.colour_count() <= 64 {
-            layout.particle_colours = vec![0; n];
-            for (k, c) in clusters.iter().enumerate() {
-                for &m in c.members {
-                    layout.particle_colours[m as usize] |= 1 << layout.colour_of[k];
-                }
+        match colour_clusters_by_bits(&cluster_start, &layout.member_particle, n) {
+            Some((colours, bits)) => {
+                layout.colour_of = colours;
+                layout.particle_colours = bits;
+            }
+            // more than 64 colours: colour by the inverse lists; the layout cannot be
+            // patched (no colour bits)
+            None => {
+                layout.colour_of =
+                    colour_clusters_by_lists(&cluster_start, &layout.member_particle, n)
             }
         }
+        (layout.colour_order, layout.colour_start) = order_by_colour(&layout.colour_of, FREE_SLOT);
+        layout.build_batches();
         layout
     }
 
