@@ -120,10 +120,13 @@ pub fn particles_hit(positions: &[Vec3A], live: &[bool], tools: &[ToolSweep]) ->
         .collect()
 }
 
-/// Centre and radius of a ball around the live positions of a block (the box's centre
-/// and half diagonal); `None` radius when none is live.
+/// Centre and radius of a ball around the live, finite positions of a block (the box's
+/// centre and half diagonal); `None` radius when there is none. (A non-finite position
+/// fails the box test of [`ToolSweep::hits`], so leaving it out culls nothing a full test
+/// would find.)
 fn bounding_ball(positions: &[Vec3A], live: &[bool]) -> (Vec3, Option<f32>) {
-    let (lo, hi) = positions.iter().zip(live).filter(|(_, l)| **l).fold(
+    let usable = |(x, l): &(&Vec3A, &bool)| **l && x.is_finite();
+    let (lo, hi) = positions.iter().zip(live).filter(usable).fold(
         (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)),
         |(lo, hi), (x, _)| (lo.min(*x), hi.max(*x)),
     );
@@ -181,6 +184,11 @@ mod tests {
                 }
             }
             let live: Vec<bool> = (0..positions.len()).map(|_| rng.random_bool(0.9)).collect();
+            // a diverged particle must not hide its block's others
+            for _ in 0..4 {
+                let i = rng.random_range(0..positions.len());
+                positions[i] = Vec3A::new(f32::NAN, 0.0, f32::INFINITY);
+            }
             let shape = match case % 3 {
                 0 => ToolShape::Sphere {
                     radius: rng.random_range(0.05..0.8),
