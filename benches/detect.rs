@@ -1,0 +1,82 @@
+//! The detect stage's particle test on a 64³ box: a blade that sweeps down through the
+//! middle in one frame (the bench's slice) and a sphere carving along the top, with the
+//! block culling of `particles_hit` against testing every particle (in parallel too).
+
+use cleave::components::Tool;
+use cleave::detection::{ToolSweep, particles_hit};
+use cleave::lattice::Shape;
+use cleave::tool::{Pose, ToolShape};
+use criterion::{Criterion, criterion_group, criterion_main};
+use glam::{Quat, UVec3, Vec3, Vec3A};
+use rayon::prelude::*;
+
+const H: f32 = 0.1;
+
+fn detect(c: &mut Criterion) {
+    let n = 64;
+    let lattice = Shape::cuboid(UVec3::splat(n), H).voxelise(H).unwrap();
+    // the solver layout's order: Morton order of the lattice
+    let positions: Vec<Vec3A> = lattice
+        .live_in_morton_order()
+        .into_iter()
+        .map(|i| Vec3A::from(lattice.rest_position(i)))
+        .collect();
+    let live = vec![true; positions.len()];
+    let half = n as f32 * H * 0.5;
+    let blade_at = |y: f32| Pose {
+        position: Vec3::new(0.0, y, 0.0),
+        rotation: Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+    };
+    let blade = Tool {
+        shape: ToolShape::Blade {
+            half_width: half + 1.0,
+            half_height: 0.05,
+        },
+        cut_width: 2.0 * H,
+    };
+    let sphere = Tool {
+        shape: ToolShape::Sphere { radius: 4.0 * H },
+        cut_width: 2.0 * H,
+    };
+    let cases = [
+        (
+            "slice",
+            ToolSweep::new(&blade, &blade_at(half + 1.0), &blade_at(-half - 1.0)),
+        ),
+        (
+            "scoop",
+            ToolSweep::new(
+                &sphere,
+                &Pose::at(Vec3::new(-half, half, 0.0)),
+                &Pose::at(Vec3::new(-half + 8.0 * H, half, 0.0)),
+            ),
+        ),
+    ];
+    let mut group = c.benchmark_group("detect");
+    group.sample_size(10);
+    for (name, sweep) in cases {
+        let tools = vec![sweep.unwrap()];
+        let hits = particles_hit(&positions, &live, &tools);
+        eprintln!(
+            "detect/{name}: {} of {} particles hit",
+            hits.len(),
+            positions.len()
+        );
+        group.bench_function(format!("{name}/{n}^3/blocks"), |b| {
+            b.iter(|| particles_hit(&positions, &live, &tools))
+        });
+        group.bench_function(format!("{name}/{n}^3/every_particle"), |b| {
+            b.iter(|| {
+                (0..positions.len())
+                    .into_par_iter()
+                    .with_min_len(4096)
+                    .filter(|&i| live[i] && tools[0].hits(Vec3::from(positions[i])))
+                    .collect::<Vec<usize>>()
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, detect);
+criterion_main!(benches);
