@@ -52,7 +52,7 @@ pub fn colour_clusters_by_bits(
             let members = &members[range[0] as usize..range[1] as usize];
             let taken = members.iter().fold(0, |taken, m| taken | bits[*m as usize]);
             let colour = taken.trailing_ones();
-            let bit = 1u64.checked_shl(colour).filter(|_| colour < 64)?;
+            let bit = 1u64.checked_shl(colour)?; // none from colour 64 on
             for &m in members {
                 bits[m as usize] |= bit;
             }
