@@ -12,6 +12,7 @@ use crate::components::Tool;
 use crate::tool::{Pose, Sweep, ToolShape};
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
+use smallvec::SmallVec;
 
 /// Particles culled together by one bounding ball.
 pub const BLOCK: usize = 64;
@@ -104,11 +105,13 @@ pub fn particles_hit(positions: &[Vec3A], live: &[bool], tools: &[ToolSweep]) ->
         .with_min_len(64)
         .flat_map_iter(|(block, (positions, live))| {
             let (centre, radius) = bounding_ball(positions, live);
-            let near: Vec<&ToolSweep> = match radius {
+            let near: SmallVec<[&ToolSweep; 4]> = match radius {
                 Some(r) => tools.iter().filter(|t| t.may_hit_ball(centre, r)).collect(),
-                None => Vec::new(),
+                None => SmallVec::new(),
             };
-            positions
+            // a culled block's particles are not visited at all
+            let tested = if near.is_empty() { 0 } else { positions.len() };
+            positions[..tested]
                 .iter()
                 .zip(live)
                 .enumerate()
