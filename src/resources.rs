@@ -89,8 +89,8 @@ pub struct SolverCache {
     /// Whether each dense particle is still in its body (cut particles keep their
     /// dense slot, frozen, until the next full rebuild).
     pub live: Vec<bool>,
-    /// Dense particle index per body-local particle index (`u32::MAX` if none), by body.
-    pub body_dense: Vec<(Entity, Vec<u32>)>,
+    /// Each body's particles in the layout, by body.
+    pub body_dense: Vec<BodyDense>,
     /// Cluster entity per cluster slot of the layout (`Entity::PLACEHOLDER` if free).
     pub clusters: Vec<Entity>,
     /// Cluster slot per cluster entity.
@@ -101,6 +101,17 @@ pub struct SolverCache {
     pub valid: bool,
     /// How the layout was last brought up to date, and how long it took.
     pub last_update: Option<LayoutUpdate>,
+}
+
+/// One body's particles in the solver layout.
+#[derive(Clone, Debug)]
+pub struct BodyDense {
+    /// The body.
+    pub body: Entity,
+    /// Dense particle index per body-local particle index (`u32::MAX` if none).
+    pub dense: Vec<u32>,
+    /// How many of the body's particles are live in the layout.
+    pub live: usize,
 }
 
 /// One update of the solver layout after a topology change.

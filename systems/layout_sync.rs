@@ -4,7 +4,8 @@
 
 use crate::components::*;
 use crate::config::SolverMode;
-use crate::resources::{LayoutUpdate, SolverCache};
+use crate::lattice::Lattice;
+use crate::resources::{BodyCutReport, BodyDense, LayoutUpdate, SolverCache};
 use crate::solver::{ClusterSpec, SolverLayout};
 use bevy_ecs::prelude::*;
 use glam::Quat;
@@ -14,22 +15,31 @@ use std::time::Instant;
 /// Cluster data as the shape-match stage reads it.
 pub type ClusterItem<'a> = (Entity, &'a ClusterMembers, &'a ClusterOf, &'a Stiffness);
 
-/// Brings the layout up to date: patches it when that is possible, else rebuilds it.
-/// `changed` are the clusters whose members or stiffness changed (or that are new),
-/// `removed` the cluster entities that lost their members (despawned).
+/// What changed since the layout was last brought up to date.
+pub struct LayoutChanges<'a, 'c> {
+    /// Bodies whose lattice changed (lost particles).
+    pub bodies: &'a [Entity],
+    /// The last cut's report: the particles each body lost. A hint, checked against the
+    /// lattices; without it (or when it does not account for every lost particle) every
+    /// particle of a changed body is looked at.
+    pub cut: &'a [BodyCutReport],
+    /// Clusters whose members or stiffness changed, or that are new.
+    pub clusters: Vec<ClusterItem<'c>>,
+    /// Cluster entities that lost their members (despawned).
+    pub removed: &'a [Entity],
+}
+
+/// Brings the layout up to date: patches in the `changes` when that is possible, else
+/// rebuilds it from all bodies and clusters.
 pub fn sync_layout<'a>(
     cache: &mut SolverCache,
     bodies: &Query<(Entity, &BodyLattice)>,
-    changed_bodies: &[Entity],
+    changes: LayoutChanges<'_, 'a>,
     all_clusters: impl Iterator<Item = ClusterItem<'a>>,
-    changed: Vec<ClusterItem<'a>>,
-    removed: &[Entity],
     mode: SolverMode,
 ) {
     let start = Instant::now();
-    let patched = cache.valid
-        && cache.layout.mode() == mode
-        && patch(cache, bodies, changed_bodies, changed, removed);
+    let patched = cache.valid && cache.layout.mode() == mode && patch(cache, bodies, changes);
     if !patched {
         rebuild_cache(cache, bodies.iter(), all_clusters, mode);
     }
@@ -53,17 +63,21 @@ fn dense_members(map: &[u32], members: &[u32], out: &mut Vec<u32>) {
 fn patch(
     cache: &mut SolverCache,
     bodies: &Query<(Entity, &BodyLattice)>,
-    changed_bodies: &[Entity],
-    mut changed: Vec<ClusterItem>,
-    removed: &[Entity],
+    changes: LayoutChanges,
 ) -> bool {
+    let LayoutChanges {
+        bodies: changed_bodies,
+        cut,
+        clusters: mut changed,
+        removed,
+    } = changes;
     if !cache.layout.can_patch() {
         return false;
     }
     let body_index = |cache: &SolverCache, body: Entity| {
         cache
             .body_dense
-            .binary_search_by_key(&body, |(b, _)| *b)
+            .binary_search_by_key(&body, |b| b.body)
             .ok()
     };
     // Particles cut from their bodies: frozen, and no longer offered to detect.
@@ -72,20 +86,17 @@ fn patch(
         let (Some(b), Ok((_, lattice))) = (body_index(cache, body), bodies.get(body)) else {
             return false;
         };
-        let map = &cache.body_dense[b].1;
-        if map.len() != lattice.lattice.len() {
+        let lattice = &lattice.lattice;
+        let entry = &cache.body_dense[b];
+        if entry.dense.len() != lattice.len() {
             return false; // a replaced lattice: not a cut
         }
-        for (local, &d) in map.iter().enumerate() {
-            let live = lattice.lattice.is_live(local as u32);
-            if d == u32::MAX {
-                if live {
-                    return false; // a particle the layout never had
-                }
-            } else if cache.live[d as usize] && !live {
-                retired.push(d);
-            }
+        if !retired_from_report(entry, lattice, cut, &cache.live, &mut retired)
+            && !retired_by_scan(entry, lattice, &cache.live, &mut retired)
+        {
+            return false;
         }
+        cache.body_dense[b].live = lattice.live_count();
     }
     let mut removed_slots: Vec<u32> = removed
         .iter()
@@ -106,7 +117,7 @@ fn patch(
             None => Quat::IDENTITY,
         };
         let start = flat.len();
-        dense_members(&cache.body_dense[b].1, &members.0, &mut flat);
+        dense_members(&cache.body_dense[b].dense, &members.0, &mut flat);
         entries.push((e, start..flat.len(), stiffness.0.clamp(0.0, 1.0), rotation));
     }
     let specs: Vec<ClusterSpec> = entries
@@ -138,6 +149,57 @@ fn patch(
         }
         cache.clusters[slot as usize] = *e;
         cache.slot_of.insert(*e, slot);
+    }
+    true
+}
+
+/// Appends to `retired` the dense particles of `entry`'s body that the cut report lists
+/// and that the layout still has live while the lattice does not, when they are all the
+/// particles the body lost since the layout last counted (a lattice only ever loses
+/// particles); otherwise appends nothing and returns false.
+fn retired_from_report(
+    entry: &BodyDense,
+    lattice: &Lattice,
+    cut: &[BodyCutReport],
+    live: &[bool],
+    retired: &mut Vec<u32>,
+) -> bool {
+    let mut found: Vec<u32> = cut
+        .iter()
+        .filter(|r| r.body == entry.body)
+        .flat_map(|r| &r.removed)
+        .filter_map(|&local| {
+            let d = *entry.dense.get(local as usize)?;
+            (d != u32::MAX && live[d as usize] && !lattice.is_live(local)).then_some(d)
+        })
+        .collect();
+    found.sort_unstable();
+    found.dedup();
+    if entry.live.checked_sub(lattice.live_count()) != Some(found.len()) {
+        return false;
+    }
+    retired.extend(found);
+    true
+}
+
+/// Appends to `retired` every dense particle of `entry`'s body that the layout has live
+/// and the lattice does not, by a pass over all the body's particles; false when the
+/// lattice has a live particle the layout never had.
+fn retired_by_scan(
+    entry: &BodyDense,
+    lattice: &Lattice,
+    live: &[bool],
+    retired: &mut Vec<u32>,
+) -> bool {
+    for (local, &d) in entry.dense.iter().enumerate() {
+        let is_live = lattice.is_live(local as u32);
+        if d == u32::MAX {
+            if is_live {
+                return false; // a particle the layout never had
+            }
+        } else if live[d as usize] && !is_live {
+            retired.push(d);
+        }
     }
     true
 }
@@ -182,17 +244,22 @@ pub fn rebuild_cache<'b, 'c>(
             particles.push(lattice.particles[i as usize]);
             owners.push((*body, i));
         }
-        body_dense.push((*body, map));
+        let live = l.live_count();
+        body_dense.push(BodyDense {
+            body: *body,
+            dense: map,
+            live,
+        });
     }
     // Every cluster's dense members in one flat array (no allocation per cluster).
     let mut flat: Vec<u32> = Vec::new();
     let mut cluster_list: Vec<ClusterEntry> = Vec::new();
     for (e, members, of, stiffness) in clusters {
-        let Ok(b) = body_dense.binary_search_by_key(&of.0, |(b, _)| *b) else {
+        let Ok(b) = body_dense.binary_search_by_key(&of.0, |b| b.body) else {
             continue;
         };
         let start = flat.len();
-        dense_members(&body_dense[b].1, &members.0, &mut flat);
+        dense_members(&body_dense[b].dense, &members.0, &mut flat);
         if let Some(&first) = flat[start..].iter().min() {
             cluster_list.push(ClusterEntry {
                 order: (of.0, first, e),

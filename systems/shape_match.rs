@@ -3,9 +3,9 @@
 //! iterations with colliders, derives velocities, and scatters back. Writes particle
 //! data and its own cache only.
 
-use super::layout_sync::sync_layout;
+use super::layout_sync::{LayoutChanges, sync_layout};
 use crate::components::*;
-use crate::resources::{SimSettings, SolverCache};
+use crate::resources::{CutReport, SimSettings, SolverCache};
 use crate::solver::Colliders;
 use crate::table_rows::ParticleColumns;
 use bevy_ecs::prelude::*;
@@ -38,6 +38,7 @@ type ParticleData = (
 pub fn shape_match(
     settings: Res<SimSettings>,
     mut cache: ResMut<SolverCache>,
+    cut: Res<CutReport>,
     bodies: Query<(Entity, &BodyLattice)>,
     changed_bodies: Query<Entity, Changed<BodyLattice>>,
     clusters: Query<(Entity, &ClusterMembers, &ClusterOf, &Stiffness)>,
@@ -58,15 +59,13 @@ pub fn shape_match(
         || !changed_bodies.is_empty()
         || !changed_clusters.is_empty()
     {
-        sync_layout(
-            &mut cache,
-            &bodies,
-            &changed_bodies,
-            clusters.iter(),
-            changed_clusters.iter().collect(),
-            &removed,
-            config.solver,
-        );
+        let changes = LayoutChanges {
+            bodies: &changed_bodies,
+            cut: &cut.bodies,
+            clusters: changed_clusters.iter().collect(),
+            removed: &removed,
+        };
+        sync_layout(&mut cache, &bodies, changes, clusters.iter(), config.solver);
     }
     let cache = &mut *cache;
     // Usually every particle sits in one table: its columns are copied in parallel.

@@ -103,3 +103,46 @@ fn patched_layouts_match_full_rebuilds_jacobi() {
 fn patched_layouts_match_full_rebuilds_gauss_seidel() {
     assert!(check_scene("random", SolverMode::GaussSeidel) > 0);
 }
+
+/// Particles removed from a lattice without a cut report (or beyond what the report
+/// lists) are found by looking at the whole body: the report is only a hint.
+#[test]
+fn particles_lost_outside_a_cut_report_are_still_frozen() {
+    let mut sim = Simulation::new(SimConfig::default()).unwrap();
+    let body = sim
+        .spawn_body(&BodyDesc::new(
+            Shape::cuboid(glam::UVec3::new(6, 4, 4), 0.1),
+            0.1,
+        ))
+        .unwrap();
+    sim.step();
+    for (round, reported) in [(0u32, false), (1, true)] {
+        let world = sim.world_mut();
+        let mut lattice = world.get_mut::<BodyLattice>(body).unwrap();
+        let (a, b) = (10 + 2 * round, 11 + 2 * round);
+        assert!(lattice.lattice.remove(a) && lattice.lattice.remove(b));
+        // the second round's report names one of the two
+        world.resource_mut::<CutReport>().bodies = if reported {
+            vec![cleave::resources::BodyCutReport {
+                body,
+                removed: vec![a],
+                cut_clusters: Vec::new(),
+            }]
+        } else {
+            Vec::new()
+        };
+        world.resource_mut::<SolverCache>().last_update = None;
+        sim.step();
+        let world = sim.world();
+        let cache = world.resource::<SolverCache>();
+        assert!(cache.last_update.is_some_and(|u| u.patched));
+        let lattice = &world.get::<BodyLattice>(body).unwrap().lattice;
+        for (d, (_, local)) in cache.owners.iter().enumerate() {
+            assert_eq!(
+                cache.live[d],
+                lattice.is_live(*local),
+                "round {round}, particle {local}"
+            );
+        }
+    }
+}
