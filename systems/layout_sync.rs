@@ -2,6 +2,7 @@
 //! rebuild when bodies appear or vanish, otherwise a patch of only the clusters that
 //! changed (after a cut) and the particles that were cut.
 
+use crate::cluster_store::ClusterList;
 use crate::components::*;
 use crate::config::SolverMode;
 use crate::lattice::Lattice;
@@ -9,6 +10,7 @@ use crate::resources::{BodyCutReport, BodyDense, LayoutUpdate, SolverCache};
 use crate::solver::{ClusterSpec, SolverLayout};
 use bevy_ecs::prelude::*;
 use glam::Quat;
+use rayon::prelude::*;
 use std::collections::HashMap;
 use std::time::Instant;
 
@@ -27,6 +29,10 @@ pub struct LayoutChanges<'a, 'c> {
     pub clusters: Vec<ClusterItem<'c>>,
     /// Cluster entities that lost their members (despawned).
     pub removed: &'a [Entity],
+    /// Each body's particle → clusters index, sorted by body: the clusters whose Jacobi
+    /// weights a patch changes are found from it instead of by a pass over every
+    /// membership of the layout.
+    pub indices: Vec<(Entity, &'c [ClusterList<Entity>])>,
 }
 
 /// Brings the layout up to date: patches in the `changes` when that is possible, else
@@ -70,6 +76,7 @@ fn patch(
         cut,
         clusters: mut changed,
         removed,
+        indices,
     } = changes;
     if !cache.layout.can_patch() {
         return false;
@@ -128,7 +135,25 @@ fn patch(
             rotation: *rotation,
         })
         .collect();
-    let Some(slots) = cache.layout.patch(&removed_slots, &specs, &retired) else {
+    // Reading the neighbours off the index costs ≈ 100 instructions per membership of a
+    // removed or added cluster, the layout's pass ≈ 8 per membership of the layout
+    // (measured on the 64³ bench slice): the index wins for all but the largest cuts.
+    let touched: usize = removed_slots
+        .iter()
+        .map(|k| cache.layout.cluster_members(*k as usize).len())
+        .sum::<usize>()
+        + flat.len();
+    let patched = if cache.layout.mode() == SolverMode::Jacobi
+        && touched * 12 < cache.layout.membership_count()
+    {
+        let neighbours = kept_neighbours(cache, &indices, &removed_slots, &flat);
+        cache
+            .layout
+            .patch_with_neighbours(&removed_slots, &specs, &retired, &neighbours)
+    } else {
+        cache.layout.patch(&removed_slots, &specs, &retired)
+    };
+    let Some(slots) = patched else {
         cache.clusters.clear(); // warm starts no longer match their slots
         return false;
     };
@@ -151,6 +176,41 @@ fn patch(
         cache.slot_of.insert(*e, slot);
     }
     true
+}
+
+/// The slots of the kept clusters (those still in `slot_of`) that hold a particle of a
+/// removed cluster (`removed_slots`) or of an added one (`added`: their dense members):
+/// the clusters whose Jacobi weights the patch changes, read off the particle → clusters
+/// indices. Duplicates are left in.
+fn kept_neighbours(
+    cache: &SolverCache,
+    indices: &[(Entity, &[ClusterList<Entity>])],
+    removed_slots: &[u32],
+    added: &[u32],
+) -> Vec<u32> {
+    let mut seen = vec![false; cache.owners.len()];
+    let particles: Vec<u32> = removed_slots
+        .iter()
+        .flat_map(|k| cache.layout.cluster_members(*k as usize))
+        .chain(added)
+        .copied()
+        .filter(|d| !std::mem::replace(&mut seen[*d as usize], true))
+        .collect();
+    particles
+        .par_iter()
+        .with_min_len(1024)
+        .flat_map_iter(|&d| {
+            let (body, local) = cache.owners[d as usize];
+            let index = indices
+                .binary_search_by_key(&body, |(b, _)| *b)
+                .ok()
+                .and_then(|i| indices[i].1.get(local as usize));
+            index
+                .into_iter()
+                .flatten()
+                .filter_map(|e| cache.slot_of.get(e).copied())
+        })
+        .collect()
 }
 
 /// Appends to `retired` the dense particles of `entry`'s body that the cut report lists

@@ -40,6 +40,7 @@ pub fn shape_match(
     mut cache: ResMut<SolverCache>,
     cut: Res<CutReport>,
     bodies: Query<(Entity, &BodyLattice)>,
+    indices: Query<(Entity, &ParticleClusters)>,
     changed_bodies: Query<Entity, Changed<BodyLattice>>,
     clusters: Query<(Entity, &ClusterMembers, &ClusterOf, &Stiffness)>,
     changed_clusters: ChangedClusters,
@@ -64,6 +65,11 @@ pub fn shape_match(
             cut: &cut.bodies,
             clusters: changed_clusters.iter().collect(),
             removed: &removed,
+            indices: {
+                let mut list: Vec<_> = indices.iter().map(|(b, i)| (b, i.0.as_slice())).collect();
+                list.sort_unstable_by_key(|(b, _)| *b);
+                list
+            },
         };
         sync_layout(&mut cache, &bodies, changes, clusters.iter(), config.solver);
     }

@@ -2,7 +2,9 @@
 //! clusters free their slots, new clusters take slots and the lowest colour none of their
 //! particles' clusters has, retired particles stop moving, and only the clusters whose
 //! weights changed get new rest offsets. The cost follows the clusters that changed,
-//! not the body (apart from one pass over the membership list to find weight changes).
+//! not the body, when the caller names the clusters whose weights change
+//! ([`SolverLayout::patch_with_neighbours`]); otherwise one pass over the membership list
+//! finds them.
 
 use super::colouring::order_by_colour;
 use super::{ClusterSpec, FREE_SLOT, SolverLayout};
@@ -17,13 +19,21 @@ impl SolverLayout {
         !self.particle_colours.is_empty() || self.rest.is_empty()
     }
 
+    /// Member particles of cluster slot `k` (none for a free or unknown slot).
+    pub fn cluster_members(&self, k: usize) -> &[u32] {
+        match self.cluster_range.get(k) {
+            Some(&[start, end]) if self.colour_of[k] != FREE_SLOT => {
+                &self.member_particle[start as usize..end as usize]
+            }
+            _ => &[],
+        }
+    }
+
     /// Cluster slots in use, in slot order, with their member particles.
     pub fn clusters(&self) -> impl Iterator<Item = (usize, &[u32])> {
-        self.cluster_range
-            .iter()
-            .enumerate()
-            .filter(|(k, _)| self.colour_of[*k] != FREE_SLOT)
-            .map(|(k, r)| (k, &self.member_particle[r[0] as usize..r[1] as usize]))
+        (0..self.cluster_range.len())
+            .filter(|k| self.colour_of[*k] != FREE_SLOT)
+            .map(|k| (k, self.cluster_members(k)))
     }
 
     /// Removes the clusters in slots `removed`, adds `added` (members are particle
@@ -37,6 +47,30 @@ impl SolverLayout {
         removed: &[u32],
         added: &[ClusterSpec],
         retired: &[u32],
+    ) -> Option<Vec<u32>> {
+        self.patch_inner(removed, added, retired, None)
+    }
+
+    /// [`Self::patch`], told which kept clusters hold a particle of a removed or added
+    /// cluster (`neighbours`, slots as before the patch; more is harmless): the clusters
+    /// whose Jacobi weights may change. Saves the pass over every membership of the
+    /// layout that finds them.
+    pub fn patch_with_neighbours(
+        &mut self,
+        removed: &[u32],
+        added: &[ClusterSpec],
+        retired: &[u32],
+        neighbours: &[u32],
+    ) -> Option<Vec<u32>> {
+        self.patch_inner(removed, added, retired, Some(neighbours))
+    }
+
+    fn patch_inner(
+        &mut self,
+        removed: &[u32],
+        added: &[ClusterSpec],
+        retired: &[u32],
+        neighbours: Option<&[u32]>,
     ) -> Option<Vec<u32>> {
         if !self.can_patch() {
             return None;
@@ -93,8 +127,21 @@ impl SolverLayout {
         }
         // Jacobi weights are 1/nᵢ: every cluster holding a particle whose count changed
         // needs a new rest centroid; Gauss–Seidel weights are 1, so only the new clusters.
-        let refresh: Vec<usize> = match self.mode {
-            SolverMode::Jacobi => self
+        let refresh: Vec<usize> = match (self.mode, neighbours) {
+            // the kept neighbours and the new clusters, in slot order (as the pass finds
+            // them)
+            (SolverMode::Jacobi, Some(neighbours)) => {
+                let mut marked = vec![false; self.cluster_range.len()];
+                for &k in neighbours.iter().chain(&slots) {
+                    if let Some(m) = marked.get_mut(k as usize) {
+                        *m = true;
+                    }
+                }
+                (0..marked.len())
+                    .filter(|&k| marked[k] && self.colour_of[k] != FREE_SLOT)
+                    .collect()
+            }
+            (SolverMode::Jacobi, None) => self
                 .cluster_range
                 .par_iter()
                 .enumerate()
@@ -106,7 +153,7 @@ impl SolverLayout {
                 })
                 .map(|(k, _)| k)
                 .collect(),
-            SolverMode::GaussSeidel => slots
+            (SolverMode::GaussSeidel, _) => slots
                 .iter()
                 .filter(|k| **k != u32::MAX)
                 .map(|k| *k as usize)
@@ -177,6 +224,45 @@ mod tests {
             .collect();
         out.sort_by(|a, b| a.0.cmp(&b.0));
         out
+    }
+
+    #[test]
+    fn told_neighbours_the_patch_matches_the_one_that_finds_them() {
+        let (rest, clusters) = bar_clusters();
+        let pieces = vec![vec![3, 4], vec![6, 7]];
+        let removed = [3u32, 4, 5];
+        let mut scanned = SolverLayout::new(&rest, specs(&clusters), SolverMode::Jacobi);
+        let mut told = scanned.clone();
+        // kept clusters holding a particle of a removed cluster or of a piece
+        let touched: Vec<u32> = removed
+            .iter()
+            .flat_map(|k| told.cluster_members(*k as usize).to_vec())
+            .chain(pieces.concat())
+            .collect();
+        let neighbours: Vec<u32> = told
+            .clusters()
+            .filter(|(k, m)| {
+                !removed.contains(&(*k as u32)) && m.iter().any(|p| touched.contains(p))
+            })
+            .map(|(k, _)| k as u32)
+            .collect();
+        assert_eq!(neighbours, [1, 2, 6, 7]);
+        scanned
+            .patch(&removed, &specs(&pieces), &[5])
+            .expect("patchable");
+        told.patch_with_neighbours(&removed, &specs(&pieces), &[5], &neighbours)
+            .expect("patchable");
+        assert_eq!(moments(&told), moments(&scanned));
+        // leaving out cluster 2 ({2, 3, 4}: particle 4 lost a cluster) leaves its old
+        // weights: the hint matters
+        let mut short = SolverLayout::new(&rest, specs(&clusters), SolverMode::Jacobi);
+        short
+            .patch_with_neighbours(&removed, &specs(&pieces), &[5], &[1, 6, 7])
+            .expect("patchable");
+        assert!(
+            moments(&short) != moments(&scanned),
+            "a stale cluster went unnoticed"
+        );
     }
 
     #[test]
