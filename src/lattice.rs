@@ -191,16 +191,24 @@ impl Lattice {
             self.dims.x as usize,
             self.dims.x as usize * self.dims.y as usize,
         );
-        // same order as NEIGHBOUR_OFFSETS; padding keeps every neighbour cell in the grid
-        let g = &self.grid;
-        [
-            g[cell - 1],
-            g[cell + 1],
-            g[cell - dx],
-            g[cell + dx],
-            g[cell - dy],
-            g[cell + dy],
-        ]
+        // same order as NEIGHBOUR_OFFSETS. Padding keeps every neighbour cell in the grid,
+        // so one range check of the window [cell − dy, cell + dy] covers all six reads
+        // (six index checks cost 2 % of a cut event's instructions).
+        let window = &self.grid[cell - dy..=cell + dy];
+        debug_assert!(1 <= dx && dx <= dy);
+        // SAFETY: `window` has 2·dy + 1 cells with the particle's at `dy`, and
+        // 1 ≤ dx ≤ dy (a lattice with a particle has at least 3 cells per axis), so every
+        // index below lies in 0..=2·dy.
+        unsafe {
+            [
+                *window.get_unchecked(dy - 1),
+                *window.get_unchecked(dy + 1),
+                *window.get_unchecked(dy - dx),
+                *window.get_unchecked(dy + dx),
+                *window.get_unchecked(0),
+                *window.get_unchecked(2 * dy),
+            ]
+        }
     }
 
     /// Removes particle `i`; returns false if it was not live.
