@@ -6,11 +6,10 @@ use crate::cluster_store::ClusterList;
 use crate::components::*;
 use crate::config::SolverMode;
 use crate::lattice::Lattice;
-use crate::resources::{BodyCutReport, BodyDense, LayoutUpdate, SolverCache};
+use crate::resources::{BodyCutReport, BodyDense, ClusterSlots, LayoutUpdate, SolverCache};
 use crate::solver::{ClusterSpec, SolverLayout};
 use bevy_ecs::prelude::*;
 use glam::Quat;
-use rayon::prelude::*;
 use std::collections::HashMap;
 use std::time::Instant;
 
@@ -107,7 +106,7 @@ fn patch(
     }
     let mut removed_slots: Vec<u32> = removed
         .iter()
-        .filter_map(|e| cache.slot_of.remove(e))
+        .filter_map(|e| cache.slot_of.remove(*e, &cache.clusters))
         .collect();
     changed.sort_unstable_by_key(|c| c.0);
     let mut flat = Vec::new();
@@ -116,7 +115,7 @@ fn patch(
         let Some(b) = body_index(cache, of.0) else {
             return false;
         };
-        let rotation = match cache.slot_of.remove(&e) {
+        let rotation = match cache.slot_of.remove(e, &cache.clusters) {
             Some(slot) => {
                 removed_slots.push(slot);
                 cache.layout.rotations[slot as usize]
@@ -135,21 +134,34 @@ fn patch(
             rotation: *rotation,
         })
         .collect();
-    // Reading the neighbours off the index costs ≈ 100 instructions per membership of a
-    // removed or added cluster, the layout's pass ≈ 8 per membership of the layout
-    // (measured on the 64³ bench slice): the index wins for all but the largest cuts.
+    // Reading the neighbours off the index costs ≈ 18 instructions per membership of a
+    // removed or added cluster (one thread), the layout's pass ≈ 7.6 per membership of
+    // the layout spread over all threads (measured on the 64³ bench slice, which the
+    // index wins by 4.6 M instructions): the index wins for all but the largest cuts.
     let touched: usize = removed_slots
         .iter()
         .map(|k| cache.layout.cluster_members(*k as usize).len())
         .sum::<usize>()
         + flat.len();
     let patched = if cache.layout.mode() == SolverMode::Jacobi
-        && touched * 12 < cache.layout.membership_count()
+        && touched * 4 < cache.layout.membership_count()
     {
-        let neighbours = kept_neighbours(cache, &indices, &removed_slots, &flat);
-        cache
-            .layout
-            .patch_with_neighbours(&removed_slots, &specs, &retired, &neighbours)
+        let SolverCache {
+            layout,
+            owners,
+            clusters,
+            slot_of,
+            ..
+        } = &mut *cache;
+        let kept = KeptClusters {
+            owners,
+            clusters,
+            slot_of,
+            indices: &indices,
+        };
+        layout.patch_with_neighbours(&removed_slots, &specs, &retired, |particles| {
+            kept.holding(particles)
+        })
     } else {
         cache.layout.patch(&removed_slots, &specs, &retired)
     };
@@ -178,39 +190,45 @@ fn patch(
     true
 }
 
-/// The slots of the kept clusters (those still in `slot_of`) that hold a particle of a
-/// removed cluster (`removed_slots`) or of an added one (`added`: their dense members):
-/// the clusters whose Jacobi weights the patch changes, read off the particle → clusters
-/// indices. Duplicates are left in.
-fn kept_neighbours(
-    cache: &SolverCache,
-    indices: &[(Entity, &[ClusterList<Entity>])],
-    removed_slots: &[u32],
-    added: &[u32],
-) -> Vec<u32> {
-    let mut seen = vec![false; cache.owners.len()];
-    let particles: Vec<u32> = removed_slots
-        .iter()
-        .flat_map(|k| cache.layout.cluster_members(*k as usize))
-        .chain(added)
-        .copied()
-        .filter(|d| !std::mem::replace(&mut seen[*d as usize], true))
-        .collect();
-    particles
-        .par_iter()
-        .with_min_len(1024)
-        .flat_map_iter(|&d| {
-            let (body, local) = cache.owners[d as usize];
-            let index = indices
-                .binary_search_by_key(&body, |(b, _)| *b)
-                .ok()
-                .and_then(|i| indices[i].1.get(local as usize));
-            index
-                .into_iter()
-                .flatten()
-                .filter_map(|e| cache.slot_of.get(e).copied())
-        })
-        .collect()
+/// What finds the kept clusters of particles: the cache's fields it reads (the layout
+/// itself is being patched meanwhile) and the bodies' particle → clusters indices.
+struct KeptClusters<'a> {
+    owners: &'a [(Entity, u32)],
+    clusters: &'a [Entity],
+    slot_of: &'a ClusterSlots,
+    indices: &'a [(Entity, &'a [ClusterList<Entity>])],
+}
+
+impl KeptClusters<'_> {
+    /// The slots of the kept clusters (those still in `slot_of`) that hold one of the
+    /// dense `particles`, read off the indices. Each slot once, in the order found.
+    fn holding(&self, particles: &[u32]) -> Vec<u32> {
+        let mut marked = vec![false; self.clusters.len()];
+        let mut found = Vec::new();
+        // (a cut touches one body, or a few: its index is looked up again only on a change)
+        let mut body_index: Option<(Entity, &[ClusterList<Entity>])> = None;
+        for &d in particles {
+            let (body, local) = self.owners[d as usize];
+            if body_index.is_none_or(|(b, _)| b != body) {
+                body_index = self
+                    .indices
+                    .binary_search_by_key(&body, |(b, _)| *b)
+                    .ok()
+                    .map(|i| self.indices[i]);
+            }
+            let Some(list) = body_index.and_then(|(_, index)| index.get(local as usize)) else {
+                continue;
+            };
+            for e in list {
+                if let Some(slot) = self.slot_of.get(*e, self.clusters)
+                    && !std::mem::replace(&mut marked[slot as usize], true)
+                {
+                    found.push(slot);
+                }
+            }
+        }
+        found
+    }
 }
 
 /// Appends to `retired` the dense particles of `entry`'s body that the cut report lists
@@ -350,11 +368,6 @@ pub fn rebuild_cache<'b, 'c>(
     cache.owners = owners;
     cache.body_dense = body_dense;
     cache.clusters = cluster_list.into_iter().map(|c| c.order.2).collect();
-    cache.slot_of = cache
-        .clusters
-        .iter()
-        .enumerate()
-        .map(|(k, e)| (*e, k as u32))
-        .collect();
+    cache.slot_of = ClusterSlots::from_clusters(&cache.clusters);
     cache.valid = true;
 }

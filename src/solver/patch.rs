@@ -48,19 +48,20 @@ impl SolverLayout {
         added: &[ClusterSpec],
         retired: &[u32],
     ) -> Option<Vec<u32>> {
-        self.patch_inner(removed, added, retired, None)
+        self.patch_inner(removed, added, retired, None::<fn(&[u32]) -> Vec<u32>>)
     }
 
-    /// [`Self::patch`], told which kept clusters hold a particle of a removed or added
-    /// cluster (`neighbours`, slots as before the patch; more is harmless): the clusters
-    /// whose Jacobi weights may change. Saves the pass over every membership of the
-    /// layout that finds them.
+    /// [`Self::patch`], told which kept clusters hold a given particle: `neighbours`
+    /// receives the particles whose number of clusters the patch changes and returns
+    /// the kept clusters that hold any of them (slots as before the patch; more is
+    /// harmless) — the clusters whose Jacobi weights change. Saves the pass over every
+    /// membership of the layout that finds them.
     pub fn patch_with_neighbours(
         &mut self,
         removed: &[u32],
         added: &[ClusterSpec],
         retired: &[u32],
-        neighbours: &[u32],
+        neighbours: impl FnOnce(&[u32]) -> Vec<u32>,
     ) -> Option<Vec<u32>> {
         self.patch_inner(removed, added, retired, Some(neighbours))
     }
@@ -70,12 +71,15 @@ impl SolverLayout {
         removed: &[u32],
         added: &[ClusterSpec],
         retired: &[u32],
-        neighbours: Option<&[u32]>,
+        neighbours: Option<impl FnOnce(&[u32]) -> Vec<u32>>,
     ) -> Option<Vec<u32>> {
         if !self.can_patch() {
             return None;
         }
+        // Every particle of a removed or added cluster, once, with its cluster count
+        // before the patch: only those whose count ends different get new weights.
         let mut changed = vec![false; self.rest.len()];
+        let mut touched: Vec<(u32, u32)> = Vec::new();
         for &p in retired {
             self.inv_mass[p as usize] = 0.0;
             self.velocities[p as usize] = Vec3A::ZERO;
@@ -89,9 +93,11 @@ impl SolverLayout {
             let bit = !(1u64 << self.colour_of[k]);
             let [start, end] = self.cluster_range[k];
             for &m in &self.member_particle[start as usize..end as usize] {
+                if !std::mem::replace(&mut changed[m as usize], true) {
+                    touched.push((m, self.member_count[m as usize]));
+                }
                 self.member_count[m as usize] -= 1;
                 self.particle_colours[m as usize] &= bit;
-                changed[m as usize] = true;
             }
             self.garbage += (end - start) as usize;
             self.cluster_range[k] = [0, 0];
@@ -114,25 +120,36 @@ impl SolverLayout {
             }
             for &m in spec.members {
                 self.particle_colours[m as usize] |= 1 << colour;
-                changed[m as usize] = true;
+                if !std::mem::replace(&mut changed[m as usize], true) {
+                    touched.push((m, self.member_count[m as usize]));
+                }
             }
             let slot = self.free_slots.pop().map(|k| k as usize);
             slots.push(self.push_cluster(spec, slot, colour) as u32);
         }
-        for (p, changed) in changed.iter().enumerate() {
-            if *changed {
-                let count = self.member_count[p];
-                self.inv_count[p] = if count > 0 { 1.0 / count as f32 } else { 0.0 };
+        // `changed` now marks the particles whose count changed
+        let mut recounted = Vec::with_capacity(touched.len());
+        for (p, old_count) in touched {
+            let count = self.member_count[p as usize];
+            if count == old_count {
+                changed[p as usize] = false;
+            } else {
+                self.inv_count[p as usize] = if count > 0 { 1.0 / count as f32 } else { 0.0 };
+                recounted.push(p);
             }
         }
         // Jacobi weights are 1/nᵢ: every cluster holding a particle whose count changed
         // needs a new rest centroid; Gauss–Seidel weights are 1, so only the new clusters.
-        let refresh: Vec<usize> = match (self.mode, neighbours) {
-            // the kept neighbours and the new clusters, in slot order (as the pass finds
-            // them)
-            (SolverMode::Jacobi, Some(neighbours)) => {
+        let refresh: Vec<usize> = match self.mode {
+            // the new clusters (their constants were computed before the last counts
+            // were) and the kept clusters holding a recounted particle, in slot order
+            SolverMode::Jacobi => {
+                let holding = match neighbours {
+                    Some(neighbours) => neighbours(&recounted),
+                    None => self.slots_holding(&changed),
+                };
                 let mut marked = vec![false; self.cluster_range.len()];
-                for &k in neighbours.iter().chain(&slots) {
+                for &k in holding.iter().chain(&slots) {
                     if let Some(m) = marked.get_mut(k as usize) {
                         *m = true;
                     }
@@ -141,19 +158,7 @@ impl SolverLayout {
                     .filter(|&k| marked[k] && self.colour_of[k] != FREE_SLOT)
                     .collect()
             }
-            (SolverMode::Jacobi, None) => self
-                .cluster_range
-                .par_iter()
-                .enumerate()
-                .filter(|(k, r)| {
-                    self.colour_of[*k] != FREE_SLOT
-                        && self.member_particle[r[0] as usize..r[1] as usize]
-                            .iter()
-                            .any(|m| changed[*m as usize])
-                })
-                .map(|(k, _)| k)
-                .collect(),
-            (SolverMode::GaussSeidel, _) => slots
+            SolverMode::GaussSeidel => slots
                 .iter()
                 .filter(|k| **k != u32::MAX)
                 .map(|k| *k as usize)
@@ -174,6 +179,22 @@ impl SolverLayout {
         let new: Vec<u32> = slots.iter().copied().filter(|k| *k != u32::MAX).collect();
         self.batch_added(&new);
         Some(slots)
+    }
+
+    /// The slots of the clusters that hold a `flagged` particle: a pass over every
+    /// membership of the layout (in parallel).
+    fn slots_holding(&self, flagged: &[bool]) -> Vec<u32> {
+        self.cluster_range
+            .par_iter()
+            .enumerate()
+            .filter(|(k, r)| {
+                self.colour_of[*k] != FREE_SLOT
+                    && self.member_particle[r[0] as usize..r[1] as usize]
+                        .iter()
+                        .any(|m| flagged[*m as usize])
+            })
+            .map(|(k, _)| k as u32)
+            .collect()
     }
 
     /// Copies the live clusters' memberships to fresh arrays, dropping the garbage.
@@ -233,31 +254,35 @@ mod tests {
         let removed = [3u32, 4, 5];
         let mut scanned = SolverLayout::new(&rest, specs(&clusters), SolverMode::Jacobi);
         let mut told = scanned.clone();
-        // kept clusters holding a particle of a removed cluster or of a piece
-        let touched: Vec<u32> = removed
-            .iter()
-            .flat_map(|k| told.cluster_members(*k as usize).to_vec())
-            .chain(pieces.concat())
-            .collect();
-        let neighbours: Vec<u32> = told
-            .clusters()
-            .filter(|(k, m)| {
-                !removed.contains(&(*k as u32)) && m.iter().any(|p| touched.contains(p))
-            })
-            .map(|(k, _)| k as u32)
-            .collect();
-        assert_eq!(neighbours, [1, 2, 6, 7]);
+        // counts before → after: 3: 3 → 3, 4: 3 → 2, 5: 3 → 0 (retired), 6: 3 → 2,
+        // 7: 3 → 3; so only the kept clusters holding 4, 5 or 6 get new weights
+        let kept_holding = |layout: &SolverLayout, particles: &[u32]| -> Vec<u32> {
+            layout
+                .clusters()
+                .filter(|(k, m)| {
+                    !removed.contains(&(*k as u32)) && m.iter().any(|p| particles.contains(p))
+                })
+                .map(|(k, _)| k as u32)
+                .collect()
+        };
+        let neighbours = kept_holding(&told, &[4, 5, 6]);
+        assert_eq!(neighbours, [2, 6]);
         scanned
             .patch(&removed, &specs(&pieces), &[5])
             .expect("patchable");
-        told.patch_with_neighbours(&removed, &specs(&pieces), &[5], &neighbours)
-            .expect("patchable");
+        let mut asked = Vec::new();
+        told.patch_with_neighbours(&removed, &specs(&pieces), &[5], |recounted| {
+            asked = recounted.to_vec();
+            neighbours.clone()
+        })
+        .expect("patchable");
+        assert_eq!(asked, [4, 5, 6], "the particles whose count changed");
         assert_eq!(moments(&told), moments(&scanned));
         // leaving out cluster 2 ({2, 3, 4}: particle 4 lost a cluster) leaves its old
         // weights: the hint matters
         let mut short = SolverLayout::new(&rest, specs(&clusters), SolverMode::Jacobi);
         short
-            .patch_with_neighbours(&removed, &specs(&pieces), &[5], &[1, 6, 7])
+            .patch_with_neighbours(&removed, &specs(&pieces), &[5], |_| vec![6])
             .expect("patchable");
         assert!(
             moments(&short) != moments(&scanned),
