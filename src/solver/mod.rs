@@ -239,12 +239,15 @@ impl SolverLayout {
         let [start, end] = self.cluster_range[k];
         let members = &self.member_particle[start as usize..end as usize];
         let rest = &self.rest;
-        let total: f32 = members.iter().map(|m| self.weight(*m)).sum();
-        let centroid = members
-            .iter()
-            .map(|m| rest[*m as usize] * self.weight(*m))
-            .sum::<Vec3A>()
-            / total;
+        // the weight sum and the weighted position sum in one pass (same order of
+        // additions as two; every member's weight is positive, so the sum is too)
+        let (mut total, mut weighted) = (0.0f32, Vec3A::ZERO);
+        for &m in members {
+            let w = self.weight(m);
+            total += w;
+            weighted += rest[m as usize] * w;
+        }
+        let centroid = weighted / total;
         // Σ w (x̄ − x̄_c) is zero up to rounding; the fit subtracts its rotated
         // rounding residue so that every cluster's pull has exactly zero momentum.
         let bias: Vec3A = members
