@@ -135,16 +135,18 @@ fn patch(
         })
         .collect();
     // Reading the neighbours off the index costs ≈ 18 instructions per membership of a
-    // removed or added cluster (one thread), the layout's pass ≈ 7.6 per membership of
-    // the layout spread over all threads (measured on the 64³ bench slice, which the
-    // index wins by 4.6 M instructions): the index wins for all but the largest cuts.
+    // removed or added cluster, the layout's pass ≈ 7.6 per membership of the layout;
+    // but the index is read at random (cache misses) on one thread and the pass streams
+    // on all. On the 64³ bench slice (touched ≈ memberships / 7.5) the index took 6 M
+    // fewer instructions yet as long on one thread and ~25 % longer on two, so it is
+    // only chosen for cuts well below that size.
     let touched: usize = removed_slots
         .iter()
         .map(|k| cache.layout.cluster_members(*k as usize).len())
         .sum::<usize>()
         + flat.len();
     let patched = if cache.layout.mode() == SolverMode::Jacobi
-        && touched * 4 < cache.layout.membership_count()
+        && touched * 12 < cache.layout.membership_count()
     {
         let SolverCache {
             layout,
