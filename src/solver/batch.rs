@@ -14,8 +14,9 @@
 //! precision far from the origin; a lane's padding rows (past its cluster's size) have
 //! weight 0 and sit at that origin, so they add nothing.
 
+use super::colouring::order_by_colour;
 use super::sweep::Disjoint;
-use super::{CLUSTERS_PER_TASK, PATCH_HEADROOM, ROTATION_ITERATIONS, SolverLayout};
+use super::{CLUSTERS_PER_TASK, FREE_SLOT, PATCH_HEADROOM, ROTATION_ITERATIONS, SolverLayout};
 use crate::lanes::{LANES, Mat3x8, Quatx8, Vec3x8};
 use crate::rotation::extract_rotation_x8;
 use glam::{Quat, Vec3A};
@@ -114,8 +115,9 @@ impl SolverLayout {
             ..Batches::default()
         };
         batches.start.push(0);
-        for colour in self.colour_start.windows(2) {
-            let clusters = &self.colour_order[colour[0] as usize..colour[1] as usize];
+        let (colour_order, colour_start) = order_by_colour(&self.colour_of, FREE_SLOT);
+        for colour in colour_start.windows(2) {
+            let clusters = &colour_order[colour[0] as usize..colour[1] as usize];
             let ids = clusters
                 .chunks(LANES)
                 .map(|chunk| self.add_batch(&mut batches, chunk))

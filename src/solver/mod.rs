@@ -117,8 +117,6 @@ pub struct SolverLayout {
     offset_bias: Vec<Vec3A>,
     inv_weight_sum: Vec<f32>,
     stiffness: Vec<f32>,
-    colour_order: Vec<u32>,
-    colour_start: Vec<u32>,
     /// The clusters in batches of eight, as the kernel reads them (see `batch.rs`).
     batches: batch::Batches,
 }
@@ -185,7 +183,6 @@ impl SolverLayout {
                     colour_clusters_by_lists(&cluster_start, &layout.member_particle, n)
             }
         }
-        (layout.colour_order, layout.colour_start) = order_by_colour(&layout.colour_of, FREE_SLOT);
         layout.build_batches();
         layout
     }
@@ -271,7 +268,7 @@ impl SolverLayout {
 
     /// Number of clusters.
     pub fn cluster_count(&self) -> usize {
-        self.colour_order.len()
+        self.colour_of.iter().filter(|c| **c != FREE_SLOT).count()
     }
 
     /// Number of memberships (sum of cluster sizes).
@@ -281,7 +278,12 @@ impl SolverLayout {
 
     /// Number of cluster colours.
     pub fn colour_count(&self) -> usize {
-        self.colour_start.len().saturating_sub(1)
+        self.colour_of
+            .iter()
+            .filter(|c| **c != FREE_SLOT)
+            .map(|c| *c as usize + 1)
+            .max()
+            .unwrap_or(0)
     }
 
     /// Heap bytes held by the layout's arrays.
@@ -297,9 +299,7 @@ impl SolverLayout {
             + self.particle_colours.capacity() * 8
             + (self.member_count.capacity()
                 + self.free_slots.capacity()
-                + self.member_particle.capacity()
-                + self.colour_order.capacity()
-                + self.colour_start.capacity())
+                + self.member_particle.capacity())
                 * 4
             + (self.offset_bias.capacity() + self.rest_centroid.capacity()) * v3
             + self.inv_weight_sum.capacity() * 4 * 2

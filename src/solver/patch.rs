@@ -6,7 +6,6 @@
 //! ([`SolverLayout::patch_with_neighbours`]); otherwise one pass over the membership list
 //! finds them.
 
-use super::colouring::order_by_colour;
 use super::{ClusterSpec, FREE_SLOT, SolverLayout};
 use crate::config::SolverMode;
 use glam::Vec3A;
@@ -175,7 +174,6 @@ impl SolverLayout {
         if 2 * self.garbage > self.member_particle.len() {
             self.compact_members();
         }
-        (self.colour_order, self.colour_start) = order_by_colour(&self.colour_of, FREE_SLOT);
         let new: Vec<u32> = slots.iter().copied().filter(|k| *k != u32::MAX).collect();
         self.batch_added(&new);
         Some(slots)
@@ -216,6 +214,7 @@ impl SolverLayout {
 mod tests {
     use super::*;
     use crate::solver::Colliders;
+    use crate::solver::colouring::order_by_colour;
     use glam::{Quat, Vec3};
 
     /// A 200-particle bar with clusters of three consecutive particles (enough batches
@@ -356,9 +355,10 @@ mod tests {
             assert!(l.member_particle.len() <= 2 * l.membership_count());
         }
         assert_eq!(l.cluster_count(), 198);
-        for group in l.colour_start.windows(2) {
+        let (order, start) = order_by_colour(&l.colour_of, FREE_SLOT);
+        for group in start.windows(2) {
             let mut seen = vec![false; rest.len()];
-            for &k in &l.colour_order[group[0] as usize..group[1] as usize] {
+            for &k in &order[group[0] as usize..group[1] as usize] {
                 let [s, e] = l.cluster_range[k as usize];
                 for &m in &l.member_particle[s as usize..e as usize] {
                     assert!(!seen[m as usize], "two clusters of one colour share {m}");
