@@ -147,15 +147,16 @@ impl SolverLayout {
                     Some(neighbours) => neighbours(&recounted),
                     None => self.slots_holding(&changed),
                 };
-                let mut marked = vec![false; self.cluster_range.len()];
-                for &k in holding.iter().chain(&slots) {
-                    if let Some(m) = marked.get_mut(k as usize) {
-                        *m = true;
-                    }
-                }
-                (0..marked.len())
-                    .filter(|&k| marked[k] && self.colour_of[k] != FREE_SLOT)
-                    .collect()
+                // (sorted rather than marked: a cut's list is short, the layout long)
+                let mut refresh: Vec<usize> = holding
+                    .iter()
+                    .chain(&slots)
+                    .map(|k| *k as usize)
+                    .filter(|&k| self.colour_of.get(k).is_some_and(|c| *c != FREE_SLOT))
+                    .collect();
+                refresh.sort_unstable();
+                refresh.dedup();
+                refresh
             }
             SolverMode::GaussSeidel => slots
                 .iter()
