@@ -5,8 +5,16 @@
 //! every row's pull `s (R q + c − p)` is computed eight wide and handed to the caller,
 //! which applies it member by member.
 //!
+//! Batches run in *groups*: one task runs a group's batches in order, and the groups of
+//! one colour share no particle, so they run in parallel. Gauss–Seidel groups batches of
+//! one cluster colour (a batch's lanes share no particle, as its in-place moves need).
+//! Jacobi only reads positions and adds pulls, so its batches take clusters in the
+//! particles' spatial order whatever their colour, and its groups are coloured instead:
+//! a task then revisits the same few thousand particles while they are in cache, where
+//! colour-major order sweeps every particle once per cluster colour.
+//!
 //! Batches persist across patches (see `patch.rs`): a removed cluster leaves an empty
-//! lane, new clusters are appended in new batches of their colour, and a cluster whose
+//! lane, new clusters are appended in new batches and groups, and a cluster whose
 //! weights changed has its lane rewritten; the batches are laid out afresh only when a
 //! quarter of all lanes are empty.
 //!
@@ -17,6 +25,7 @@
 use super::colouring::order_by_colour;
 use super::sweep::Disjoint;
 use super::{CLUSTERS_PER_TASK, FREE_SLOT, PATCH_HEADROOM, ROTATION_ITERATIONS, SolverLayout};
+use crate::config::SolverMode;
 use crate::lanes::{LANES, Mat3x8, Quatx8, Vec3x8};
 use crate::rotation::extract_rotation_x8;
 use glam::{Quat, Vec3A};
@@ -25,6 +34,12 @@ use wide::f32x8;
 
 /// Lane marker: no cluster.
 const EMPTY_LANE: u32 = u32::MAX;
+
+/// Batches per group (at most).
+const GROUP_BATCHES: usize = CLUSTERS_PER_TASK / LANES;
+
+/// A group: the batches `[first, end)`, run in order by one task.
+type Group = [u32; 2];
 
 /// Member `j` of each of a batch's clusters, as fixed by the layout.
 #[derive(Clone, Copy, Debug, Default)]
@@ -57,7 +72,7 @@ pub(super) struct RowPulls<'a> {
     pub(super) size: &'a [u32; LANES],
 }
 
-/// The clusters in batches of [`LANES`] clusters of one colour.
+/// The clusters in batches of [`LANES`] clusters, the batches in coloured groups.
 #[derive(Clone, Debug, Default)]
 pub(super) struct Batches {
     /// All batches' rows.
@@ -66,12 +81,15 @@ pub(super) struct Batches {
     start: Vec<u32>,
     /// Per batch: the cluster slot of each lane ([`EMPTY_LANE`] for none).
     lanes: Vec<[u32; LANES]>,
-    /// Per colour: its batches.
-    of_colour: Vec<Vec<u32>>,
+    /// Per colour: its groups (which share no particle).
+    of_colour: Vec<Vec<Group>>,
     /// Per cluster slot: `batch × LANES + lane`.
     place: Vec<u32>,
     /// Lanes without a cluster.
     empty_lanes: usize,
+    /// Spatial batches (Jacobi): per particle, bit `c` set when a group of colour `c`
+    /// holds it. Empty when the batches are by cluster colour.
+    group_colours: Vec<u64>,
 }
 
 impl Batches {
@@ -80,10 +98,11 @@ impl Batches {
         self.rows.capacity() * size_of::<BatchRow>()
             + self.lanes.capacity() * size_of::<[u32; LANES]>()
             + (self.start.capacity() + self.place.capacity()) * 4
+            + self.group_colours.capacity() * 8
             + self
                 .of_colour
                 .iter()
-                .map(|b| b.capacity() * 4)
+                .map(|b| b.capacity() * size_of::<Group>())
                 .sum::<usize>()
     }
 
@@ -105,24 +124,36 @@ impl Batches {
 }
 
 impl SolverLayout {
-    /// Groups each colour's clusters into batches of [`LANES`] (in colour order) and
-    /// lays out all rows (in parallel): after a build, or a patch that left the batches
-    /// fragmented.
+    /// Puts all clusters in batches of [`LANES`] and groups (spatially for Jacobi, by
+    /// cluster colour for Gauss–Seidel or when the spatial groups would need more than
+    /// 64 colours) and lays out all rows (in parallel): after a build, or a patch that
+    /// left the batches fragmented.
     pub(super) fn build_batches(&mut self) {
         let old = std::mem::take(&mut self.batches);
-        let mut batches = Batches {
-            place: vec![u32::MAX; self.cluster_range.len()],
-            ..Batches::default()
+        let empty = || {
+            let mut batches = Batches {
+                place: vec![u32::MAX; self.cluster_range.len()],
+                ..Batches::default()
+            };
+            batches.start.push(0);
+            batches
         };
-        batches.start.push(0);
-        let (colour_order, colour_start) = order_by_colour(&self.colour_of, FREE_SLOT);
-        for colour in colour_start.windows(2) {
-            let clusters = &colour_order[colour[0] as usize..colour[1] as usize];
-            let ids = clusters
-                .chunks(LANES)
-                .map(|chunk| self.add_batch(&mut batches, chunk))
+        let mut batches = empty();
+        let spatial = self.mode == SolverMode::Jacobi && {
+            let mut order: Vec<u32> = (0..self.cluster_range.len() as u32)
+                .filter(|&k| self.colour_of[k as usize] != FREE_SLOT)
                 .collect();
-            batches.of_colour.push(ids);
+            order.sort_unstable_by_key(|&k| (self.first_member(k as usize), k));
+            batches.group_colours = vec![0; self.rest.len()];
+            self.add_spatial_groups(&mut batches, &order)
+        };
+        if !spatial {
+            batches = empty();
+            let (colour_order, colour_start) = order_by_colour(&self.colour_of, FREE_SLOT);
+            for (colour, range) in colour_start.windows(2).enumerate() {
+                let clusters = &colour_order[range[0] as usize..range[1] as usize];
+                self.add_colour_groups(&mut batches, colour, clusters);
+            }
         }
         // the old rows' allocation is reused: a fresh one would page-fault every time
         let mut rows = old.rows;
@@ -150,6 +181,64 @@ impl SolverLayout {
             });
         batches.rows = rows;
         self.batches = batches;
+    }
+
+    /// The first (lowest) member particle of cluster slot `k`: the clusters' spatial
+    /// order (particles are in spatial order).
+    fn first_member(&self, k: usize) -> u32 {
+        let [start, end] = self.cluster_range[k];
+        if start < end {
+            self.member_particle[start as usize]
+        } else {
+            u32::MAX
+        }
+    }
+
+    /// Appends the clusters `slots` (all of colour `colour`, so no two share a
+    /// particle) in batches, and the batches in groups of that colour.
+    fn add_colour_groups(&self, batches: &mut Batches, colour: usize, slots: &[u32]) {
+        if batches.of_colour.len() <= colour {
+            batches.of_colour.resize(colour + 1, Vec::new());
+        }
+        for group in slots.chunks(LANES * GROUP_BATCHES) {
+            let first = batches.lanes.len() as u32;
+            for chunk in group.chunks(LANES) {
+                self.add_batch(batches, chunk);
+            }
+            batches.of_colour[colour].push([first, batches.lanes.len() as u32]);
+        }
+    }
+
+    /// Appends the clusters `slots` (in spatial order) in batches and groups, giving
+    /// each group the lowest colour that no group holding one of its particles has.
+    /// Returns false when a group would need a 65th colour (the batches are then
+    /// unusable and must be laid out again by cluster colour).
+    fn add_spatial_groups(&self, batches: &mut Batches, slots: &[u32]) -> bool {
+        for group in slots.chunks(LANES * GROUP_BATCHES) {
+            let first = batches.lanes.len() as u32;
+            for chunk in group.chunks(LANES) {
+                self.add_batch(batches, chunk);
+            }
+            let members = || {
+                group.iter().flat_map(|&k| {
+                    let [start, end] = self.cluster_range[k as usize];
+                    &self.member_particle[start as usize..end as usize]
+                })
+            };
+            let used = members().fold(0u64, |used, &m| used | batches.group_colours[m as usize]);
+            let colour = used.trailing_ones() as usize;
+            if colour >= 64 {
+                return false;
+            }
+            for &m in members() {
+                batches.group_colours[m as usize] |= 1 << colour;
+            }
+            if batches.of_colour.len() <= colour {
+                batches.of_colour.resize(colour + 1, Vec::new());
+            }
+            batches.of_colour[colour].push([first, batches.lanes.len() as u32]);
+        }
+        true
     }
 
     /// Appends a batch of the clusters `slots` (at most [`LANES`]) to `batches` without
@@ -250,34 +339,39 @@ impl SolverLayout {
         self.batches.rows = rows;
     }
 
-    /// Patch step: puts the new clusters `added` (slots) into new batches, grouped by
-    /// colour, or lays all batches out afresh when they are fragmented.
+    /// Patch step: puts the new clusters `added` (slots) into new batches and groups
+    /// (spatially, or by colour, as the batches are), or lays all batches out afresh
+    /// when they are fragmented or the new groups need a 65th colour.
     pub(super) fn batch_added(&mut self, added: &[u32]) {
         if self.batches.fragmented() {
             self.build_batches();
             return;
         }
         let mut added: Vec<u32> = added.to_vec();
-        added.sort_unstable_by_key(|&k| (self.colour_of[k as usize], k));
         let mut batches = std::mem::take(&mut self.batches);
         batches.place.resize(self.cluster_range.len(), u32::MAX);
-        for group in
-            added.chunk_by(|a, b| self.colour_of[*a as usize] == self.colour_of[*b as usize])
-        {
-            let colour = self.colour_of[group[0] as usize] as usize;
-            if batches.of_colour.len() <= colour {
-                batches.of_colour.resize(colour + 1, Vec::new());
+        let first_new = batches.lanes.len();
+        if batches.group_colours.is_empty() {
+            added.sort_unstable_by_key(|&k| (self.colour_of[k as usize], k));
+            let same_colour =
+                |a: &u32, b: &u32| self.colour_of[*a as usize] == self.colour_of[*b as usize];
+            for group in added.chunk_by(same_colour) {
+                let colour = self.colour_of[group[0] as usize] as usize;
+                self.add_colour_groups(&mut batches, colour, group);
             }
-            for chunk in group.chunks(LANES) {
-                let b = self.add_batch(&mut batches, chunk);
-                batches.of_colour[colour].push(b);
-                let rows = batches.start[b as usize + 1] - batches.start[b as usize];
-                batches
-                    .rows
-                    .resize(batches.rows.len() + rows as usize, BatchRow::default());
-                let range =
-                    batches.start[b as usize] as usize..batches.start[b as usize + 1] as usize;
-                for (l, &k) in chunk.iter().enumerate() {
+        } else {
+            added.sort_unstable_by_key(|&k| (self.first_member(k as usize), k));
+            if !self.add_spatial_groups(&mut batches, &added) {
+                self.build_batches();
+                return;
+            }
+        }
+        let len = batches.start[batches.lanes.len()] as usize;
+        batches.rows.resize(len, BatchRow::default());
+        for b in first_new..batches.lanes.len() {
+            let range = batches.start[b] as usize..batches.start[b + 1] as usize;
+            for (l, &k) in batches.lanes[b].iter().enumerate() {
+                if k != EMPTY_LANE {
                     self.write_lane(&mut batches.rows[range.clone()], l, k as usize);
                 }
             }
@@ -285,15 +379,18 @@ impl SolverLayout {
         self.batches = batches;
     }
 
-    /// Runs `f(batch, fit_rows)` for every batch, colour after colour; the batches of
-    /// one colour run in parallel (their clusters share no particle). `fit_rows` is
-    /// scratch for [`Self::fit_batch`].
+    /// Runs `f(batch, fit_rows)` for every batch, colour after colour; the groups of
+    /// one colour run in parallel (they share no particle), each group's batches in
+    /// order. `fit_rows` is scratch for [`Self::fit_batch`].
     pub(super) fn for_each_batch_by_colour(&self, f: impl Fn(usize, &mut Vec<FitRow>) + Sync) {
-        for batches in &self.batches.of_colour {
-            batches
+        for groups in &self.batches.of_colour {
+            groups
                 .par_iter()
-                .with_min_len(CLUSTERS_PER_TASK / LANES)
-                .for_each_init(Vec::new, |fit_rows, &b| f(b as usize, fit_rows));
+                .for_each_init(Vec::new, |fit_rows, group| {
+                    for b in group[0]..group[1] {
+                        f(b as usize, fit_rows);
+                    }
+                });
         }
     }
 
@@ -311,8 +408,10 @@ impl SolverLayout {
     }
 
     /// Fits the clusters of batch `b` to the particle positions at `positions`, updates
-    /// their warm-start rotations, and calls `apply` with every row's pulls, row by row
-    /// (a particle appears in at most one lane of a batch, so `apply` may move it).
+    /// their warm-start rotations, and calls `apply` with every row's pulls, row by row.
+    /// In batches by cluster colour a particle appears in at most one lane, so `apply`
+    /// may move it; spatial batches (Jacobi) may hold a particle in several lanes, and
+    /// their `apply` only accumulates.
     ///
     /// # Safety
     /// The caller is the task that owns the clusters of the batch in the current colour
@@ -401,6 +500,116 @@ impl SolverLayout {
                 row: j,
                 size: &size,
             });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solver::ClusterSpec;
+    use glam::Vec3;
+
+    /// A 16³ lattice (x-major particle order) with 3×3×3 clusters at stride 2.
+    fn grid() -> (Vec<Vec3>, Vec<Vec<u32>>) {
+        let n = 16u32;
+        let index = |x: u32, y: u32, z: u32| x + n * (y + n * z);
+        let rest = (0..n * n * n)
+            .map(|i| Vec3::new((i % n) as f32, (i / n % n) as f32, (i / n / n) as f32))
+            .collect();
+        let mut clusters = Vec::new();
+        for (cx, cy, cz) in (0..n / 2)
+            .flat_map(|x| (0..n / 2).flat_map(move |y| (0..n / 2).map(move |z| (x, y, z))))
+        {
+            let mut members = Vec::new();
+            for z in (2 * cz).saturating_sub(1)..(2 * cz + 2).min(n) {
+                for y in (2 * cy).saturating_sub(1)..(2 * cy + 2).min(n) {
+                    for x in (2 * cx).saturating_sub(1)..(2 * cx + 2).min(n) {
+                        members.push(index(x, y, z));
+                    }
+                }
+            }
+            members.sort_unstable();
+            clusters.push(members);
+        }
+        (rest, clusters)
+    }
+
+    fn specs(clusters: &[Vec<u32>]) -> Vec<ClusterSpec<'_>> {
+        clusters
+            .iter()
+            .map(|m| ClusterSpec {
+                members: m,
+                stiffness: 1.0,
+                rotation: glam::Quat::IDENTITY,
+            })
+            .collect()
+    }
+
+    /// Every live cluster has exactly one lane, and no particle is in two groups of one
+    /// colour (Gauss–Seidel: in two clusters of one colour).
+    fn assert_groups_disjoint(l: &SolverLayout) {
+        let mut lanes = vec![0; l.cluster_range.len()];
+        for groups in &l.batches.of_colour {
+            let mut owner = vec![usize::MAX; l.particle_count()];
+            for (g, group) in groups.iter().enumerate() {
+                for b in group[0]..group[1] {
+                    for &k in l.batches.lanes[b as usize]
+                        .iter()
+                        .filter(|k| **k != EMPTY_LANE)
+                    {
+                        lanes[k as usize] += 1;
+                        let unit = match l.mode {
+                            SolverMode::Jacobi => g,
+                            SolverMode::GaussSeidel => k as usize,
+                        };
+                        for &m in l.cluster_members(k as usize) {
+                            let o = std::mem::replace(&mut owner[m as usize], unit);
+                            assert!(o == usize::MAX || o == unit, "{m} in two units of a colour");
+                        }
+                    }
+                }
+            }
+        }
+        for (k, _) in l.clusters() {
+            assert_eq!(lanes[k], 1, "cluster {k}");
+        }
+    }
+
+    #[test]
+    fn groups_of_one_colour_share_no_particle_after_builds_and_patches() {
+        let (rest, clusters) = grid();
+        for mode in [SolverMode::Jacobi, SolverMode::GaussSeidel] {
+            let mut l = SolverLayout::new(&rest, specs(&clusters), mode);
+            assert_eq!(
+                l.batches.group_colours.is_empty(),
+                mode == SolverMode::GaussSeidel
+            );
+            assert_groups_disjoint(&l);
+            let colours = l.batches.of_colour.len();
+            for round in 0..12 {
+                // replace some clusters by their two halves
+                let removed: Vec<u32> = l
+                    .clusters()
+                    .filter(|(k, _)| k % 11 == round % 11)
+                    .take(60)
+                    .map(|(k, _)| k as u32)
+                    .collect();
+                let halves: Vec<Vec<u32>> = removed
+                    .iter()
+                    .flat_map(|&k| {
+                        let m = l.cluster_members(k as usize);
+                        let (a, b) = m.split_at(m.len() / 2);
+                        [a.to_vec(), b.to_vec()]
+                    })
+                    .collect();
+                l.patch(&removed, &specs(&halves), &[]).expect("patchable");
+                assert_groups_disjoint(&l);
+            }
+            if mode == SolverMode::Jacobi {
+                assert!(!l.batches.group_colours.is_empty(), "still spatial");
+                assert!(l.batches.of_colour.len() >= colours);
+            }
         }
     }
 }

@@ -1,7 +1,8 @@
 //! The Jacobi scheme: every cluster is fitted to the same positions and adds its pull
-//! `sₖ (gᵢ − pᵢ)` to each member's accumulator (clusters of one colour in parallel, so
-//! no two write the same accumulator and each particle sums its pulls in a fixed colour
-//! order); then every particle moves by the average pull and the colliders apply.
+//! `sₖ (gᵢ − pᵢ)` to each member's accumulator (spatial groups of clusters, the groups
+//! of one colour in parallel, so no two tasks write the same accumulator and each
+//! particle sums its pulls in a fixed order for any thread count); then every particle
+//! moves by the average pull and the colliders apply.
 
 use super::colliders::{Block, Bounds, collide_block};
 use super::sweep::Disjoint;
@@ -17,24 +18,39 @@ impl SolverLayout {
         let rotations = Disjoint::new(&mut self.rotations);
         let this = &*self;
         this.for_each_batch_by_colour(|b, fit_rows| {
-            // SAFETY: this task owns the batch's clusters, their rotations and their
-            // members' pulls for the colour (see `Disjoint`); member indices were
-            // bounds-checked when the layout was built.
             // A lane in use adds every row, padding too: a padding row's pull is zero
             // and its particle the lane's own first member. An unused lane's particles
-            // may belong to other tasks' clusters: it adds nothing.
+            // may belong to other tasks' clusters: it adds nothing. Lanes may share a
+            // particle: their pulls are added one after another.
             let used = this.lanes_in_use(b);
-            let full = used.iter().all(|u| *u);
-            unsafe {
-                this.fit_batch(b, fit_rows, this.positions.as_ptr(), rotations, |row| {
-                    let lanes = row.particle.iter().zip(&row.pull).zip(&used);
-                    for ((&m, &pull), &in_use) in lanes {
-                        if full || in_use {
-                            pulls.write(m as usize, pulls.read(m as usize) + pull);
-                        }
-                    }
-                })
+            // SAFETY (this block and the two below): this task owns the group's
+            // clusters, their rotations and their members' pulls for the colour (see
+            // `Disjoint`); `add` is only called with members of the group's clusters,
+            // whose indices were bounds-checked when the layout was built.
+            // (`move`: a copy of the pointer, which the writes through it cannot change)
+            let add = move |m: u32, pull| unsafe {
+                pulls.write(m as usize, pulls.read(m as usize) + pull);
             };
+            let positions = this.positions.as_ptr();
+            // (two calls rather than a test per lane: most batches are full)
+            if used.iter().all(|u| *u) {
+                unsafe {
+                    this.fit_batch(b, fit_rows, positions, rotations, |row| {
+                        for (&m, &pull) in row.particle.iter().zip(&row.pull) {
+                            add(m, pull);
+                        }
+                    })
+                };
+            } else {
+                unsafe {
+                    this.fit_batch(b, fit_rows, positions, rotations, |row| {
+                        let lanes = row.particle.iter().zip(&row.pull).zip(&used);
+                        for ((&m, &pull), _) in lanes.filter(|(_, in_use)| **in_use) {
+                            add(m, pull);
+                        }
+                    })
+                };
+            }
         });
     }
 
