@@ -507,7 +507,7 @@ impl SolverLayout {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solver::ClusterSpec;
+    use crate::solver::unit_specs as specs;
     use glam::Vec3;
 
     /// A 16³ lattice (x-major particle order) with 3×3×3 clusters at stride 2.
@@ -533,17 +533,6 @@ mod tests {
             clusters.push(members);
         }
         (rest, clusters)
-    }
-
-    fn specs(clusters: &[Vec<u32>]) -> Vec<ClusterSpec<'_>> {
-        clusters
-            .iter()
-            .map(|m| ClusterSpec {
-                members: m,
-                stiffness: 1.0,
-                rotation: glam::Quat::IDENTITY,
-            })
-            .collect()
     }
 
     /// Every live cluster has exactly one lane, and no particle is in two groups of one

@@ -383,6 +383,19 @@ impl SolverLayout {
     }
 }
 
+/// Test helper: specs of unit stiffness and no rotation for the given member lists.
+#[cfg(test)]
+fn unit_specs(clusters: &[Vec<u32>]) -> Vec<ClusterSpec<'_>> {
+    clusters
+        .iter()
+        .map(|m| ClusterSpec {
+            members: m,
+            stiffness: 1.0,
+            rotation: Quat::IDENTITY,
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -397,12 +410,7 @@ mod tests {
 
     fn perturbed_bar(mode: SolverMode) -> SolverLayout {
         let (rest, clusters) = bar(8);
-        let spec = clusters.iter().map(|m| ClusterSpec {
-            members: m,
-            stiffness: 1.0,
-            rotation: Quat::IDENTITY,
-        });
-        let mut l = SolverLayout::new(&rest, spec, mode);
+        let mut l = SolverLayout::new(&rest, unit_specs(&clusters), mode);
         l.positions[3].y += 0.5;
         l.positions[6].z -= 0.3;
         l
@@ -474,12 +482,7 @@ mod tests {
                 }
             }
         }
-        let spec = clusters.iter().map(|m| ClusterSpec {
-            members: m,
-            stiffness: 1.0,
-            rotation: Quat::IDENTITY,
-        });
-        let mut l = SolverLayout::new(&rest, spec, mode);
+        let mut l = SolverLayout::new(&rest, unit_specs(&clusters), mode);
         for (p, r) in l.positions.iter_mut().zip(&rest) {
             let twist = Quat::from_rotation_x(0.15 * r.x);
             *p = Vec3A::from(twist * (*r - Vec3::new(0.0, 1.0, 1.0)));

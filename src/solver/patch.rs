@@ -214,9 +214,9 @@ impl SolverLayout {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solver::Colliders;
     use crate::solver::colouring::order_by_colour;
-    use glam::{Quat, Vec3};
+    use crate::solver::{Colliders, unit_specs as specs};
+    use glam::Vec3;
 
     /// A 200-particle bar with clusters of three consecutive particles (enough batches
     /// for a small patch to update them in place).
@@ -224,17 +224,6 @@ mod tests {
         let rest = (0..200).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
         let clusters = (0..198).map(|i| vec![i, i + 1, i + 2]).collect();
         (rest, clusters)
-    }
-
-    fn specs(clusters: &[Vec<u32>]) -> Vec<ClusterSpec<'_>> {
-        clusters
-            .iter()
-            .map(|m| ClusterSpec {
-                members: m,
-                stiffness: 1.0,
-                rotation: Quat::IDENTITY,
-            })
-            .collect()
     }
 
     /// Each cluster's members with its rest offsets and weights, sorted by members.
