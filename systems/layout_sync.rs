@@ -203,9 +203,10 @@ struct KeptClusters<'a> {
 
 impl KeptClusters<'_> {
     /// The slots of the kept clusters (those still in `slot_of`) that hold one of the
-    /// dense `particles`, read off the indices. Each slot once, in the order found.
+    /// dense `particles`, read off the indices. A slot may appear more than once (the
+    /// patch sorts and deduplicates the list, so no flag vector over all clusters is
+    /// cleared here for every cut).
     fn holding(&self, particles: &[u32]) -> Vec<u32> {
-        let mut marked = vec![false; self.clusters.len()];
         let mut found = Vec::new();
         // (a cut touches one body, or a few: its index is looked up again only on a change)
         let mut body_index: Option<(Entity, &[ClusterList<Entity>])> = None;
@@ -221,13 +222,10 @@ impl KeptClusters<'_> {
             let Some(list) = body_index.and_then(|(_, index)| index.get(local as usize)) else {
                 continue;
             };
-            for e in list {
-                if let Some(slot) = self.slot_of.get(*e, self.clusters)
-                    && !std::mem::replace(&mut marked[slot as usize], true)
-                {
-                    found.push(slot);
-                }
-            }
+            found.extend(
+                list.iter()
+                    .filter_map(|e| self.slot_of.get(*e, self.clusters)),
+            );
         }
         found
     }
