@@ -67,22 +67,29 @@ impl SolverLayout {
             .for_each(|(task, ((positions, corrections), pulls))| {
                 let range = task * PARTICLES_PER_TASK..task * PARTICLES_PER_TASK + positions.len();
                 let (inv_count, inv_mass) = (&inv_count[range.clone()], &inv_mass[range.clone()]);
-                let mut bounds = Bounds::default();
                 let particles = positions
                     .iter_mut()
                     .zip(corrections.iter_mut())
                     .zip(pulls.iter_mut())
                     .zip(inv_count)
                     .zip(inv_mass);
-                for ((((p, correction), pull), &inv_count), &inv_mass) in particles {
-                    // a select, not a branch: pinned particles move by zero
-                    let scale = if inv_mass == 0.0 { 0.0 } else { inv_count };
-                    let step = *pull * scale;
-                    *pull = Vec3A::ZERO;
-                    *p += step;
-                    *correction += step;
-                    bounds.add(*p);
-                }
+                // (a fold: a box whose address is taken later would be stored to memory
+                // at every step)
+                let bounds = particles.fold(
+                    Bounds::default(),
+                    |mut bounds, ((((p, correction), pull), &inv_count), &inv_mass)| {
+                        // a select, not a branch: pinned particles move by zero
+                        let scale = if inv_mass == 0.0 { 0.0 } else { inv_count };
+                        let step = *pull * scale;
+                        *pull = Vec3A::ZERO;
+                        // (the sum kept in a register: reading `*p` back costs a load)
+                        let moved = *p + step;
+                        *p = moved;
+                        *correction += step;
+                        bounds.add(moved);
+                        bounds
+                    },
+                );
                 // (Morton order: a task's particles are a compact block, mostly far
                 // from every collider)
                 if collide {
