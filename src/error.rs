@@ -41,6 +41,14 @@ pub enum CleaveError {
         /// Limit.
         max: u64,
     },
+    /// The bodies of one world would hold more particles than the solver can address.
+    #[error("too many particles: {particles} in the world's bodies together (at most {max})")]
+    TooManyParticles {
+        /// Particles of the existing bodies and the new one.
+        particles: u64,
+        /// Limit.
+        max: u64,
+    },
     /// An entity passed to the API is not what was expected.
     #[error("{0}")]
     InvalidEntity(String),

@@ -9,6 +9,7 @@ use crate::error::{CleaveError, Result, check_finite_vec, check_positive};
 use crate::invariants::{Violation, check_body, check_index};
 use crate::lattice::Shape;
 use crate::resources::*;
+use crate::solver::MAX_SOLVER_PARTICLES;
 use crate::systems::{CleaveSchedule, install};
 use crate::tool::{Path, Pose, ToolShape};
 use bevy_ecs::message::message_update_system;
@@ -149,6 +150,27 @@ pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
     Ok(e.id())
 }
 
+/// Particle slots of the bodies already in `world` (live or cut).
+fn existing_particles(world: &mut World) -> u64 {
+    let Some(mut bodies) = world.try_query::<&BodyLattice>() else {
+        return 0;
+    };
+    bodies.iter(world).map(|b| b.lattice.len() as u64).sum()
+}
+
+/// Refuses a body of `new` particle slots next to `existing` ones when the solver could
+/// not address them all.
+fn check_particle_budget(existing: u64, new: u64) -> Result<()> {
+    let particles = existing.saturating_add(new);
+    if particles > MAX_SOLVER_PARTICLES {
+        return Err(CleaveError::TooManyParticles {
+            particles,
+            max: MAX_SOLVER_PARTICLES,
+        });
+    }
+    Ok(())
+}
+
 /// Spawns a body into any world prepared with [`crate::systems::install`].
 pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     desc.material.validate()?;
@@ -167,6 +189,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         check_finite_vec(&format!("body.pins[{i}].max"), pin.max)?;
     }
     let lattice = desc.shape.voxelise(desc.spacing)?;
+    check_particle_budget(existing_particles(world), lattice.len() as u64)?;
     let table = {
         let mut rng = world.resource_mut::<SimRng>();
         initial_clusters(&lattice, &desc.material, &mut rng.0)
@@ -278,5 +301,27 @@ pub fn only_body(world: &mut World) -> Result<Entity> {
             "expected one body, found {}",
             bodies.len()
         ))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bodies_past_the_solver_limit_are_refused() {
+        assert!(check_particle_budget(0, MAX_SOLVER_PARTICLES).is_ok());
+        assert!(check_particle_budget(MAX_SOLVER_PARTICLES - 10, 10).is_ok());
+        for (existing, new) in [
+            (MAX_SOLVER_PARTICLES, 1),
+            (1, MAX_SOLVER_PARTICLES),
+            (u64::MAX, 5),
+        ] {
+            let err = check_particle_budget(existing, new).unwrap_err();
+            assert!(
+                matches!(err, CleaveError::TooManyParticles { max, .. } if max == MAX_SOLVER_PARTICLES),
+                "{err}"
+            );
+        }
     }
 }

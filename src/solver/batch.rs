@@ -48,18 +48,23 @@ pub(super) struct BatchRow {
     offset: Vec3x8,
     /// Matching weights (padding: 0).
     weight: f32x8,
-    /// Particle indices; padding repeats the lane's first member (0 for an empty lane),
-    /// so that it sits at the lane's origin.
-    pub(super) particle: [u32; LANES],
+    /// Each lane's particle as a byte offset into a per-particle `Vec3A` array
+    /// ([`PARTICLE_BYTES`] × index: x86 addressing scales an index by at most 8, so a
+    /// stored index would cost a shift per lane and pass); padding repeats the lane's
+    /// first member (0 for an empty lane), so that it sits at the lane's origin.
+    pub(super) at: [u32; LANES],
 }
+
+/// Bytes per particle in the per-particle `Vec3A` arrays the rows address.
+pub(super) const PARTICLE_BYTES: u32 = size_of::<Vec3A>() as u32;
 
 /// The members' positions of one row during a fit: scratch of one task.
 pub(super) type FitRow = Vec3x8;
 
 /// One row's result of a fit, handed to the caller member by member.
 pub(super) struct RowPulls<'a> {
-    /// The row's particles (see [`BatchRow::particle`]).
-    pub(super) particle: &'a [u32; LANES],
+    /// The row's particles as byte offsets (see [`BatchRow::at`]).
+    pub(super) at: &'a [u32; LANES],
     /// The members' positions the fit saw.
     pub(super) position: &'a Vec3x8,
     /// The pull `s (R q + c − p)` of each lane's member; exactly zero on a padding row
@@ -281,7 +286,7 @@ impl SolverLayout {
             row.offset.y.as_mut_array()[l] = offset.y;
             row.offset.z.as_mut_array()[l] = offset.z;
             row.weight.as_mut_array()[l] = self.weight(m);
-            row.particle[l] = m;
+            row.at[l] = m * PARTICLE_BYTES;
         }
         let first = members.first().copied().unwrap_or(0);
         for row in &mut rows[members.len()..] {
@@ -289,7 +294,7 @@ impl SolverLayout {
             row.offset.y.as_mut_array()[l] = 0.0;
             row.offset.z.as_mut_array()[l] = 0.0;
             row.weight.as_mut_array()[l] = 0.0;
-            row.particle[l] = first;
+            row.at[l] = first * PARTICLE_BYTES;
         }
     }
 
@@ -323,7 +328,7 @@ impl SolverLayout {
         let range = self.batches.start[b] as usize..self.batches.start[b + 1] as usize;
         for row in &mut self.batches.rows[range] {
             row.weight.as_mut_array()[l] = 0.0;
-            row.particle[l] = 0;
+            row.at[l] = 0;
         }
         self.batches.lanes[b][l] = EMPTY_LANE;
         self.batches.place[k] = u32::MAX;
@@ -453,7 +458,7 @@ impl SolverLayout {
         // SAFETY: particle indices were bounds-checked when the layout was built; the
         // positions are not written during the call (the caller's contract).
         let gather = |row: &BatchRow| unsafe {
-            let p = |l: usize| *positions.add(row.particle[l] as usize);
+            let p = |l: usize| *positions.byte_add(row.at[l] as usize);
             Vec3x8::from_lanes([p(0), p(1), p(2), p(3), p(4), p(5), p(6), p(7)])
         };
         let Some(first) = rows.first() else {
@@ -494,7 +499,7 @@ impl SolverLayout {
             let member = row.weight.simd_gt(f32x8::ZERO);
             let pull = Vec3x8::select(member, goal - position.scale(s), Vec3x8::ZERO);
             apply(RowPulls {
-                particle: &row.particle,
+                at: &row.at,
                 position,
                 pull: pull.to_lanes(),
                 row: j,

@@ -4,6 +4,7 @@
 //! run in parallel and the result does not depend on their order or the thread count.
 
 use super::SolverLayout;
+use super::batch::PARTICLE_BYTES;
 use super::sweep::Disjoint;
 use crate::lanes::LANES;
 
@@ -24,7 +25,7 @@ impl SolverLayout {
             unsafe {
                 this.fit_batch(b, fit_rows, positions.as_ptr(), rotations, |row| {
                     for l in 0..LANES {
-                        let m = row.particle[l] as usize;
+                        let m = (row.at[l] / PARTICLE_BYTES) as usize;
                         if row.row < row.size[l] as usize && this.inv_mass[m] != 0.0 {
                             let step = row.pull[l];
                             positions.write(m, row.position.lane(l) + step);

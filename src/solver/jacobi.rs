@@ -28,25 +28,25 @@ impl SolverLayout {
             // `Disjoint`); `add` is only called with members of the group's clusters,
             // whose indices were bounds-checked when the layout was built.
             // (`move`: a copy of the pointer, which the writes through it cannot change)
-            let add = move |m: u32, pull| unsafe {
-                pulls.write(m as usize, pulls.read(m as usize) + pull);
+            let add = move |at: u32, pull| unsafe {
+                pulls.write_at(at, pulls.read_at(at) + pull);
             };
             let positions = this.positions.as_ptr();
             // (two calls rather than a test per lane: most batches are full)
             if used.iter().all(|u| *u) {
                 unsafe {
                     this.fit_batch(b, fit_rows, positions, rotations, |row| {
-                        for (&m, &pull) in row.particle.iter().zip(&row.pull) {
-                            add(m, pull);
+                        for (&at, &pull) in row.at.iter().zip(&row.pull) {
+                            add(at, pull);
                         }
                     })
                 };
             } else {
                 unsafe {
                     this.fit_batch(b, fit_rows, positions, rotations, |row| {
-                        let lanes = row.particle.iter().zip(&row.pull).zip(&used);
-                        for ((&m, &pull), _) in lanes.filter(|(_, in_use)| **in_use) {
-                            add(m, pull);
+                        let lanes = row.at.iter().zip(&row.pull).zip(&used);
+                        for ((&at, &pull), _) in lanes.filter(|(_, in_use)| **in_use) {
+                            add(at, pull);
                         }
                     })
                 };

@@ -52,6 +52,10 @@ pub const ROUNDING_FLOOR: f32 = 16.0 * f32::EPSILON;
 /// Colour of a free cluster slot.
 const FREE_SLOT: u32 = u32::MAX;
 
+/// Most particles one layout holds: the kernel addresses them by byte offsets
+/// (16 bytes per particle) in `u32`.
+pub const MAX_SOLVER_PARTICLES: u64 = (u32::MAX as u64 + 1) / 16;
+
 /// Arrays that patches append to are allocated with `1/PATCH_HEADROOM` spare room, so
 /// that a cut does not copy them (tens of megabytes on a large body).
 const PATCH_HEADROOM: usize = 8;
@@ -124,11 +128,20 @@ pub struct SolverLayout {
 impl SolverLayout {
     /// Builds the layout for particles with the given rest positions and clusters, for
     /// the given scheme. Members must be valid indices into `rest`.
+    ///
+    /// # Panics
+    /// If `rest` holds more than [`MAX_SOLVER_PARTICLES`] particles (spawning refuses
+    /// bodies that would take a world past it).
     pub fn new<'a>(
         rest: &[Vec3],
         clusters: impl IntoIterator<Item = ClusterSpec<'a>>,
         mode: SolverMode,
     ) -> Self {
+        assert!(
+            rest.len() as u64 <= MAX_SOLVER_PARTICLES,
+            "{} particles in one solver layout (at most {MAX_SOLVER_PARTICLES})",
+            rest.len()
+        );
         let clusters: Vec<ClusterSpec<'a>> = clusters.into_iter().collect();
         let n = rest.len();
         let rest: Vec<Vec3A> = rest.iter().map(|r| Vec3A::from(*r)).collect();

@@ -35,6 +35,26 @@ impl<T: Copy> Disjoint<T> {
         unsafe { self.0.add(i).read() }
     }
 
+    /// Reads the entry at byte offset `at` (its index × its size).
+    ///
+    /// # Safety
+    /// As [`Disjoint::read`] for the entry's index.
+    #[inline(always)]
+    pub(super) unsafe fn read_at(self, at: u32) -> T {
+        // SAFETY: guaranteed by the caller.
+        unsafe { self.0.byte_add(at as usize).read() }
+    }
+
+    /// Writes the entry at byte offset `at` (its index × its size).
+    ///
+    /// # Safety
+    /// As [`Disjoint::write`] for the entry's index.
+    #[inline(always)]
+    pub(super) unsafe fn write_at(self, at: u32, value: T) {
+        // SAFETY: guaranteed by the caller.
+        unsafe { self.0.byte_add(at as usize).write(value) }
+    }
+
     /// Writes entry `i`.
     ///
     /// # Safety
