@@ -209,6 +209,13 @@ impl Mat3x8 {
             .mul_add(v.z, self.y_axis.mul_add(v.y, self.x_axis.scale(v.x)))
     }
 
+    /// Lane-wise `self · v + t`, as three fused multiply-adds per component.
+    #[inline(always)]
+    pub fn mul_vec_add(&self, v: Vec3x8, t: Vec3x8) -> Vec3x8 {
+        self.z_axis
+            .mul_add(v.z, self.y_axis.mul_add(v.y, self.x_axis.mul_add(v.x, t)))
+    }
+
     /// The rotation matrix of each lane's unit quaternion.
     #[inline(always)]
     pub fn from_quat(q: Quatx8) -> Self {
@@ -358,6 +365,9 @@ mod tests {
             assert!((v.dot(w).as_array()[l] - vs[l].dot(ws[l])).abs() < 1e-5);
             assert!(m.lane(l).abs_diff_eq(Mat3A::from_quat(qs[l]), 1e-6));
             assert!(m.mul_vec(v).lane(l).abs_diff_eq(qs[l] * vs[l], 1e-5));
+            let t = Vec3A::new(0.5, -2.0, 3.0) * l as f32;
+            let moved = m.mul_vec_add(v, Vec3x8::from_lanes([t; LANES]));
+            assert!(moved.lane(l).abs_diff_eq(qs[l] * vs[l] + t, 1e-5));
             assert!(product.lane(l).abs_diff_eq(Quat::IDENTITY, 1e-6));
             assert!((v.abs_max().as_array()[l] - vs[l].abs().max_element()).abs() == 0.0);
         }

@@ -487,17 +487,12 @@ impl SolverLayout {
         let centroid =
             (sum - r.mul_vec(Vec3x8::from_lanes(bias))).scale(f32x8::new(inv_weight_sum)) + origin;
         let s = f32x8::new(stiffness);
-        let scaled = Mat3x8 {
-            x_axis: r.x_axis.scale(s),
-            y_axis: r.y_axis.scale(s),
-            z_axis: r.z_axis.scale(s),
-        };
-        let translation = centroid.scale(s);
         for (j, (row, position)) in rows.iter().zip(fit_rows.iter()).enumerate() {
-            let goal = scaled.mul_vec(row.offset) + translation;
-            // members have a positive weight, padding rows weight 0
-            let member = row.weight.simd_gt(f32x8::ZERO);
-            let pull = Vec3x8::select(member, goal - position.scale(s), Vec3x8::ZERO);
+            // members have a positive weight, padding rows weight 0: their stiffness is
+            // masked to 0, so their pull is exactly zero
+            let member_stiffness = row.weight.simd_gt(f32x8::ZERO) & s;
+            let goal = r.mul_vec_add(row.offset, centroid);
+            let pull = (goal - *position).scale(member_stiffness);
             apply(RowPulls {
                 at: &row.at,
                 position,
