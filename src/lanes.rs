@@ -115,17 +115,6 @@ impl Vec3x8 {
         }
     }
 
-    /// Lane-wise choice: `mask` lanes (all bits set) from `if_true`, the others from
-    /// `if_false`.
-    #[inline(always)]
-    pub fn select(mask: f32x8, if_true: Self, if_false: Self) -> Self {
-        Self {
-            x: mask.select(if_true.x, if_false.x),
-            y: mask.select(if_true.y, if_false.y),
-            z: mask.select(if_true.z, if_false.z),
-        }
-    }
-
     /// `self · s + c`, fused.
     #[inline(always)]
     pub fn mul_add(self, s: f32x8, c: Self) -> Self {

@@ -54,7 +54,7 @@ const FREE_SLOT: u32 = u32::MAX;
 
 /// Most particles one layout holds: the kernel addresses them by byte offsets
 /// (16 bytes per particle) in `u32`.
-pub const MAX_SOLVER_PARTICLES: u64 = (u32::MAX as u64 + 1) / 16;
+pub const MAX_SOLVER_PARTICLES: u64 = (u32::MAX as u64 + 1) / batch::PARTICLE_BYTES as u64;
 
 /// Arrays that patches append to are allocated with `1/PATCH_HEADROOM` spare room, so
 /// that a cut does not copy them (tens of megabytes on a large body).
