@@ -1,6 +1,6 @@
 //! ECS components. Particle side: [`Particle`], [`Position`], [`PrevPosition`],
-//! [`Velocity`], [`InvMass`], [`RestPosition`], [`LatticeCoord`], and the body's
-//! [`BodyLattice`]. Cluster side: [`ClusterMembers`], [`ClusterOf`], [`Stiffness`], and
+//! [`Velocity`], [`InvMass`], and the body's [`BodyLattice`] (which holds what never
+//! changes: lattice coordinates and rest positions). Cluster side: [`ClusterMembers`], [`ClusterOf`], [`Stiffness`], and
 //! the body's [`ParticleClusters`] index. Tools: [`Tool`], [`ToolPose`], [`ToolPath`].
 
 use crate::cluster_store::ClusterList;
@@ -8,9 +8,13 @@ use crate::config::Material;
 use crate::lattice::Lattice;
 use crate::tool::{Path, Pose, ToolShape};
 use bevy_ecs::prelude::*;
-use glam::{IVec3, Vec3};
+use glam::Vec3;
 
 /// A particle: its body and its body-local index (stable for the body's life).
+///
+/// Its lattice coordinate and rest position never change, so they are stored once per
+/// body, not per entity: `lattice.coord(index)` and `lattice.rest_position(index)` of the
+/// body's [`BodyLattice`].
 #[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Particle {
     /// The body entity.
@@ -34,14 +38,6 @@ pub struct Velocity(pub Vec3);
 /// Inverse mass; 0 pins the particle.
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct InvMass(pub f32);
-
-/// Rest position in the body frame (lattice coordinate × h); never changes.
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
-pub struct RestPosition(pub Vec3);
-
-/// Integer lattice coordinate.
-#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
-pub struct LatticeCoord(pub IVec3);
 
 /// A body: its material.
 #[derive(Component, Clone, Debug)]

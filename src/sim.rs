@@ -200,34 +200,28 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             material: desc.material.clone(),
         })
         .id();
-    let mut spawn_particle = |i: u32| {
-        let rest = lattice.rest_position(i);
-        let x = desc.position + rotation * rest;
+    // In the solver layout's (Morton) order, so that the particle table's rows and the
+    // layout's slots run in step and the shape-match stage copies them in sequence; in one
+    // batch, so that the table is sized once instead of grown by doubling.
+    let order = lattice.live_in_morton_order();
+    let inv_mass = 1.0 / desc.material.particle_mass;
+    let spawned = world.spawn_batch(order.iter().map(|&i| {
+        let x = desc.position + rotation * lattice.rest_position(i);
         let pinned = desc
             .pins
             .iter()
             .any(|r| x.cmpge(r.min).all() && x.cmple(r.max).all());
-        world
-            .spawn((
-                Particle { body, index: i },
-                Position(x),
-                PrevPosition(x),
-                Velocity(desc.velocity),
-                InvMass(if pinned {
-                    0.0
-                } else {
-                    1.0 / desc.material.particle_mass
-                }),
-                RestPosition(rest),
-                LatticeCoord(lattice.coord(i)),
-            ))
-            .id()
-    };
-    // In the solver layout's (Morton) order, so that the particle table's rows and the
-    // layout's slots run in step and the shape-match stage copies them in sequence.
+        (
+            Particle { body, index: i },
+            Position(x),
+            PrevPosition(x),
+            Velocity(desc.velocity),
+            InvMass(if pinned { 0.0 } else { inv_mass }),
+        )
+    }));
     let mut particles = vec![Entity::PLACEHOLDER; lattice.len()];
-    for i in lattice.live_in_morton_order() {
-        particles[i as usize] = spawn_particle(i);
+    for (&i, e) in order.iter().zip(spawned) {
+        particles[i as usize] = e;
     }
     let mut index = vec![ClusterList::<Entity>::new(); lattice.len()];
     for (_, members) in table.iter() {
