@@ -307,9 +307,11 @@ pub fn rebuild_cache<'b, 'c>(
         .collect();
     let mut body_list: Vec<(Entity, &BodyLattice)> = bodies.collect();
     body_list.sort_unstable_by_key(|(e, _)| *e);
-    let mut rest = Vec::new();
-    let mut particles = Vec::new();
-    let mut owners = Vec::new();
+    // sized up front: grown by doubling, they would keep up to twice their length
+    let total: usize = body_list.iter().map(|(_, b)| b.lattice.live_count()).sum();
+    let mut rest = Vec::with_capacity(total);
+    let mut particles = Vec::with_capacity(total);
+    let mut owners = Vec::with_capacity(total);
     let mut body_dense = Vec::with_capacity(body_list.len());
     for (body, lattice) in &body_list {
         let l = &lattice.lattice;
@@ -367,7 +369,9 @@ pub fn rebuild_cache<'b, 'c>(
     cache.particles = particles;
     cache.owners = owners;
     cache.body_dense = body_dense;
-    cache.clusters = cluster_list.into_iter().map(|c| c.order.2).collect();
+    // (collected from a borrow: `into_iter` would reuse the entries' allocation, six
+    // times the size the entities need, and keep it)
+    cache.clusters = cluster_list.iter().map(|c| c.order.2).collect();
     cache.slot_of = ClusterSlots::from_clusters(&cache.clusters);
     cache.valid = true;
 }
