@@ -1,7 +1,8 @@
 //! ECS components. Particle side: [`Particle`], [`Position`], [`PrevPosition`],
 //! [`Velocity`], [`InvMass`], and the body's [`BodyLattice`] (which holds what never
-//! changes: lattice coordinates and rest positions). Cluster side: [`ClusterMembers`], [`ClusterOf`], [`Stiffness`], and
-//! the body's [`ParticleClusters`] index. Tools: [`Tool`], [`ToolPose`], [`ToolPath`].
+//! changes: lattice coordinates and rest positions). Cluster side: [`ClusterMembers`],
+//! [`ClusterOf`], [`Stiffness`], and the body's [`ParticleClusters`] index. Tools:
+//! [`Tool`], [`ToolPose`], [`ToolPath`].
 
 use crate::cluster_store::ClusterList;
 use crate::config::Material;
