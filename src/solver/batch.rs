@@ -122,6 +122,14 @@ impl Batches {
         self.place.get(k).is_some_and(|p| *p != u32::MAX)
     }
 
+    /// Records the batches from `first` to the last one as a group of `colour`.
+    fn push_group(&mut self, colour: usize, first: u32) {
+        if self.of_colour.len() <= colour {
+            self.of_colour.resize(colour + 1, Vec::new());
+        }
+        self.of_colour[colour].push([first, self.lanes.len() as u32]);
+    }
+
     /// Whether so many lanes are empty that the batches should be laid out afresh.
     pub(super) fn fragmented(&self) -> bool {
         4 * self.empty_lanes > self.lanes.len() * LANES
@@ -202,15 +210,9 @@ impl SolverLayout {
     /// Appends the clusters `slots` (all of colour `colour`, so no two share a
     /// particle) in batches, and the batches in groups of that colour.
     fn add_colour_groups(&self, batches: &mut Batches, colour: usize, slots: &[u32]) {
-        if batches.of_colour.len() <= colour {
-            batches.of_colour.resize(colour + 1, Vec::new());
-        }
         for group in slots.chunks(LANES * GROUP_BATCHES) {
-            let first = batches.lanes.len() as u32;
-            for chunk in group.chunks(LANES) {
-                self.add_batch(batches, chunk);
-            }
-            batches.of_colour[colour].push([first, batches.lanes.len() as u32]);
+            let first = self.add_group_batches(batches, group);
+            batches.push_group(colour, first);
         }
     }
 
@@ -220,10 +222,7 @@ impl SolverLayout {
     /// unusable and must be laid out again by cluster colour).
     fn add_spatial_groups(&self, batches: &mut Batches, slots: &[u32]) -> bool {
         for group in slots.chunks(LANES * GROUP_BATCHES) {
-            let first = batches.lanes.len() as u32;
-            for chunk in group.chunks(LANES) {
-                self.add_batch(batches, chunk);
-            }
+            let first = self.add_group_batches(batches, group);
             let members = || {
                 group.iter().flat_map(|&k| {
                     let [start, end] = self.cluster_range[k as usize];
@@ -238,17 +237,24 @@ impl SolverLayout {
             for &m in members() {
                 batches.group_colours[m as usize] |= 1 << colour;
             }
-            if batches.of_colour.len() <= colour {
-                batches.of_colour.resize(colour + 1, Vec::new());
-            }
-            batches.of_colour[colour].push([first, batches.lanes.len() as u32]);
+            batches.push_group(colour, first);
         }
         true
     }
 
+    /// Appends the clusters `slots` of one group in batches of [`LANES`]; returns the
+    /// group's first batch.
+    fn add_group_batches(&self, batches: &mut Batches, slots: &[u32]) -> u32 {
+        let first = batches.lanes.len() as u32;
+        for chunk in slots.chunks(LANES) {
+            self.add_batch(batches, chunk);
+        }
+        first
+    }
+
     /// Appends a batch of the clusters `slots` (at most [`LANES`]) to `batches` without
-    /// writing its rows (they stay as the caller leaves them); returns its index.
-    fn add_batch(&self, batches: &mut Batches, slots: &[u32]) -> u32 {
+    /// writing its rows (they stay as the caller leaves them).
+    fn add_batch(&self, batches: &mut Batches, slots: &[u32]) {
         let b = batches.lanes.len() as u32;
         let mut lanes = [EMPTY_LANE; LANES];
         lanes[..slots.len()].copy_from_slice(slots);
@@ -264,7 +270,6 @@ impl SolverLayout {
         batches.empty_lanes += LANES - slots.len();
         let last = batches.start[batches.start.len() - 1];
         batches.start.push(last + rows as u32);
-        b
     }
 
     /// Number of members of cluster slot `k`.
