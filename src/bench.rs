@@ -4,7 +4,7 @@
 //! the two solver schemes.
 
 use crate::clustering::initial_clusters;
-use crate::components::{BodyLattice, ClusterMembers, ClusterOf, Stiffness};
+use crate::components::{BodyLattice, ClusterMembers, ClusterOf, Stiffness, Velocity};
 use crate::config::{Material, SimConfig, SolverMode};
 use crate::error::Result;
 use crate::lattice::Shape;
@@ -107,8 +107,14 @@ fn box_simulation(n: u32, config: &SimConfig) -> Result<Simulation> {
     Ok(sim)
 }
 
-/// One step of the bare kernel: the engine's predict and solve on dense arrays only.
-fn bare_step(layout: &mut SolverLayout, config: &SimConfig, colliders: &Colliders) {
+/// One step of the bare kernel: the engine's predict and solve on dense arrays only
+/// (`velocities`: one per particle of `layout`).
+fn bare_step(
+    layout: &mut SolverLayout,
+    velocities: &mut [Vec3A],
+    config: &SimConfig,
+    colliders: &Colliders,
+) {
     let dt = config.dt / config.substeps as f32;
     let keep = (-config.damping * dt).exp();
     let dv = Vec3A::from(config.gravity * dt);
@@ -117,7 +123,7 @@ fn bare_step(layout: &mut SolverLayout, config: &SimConfig, colliders: &Collider
             .positions
             .iter_mut()
             .zip(layout.previous.iter_mut())
-            .zip(layout.velocities.iter_mut())
+            .zip(velocities.iter_mut())
             .zip(&layout.inv_mass)
         {
             *prev = *x;
@@ -129,7 +135,7 @@ fn bare_step(layout: &mut SolverLayout, config: &SimConfig, colliders: &Collider
             *x += *v * dt;
         }
         layout.solve(config.iterations, colliders);
-        layout.update_velocities(1.0 / dt);
+        layout.update_velocities(velocities, 1.0 / dt);
     }
 }
 
@@ -150,6 +156,15 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
     // before the bare kernel's copy of the layout exists
     let bytes_per_particle = peak_resident_bytes().unwrap_or(0) as f64 / particles as f64;
     let mut layout = cache.layout.clone();
+    let mut velocities: Vec<Vec3A> = cache
+        .particles
+        .iter()
+        .map(|e| {
+            world
+                .get::<Velocity>(*e)
+                .map_or(Vec3A::ZERO, |v| v.0.into())
+        })
+        .collect();
     let colliders = Colliders {
         ground: config.ground,
         boxes: config.boxes.clone(),
@@ -158,9 +173,11 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
     let (mut engine, mut bare) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
     for _ in 0..steps {
         engine.push(time_ms(1, || sim.step()));
-        bare.push(time_ms(1, || bare_step(&mut layout, config, &colliders)));
+        bare.push(time_ms(1, || {
+            bare_step(&mut layout, &mut velocities, config, &colliders)
+        }));
     }
-    drop(layout);
+    drop((layout, velocities));
     let (ms_per_step, bare_ms_per_step) = (median(&mut engine), median(&mut bare));
     let (cut_event_ms, cut_frame_ms, recluster_ms) = slice_event(&mut sim, n)?;
     sim.world_mut().resource_mut::<SolverCache>().last_update = None;

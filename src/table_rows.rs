@@ -28,8 +28,6 @@ pub struct ParticleColumns<'a> {
     pub positions: &'a [Position],
     /// Positions at the start of the substep.
     pub previous: &'a [PrevPosition],
-    /// Velocities.
-    pub velocities: &'a [Velocity],
     /// Inverse masses.
     pub inv_mass: &'a [InvMass],
 }
@@ -62,11 +60,13 @@ impl TableRows {
         }
     }
 
-    /// Writes the solved positions and velocities back into the table's columns (the
-    /// rows of the last [`TableRows::load`]).
+    /// Writes the solved positions back into the table's columns (the rows of the last
+    /// [`TableRows::load`]) and adds the solve's corrections to the velocities,
+    /// `v += Σ Δp / dt` (see [`SolverLayout::update_velocities`]).
     pub fn store(
         &self,
         layout: &SolverLayout,
+        inv_dt: f32,
         positions: &mut [Position],
         velocities: &mut [Velocity],
     ) {
@@ -80,7 +80,7 @@ impl TableRows {
                 for ((x, v), &slot) in x.iter_mut().zip(v).zip(slots) {
                     if slot != NONE {
                         x.0 = Vec3::from(layout.positions[slot as usize]);
-                        v.0 = Vec3::from(layout.velocities[slot as usize]);
+                        v.0 += Vec3::from(layout.corrections[slot as usize] * inv_dt);
                     }
                 }
             });
@@ -107,21 +107,14 @@ impl TableRows {
         (
             layout.positions.par_chunks_mut(CHUNK),
             layout.previous.par_chunks_mut(CHUNK),
-            layout.velocities.par_chunks_mut(CHUNK),
             layout.inv_mass.par_chunks_mut(CHUNK),
             self.row_of_slot.par_chunks(CHUNK),
             slots.par_chunks(CHUNK),
         )
             .into_par_iter()
-            .all(|(x, prev, v, inv_mass, rows, entities)| {
-                let slots = x
-                    .iter_mut()
-                    .zip(prev)
-                    .zip(v)
-                    .zip(inv_mass)
-                    .zip(rows)
-                    .zip(entities);
-                for (((((x, prev), v), inv_mass), &row), entity) in slots {
+            .all(|(x, prev, inv_mass, rows, entities)| {
+                let slots = x.iter_mut().zip(prev).zip(inv_mass).zip(rows).zip(entities);
+                for ((((x, prev), inv_mass), &row), entity) in slots {
                     if row == NONE {
                         continue;
                     }
@@ -131,7 +124,6 @@ impl TableRows {
                     }
                     *x = Vec3A::from(table.positions[row].0);
                     *prev = Vec3A::from(table.previous[row].0);
-                    *v = Vec3A::from(table.velocities[row].0);
                     *inv_mass = table.inv_mass[row].0;
                 }
                 true
@@ -211,12 +203,11 @@ mod tests {
         map: &[u32],
         table: &[Entity],
     ) {
-        let (x, prev, v, m) = columns(table);
+        let (x, prev, _, m) = columns(table);
         let columns = ParticleColumns {
             entities: table,
             positions: &x,
             previous: &prev,
-            velocities: &v,
             inv_mass: &m,
         };
         rows.load(layout, slots, map, columns);
@@ -228,7 +219,6 @@ mod tests {
             let id = e.index_u32() as f32;
             assert_eq!(layout.positions[s], Vec3A::splat(id), "slot {s}");
             assert_eq!(layout.previous[s], Vec3A::splat(-id));
-            assert_eq!(layout.velocities[s], Vec3A::new(id, 0.0, 1.0));
             assert_eq!(layout.inv_mass[s], id + 0.5);
         }
     }
@@ -270,18 +260,29 @@ mod tests {
                 assert_eq!(Vec3::from(layout.positions[s]), x[row].0);
             }
         }
-        // store writes every mapped row from its slot, and leaves the stranger alone
+        // store writes every mapped row's position from its slot and adds the slot's
+        // correction / dt to its velocity, and leaves the stranger alone
         layout.positions.iter_mut().for_each(|p| *p *= 2.0);
+        for (s, c) in layout.corrections.iter_mut().enumerate() {
+            *c = Vec3A::new(s as f32, 1.0, 0.0);
+        }
         let (mut x, _, mut v, _) = columns(&table);
-        x[table.iter().position(|e| *e == stranger).unwrap()] = Position(Vec3::splat(123.0));
-        rows.store(&layout, &mut x, &mut v);
+        let at = table.iter().position(|e| *e == stranger).unwrap();
+        x[at] = Position(Vec3::splat(123.0));
+        v[at] = Velocity(Vec3::splat(9.0));
+        rows.store(&layout, 4.0, &mut x, &mut v);
         for (row, e) in table.iter().enumerate() {
-            let expected = if *e == stranger {
-                123.0
-            } else {
-                2.0 * e.index_u32() as f32
+            let (position, velocity) = match slots.iter().position(|p| p == e) {
+                None => (Vec3::splat(123.0), Vec3::splat(9.0)),
+                Some(s) => {
+                    let id = e.index_u32() as f32;
+                    (
+                        Vec3::splat(2.0 * id),
+                        Vec3::new(id + 4.0 * s as f32, 4.0, 1.0),
+                    )
+                }
             };
-            assert_eq!(x[row].0, Vec3::splat(expected), "row {row}");
+            assert_eq!((x[row].0, v[row].0), (position, velocity), "row {row}");
         }
     }
 
@@ -318,7 +319,7 @@ mod tests {
         load(&mut rows, &mut layout, &slots, &map, &table);
         assert_eq!(layout.positions[2], Vec3A::splat(-1.0));
         let (mut x, _, mut v, _) = columns(&table);
-        rows.store(&layout, &mut x, &mut v);
+        rows.store(&layout, 1.0, &mut x, &mut v);
         assert_eq!(
             x[2].0,
             Vec3::splat(reused.index_u32() as f32),

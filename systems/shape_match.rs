@@ -81,12 +81,11 @@ pub fn shape_match(
             .expect("particle components are stored in tables")
             .filter(|(entities, ..)| !entities.is_empty());
         match (tables.next(), tables.next()) {
-            (Some((entities, positions, velocities, previous, inv_mass)), None) => {
+            (Some((entities, positions, _, previous, inv_mass)), None) => {
                 let table = ParticleColumns {
                     entities,
                     positions,
                     previous,
-                    velocities,
                     inv_mass,
                 };
                 let slots = &cache.particles;
@@ -106,9 +105,7 @@ pub fn shape_match(
         boxes: config.boxes.clone(),
     };
     cache.layout.solve(config.iterations, &colliders);
-    cache
-        .layout
-        .update_velocities(config.substeps as f32 / config.dt);
+    let inv_dt = config.substeps as f32 / config.dt;
     if one_table {
         let tables = particles
             .contiguous_iter_mut()
@@ -117,36 +114,36 @@ pub fn shape_match(
             if !positions.is_empty() {
                 cache
                     .rows
-                    .store(&cache.layout, &mut positions, &mut velocities);
+                    .store(&cache.layout, inv_dt, &mut positions, &mut velocities);
             }
         }
     } else {
-        scatter_entities(cache, &mut particles);
+        scatter_entities(cache, inv_dt, &mut particles);
     }
 }
 
 /// Copies particle state into the layout entity by entity (particles in several tables).
 fn gather_entities(cache: &mut SolverCache, particles: &Query<ParticleData>) {
-    for (e, x, v, prev, inv_mass) in particles {
+    for (e, x, _, prev, inv_mass) in particles {
         if let Some(&d) = cache.dense_of.get(e.index_u32() as usize)
             && d != u32::MAX
         {
             cache.layout.positions[d as usize] = Vec3A::from(x.0);
             cache.layout.previous[d as usize] = Vec3A::from(prev.0);
-            cache.layout.velocities[d as usize] = Vec3A::from(v.0);
             cache.layout.inv_mass[d as usize] = inv_mass.0;
         }
     }
 }
 
-/// Writes the solved state back entity by entity (particles in several tables).
-fn scatter_entities(cache: &SolverCache, particles: &mut Query<ParticleData>) {
+/// Writes the solved positions back and adds the corrections / dt to the velocities,
+/// entity by entity (particles in several tables).
+fn scatter_entities(cache: &SolverCache, inv_dt: f32, particles: &mut Query<ParticleData>) {
     for (e, mut x, mut v, _, _) in particles {
         if let Some(&d) = cache.dense_of.get(e.index_u32() as usize)
             && d != u32::MAX
         {
             x.0 = Vec3::from(cache.layout.positions[d as usize]);
-            v.0 = Vec3::from(cache.layout.velocities[d as usize]);
+            v.0 += Vec3::from(cache.layout.corrections[d as usize] * inv_dt);
         }
     }
 }

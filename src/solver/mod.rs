@@ -85,9 +85,6 @@ pub struct SolverLayout {
     pub previous: Vec<Vec3A>,
     /// Positions at the start of the last solve (the predicted positions).
     predicted: Vec<Vec3A>,
-    /// Velocities after prediction; [`SolverLayout::update_velocities`] adds the
-    /// solver's corrections.
-    pub velocities: Vec<Vec3A>,
     /// Inverse masses (0 = pinned).
     pub inv_mass: Vec<f32>,
     /// Total position correction per particle during the last [`SolverLayout::solve`].
@@ -148,7 +145,6 @@ impl SolverLayout {
         let mut layout = SolverLayout {
             positions: rest.clone(),
             previous: rest.clone(),
-            velocities: vec![Vec3A::ZERO; n],
             corrections: vec![Vec3A::ZERO; n],
             inv_mass: vec![1.0; n],
             pulls: vec![Vec3A::ZERO; n],
@@ -303,7 +299,7 @@ impl SolverLayout {
     pub fn heap_bytes(&self) -> usize {
         use std::mem::size_of;
         let v3 = size_of::<Vec3A>();
-        self.positions.capacity() * v3 * 7
+        self.positions.capacity() * v3 * 6
             + self.inv_mass.capacity() * 4 * 2
             + self.batches.heap_bytes()
             + self.rotations.capacity() * size_of::<Quat>()
@@ -356,16 +352,17 @@ impl SolverLayout {
             });
     }
 
-    /// Adds the last solve's corrections to the velocities: `v += Σ Δp / dt`.
+    /// Adds the last solve's corrections to `velocities` (one per particle, as they were
+    /// after prediction): `v += Σ Δp / dt`. The layout keeps no velocities: the engine
+    /// applies the same rule while it writes the solved state back to its components.
     ///
     /// Deriving velocity from the corrections rather than from `(p − p_prev) / dt` keeps
     /// the rounding of large absolute positions out of the velocities, so momentum is
     /// conserved to the precision of the (small) corrections.
-    pub fn update_velocities(&mut self, inv_dt: f32) {
-        let corrections = &self.corrections;
-        self.velocities
+    pub fn update_velocities(&self, velocities: &mut [Vec3A], inv_dt: f32) {
+        velocities
             .par_iter_mut()
-            .zip(corrections)
+            .zip(&self.corrections)
             .with_min_len(PARTICLES_PER_TASK)
             .for_each(|(v, c)| *v += *c * inv_dt);
     }

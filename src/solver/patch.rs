@@ -8,7 +8,6 @@
 
 use super::{ClusterSpec, FREE_SLOT, SolverLayout};
 use crate::config::SolverMode;
-use glam::Vec3A;
 use rayon::prelude::*;
 
 impl SolverLayout {
@@ -81,7 +80,6 @@ impl SolverLayout {
         let mut touched: Vec<(u32, u32)> = Vec::new();
         for &p in retired {
             self.inv_mass[p as usize] = 0.0;
-            self.velocities[p as usize] = Vec3A::ZERO;
         }
         for &k in removed {
             let k = k as usize;
