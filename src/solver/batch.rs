@@ -24,6 +24,7 @@
 
 use super::colouring::order_by_colour;
 use super::sweep::Disjoint;
+use super::template::Template;
 use super::{CLUSTERS_PER_TASK, FREE_SLOT, PATCH_HEADROOM, ROTATION_ITERATIONS, SolverLayout};
 use crate::config::SolverMode;
 use crate::lanes::{LANES, Mat3x8, Quatx8, Vec3x8};
@@ -41,19 +42,25 @@ const GROUP_BATCHES: usize = CLUSTERS_PER_TASK / LANES;
 /// A group: the batches `[first, end)`, run in order by one task.
 type Group = [u32; 2];
 
-/// Member `j` of each of a batch's clusters, as fixed by the layout.
+/// Member `j`'s rest offset and weight in each of a batch's clusters, as fixed by the
+/// layout (or by its template, see `template.rs`).
 #[derive(Clone, Copy, Debug, Default)]
-pub(super) struct BatchRow {
+pub(super) struct MomentRow {
     /// Rest offsets `q` from the cluster's rest centroid (padding: 0).
-    offset: Vec3x8,
+    pub(super) offset: Vec3x8,
     /// Matching weights (padding: 0).
-    weight: f32x8,
-    /// Each lane's particle as a byte offset into a per-particle `Vec3A` array
-    /// ([`PARTICLE_BYTES`] × index: x86 addressing scales an index by at most 8, so a
-    /// stored index would cost a shift per lane and pass); padding repeats the lane's
-    /// first member (0 for an empty lane), so that it sits at the lane's origin.
-    pub(super) at: [u32; LANES],
+    pub(super) weight: f32x8,
 }
+
+/// Member `j`'s particle in each of a batch's clusters, as a byte offset into a
+/// per-particle `Vec3A` array ([`PARTICLE_BYTES`] × index: x86 addressing scales an
+/// index by at most 8, so a stored index would cost a shift per lane and pass); padding
+/// repeats the lane's first member (0 for an empty lane), so that it sits at the lane's
+/// origin.
+pub(super) type ParticleRow = [u32; LANES];
+
+/// A batch's first row in [`Batches::moments`] when it reads the template instead.
+const TEMPLATED: u32 = u32::MAX;
 
 /// Bytes per particle in the per-particle `Vec3A` arrays the rows address.
 pub(super) const PARTICLE_BYTES: u32 = size_of::<Vec3A>() as u32;
@@ -63,7 +70,7 @@ pub(super) type FitRow = Vec3x8;
 
 /// One row's result of a fit, handed to the caller member by member.
 pub(super) struct RowPulls<'a> {
-    /// The row's particles as byte offsets (see [`BatchRow::at`]).
+    /// The row's particles as byte offsets (see [`ParticleRow`]).
     pub(super) at: &'a [u32; LANES],
     /// The members' positions the fit saw.
     pub(super) position: &'a Vec3x8,
@@ -80,10 +87,16 @@ pub(super) struct RowPulls<'a> {
 /// The clusters in batches of [`LANES`] clusters, the batches in coloured groups.
 #[derive(Clone, Debug, Default)]
 pub(super) struct Batches {
-    /// All batches' rows.
-    rows: Vec<BatchRow>,
-    /// Per batch: its first row; one entry more than batches.
+    /// All batches' particle rows.
+    particles: Vec<ParticleRow>,
+    /// Per batch: its first particle row; one entry more than batches.
     start: Vec<u32>,
+    /// The moment rows of the batches that do not read the template.
+    moments: Vec<MomentRow>,
+    /// Per batch: its first moment row, or [`TEMPLATED`].
+    moment_start: Vec<u32>,
+    /// The shared rest shape (empty when the layout has none).
+    template: Template,
     /// Per batch: the cluster slot of each lane ([`EMPTY_LANE`] for none).
     lanes: Vec<[u32; LANES]>,
     /// Per colour: its groups (which share no particle).
@@ -100,9 +113,10 @@ pub(super) struct Batches {
 impl Batches {
     /// Heap bytes held.
     pub(super) fn heap_bytes(&self) -> usize {
-        self.rows.capacity() * size_of::<BatchRow>()
+        self.particles.capacity() * size_of::<ParticleRow>()
+            + (self.moments.capacity() + self.template.rows.capacity()) * size_of::<MomentRow>()
             + self.lanes.capacity() * size_of::<[u32; LANES]>()
-            + (self.start.capacity() + self.place.capacity()) * 4
+            + (self.start.capacity() + self.moment_start.capacity() + self.place.capacity()) * 4
             + self.group_colours.capacity() * 8
             + self
                 .of_colour
@@ -115,6 +129,12 @@ impl Batches {
     #[cfg(test)]
     pub(super) fn len(&self) -> usize {
         self.lanes.len()
+    }
+
+    /// Number of lanes without a cluster.
+    #[cfg(test)]
+    pub(super) fn empty_lanes(&self) -> usize {
+        self.empty_lanes
     }
 
     /// Whether cluster slot `k` has a lane.
@@ -142,6 +162,12 @@ impl SolverLayout {
     /// 64 colours) and lays out all rows (in parallel): after a build, or a patch that
     /// left the batches fragmented.
     pub(super) fn build_batches(&mut self) {
+        let template = self.choose_template().unwrap_or_default();
+        self.build_batches_with(template);
+    }
+
+    /// [`Self::build_batches`] with the given template (empty: none).
+    fn build_batches_with(&mut self, template: Template) {
         let old = std::mem::take(&mut self.batches);
         let empty = || {
             let mut batches = Batches {
@@ -151,6 +177,12 @@ impl SolverLayout {
             batches.start.push(0);
             batches
         };
+        // which clusters match the template (a batch whose clusters all do reads it)
+        let matches: Vec<bool> = (0..self.cluster_range.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(|k| self.colour_of[k] != FREE_SLOT && self.template_order(k, &template).is_some())
+            .collect();
         let mut batches = empty();
         let spatial = self.mode == SolverMode::Jacobi && {
             let mut order: Vec<u32> = (0..self.cluster_range.len() as u32)
@@ -158,41 +190,74 @@ impl SolverLayout {
                 .collect();
             order.sort_unstable_by_key(|&k| (self.first_member(k as usize), k));
             batches.group_colours = vec![0; self.rest.len()];
-            self.add_spatial_groups(&mut batches, &order)
+            self.add_spatial_groups(&mut batches, &order, &matches)
         };
         if !spatial {
             batches = empty();
             let (colour_order, colour_start) = order_by_colour(&self.colour_of, FREE_SLOT);
             for (colour, range) in colour_start.windows(2).enumerate() {
                 let clusters = &colour_order[range[0] as usize..range[1] as usize];
-                self.add_colour_groups(&mut batches, colour, clusters);
+                self.add_colour_groups(&mut batches, colour, clusters, &matches);
             }
         }
-        // the old rows' allocation is reused: a fresh one would page-fault every time
-        let mut rows = old.rows;
-        rows.clear();
+        let templated: Vec<bool> = batches
+            .lanes
+            .iter()
+            .map(|lanes| {
+                lanes
+                    .iter()
+                    .all(|&k| k == EMPTY_LANE || matches[k as usize])
+            })
+            .collect();
+        // the old rows' allocations are reused: fresh ones would page-fault every time
+        let (mut particles, mut moments) = (old.particles, old.moments);
         let len = batches.start[batches.lanes.len()] as usize;
-        rows.reserve(len + len / PATCH_HEADROOM);
-        rows.resize(len, BatchRow::default());
-        let mut rest = rows.as_mut_slice();
+        let mut moment_len = 0;
+        for (range, &templated) in batches.start.windows(2).zip(&templated) {
+            batches
+                .moment_start
+                .push(if templated { TEMPLATED } else { moment_len });
+            moment_len += if templated { 0 } else { range[1] - range[0] };
+        }
+        let moment_len = moment_len as usize;
+        particles.clear();
+        particles.reserve(len + len / PATCH_HEADROOM);
+        particles.resize(len, [0; LANES]);
+        moments.clear();
+        moments.reserve(moment_len + moment_len / PATCH_HEADROOM);
+        moments.resize(moment_len, MomentRow::default());
+        let (mut particles_left, mut moments_left) =
+            (particles.as_mut_slice(), moments.as_mut_slice());
         let mut per_batch = Vec::with_capacity(batches.lanes.len());
-        for range in batches.start.windows(2) {
-            let (head, tail) = rest.split_at_mut((range[1] - range[0]) as usize);
-            per_batch.push(head);
-            rest = tail;
+        for (range, &templated) in batches.start.windows(2).zip(&templated) {
+            let rows = (range[1] - range[0]) as usize;
+            let (p, tail) = std::mem::take(&mut particles_left).split_at_mut(rows);
+            particles_left = tail;
+            let m = (!templated).then(|| {
+                let (m, tail) = std::mem::take(&mut moments_left).split_at_mut(rows);
+                moments_left = tail;
+                m
+            });
+            per_batch.push((p, m));
         }
         per_batch
             .into_par_iter()
             .zip(&batches.lanes)
             .with_min_len(64)
-            .for_each(|(rows, lanes)| {
+            .for_each(|((particles, mut moments), lanes)| {
                 for (l, &k) in lanes.iter().enumerate() {
-                    if k != EMPTY_LANE {
-                        self.write_lane(rows, l, k as usize);
+                    if k == EMPTY_LANE {
+                        continue;
+                    }
+                    match moments {
+                        Some(ref mut moments) => self.write_lane(particles, moments, l, k as usize),
+                        None => self.write_template_lane(particles, l, k as usize, &template),
                     }
                 }
             });
-        batches.rows = rows;
+        batches.particles = particles;
+        batches.moments = moments;
+        batches.template = template;
         self.batches = batches;
     }
 
@@ -208,10 +273,17 @@ impl SolverLayout {
     }
 
     /// Appends the clusters `slots` (all of colour `colour`, so no two share a
-    /// particle) in batches, and the batches in groups of that colour.
-    fn add_colour_groups(&self, batches: &mut Batches, colour: usize, slots: &[u32]) {
+    /// particle) in batches, and the batches in groups of that colour. `matches` flags
+    /// the slots that match the template (empty: none does).
+    fn add_colour_groups(
+        &self,
+        batches: &mut Batches,
+        colour: usize,
+        slots: &[u32],
+        matches: &[bool],
+    ) {
         for group in slots.chunks(LANES * GROUP_BATCHES) {
-            let first = self.add_group_batches(batches, group);
+            let first = self.add_group_batches(batches, group, matches);
             batches.push_group(colour, first);
         }
     }
@@ -219,10 +291,11 @@ impl SolverLayout {
     /// Appends the clusters `slots` (in spatial order) in batches and groups, giving
     /// each group the lowest colour that no group holding one of its particles has.
     /// Returns false when a group would need a 65th colour (the batches are then
-    /// unusable and must be laid out again by cluster colour).
-    fn add_spatial_groups(&self, batches: &mut Batches, slots: &[u32]) -> bool {
+    /// unusable and must be laid out again by cluster colour). `matches` as for
+    /// [`Self::add_colour_groups`].
+    fn add_spatial_groups(&self, batches: &mut Batches, slots: &[u32], matches: &[bool]) -> bool {
         for group in slots.chunks(LANES * GROUP_BATCHES) {
-            let first = self.add_group_batches(batches, group);
+            let first = self.add_group_batches(batches, group, matches);
             let members = || {
                 group.iter().flat_map(|&k| {
                     let [start, end] = self.cluster_range[k as usize];
@@ -242,11 +315,14 @@ impl SolverLayout {
         true
     }
 
-    /// Appends the clusters `slots` of one group in batches of [`LANES`]; returns the
-    /// group's first batch.
-    fn add_group_batches(&self, batches: &mut Batches, slots: &[u32]) -> u32 {
+    /// Appends the clusters `slots` of one group in batches of [`LANES`], those that
+    /// match the template (flagged in `matches`, empty for none) first, so that they
+    /// fill batches of their own; returns the group's first batch.
+    fn add_group_batches(&self, batches: &mut Batches, slots: &[u32], matches: &[bool]) -> u32 {
         let first = batches.lanes.len() as u32;
-        for chunk in slots.chunks(LANES) {
+        let matching = |k: &u32| matches.get(*k as usize).copied().unwrap_or(false);
+        let (templated, other): (Vec<u32>, Vec<u32>) = slots.iter().partition(|k| matching(k));
+        for chunk in templated.chunks(LANES).chain(other.chunks(LANES)) {
             self.add_batch(batches, chunk);
         }
         first
@@ -274,32 +350,60 @@ impl SolverLayout {
 
     /// Number of members of cluster slot `k`.
     #[inline]
-    fn cluster_size(&self, k: usize) -> usize {
+    pub(super) fn cluster_size(&self, k: usize) -> usize {
         let [start, end] = self.cluster_range[k];
         (end - start) as usize
     }
 
-    /// Writes lane `l` of a batch's `rows` for cluster slot `k`: its members' rest
-    /// offsets, weights and particles, then padding at its first member.
-    fn write_lane(&self, rows: &mut [BatchRow], l: usize, k: usize) {
+    /// Writes lane `l` of a batch's rows for cluster slot `k`: its members' particles,
+    /// rest offsets and weights, then padding at its first member.
+    fn write_lane(
+        &self,
+        particles: &mut [ParticleRow],
+        moments: &mut [MomentRow],
+        l: usize,
+        k: usize,
+    ) {
         let [start, end] = self.cluster_range[k];
         let members = &self.member_particle[start as usize..end as usize];
         let centroid = self.rest_centroid[k];
-        for (row, &m) in rows.iter_mut().zip(members) {
+        let rows = particles.iter_mut().zip(moments.iter_mut());
+        for ((at, row), &m) in rows.zip(members) {
             let offset = self.rest[m as usize] - centroid;
             row.offset.x.as_mut_array()[l] = offset.x;
             row.offset.y.as_mut_array()[l] = offset.y;
             row.offset.z.as_mut_array()[l] = offset.z;
             row.weight.as_mut_array()[l] = self.weight(m);
-            row.at[l] = m * PARTICLE_BYTES;
+            at[l] = m * PARTICLE_BYTES;
         }
         let first = members.first().copied().unwrap_or(0);
-        for row in &mut rows[members.len()..] {
+        let padding = particles
+            .iter_mut()
+            .zip(moments.iter_mut())
+            .skip(members.len());
+        for (at, row) in padding {
             row.offset.x.as_mut_array()[l] = 0.0;
             row.offset.y.as_mut_array()[l] = 0.0;
             row.offset.z.as_mut_array()[l] = 0.0;
             row.weight.as_mut_array()[l] = 0.0;
-            row.at[l] = first * PARTICLE_BYTES;
+            at[l] = first * PARTICLE_BYTES;
+        }
+    }
+
+    /// Writes lane `l` of a templated batch's particle rows for cluster slot `k`, which
+    /// matches `template`: its members in the template's order.
+    fn write_template_lane(
+        &self,
+        particles: &mut [ParticleRow],
+        l: usize,
+        k: usize,
+        template: &Template,
+    ) {
+        let order = self
+            .template_order(k, template)
+            .expect("a templated batch's clusters match the template");
+        for (at, m) in particles.iter_mut().zip(order) {
+            at[l] = m * PARTICLE_BYTES;
         }
     }
 
@@ -311,42 +415,72 @@ impl SolverLayout {
 
     /// Rest offsets from the weighted rest centroid and matching weights, `(q, w)`, of
     /// the members of cluster slot `k` (in the order of [`SolverLayout::clusters`]), as
-    /// the kernel reads them from the cluster's lane.
+    /// the kernel reads them from the cluster's lane (or the template).
     pub fn member_moments(&self, k: usize) -> Vec<glam::Vec4> {
         let (b, l) = self.place(k);
-        self.batch_rows(b)[..self.cluster_size(k)]
-            .iter()
-            .map(|row| {
-                glam::Vec4::new(
+        let rows = self.batch_particles(b).iter().zip(self.batch_moments(b));
+        let mut lane: Vec<(u32, glam::Vec4)> = rows
+            .take(self.cluster_size(k))
+            .map(|(at, row)| {
+                let q = glam::Vec4::new(
                     row.offset.x.as_array()[l],
                     row.offset.y.as_array()[l],
                     row.offset.z.as_array()[l],
                     row.weight.as_array()[l],
-                )
+                );
+                (at[l], q)
             })
-            .collect()
+            .collect();
+        // (a templated lane holds its members in the template's order)
+        lane.sort_by_key(|(at, _)| *at);
+        lane.into_iter().map(|(_, q)| q).collect()
     }
 
     /// Patch step: empties the lane of cluster slot `k` (call before the slot is freed).
     pub(super) fn clear_lane(&mut self, k: usize) {
         let (b, l) = self.place(k);
-        let range = self.batches.start[b] as usize..self.batches.start[b + 1] as usize;
-        for row in &mut self.batches.rows[range] {
-            row.weight.as_mut_array()[l] = 0.0;
-            row.at[l] = 0;
+        let batches = &mut self.batches;
+        let range = batches.start[b] as usize..batches.start[b + 1] as usize;
+        for at in &mut batches.particles[range.clone()] {
+            at[l] = 0;
         }
-        self.batches.lanes[b][l] = EMPTY_LANE;
-        self.batches.place[k] = u32::MAX;
-        self.batches.empty_lanes += 1;
+        let first = batches.moment_start[b];
+        if first != TEMPLATED {
+            let first = first as usize;
+            for row in &mut batches.moments[first..first + range.len()] {
+                row.weight.as_mut_array()[l] = 0.0;
+            }
+        }
+        batches.lanes[b][l] = EMPTY_LANE;
+        batches.place[k] = u32::MAX;
+        batches.empty_lanes += 1;
     }
 
-    /// Patch step: rewrites the lane of cluster slot `k` (its weights changed).
+    /// Patch step: rewrites the lane of cluster slot `k` (its weights changed); a
+    /// templated batch gets rows of its own first.
     pub(super) fn rewrite_lane(&mut self, k: usize) {
         let (b, l) = self.place(k);
-        let range = self.batches.start[b] as usize..self.batches.start[b + 1] as usize;
-        let mut rows = std::mem::take(&mut self.batches.rows);
-        self.write_lane(&mut rows[range], l, k);
-        self.batches.rows = rows;
+        let mut batches = std::mem::take(&mut self.batches);
+        let range = batches.start[b] as usize..batches.start[b + 1] as usize;
+        let particles = &mut batches.particles[range.clone()];
+        if batches.moment_start[b] == TEMPLATED {
+            let first = batches.moments.len();
+            batches.moment_start[b] = first as u32;
+            batches
+                .moments
+                .resize(first + range.len(), MomentRow::default());
+            let moments = &mut batches.moments[first..];
+            for (l, &k) in batches.lanes[b].iter().enumerate() {
+                if k != EMPTY_LANE {
+                    self.write_lane(particles, moments, l, k as usize);
+                }
+            }
+        } else {
+            let first = batches.moment_start[b] as usize;
+            let moments = &mut batches.moments[first..first + range.len()];
+            self.write_lane(particles, moments, l, k);
+        }
+        self.batches = batches;
     }
 
     /// Patch step: puts the new clusters `added` (slots) into new batches and groups
@@ -367,22 +501,29 @@ impl SolverLayout {
                 |a: &u32, b: &u32| self.colour_of[*a as usize] == self.colour_of[*b as usize];
             for group in added.chunk_by(same_colour) {
                 let colour = self.colour_of[group[0] as usize] as usize;
-                self.add_colour_groups(&mut batches, colour, group);
+                self.add_colour_groups(&mut batches, colour, group, &[]);
             }
         } else {
             added.sort_unstable_by_key(|&k| (self.first_member(k as usize), k));
-            if !self.add_spatial_groups(&mut batches, &added) {
+            if !self.add_spatial_groups(&mut batches, &added, &[]) {
                 self.build_batches();
                 return;
             }
         }
         let len = batches.start[batches.lanes.len()] as usize;
-        batches.rows.resize(len, BatchRow::default());
+        batches.particles.resize(len, [0; LANES]);
         for b in first_new..batches.lanes.len() {
             let range = batches.start[b] as usize..batches.start[b + 1] as usize;
+            let first = batches.moments.len();
+            batches.moment_start.push(first as u32);
+            batches
+                .moments
+                .resize(first + range.len(), MomentRow::default());
             for (l, &k) in batches.lanes[b].iter().enumerate() {
                 if k != EMPTY_LANE {
-                    self.write_lane(&mut batches.rows[range.clone()], l, k as usize);
+                    let particles = &mut batches.particles[range.clone()];
+                    let moments = &mut batches.moments[first..];
+                    self.write_lane(particles, moments, l, k as usize);
                 }
             }
         }
@@ -410,11 +551,24 @@ impl SolverLayout {
         self.batches.lanes[b].map(|k| k != EMPTY_LANE)
     }
 
-    /// The rows of batch `b`.
+    /// The particle rows of batch `b`.
     #[inline(always)]
-    pub(super) fn batch_rows(&self, b: usize) -> &[BatchRow] {
+    fn batch_particles(&self, b: usize) -> &[ParticleRow] {
         let start = &self.batches.start;
-        &self.batches.rows[start[b] as usize..start[b + 1] as usize]
+        &self.batches.particles[start[b] as usize..start[b + 1] as usize]
+    }
+
+    /// The moment rows of batch `b`: its own, or the template's.
+    #[inline(always)]
+    fn batch_moments(&self, b: usize) -> &[MomentRow] {
+        let batches = &self.batches;
+        match batches.moment_start[b] {
+            TEMPLATED => &batches.template.rows,
+            first => {
+                let len = batches.start[b + 1] - batches.start[b];
+                &batches.moments[first as usize..(first + len) as usize]
+            }
+        }
     }
 
     /// Fits the clusters of batch `b` to the particle positions at `positions`, updates
@@ -438,11 +592,13 @@ impl SolverLayout {
         rotations: Disjoint<Quat>,
         mut apply: impl FnMut(RowPulls),
     ) {
-        let rows = self.batch_rows(b);
-        if fit_rows.len() < rows.len() {
-            fit_rows.resize(rows.len(), FitRow::default());
+        let (particles, moments) = (self.batch_particles(b), self.batch_moments(b));
+        if fit_rows.len() < particles.len() {
+            fit_rows.resize(particles.len(), FitRow::default());
         }
-        let fit_rows = &mut fit_rows[..rows.len()];
+        let fit_rows = &mut fit_rows[..particles.len()];
+        let templated = self.batches.moment_start[b] == TEMPLATED;
+        let template = &self.batches.template;
         let mut size = [0u32; LANES];
         let mut warm = [Quat::IDENTITY; LANES];
         let mut bias = [Vec3A::ZERO; LANES];
@@ -456,24 +612,28 @@ impl SolverLayout {
             size[l] = self.cluster_size(k) as u32;
             // SAFETY: rotation `k` belongs to the calling task (the caller's contract).
             warm[l] = unsafe { rotations.read(k) };
-            bias[l] = self.offset_bias[k];
-            inv_weight_sum[l] = self.inv_weight_sum[k];
+            (bias[l], inv_weight_sum[l]) = if templated {
+                (template.bias, template.inv_weight_sum)
+            } else {
+                (self.offset_bias[k], self.inv_weight_sum[k])
+            };
             stiffness[l] = self.stiffness[k];
         }
         // SAFETY: particle indices were bounds-checked when the layout was built; the
         // positions are not written during the call (the caller's contract).
-        let gather = |row: &BatchRow| unsafe {
-            let p = |l: usize| *positions.byte_add(row.at[l] as usize);
+        let gather = |at: &ParticleRow| unsafe {
+            let p = |l: usize| *positions.byte_add(at[l] as usize);
             Vec3x8::from_lanes([p(0), p(1), p(2), p(3), p(4), p(5), p(6), p(7)])
         };
-        let Some(first) = rows.first() else {
+        let Some(first) = particles.first() else {
             return;
         };
         let origin = gather(first);
         let mut sum = Vec3x8::ZERO;
         let mut a = Mat3x8::ZERO;
-        for (row, position) in rows.iter().zip(fit_rows.iter_mut()) {
-            *position = gather(row);
+        let rows = particles.iter().zip(moments);
+        for ((at, row), position) in rows.clone().zip(fit_rows.iter_mut()) {
+            *position = gather(at);
             let d = (*position - origin).scale(row.weight);
             sum = sum + d;
             a.x_axis = d.mul_add(row.offset.x, a.x_axis);
@@ -492,14 +652,14 @@ impl SolverLayout {
         let centroid =
             (sum - r.mul_vec(Vec3x8::from_lanes(bias))).scale(f32x8::new(inv_weight_sum)) + origin;
         let s = f32x8::new(stiffness);
-        for (j, (row, position)) in rows.iter().zip(fit_rows.iter()).enumerate() {
+        for (j, ((at, row), position)) in rows.zip(fit_rows.iter()).enumerate() {
             // members have a positive weight, padding rows weight 0: their stiffness is
             // masked to 0, so their pull is exactly zero
             let member_stiffness = row.weight.simd_gt(f32x8::ZERO) & s;
             let goal = r.mul_vec_add(row.offset, centroid);
             let pull = (goal - *position).scale(member_stiffness);
             apply(RowPulls {
-                at: &row.at,
+                at,
                 position,
                 pull: pull.to_lanes(),
                 row: j,
@@ -512,6 +672,7 @@ impl SolverLayout {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::solver::Colliders;
     use crate::solver::unit_specs as specs;
     use glam::Vec3;
 
@@ -567,6 +728,76 @@ mod tests {
         }
         for (k, _) in l.clusters() {
             assert_eq!(lanes[k], 1, "cluster {k}");
+        }
+    }
+
+    /// Each live cluster's own rest offsets and weights (member order), as a lane
+    /// without the template holds them.
+    fn own_moments(l: &SolverLayout, k: usize) -> Vec<glam::Vec4> {
+        l.cluster_members(k)
+            .iter()
+            .map(|&m| (l.rest[m as usize] - l.rest_centroid[k]).extend(l.weight(m)))
+            .collect()
+    }
+
+    #[test]
+    fn lattice_clusters_share_the_template_up_to_rounding() {
+        let (mut rest, clusters) = grid();
+        // far from the origin, where rest positions round differently cluster by cluster
+        rest.iter_mut()
+            .for_each(|r| *r = *r * 0.1 + Vec3::splat(1000.0));
+        for mode in [SolverMode::Jacobi, SolverMode::GaussSeidel] {
+            let l = SolverLayout::new(&rest, specs(&clusters), mode);
+            let templated = (0..l.batches.len())
+                .filter(|b| l.batches.moment_start[*b] == TEMPLATED)
+                .count();
+            // 6³ of the 8³ clusters are interior (all 27 members, regular weights)
+            assert!(
+                templated * LANES >= 6 * 6 * 6 * 9 / 10,
+                "{mode:?}: {templated} of {} batches templated",
+                l.batches.len()
+            );
+            let mut own_rows = 0;
+            for (k, _) in l.clusters() {
+                let (lane, own) = (l.member_moments(k), own_moments(&l, k));
+                assert_eq!(lane.len(), own.len());
+                for (a, b) in lane.iter().zip(&own) {
+                    assert_eq!(a.w, b.w, "{mode:?} cluster {k}: weights");
+                    // within the match tolerance at coordinates of 1000
+                    let tolerance = super::super::template::TOLERANCE * 1001.0;
+                    assert!(
+                        (*a - *b).abs().max_element() <= tolerance,
+                        "{mode:?} {k}: {a} vs {b}"
+                    );
+                }
+                own_rows += usize::from(lane == own);
+            }
+            // the template did replace offsets: rounding differs from cluster to cluster
+            assert!(own_rows < l.cluster_count(), "{mode:?}");
+        }
+    }
+
+    #[test]
+    fn a_templated_layout_moves_like_one_with_its_own_offsets() {
+        let (rest, clusters) = grid();
+        let with = SolverLayout::new(&rest, specs(&clusters), SolverMode::Jacobi);
+        let mut without = with.clone();
+        without.build_batches_with(Template::default());
+        assert!((0..with.batches.len()).any(|b| with.batches.moment_start[b] == TEMPLATED));
+        assert!((0..without.batches.len()).all(|b| without.batches.moment_start[b] != TEMPLATED));
+        let mut layouts = [with, without];
+        for l in &mut layouts {
+            l.inv_mass[0] = 0.0;
+            for (i, p) in l.positions.iter_mut().enumerate() {
+                p.y += 0.02 * (i % 7) as f32 - 0.05 * (i % 3) as f32;
+            }
+            l.solve(20, &Colliders::default());
+        }
+        let [with, without] = &layouts;
+        let moved: f32 = with.corrections.iter().map(|c| c.length()).sum();
+        assert!(moved > 1.0, "the solve moved the particles ({moved})");
+        for (p, q) in with.positions.iter().zip(&without.positions) {
+            assert!((*p - *q).length() < 1e-5, "{p} vs {q}");
         }
     }
 

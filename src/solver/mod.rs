@@ -28,6 +28,7 @@ mod gauss_seidel;
 mod jacobi;
 mod patch;
 mod sweep;
+mod template;
 
 pub use colliders::{Colliders, resolve_colliders};
 pub use colouring::{

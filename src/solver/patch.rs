@@ -212,6 +212,7 @@ impl SolverLayout {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::lanes::LANES;
     use crate::solver::colouring::order_by_colour;
     use crate::solver::{Colliders, unit_specs as specs};
     use glam::Vec3;
@@ -282,6 +283,7 @@ mod tests {
         for mode in [SolverMode::Jacobi, SolverMode::GaussSeidel] {
             let (rest, clusters) = bar_clusters();
             let mut patched = SolverLayout::new(&rest, specs(&clusters), mode);
+            let before = (patched.batches.len(), patched.batches.empty_lanes());
             // cut particle 5: clusters 3, 4, 5 hold it; replace them by their pieces
             let pieces = vec![vec![3, 4], vec![6, 7]];
             let slots = patched
@@ -299,17 +301,24 @@ mod tests {
             kept.extend(pieces);
             let mut rebuilt = SolverLayout::new(&rest, specs(&kept), mode);
             rebuilt.inv_mass[5] = 0.0;
-            // the patch emptied three lanes and appended batches instead of laying out
-            // all batches again
-            assert!(patched.batches.len() > rebuilt.batches.len());
+            // the patch emptied three lanes and appended batches for the two pieces (one,
+            // or one per colour) instead of laying out all batches again
+            let appended = patched.batches.len() - before.0;
+            assert!((1..=2).contains(&appended), "{mode:?}: {appended} batches");
+            assert_eq!(
+                patched.batches.empty_lanes(),
+                before.1 + 3 + appended * LANES - 2
+            );
             // the same clusters with the same rest offsets and weights (Jacobi weights
-            // 1/nᵢ changed at particles 3, 4, 6, 7 and at their other clusters)
+            // 1/nᵢ changed at particles 3, 4, 6, 7 and at their other clusters); a lane
+            // that reads the template differs from the cluster's own offsets by the
+            // rounding of its coordinates (≤ 200 here, 1.5·10⁻⁵ per ulp)
             let (a, b) = (moments(&patched), moments(&rebuilt));
             assert_eq!(a.len(), b.len());
             for ((ma, qa), (mb, qb)) in a.iter().zip(&b) {
                 assert_eq!(ma, mb);
                 for (x, y) in qa.iter().zip(qb) {
-                    assert!((*x - *y).length() < 1e-6, "{mode:?} {ma:?}: {x} vs {y}");
+                    assert!((*x - *y).length() < 1e-4, "{mode:?} {ma:?}: {x} vs {y}");
                 }
             }
             assert_eq!(patched.inv_count, rebuilt.inv_count);
