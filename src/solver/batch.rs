@@ -432,8 +432,14 @@ impl SolverLayout {
             })
             .collect();
         // (a templated lane holds its members in the template's order)
-        lane.sort_by_key(|(at, _)| *at);
-        lane.into_iter().map(|(_, q)| q).collect()
+        lane.sort_unstable_by_key(|(at, _)| *at);
+        self.cluster_members(k)
+            .iter()
+            .map(|m| {
+                let row = lane.partition_point(|(at, _)| *at < m * PARTICLE_BYTES);
+                lane[row].1
+            })
+            .collect()
     }
 
     /// Patch step: empties the lane of cluster slot `k` (call before the slot is freed).
