@@ -5,9 +5,9 @@
 //! order, and the kernel reads the offsets and weights from the template. Such a batch
 //! holds 4 bytes per membership instead of 20, and a sweep streams that much less.
 //!
-//! A match is decided within a tolerance of a few dozen ulps of the cluster's rest
-//! coordinates: the template's offsets then differ from the cluster's own by rounding
-//! only (far below 10⁻⁶ of a lattice spacing).
+//! A match is decided within 64 ulps of the cluster's rest coordinates (76 µm at 10 m
+//! from the origin): lattice clusters differ by a few ulps, the rounding their rest
+//! positions already carry, and a cluster of another shape by a good part of a spacing.
 
 use super::SolverLayout;
 use super::batch::MomentRow;
