@@ -213,11 +213,12 @@ impl SolverLayout {
         let (mut particles, mut moments) = (old.particles, old.moments);
         let len = batches.start[batches.lanes.len()] as usize;
         let mut moment_len = 0;
-        for (range, &templated) in batches.start.windows(2).zip(&templated) {
-            batches
-                .moment_start
-                .push(if templated { TEMPLATED } else { moment_len });
-            moment_len += if templated { 0 } else { range[1] - range[0] };
+        let batch_rows = batches.start.windows(2).zip(&templated);
+        for ((range, &templated), first) in batch_rows.zip(&mut batches.moment_start) {
+            if !templated {
+                *first = moment_len;
+                moment_len += range[1] - range[0];
+            }
         }
         let moment_len = moment_len as usize;
         particles.clear();
@@ -346,6 +347,8 @@ impl SolverLayout {
         batches.empty_lanes += LANES - slots.len();
         let last = batches.start[batches.start.len() - 1];
         batches.start.push(last + rows as u32);
+        // (no moment rows yet: the caller gives them, or the template)
+        batches.moment_start.push(TEMPLATED);
     }
 
     /// Number of members of cluster slot `k`.
@@ -467,26 +470,32 @@ impl SolverLayout {
     pub(super) fn rewrite_lane(&mut self, k: usize) {
         let (b, l) = self.place(k);
         let mut batches = std::mem::take(&mut self.batches);
-        let range = batches.start[b] as usize..batches.start[b + 1] as usize;
-        let particles = &mut batches.particles[range.clone()];
         if batches.moment_start[b] == TEMPLATED {
-            let first = batches.moments.len();
-            batches.moment_start[b] = first as u32;
-            batches
-                .moments
-                .resize(first + range.len(), MomentRow::default());
-            let moments = &mut batches.moments[first..];
-            for (l, &k) in batches.lanes[b].iter().enumerate() {
-                if k != EMPTY_LANE {
-                    self.write_lane(particles, moments, l, k as usize);
-                }
-            }
+            self.write_own_rows(&mut batches, b);
         } else {
+            let range = batches.start[b] as usize..batches.start[b + 1] as usize;
             let first = batches.moment_start[b] as usize;
             let moments = &mut batches.moments[first..first + range.len()];
-            self.write_lane(particles, moments, l, k);
+            self.write_lane(&mut batches.particles[range], moments, l, k);
         }
         self.batches = batches;
+    }
+
+    /// Gives batch `b` moment rows of its own (appended) and writes every lane in use:
+    /// a batch a patch added, or a templated one whose weights change.
+    fn write_own_rows(&self, batches: &mut Batches, b: usize) {
+        let range = batches.start[b] as usize..batches.start[b + 1] as usize;
+        let first = batches.moments.len();
+        batches.moment_start[b] = first as u32;
+        batches
+            .moments
+            .resize(first + range.len(), MomentRow::default());
+        let (particles, moments) = (&mut batches.particles[range], &mut batches.moments[first..]);
+        for (l, &k) in batches.lanes[b].iter().enumerate() {
+            if k != EMPTY_LANE {
+                self.write_lane(particles, moments, l, k as usize);
+            }
+        }
     }
 
     /// Patch step: puts the new clusters `added` (slots) into new batches and groups
@@ -519,19 +528,7 @@ impl SolverLayout {
         let len = batches.start[batches.lanes.len()] as usize;
         batches.particles.resize(len, [0; LANES]);
         for b in first_new..batches.lanes.len() {
-            let range = batches.start[b] as usize..batches.start[b + 1] as usize;
-            let first = batches.moments.len();
-            batches.moment_start.push(first as u32);
-            batches
-                .moments
-                .resize(first + range.len(), MomentRow::default());
-            for (l, &k) in batches.lanes[b].iter().enumerate() {
-                if k != EMPTY_LANE {
-                    let particles = &mut batches.particles[range.clone()];
-                    let moments = &mut batches.moments[first..];
-                    self.write_lane(particles, moments, l, k as usize);
-                }
-            }
+            self.write_own_rows(&mut batches, b);
         }
         self.batches = batches;
     }
