@@ -3,6 +3,7 @@
 
 use crate::config::{GroundPlane, StaticBox};
 use glam::Vec3A;
+use wide::f32x8;
 
 /// Static colliders applied after every solver iteration.
 #[derive(Clone, Debug, Default)]
@@ -54,6 +55,27 @@ impl Bounds {
         self.lo = self.lo.min(p);
         self.hi = self.hi.max(p);
         self.probe = p.mul_add(Vec3A::ZERO, self.probe);
+    }
+
+    /// The bounds of points taken two at a time in eight lanes (a pair of `Vec3A`s, see
+    /// the Jacobi particle pass): the lane-wise `lo`, `hi` and probe of both halves.
+    pub(super) fn from_pairs(lo: f32x8, hi: f32x8, probe: f32x8) -> Self {
+        let halves = |v: f32x8| {
+            let [a, b, c, _, d, e, f, _] = v.to_array();
+            (Vec3A::new(a, b, c), Vec3A::new(d, e, f))
+        };
+        let ((lo0, lo1), (hi0, hi1), (probe0, probe1)) = (halves(lo), halves(hi), halves(probe));
+        Self {
+            lo: lo0.min(lo1),
+            hi: hi0.max(hi1),
+            probe: probe0 + probe1,
+        }
+    }
+
+    /// The box's corners, and whether every point was finite.
+    #[cfg(test)]
+    pub(super) fn corners(&self) -> (Vec3A, Vec3A, bool) {
+        (self.lo, self.hi, !self.probe.is_nan())
     }
 
     /// Whether a collider may move a point of the box.

@@ -9,6 +9,7 @@ use super::sweep::Disjoint;
 use super::{Colliders, PARTICLES_PER_TASK, SolverLayout};
 use glam::Vec3A;
 use rayon::prelude::*;
+use wide::f32x8;
 
 impl SolverLayout {
     /// Cluster pass: fit every cluster (eight at a time) to the positions, which no task
@@ -67,29 +68,7 @@ impl SolverLayout {
             .for_each(|(task, ((positions, corrections), pulls))| {
                 let range = task * PARTICLES_PER_TASK..task * PARTICLES_PER_TASK + positions.len();
                 let (inv_count, inv_mass) = (&inv_count[range.clone()], &inv_mass[range.clone()]);
-                let particles = positions
-                    .iter_mut()
-                    .zip(corrections.iter_mut())
-                    .zip(pulls.iter_mut())
-                    .zip(inv_count)
-                    .zip(inv_mass);
-                // (a fold: a box whose address is taken later would be stored to memory
-                // at every step)
-                let bounds = particles.fold(
-                    Bounds::default(),
-                    |mut bounds, ((((p, correction), pull), &inv_count), &inv_mass)| {
-                        // a select, not a branch: pinned particles move by zero
-                        let scale = if inv_mass == 0.0 { 0.0 } else { inv_count };
-                        let step = *pull * scale;
-                        *pull = Vec3A::ZERO;
-                        // (the sum kept in a register: reading `*p` back costs a load)
-                        let moved = *p + step;
-                        *p = moved;
-                        *correction += step;
-                        bounds.add(moved);
-                        bounds
-                    },
-                );
+                let bounds = move_block(positions, corrections, pulls, inv_count, inv_mass);
                 // (Morton order: a task's particles are a compact block, mostly far
                 // from every collider)
                 if collide {
@@ -102,5 +81,143 @@ impl SolverLayout {
                     collide_block(block, &bounds, colliders);
                 }
             });
+    }
+}
+
+/// The particle pass over one block: `p += step`, `correction += step` with
+/// `step = pull / n` (zero for a pinned particle), pulls cleared; returns the block's
+/// bounds. Two particles at a time: a pair of `Vec3A`s fills one eight-lane vector (their
+/// padding lanes ride along and are never read), so each operation moves two particles.
+/// Every lane computes exactly what the one-particle loop does.
+fn move_block(
+    positions: &mut [Vec3A],
+    corrections: &mut [Vec3A],
+    pulls: &mut [Vec3A],
+    inv_count: &[f32],
+    inv_mass: &[f32],
+) -> Bounds {
+    // a select, not a branch: pinned particles move by zero
+    let scale = |inv_mass: f32, inv_count: f32| if inv_mass == 0.0 { 0.0 } else { inv_count };
+    let (position_pairs, last_position) = positions.as_chunks_mut::<2>();
+    let (correction_pairs, last_correction) = corrections.as_chunks_mut::<2>();
+    let (pull_pairs, last_pull) = pulls.as_chunks_mut::<2>();
+    let (count_pairs, last_count) = inv_count.as_chunks::<2>();
+    let (mass_pairs, last_mass) = inv_mass.as_chunks::<2>();
+    let (mut lo, mut hi, mut probe) = (
+        f32x8::splat(f32::INFINITY),
+        f32x8::splat(f32::NEG_INFINITY),
+        f32x8::ZERO,
+    );
+    let pairs = position_pairs
+        .iter_mut()
+        .zip(correction_pairs.iter_mut())
+        .zip(pull_pairs.iter_mut())
+        .zip(count_pairs.iter().zip(mass_pairs));
+    for (((p, correction), pull), (count, mass)) in pairs {
+        let (s0, s1) = (scale(mass[0], count[0]), scale(mass[1], count[1]));
+        let step = pair(pull) * f32x8::new([s0, s0, s0, s0, s1, s1, s1, s1]);
+        *pull = [Vec3A::ZERO; 2];
+        let moved = pair(p) + step;
+        set_pair(p, moved);
+        set_pair(correction, pair(correction) + step);
+        lo = lo.min(moved);
+        hi = hi.max(moved);
+        probe = moved.mul_add(f32x8::ZERO, probe);
+    }
+    let mut bounds = Bounds::from_pairs(lo, hi, probe);
+    let last = last_position.iter_mut().zip(last_correction).zip(last_pull);
+    for (((p, correction), pull), (&count, &mass)) in last.zip(last_count.iter().zip(last_mass)) {
+        let step = *pull * scale(mass, count);
+        *pull = Vec3A::ZERO;
+        // (the sum kept in a register: reading `*p` back costs a load)
+        let moved = *p + step;
+        *p = moved;
+        *correction += step;
+        bounds.add(moved);
+    }
+    bounds
+}
+
+/// Two `Vec3A`s as one eight-lane vector.
+#[inline(always)]
+fn pair(v: &[Vec3A; 2]) -> f32x8 {
+    // SAFETY: `[Vec3A; 2]` is 32 bytes of `f32`s (a `Vec3A` is four lanes, the last one
+    // padding), the size of an `f32x8`; the read is unaligned-safe.
+    unsafe { std::ptr::read_unaligned(v.as_ptr().cast::<f32x8>()) }
+}
+
+/// Stores an eight-lane vector into two `Vec3A`s (see [`pair`]).
+#[inline(always)]
+fn set_pair(v: &mut [Vec3A; 2], x: f32x8) {
+    // SAFETY: as in `pair`; any bits are a valid `Vec3A`.
+    unsafe { std::ptr::write_unaligned(v.as_mut_ptr().cast::<f32x8>(), x) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// The one-particle rule the pass applies to every particle.
+    fn moved_one_by_one(
+        positions: &mut [Vec3A],
+        corrections: &mut [Vec3A],
+        pulls: &mut [Vec3A],
+        inv_count: &[f32],
+        inv_mass: &[f32],
+    ) -> Bounds {
+        let mut bounds = Bounds::default();
+        for i in 0..positions.len() {
+            let scale = if inv_mass[i] == 0.0 {
+                0.0
+            } else {
+                inv_count[i]
+            };
+            let step = pulls[i] * scale;
+            pulls[i] = Vec3A::ZERO;
+            positions[i] += step;
+            corrections[i] += step;
+            bounds.add(positions[i]);
+        }
+        bounds
+    }
+
+    #[test]
+    fn the_pairwise_pass_moves_every_particle_as_the_one_particle_rule() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut v = || Vec3A::new(rng.random_range(-50.0..50.0), rng.random(), rng.random());
+        for n in [0usize, 1, 2, 7, 64] {
+            let positions: Vec<Vec3A> = (0..n).map(|_| v()).collect();
+            let corrections: Vec<Vec3A> = (0..n).map(|_| v()).collect();
+            let mut pulls: Vec<Vec3A> = (0..n).map(|_| v()).collect();
+            let inv_count: Vec<f32> = (0..n).map(|i| 1.0 / (1 + i % 8) as f32).collect();
+            // every third particle pinned
+            let inv_mass: Vec<f32> = (0..n).map(|i| (i % 3 != 1) as u8 as f32).collect();
+            for poison in [false, true] {
+                if poison && n > 0 {
+                    pulls[n - 1] = Vec3A::new(f32::NAN, 0.0, 0.0);
+                    pulls[n / 2] = Vec3A::new(0.0, f32::INFINITY, 0.0);
+                }
+                let (mut p1, mut c1, mut u1) =
+                    (positions.clone(), corrections.clone(), pulls.clone());
+                let (mut p2, mut c2, mut u2) =
+                    (positions.clone(), corrections.clone(), pulls.clone());
+                let pairwise = move_block(&mut p1, &mut c1, &mut u1, &inv_count, &inv_mass);
+                let single = moved_one_by_one(&mut p2, &mut c2, &mut u2, &inv_count, &inv_mass);
+                let bits = |v: &[Vec3A]| -> Vec<[u32; 3]> {
+                    v.iter().map(|x| x.to_array().map(f32::to_bits)).collect()
+                };
+                assert_eq!(bits(&p1), bits(&p2), "positions, n = {n}");
+                assert_eq!(bits(&c1), bits(&c2), "corrections, n = {n}");
+                assert_eq!(bits(&u1), bits(&u2), "pulls, n = {n}");
+                let ((lo1, hi1, finite1), (lo2, hi2, finite2)) =
+                    (pairwise.corners(), single.corners());
+                assert_eq!(finite1, finite2, "n = {n}");
+                assert_eq!(finite1, !(poison && n > 0), "n = {n}");
+                if finite1 {
+                    assert_eq!((lo1, hi1), (lo2, hi2), "n = {n}");
+                }
+            }
+        }
     }
 }
