@@ -82,8 +82,8 @@ pub struct SolverCache {
     pub layout: SolverLayout,
     /// Particle entity per dense index.
     pub particles: Vec<Entity>,
-    /// `(body, local index)` per dense index.
-    pub owners: Vec<(Entity, u32)>,
+    /// Body-local particle index per dense index (the body: see [`SolverCache::owner`]).
+    pub locals: Vec<u32>,
     /// Dense index per entity index (`u32::MAX` if none).
     pub dense_of: Vec<u32>,
     /// Whether each dense particle is still in its body (cut particles keep their
@@ -149,11 +149,24 @@ impl ClusterSlots {
     }
 }
 
+impl SolverCache {
+    /// The body and body-local index of dense particle `d`. Each body's particles hold
+    /// one range of dense indices, the bodies in entity order, so the body is found by a
+    /// binary search over the ranges' starts rather than stored per particle.
+    pub fn owner(&self, d: usize) -> Option<(Entity, u32)> {
+        let local = *self.locals.get(d)?;
+        let b = self.body_dense.partition_point(|b| b.first as usize <= d);
+        Some((self.body_dense.get(b.checked_sub(1)?)?.body, local))
+    }
+}
+
 /// One body's particles in the solver layout.
 #[derive(Clone, Debug)]
 pub struct BodyDense {
     /// The body.
     pub body: Entity,
+    /// The body's first dense index: its particles are `first..first + n`.
+    pub first: u32,
     /// Dense particle index per body-local particle index (`u32::MAX` if none).
     pub dense: Vec<u32>,
     /// How many of the body's particles are live in the layout.
@@ -231,5 +244,39 @@ mod tests {
         assert_eq!(slots.get(c, &clusters), None);
         assert_eq!(slots.remove(a, &clusters), None);
         assert_eq!(slots.get(b, &clusters), Some(2));
+    }
+
+    #[test]
+    fn owners_are_found_from_the_bodies_dense_ranges() {
+        let mut world = World::new();
+        let (a, b, c) = (
+            world.spawn_empty().id(),
+            world.spawn_empty().id(),
+            world.spawn_empty().id(),
+        );
+        let body = |body, first| BodyDense {
+            body,
+            first,
+            dense: Vec::new(),
+            live: 0,
+        };
+        // a: dense 0..3, b: none, c: 3..5
+        let cache = SolverCache {
+            locals: vec![7, 0, 2, 4, 1],
+            body_dense: vec![body(a, 0), body(b, 3), body(c, 3)],
+            ..Default::default()
+        };
+        let owners: Vec<_> = (0..6).map(|d| cache.owner(d)).collect();
+        assert_eq!(
+            owners,
+            [
+                Some((a, 7)),
+                Some((a, 0)),
+                Some((a, 2)),
+                Some((c, 4)),
+                Some((c, 1)),
+                None
+            ]
+        );
     }
 }

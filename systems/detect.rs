@@ -19,7 +19,9 @@ pub fn detect(cache: Res<SolverCache>, tools: Query<(&Tool, &ToolPose)>, mut out
         return;
     }
     for i in particles_hit(&cache.layout.positions, &cache.live, &sweeps) {
-        let (body, local) = cache.owners[i];
+        let Some((body, local)) = cache.owner(i) else {
+            continue;
+        };
         match out.cuts.last_mut() {
             Some(c) if c.body == body => c.particles.push(local),
             _ => out.cuts.push(BodyCut {

@@ -150,13 +150,15 @@ fn patch(
     {
         let SolverCache {
             layout,
-            owners,
+            locals,
+            body_dense,
             clusters,
             slot_of,
             ..
         } = &mut *cache;
         let kept = KeptClusters {
-            owners,
+            locals,
+            body_dense,
             clusters,
             slot_of,
             indices: &indices,
@@ -195,7 +197,8 @@ fn patch(
 /// What finds the kept clusters of particles: the cache's fields it reads (the layout
 /// itself is being patched meanwhile) and the bodies' particle → clusters indices.
 struct KeptClusters<'a> {
-    owners: &'a [(Entity, u32)],
+    locals: &'a [u32],
+    body_dense: &'a [BodyDense],
     clusters: &'a [Entity],
     slot_of: &'a ClusterSlots,
     indices: &'a [(Entity, &'a [ClusterList<Entity>])],
@@ -211,7 +214,15 @@ impl KeptClusters<'_> {
         // (a cut touches one body, or a few: its index is looked up again only on a change)
         let mut body_index: Option<(Entity, &[ClusterList<Entity>])> = None;
         for &d in particles {
-            let (body, local) = self.owners[d as usize];
+            // (the body's range: see `SolverCache::owner`)
+            let b = self.body_dense.partition_point(|b| b.first <= d);
+            let (Some(entry), Some(&local)) = (
+                b.checked_sub(1).and_then(|b| self.body_dense.get(b)),
+                self.locals.get(d as usize),
+            ) else {
+                continue;
+            };
+            let body = entry.body;
             if body_index.is_none_or(|(b, _)| b != body) {
                 body_index = self
                     .indices
@@ -311,22 +322,24 @@ pub fn rebuild_cache<'b, 'c>(
     let total: usize = body_list.iter().map(|(_, b)| b.lattice.live_count()).sum();
     let mut rest = Vec::with_capacity(total);
     let mut particles = Vec::with_capacity(total);
-    let mut owners = Vec::with_capacity(total);
+    let mut locals = Vec::with_capacity(total);
     let mut body_dense = Vec::with_capacity(body_list.len());
     for (body, lattice) in &body_list {
         let l = &lattice.lattice;
         let mut map = vec![u32::MAX; l.len()];
+        let first = rest.len() as u32;
         // Morton order keeps the members of a cluster, and the clusters of a particle,
         // close in memory.
         for i in l.live_in_morton_order() {
             map[i as usize] = rest.len() as u32;
             rest.push(l.rest_position(i));
             particles.push(lattice.particles[i as usize]);
-            owners.push((*body, i));
+            locals.push(i);
         }
         let live = l.live_count();
         body_dense.push(BodyDense {
             body: *body,
+            first,
             dense: map,
             live,
         });
@@ -367,7 +380,7 @@ pub fn rebuild_cache<'b, 'c>(
     }
     cache.live = vec![true; particles.len()];
     cache.particles = particles;
-    cache.owners = owners;
+    cache.locals = locals;
     cache.body_dense = body_dense;
     // (collected from a borrow: `into_iter` would reuse the entries' allocation, six
     // times the size the entities need, and keep it)

@@ -21,7 +21,7 @@ fn clusters_of(cache: &SolverCache) -> Clusters {
             let mut list: Vec<(u32, Vec4)> = members
                 .iter()
                 .zip(cache.layout.member_moments(k))
-                .map(|(d, q)| (cache.owners[*d as usize].1, q))
+                .map(|(d, q)| (cache.locals[*d as usize], q))
                 .collect();
             list.sort_by_key(|(p, _)| *p);
             (cache.clusters[k], list)
@@ -82,9 +82,10 @@ fn check_scene(name: &str, mode: SolverMode) -> usize {
             }
         }
         // every particle a cut removed is frozen and hidden from detection
-        for (d, (body, local)) in cache.owners.iter().enumerate() {
-            let lattice = &world.get::<BodyLattice>(*body).unwrap().lattice;
-            assert_eq!(cache.live[d], lattice.is_live(*local));
+        for d in 0..cache.locals.len() {
+            let (body, local) = cache.owner(d).unwrap();
+            let lattice = &world.get::<BodyLattice>(body).unwrap().lattice;
+            assert_eq!(cache.live[d], lattice.is_live(local));
             if !cache.live[d] {
                 assert_eq!(cache.layout.inv_mass[d], 0.0);
             }
@@ -137,7 +138,7 @@ fn particles_lost_outside_a_cut_report_are_still_frozen() {
         let cache = world.resource::<SolverCache>();
         assert!(cache.last_update.is_some_and(|u| u.patched));
         let lattice = &world.get::<BodyLattice>(body).unwrap().lattice;
-        for (d, (_, local)) in cache.owners.iter().enumerate() {
+        for (d, local) in cache.locals.iter().enumerate() {
             assert_eq!(
                 cache.live[d],
                 lattice.is_live(*local),
