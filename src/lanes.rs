@@ -29,6 +29,16 @@ impl Vec3x8 {
         z: f32x8::ZERO,
     };
 
+    /// The same vector in every lane.
+    #[inline(always)]
+    pub fn splat(v: Vec3A) -> Self {
+        Self {
+            x: f32x8::splat(v.x),
+            y: f32x8::splat(v.y),
+            z: f32x8::splat(v.z),
+        }
+    }
+
     /// Gathers one vector per lane (a 4×8 transpose in registers on AVX).
     #[inline(always)]
     pub fn from_lanes(v: [Vec3A; LANES]) -> Self {

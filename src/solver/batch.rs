@@ -604,8 +604,7 @@ impl SolverLayout {
         let template = &self.batches.template;
         let mut size = [0u32; LANES];
         let mut warm = [Quat::IDENTITY; LANES];
-        let mut bias = [Vec3A::ZERO; LANES];
-        let (mut inv_weight_sum, mut stiffness) = ([0.0f32; LANES], [0.0f32; LANES]);
+        let mut stiffness = [0.0f32; LANES];
         let lanes = &self.batches.lanes[b];
         for (l, &k) in lanes.iter().enumerate() {
             if k == EMPTY_LANE {
@@ -615,13 +614,24 @@ impl SolverLayout {
             size[l] = self.cluster_size(k) as u32;
             // SAFETY: rotation `k` belongs to the calling task (the caller's contract).
             warm[l] = unsafe { rotations.read(k) };
-            (bias[l], inv_weight_sum[l]) = if templated {
-                (template.bias, template.inv_weight_sum)
-            } else {
-                (self.offset_bias[k], self.inv_weight_sum[k])
-            };
             stiffness[l] = self.stiffness[k];
         }
+        // (a templated batch broadcasts the template's: no per-lane reads, no transpose)
+        let (bias, inv_weight_sum) = if templated {
+            (
+                Vec3x8::splat(template.bias),
+                f32x8::splat(template.inv_weight_sum),
+            )
+        } else {
+            let (mut bias, mut inv_weight_sum) = ([Vec3A::ZERO; LANES], [0.0f32; LANES]);
+            for (l, &k) in lanes.iter().enumerate() {
+                if k != EMPTY_LANE {
+                    bias[l] = self.offset_bias[k as usize];
+                    inv_weight_sum[l] = self.inv_weight_sum[k as usize];
+                }
+            }
+            (Vec3x8::from_lanes(bias), f32x8::new(inv_weight_sum))
+        };
         // SAFETY: particle indices were bounds-checked when the layout was built; the
         // positions are not written during the call (the caller's contract).
         let gather = |at: &ParticleRow| unsafe {
@@ -652,8 +662,7 @@ impl SolverLayout {
         }
         let r = Mat3x8::from_quat(q);
         // Σ w (R q + c − d) = R·bias + c·W − Σ w d = 0 exactly when c = (Σ w d − R·bias)/W.
-        let centroid =
-            (sum - r.mul_vec(Vec3x8::from_lanes(bias))).scale(f32x8::new(inv_weight_sum)) + origin;
+        let centroid = (sum - r.mul_vec(bias)).scale(inv_weight_sum) + origin;
         let s = f32x8::new(stiffness);
         for (j, ((at, row), position)) in rows.zip(fit_rows.iter()).enumerate() {
             // members have a positive weight, padding rows weight 0: their stiffness is
