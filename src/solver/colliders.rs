@@ -3,6 +3,7 @@
 
 use crate::config::{GroundPlane, StaticBox};
 use glam::Vec3A;
+#[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
 use wide::f32x8;
 
 /// Static colliders applied after every solver iteration.
@@ -59,6 +60,7 @@ impl Bounds {
 
     /// The bounds of points taken two at a time in eight lanes (a pair of `Vec3A`s, see
     /// the Jacobi particle pass): the lane-wise `lo`, `hi` and probe of both halves.
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
     pub(super) fn from_pairs(lo: f32x8, hi: f32x8, probe: f32x8) -> Self {
         let halves = |v: f32x8| {
             let [a, b, c, _, d, e, f, _] = v.to_array();

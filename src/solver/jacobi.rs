@@ -9,7 +9,6 @@ use super::sweep::Disjoint;
 use super::{Colliders, PARTICLES_PER_TASK, SolverLayout};
 use glam::Vec3A;
 use rayon::prelude::*;
-use wide::f32x8;
 
 impl SolverLayout {
     /// Cluster pass: fit every cluster (eight at a time) to the positions, which no task
@@ -86,9 +85,9 @@ impl SolverLayout {
 
 /// The particle pass over one block: `p += step`, `correction += step` with
 /// `step = pull / n` (zero for a pinned particle), pulls cleared; returns the block's
-/// bounds. Two particles at a time: a pair of `Vec3A`s fills one eight-lane vector (their
-/// padding lanes ride along and are never read), so each operation moves two particles.
-/// Every lane computes exactly what the one-particle loop does.
+/// bounds. With AVX, two particles at a time: a pair of `Vec3A`s fills one eight-lane
+/// vector (their fourth lanes ride along and are never read), so each operation moves
+/// two particles. Every lane computes exactly what the one-particle loop does.
 fn move_block(
     positions: &mut [Vec3A],
     corrections: &mut [Vec3A],
@@ -96,38 +95,17 @@ fn move_block(
     inv_count: &[f32],
     inv_mass: &[f32],
 ) -> Bounds {
-    // a select, not a branch: pinned particles move by zero
-    let scale = |inv_mass: f32, inv_count: f32| if inv_mass == 0.0 { 0.0 } else { inv_count };
-    let (position_pairs, last_position) = positions.as_chunks_mut::<2>();
-    let (correction_pairs, last_correction) = corrections.as_chunks_mut::<2>();
-    let (pull_pairs, last_pull) = pulls.as_chunks_mut::<2>();
-    let (count_pairs, last_count) = inv_count.as_chunks::<2>();
-    let (mass_pairs, last_mass) = inv_mass.as_chunks::<2>();
-    let (mut lo, mut hi, mut probe) = (
-        f32x8::splat(f32::INFINITY),
-        f32x8::splat(f32::NEG_INFINITY),
-        f32x8::ZERO,
-    );
-    let pairs = position_pairs
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+    let (mut bounds, first) = pairs::move_pairs(positions, corrections, pulls, inv_count, inv_mass);
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+    let (mut bounds, first) = (Bounds::default(), 0);
+    let rest = positions[first..]
         .iter_mut()
-        .zip(correction_pairs.iter_mut())
-        .zip(pull_pairs.iter_mut())
-        .zip(count_pairs.iter().zip(mass_pairs));
-    for (((p, correction), pull), (count, mass)) in pairs {
-        let (s0, s1) = (scale(mass[0], count[0]), scale(mass[1], count[1]));
-        let step = pair(pull) * f32x8::new([s0, s0, s0, s0, s1, s1, s1, s1]);
-        *pull = [Vec3A::ZERO; 2];
-        let moved = pair(p) + step;
-        set_pair(p, moved);
-        set_pair(correction, pair(correction) + step);
-        lo = lo.min(moved);
-        hi = hi.max(moved);
-        probe = moved.mul_add(f32x8::ZERO, probe);
-    }
-    let mut bounds = Bounds::from_pairs(lo, hi, probe);
-    let last = last_position.iter_mut().zip(last_correction).zip(last_pull);
-    for (((p, correction), pull), (&count, &mass)) in last.zip(last_count.iter().zip(last_mass)) {
-        let step = *pull * scale(mass, count);
+        .zip(&mut corrections[first..])
+        .zip(&mut pulls[first..])
+        .zip(inv_count[first..].iter().zip(&inv_mass[first..]));
+    for (((p, correction), pull), (&count, &mass)) in rest {
+        let step = *pull * step_scale(mass, count);
         *pull = Vec3A::ZERO;
         // (the sum kept in a register: reading `*p` back costs a load)
         let moved = *p + step;
@@ -138,19 +116,79 @@ fn move_block(
     bounds
 }
 
-/// Two `Vec3A`s as one eight-lane vector.
+/// A particle's step per unit pull: `1/n`, or zero for a pinned particle (a select, not
+/// a branch).
 #[inline(always)]
-fn pair(v: &[Vec3A; 2]) -> f32x8 {
-    // SAFETY: `[Vec3A; 2]` is 32 bytes of `f32`s (a `Vec3A` is four lanes, the last one
-    // padding), the size of an `f32x8`; the read is unaligned-safe.
-    unsafe { std::ptr::read_unaligned(v.as_ptr().cast::<f32x8>()) }
+fn step_scale(inv_mass: f32, inv_count: f32) -> f32 {
+    if inv_mass == 0.0 { 0.0 } else { inv_count }
 }
 
-/// Stores an eight-lane vector into two `Vec3A`s (see [`pair`]).
-#[inline(always)]
-fn set_pair(v: &mut [Vec3A; 2], x: f32x8) {
-    // SAFETY: as in `pair`; any bits are a valid `Vec3A`.
-    unsafe { std::ptr::write_unaligned(v.as_mut_ptr().cast::<f32x8>(), x) }
+/// The particle pass two particles at a time (see [`move_block`]).
+#[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+mod pairs {
+    use super::{Bounds, step_scale};
+    use glam::Vec3A;
+    use std::arch::x86_64::*;
+    use wide::f32x8;
+
+    /// Moves the particles of `positions` in pairs; returns the pairs' bounds and the
+    /// index of the first particle left (the last one of an odd count).
+    #[inline(always)]
+    pub(super) fn move_pairs(
+        positions: &mut [Vec3A],
+        corrections: &mut [Vec3A],
+        pulls: &mut [Vec3A],
+        inv_count: &[f32],
+        inv_mass: &[f32],
+    ) -> (Bounds, usize) {
+        let (position_pairs, _) = positions.as_chunks_mut::<2>();
+        let (correction_pairs, _) = corrections.as_chunks_mut::<2>();
+        let (pull_pairs, _) = pulls.as_chunks_mut::<2>();
+        let (count_pairs, _) = inv_count.as_chunks::<2>();
+        let (mass_pairs, _) = inv_mass.as_chunks::<2>();
+        let done = 2 * position_pairs.len();
+        let (mut lo, mut hi, mut probe) = (
+            f32x8::splat(f32::INFINITY),
+            f32x8::splat(f32::NEG_INFINITY),
+            f32x8::ZERO,
+        );
+        let pairs = position_pairs
+            .iter_mut()
+            .zip(correction_pairs.iter_mut())
+            .zip(pull_pairs.iter_mut())
+            .zip(count_pairs.iter().zip(mass_pairs));
+        for (((p, correction), pull), (count, mass)) in pairs {
+            let (s0, s1) = (step_scale(mass[0], count[0]), step_scale(mass[1], count[1]));
+            let step = load(pull) * f32x8::new([s0, s0, s0, s0, s1, s1, s1, s1]);
+            *pull = [Vec3A::ZERO; 2];
+            let moved = load(p) + step;
+            store(p, moved);
+            store(correction, load(correction) + step);
+            lo = lo.min(moved);
+            hi = hi.max(moved);
+            probe = moved.mul_add(f32x8::ZERO, probe);
+        }
+        (Bounds::from_pairs(lo, hi, probe), done)
+    }
+
+    /// Two `Vec3A`s as one eight-lane vector.
+    #[inline(always)]
+    fn load(v: &[Vec3A; 2]) -> f32x8 {
+        // SAFETY: AVX is enabled at compile time (the module's cfg).
+        unsafe { _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(v[0].into()), v[1].into()) }
+            .into()
+    }
+
+    /// The two halves of an eight-lane vector into two `Vec3A`s.
+    #[inline(always)]
+    fn store(v: &mut [Vec3A; 2], x: f32x8) {
+        let x: __m256 = x.into();
+        // SAFETY: AVX is enabled at compile time (the module's cfg).
+        unsafe {
+            v[0] = _mm256_castps256_ps128(x).into();
+            v[1] = _mm256_extractf128_ps::<1>(x).into();
+        }
+    }
 }
 
 #[cfg(test)]
