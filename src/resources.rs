@@ -150,14 +150,20 @@ impl ClusterSlots {
 }
 
 impl SolverCache {
-    /// The body and body-local index of dense particle `d`. Each body's particles hold
-    /// one range of dense indices, the bodies in entity order, so the body is found by a
-    /// binary search over the ranges' starts rather than stored per particle.
+    /// The body and body-local index of dense particle `d` (see [`dense_owner`]).
     pub fn owner(&self, d: usize) -> Option<(Entity, u32)> {
-        let local = *self.locals.get(d)?;
-        let b = self.body_dense.partition_point(|b| b.first as usize <= d);
-        Some((self.body_dense.get(b.checked_sub(1)?)?.body, local))
+        dense_owner(&self.locals, &self.body_dense, d)
     }
+}
+
+/// The body and body-local index of dense particle `d`, given the cache's
+/// [`SolverCache::locals`] and [`SolverCache::body_dense`]. Each body's particles hold
+/// one range of dense indices, the bodies in entity order, so the body is found by a
+/// binary search over the ranges' starts rather than stored per particle.
+pub fn dense_owner(locals: &[u32], body_dense: &[BodyDense], d: usize) -> Option<(Entity, u32)> {
+    let local = *locals.get(d)?;
+    let b = body_dense.partition_point(|b| b.first as usize <= d);
+    Some((body_dense.get(b.checked_sub(1)?)?.body, local))
 }
 
 /// One body's particles in the solver layout.

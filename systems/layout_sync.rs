@@ -6,7 +6,9 @@ use crate::cluster_store::ClusterList;
 use crate::components::*;
 use crate::config::SolverMode;
 use crate::lattice::Lattice;
-use crate::resources::{BodyCutReport, BodyDense, ClusterSlots, LayoutUpdate, SolverCache};
+use crate::resources::{
+    BodyCutReport, BodyDense, ClusterSlots, LayoutUpdate, SolverCache, dense_owner,
+};
 use crate::solver::{ClusterSpec, SolverLayout};
 use bevy_ecs::prelude::*;
 use glam::Quat;
@@ -214,15 +216,9 @@ impl KeptClusters<'_> {
         // (a cut touches one body, or a few: its index is looked up again only on a change)
         let mut body_index: Option<(Entity, &[ClusterList<Entity>])> = None;
         for &d in particles {
-            // (the body's range: see `SolverCache::owner`)
-            let b = self.body_dense.partition_point(|b| b.first <= d);
-            let (Some(entry), Some(&local)) = (
-                b.checked_sub(1).and_then(|b| self.body_dense.get(b)),
-                self.locals.get(d as usize),
-            ) else {
+            let Some((body, local)) = dense_owner(self.locals, self.body_dense, d as usize) else {
                 continue;
             };
-            let body = entry.body;
             if body_index.is_none_or(|(b, _)| b != body) {
                 body_index = self
                     .indices
