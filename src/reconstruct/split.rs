@@ -133,6 +133,20 @@ impl SplitScratch {
         (pick(&self.in_s), pick(&self.in_m))
     }
 
+    /// Appends the lattice edges between `members` (the list the last [`Self::split`]
+    /// split in two) whose ends went to different halves, as `(lower, higher)` particle
+    /// pairs, read off that split's local graph.
+    fn separated_edges(&self, members: &[u32], edges: &mut Vec<(u32, u32)>) {
+        for (i, &a) in members.iter().enumerate() {
+            for j in self.graph.neighbours(i) {
+                // (sorted members: a lower local index is a lower particle)
+                if i < j && self.in_s[i] != self.in_s[j] {
+                    edges.push((a, members[j]));
+                }
+            }
+        }
+    }
+
     /// SPEC §4.2: grows a connected set S (`in_s`) from vertex `start` whose boundary
     /// approximates the plane through `start` with normal `normal`.
     fn geometric_partition(&mut self, start: usize, normal: Vec3) {
@@ -285,6 +299,7 @@ pub fn split_until_fits(
     // a cluster of up to twice `max` members (the usual case) splits once
     let mut parts = Vec::with_capacity(4);
     let mut queue = VecDeque::with_capacity(4);
+    let mut edges = Vec::new();
     queue.push_back(members.to_vec());
     while let Some(part) = queue.pop_front() {
         if part.len() <= max {
@@ -295,34 +310,16 @@ pub fn split_until_fits(
         if b.is_empty() {
             parts.push(a);
         } else {
+            // an edge ends in different final parts exactly when one split separated it
+            scratch.separated_edges(&part, &mut edges);
             queue.push_back(a);
             queue.push_back(b);
         }
     }
-    if parts.len() < 2 {
-        return (parts, Vec::new());
+    if parts.len() > 2 {
+        // several splits appended their edges split by split: sort them by particle
+        edges.sort_unstable();
     }
-    let edges = with_slots(lattice.len(), |part_of| {
-        for (i, part) in parts.iter().enumerate() {
-            for &m in part {
-                part_of[m as usize] = i as u32;
-            }
-        }
-        let mut edges = Vec::with_capacity(members.len());
-        for &a in members {
-            let own = part_of[a as usize];
-            for b in lattice.neighbours(a) {
-                let other = part_of[b as usize];
-                if a < b && other != u32::MAX && other != own {
-                    edges.push((a, b));
-                }
-            }
-        }
-        for &m in members {
-            part_of[m as usize] = u32::MAX;
-        }
-        edges
-    });
     (parts, edges)
 }
 
