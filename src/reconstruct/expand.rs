@@ -17,8 +17,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
-/// Draws per particle wanted before [`draw_adjacent`] gives up: inside the body, a compact cluster's
-/// member–direction pairs lead out of it about a third of the time.
+/// Draws per particle wanted before [`draw_adjacent`] gives up: inside the body, a
+/// compact cluster's member–direction pairs lead out of it about a third of the time.
 const DRAWS_PER_PARTICLE: usize = 16;
 
 /// Adds up to `count` random adjacent particles to each cluster in `keys`, never
