@@ -3,7 +3,7 @@
 //!
 //! The adjacent particles are drawn, not listed: a random member and a random lattice
 //! direction are tried until enough of them land on distinct live non-members. A
-//! particle touching `k` members is so `k` times as likely as one touching a single
+//! particle touching `k` members is therefore `k` times as likely as one touching a single
 //! member, which favours the particles that keep the cluster compact. Listing every
 //! adjacent particle to sample from the list would cost a lattice pass over all members,
 //! where a draw costs one lookup; a cluster with few adjacent particles (the draws keep
