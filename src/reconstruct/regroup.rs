@@ -124,28 +124,51 @@ pub fn regroup<S: ClusterStore>(
             })
             .collect()
     };
-    // The first piece reuses the cut cluster's handle.
+    // The first piece keeps the cut cluster's handle, but its list is written only once
+    // its fate is known: a piece that merges away is never written back. Until then the
+    // index still lists the handle for all of the cut cluster's old members, so
+    // `holds_now` reads it as the piece. Later pieces become clusters now.
     let mut pending = Vec::with_capacity(cut.len());
+    let mut unwritten: Vec<Option<Vec<u32>>> = Vec::with_capacity(cut.len());
     let mut intact_neighbour = Vec::with_capacity(cut.len());
     for (k, (pieces, intact)) in cut.into_iter().zip(found) {
         intact_neighbour.extend(intact);
         let mut pieces = pieces.into_iter();
         match pieces.next() {
             Some(first) => {
-                store.set_members(k, first);
                 pending.push(k);
+                unwritten.push(Some(first));
             }
             None => store.remove(k),
         }
         for piece in pieces {
             pending.push(store.create(piece));
+            unwritten.push(None);
         }
     }
+    let first_piece: FxHashMap<S::Key, usize> = pending
+        .iter()
+        .zip(&unwritten)
+        .enumerate()
+        .filter(|(_, (_, piece))| piece.is_some())
+        .map(|(node, (k, _))| (*k, node))
+        .collect();
+    // Whether cluster `k`, listed in the index for live particle `a`, holds `a` now.
+    let holds_now = |k: &S::Key, a: u32, unwritten: &[Option<Vec<u32>>]| {
+        first_piece.get(k).is_none_or(|node| {
+            unwritten[*node]
+                .as_ref()
+                .is_none_or(|piece| piece.binary_search(&a).is_ok())
+        })
+    };
     // 3.2: choose every merge first, over the merge forest.
     let mut forest = MergeForest::new(&pending);
     let mut merged: Vec<u32> = Vec::new();
     for (own, &p) in pending.iter().enumerate() {
         let chosen = intact_neighbour[own];
+        let members = unwritten[own]
+            .as_deref()
+            .unwrap_or_else(|| store.members(p));
         let own = forest.find(own as u32);
         // The adjacent particle: the first one that belongs to a cluster the cut left
         // intact, else the first one with any cluster outside this piece's merge set.
@@ -153,11 +176,11 @@ pub fn regroup<S: ClusterStore>(
         // merges between pending clusters, and the giant clusters they make, rare.)
         let fallback = match chosen {
             Some(_) => None,
-            None => adjacent_in_order(store.members(p), lattice).find(|a| {
+            None => adjacent_in_order(members, lattice).find(|a| {
                 store
                     .clusters_of(*a)
                     .iter()
-                    .any(|k| forest.root_of(*k) != Some(own))
+                    .any(|k| holds_now(k, *a, &unwritten) && forest.root_of(*k) != Some(own))
             }),
         };
         let target = chosen.or(fallback).and_then(|a| {
@@ -165,7 +188,7 @@ pub fn regroup<S: ClusterStore>(
                 .clusters_of(a)
                 .iter()
                 .copied()
-                .filter(|k| forest.root_of(*k) != Some(own))
+                .filter(|k| holds_now(k, a, &unwritten) && forest.root_of(*k) != Some(own))
                 .collect();
             (!candidates.is_empty()).then(|| candidates[rng.random_range(0..candidates.len())])
         });
@@ -176,7 +199,19 @@ pub fn regroup<S: ClusterStore>(
             merged.push(own);
         }
     }
-    // Move every merged piece into its final cluster, once, root by root.
+    // Write the first pieces that stay (they may receive merges), then move every merged
+    // piece into its final cluster, once, root by root.
+    let mut merges_away = vec![false; pending.len()];
+    for &p in &merged {
+        merges_away[p as usize] = true;
+    }
+    for (node, piece) in unwritten.iter_mut().enumerate() {
+        if !merges_away[node]
+            && let Some(piece) = piece.take()
+        {
+            store.set_members(pending[node], piece);
+        }
+    }
     let mut moves: Vec<(u32, u32)> = merged.iter().map(|&p| (forest.find(p), p)).collect();
     moves.sort_unstable();
     let mut incoming: Vec<u32> = Vec::new();
@@ -184,7 +219,10 @@ pub fn regroup<S: ClusterStore>(
         incoming.clear();
         for &(_, p) in group {
             let key = pending[p as usize];
-            incoming.extend_from_slice(store.members(key));
+            match &unwritten[p as usize] {
+                Some(piece) => incoming.extend_from_slice(piece),
+                None => incoming.extend_from_slice(store.members(key)),
+            }
             store.remove(key);
         }
         incoming.sort_unstable();
