@@ -5,7 +5,7 @@
 use super::pca::split_normal;
 use crate::cluster_store::ClusterStore;
 use crate::graph::with_slots;
-use crate::lattice::{Lattice, NO_PARTICLE};
+use crate::lattice::Lattice;
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -43,7 +43,10 @@ struct LocalGraph {
 impl LocalGraph {
     /// Makes this the graph of `members`, reusing its buffers.
     fn rebuild(&mut self, members: &[u32], lattice: &Lattice) {
-        with_slots(lattice.len(), |local| self.build(members, lattice, local));
+        // one slot more than particles: an empty cell reads that one, which is never set
+        with_slots(lattice.len() + 1, |local| {
+            self.build(members, lattice, local)
+        });
     }
 
     fn build(&mut self, members: &[u32], lattice: &Lattice, local: &mut [u32]) {
@@ -52,17 +55,24 @@ impl LocalGraph {
         }
         let (row, next) = (&mut self.row, &mut self.next);
         row.clear();
-        next.clear();
         row.reserve(members.len() + 1);
-        next.reserve(members.len() * 6);
+        // Room for all six neighbour cells of every member: each cell is written and
+        // kept only if it holds a member, without a branch (whether it does is data and
+        // would mispredict). Entries past the last row's end are never read.
+        if next.len() < 6 * members.len() {
+            next.resize(6 * members.len(), 0);
+        }
+        let unset = local.len() - 1;
+        let mut len = 0;
         row.push(0);
         for &m in members {
             for n in lattice.neighbour_cells(m) {
-                if n != NO_PARTICLE && local[n as usize] != u32::MAX {
-                    next.push(local[n as usize]);
-                }
+                // (an empty cell, `NO_PARTICLE`, reads the unset last slot)
+                let slot = local[(n as usize).min(unset)];
+                next[len] = slot;
+                len += usize::from(slot != u32::MAX);
             }
-            row.push(next.len() as u32);
+            row.push(len as u32);
         }
         for &m in members {
             local[m as usize] = u32::MAX;
@@ -135,16 +145,25 @@ impl SplitScratch {
 
     /// Appends the lattice edges between `members` (the list the last [`Self::split`]
     /// split in two) whose ends went to different halves, as `(lower, higher)` particle
-    /// pairs, read off that split's local graph.
+    /// pairs in no particular order, read off that split's local graph.
     fn separated_edges(&self, members: &[u32], edges: &mut Vec<(u32, u32)>) {
+        // Each edge is seen from its end in S. Room for every edge from S, filled
+        // without a branch on the far end's side (data, which would mispredict), then
+        // cut to what was kept.
+        let mut len = edges.len();
+        let directed = self.graph.row.last().map_or(0, |r| *r as usize);
+        edges.resize(len + directed, (0, 0));
         for (i, &a) in members.iter().enumerate() {
+            if !self.in_s[i] {
+                continue;
+            }
             for j in self.graph.neighbours(i) {
-                // (sorted members: a lower local index is a lower particle)
-                if i < j && self.in_s[i] != self.in_s[j] {
-                    edges.push((a, members[j]));
-                }
+                let b = members[j];
+                edges[len] = (a.min(b), a.max(b));
+                len += usize::from(!self.in_s[j]);
             }
         }
+        edges.truncate(len);
     }
 
     /// SPEC §4.2: grows a connected set S (`in_s`) from vertex `start` whose boundary
@@ -288,7 +307,8 @@ pub fn split_cluster(
 
 /// The parts of one connected cluster split (SPEC §3.3) until none has more than `max`
 /// members, and the lattice edges between members that ended in different parts — the
-/// only edges a split can leave without a common cluster.
+/// only edges a split can leave without a common cluster — as sorted `(lower, higher)`
+/// particle pairs.
 pub fn split_until_fits(
     members: &[u32],
     lattice: &Lattice,
@@ -316,10 +336,7 @@ pub fn split_until_fits(
             queue.push_back(b);
         }
     }
-    if parts.len() > 2 {
-        // several splits appended their edges split by split: sort them by particle
-        edges.sort_unstable();
-    }
+    edges.sort_unstable();
     (parts, edges)
 }
 
