@@ -36,7 +36,9 @@ impl Ord for ByDistance {
 /// into the member list.
 #[derive(Clone, Debug, Default)]
 struct LocalGraph {
+    /// Vertex `i`'s neighbours are `next[row[i]..row[i + 1]]`.
     row: Vec<u32>,
+    /// Neighbour lists back to back; entries past `row`'s last end are scratch.
     next: Vec<u32>,
 }
 
