@@ -246,7 +246,9 @@ impl SplitScratch {
     /// SPEC §4.3: moves every component of G − S but the largest into S (`in_s`); the
     /// remaining component is M (`in_m`).
     fn topological_repair(&mut self) {
+        // label: IN_S for S, UNSEEN for G − S not reached yet, else the component id
         const UNSEEN: u32 = u32::MAX;
+        const IN_S: u32 = u32::MAX - 1;
         let Self {
             graph,
             in_s,
@@ -257,42 +259,45 @@ impl SplitScratch {
             ..
         } = self;
         let g = in_s.len();
-        // component of every vertex of G − S, numbered in order of its smallest vertex
         label.clear();
-        label.resize(g, UNSEEN);
+        label.extend(in_s.iter().map(|s| if *s { IN_S } else { UNSEEN }));
         sizes.clear();
+        // Every vertex is pushed once, and a visit writes one slot past the top: each
+        // neighbour is labelled and pushed without a branch (whether it is unseen is
+        // data, and would mispredict), and kept only if it was.
+        stack.clear();
+        stack.resize(g + 1, 0);
+        // components numbered in order of their smallest vertex
         for start in 0..g {
-            if in_s[start] || label[start] != UNSEEN {
+            if label[start] != UNSEEN {
                 continue;
             }
             let id = sizes.len() as u32;
             label[start] = id;
-            stack.push(start);
-            let mut size = 0;
-            while let Some(i) = stack.pop() {
+            stack[0] = start;
+            let (mut top, mut size) = (1, 0);
+            while top > 0 {
+                top -= 1;
+                let i = stack[top];
                 size += 1;
                 for n in graph.neighbours(i) {
-                    if !in_s[n] && label[n] == UNSEEN {
-                        label[n] = id;
-                        stack.push(n);
-                    }
+                    let unseen = label[n] == UNSEEN;
+                    label[n] = if unseen { id } else { label[n] };
+                    stack[top] = n;
+                    top += usize::from(unseen);
                 }
             }
             sizes.push(size);
         }
-        // Largest stays as M (first one on ties); the rest join S.
-        let keep = (0..sizes.len()).max_by_key(|&c| (sizes[c], Reverse(c)));
+        // Largest stays as M (first one on ties); the rest join S. (With G − S empty,
+        // `keep` is UNSEEN, which no vertex is labelled any more.)
+        let keep = (0..sizes.len())
+            .max_by_key(|&c| (sizes[c], Reverse(c)))
+            .map_or(UNSEEN, |c| c as u32);
         in_m.clear();
-        in_m.resize(g, false);
-        for (i, &l) in label.iter().enumerate() {
-            if l == UNSEEN {
-                continue;
-            }
-            if Some(l as usize) == keep {
-                in_m[i] = true;
-            } else {
-                in_s[i] = true;
-            }
+        in_m.extend(label.iter().map(|l| *l == keep));
+        for (s, l) in in_s.iter_mut().zip(label.iter()) {
+            *s = *l != keep;
         }
     }
 }
