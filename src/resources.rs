@@ -46,7 +46,7 @@ pub struct BodyCutReport {
     pub body: Entity,
     /// Removed particle indices.
     pub removed: Vec<u32>,
-    /// Clusters that contained a removed particle, sorted.
+    /// Clusters that contained a removed particle, by ascending entity index.
     pub cut_clusters: Vec<Entity>,
 }
 

@@ -223,7 +223,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     for (&i, e) in order.iter().zip(spawned) {
         particles[i as usize] = e;
     }
-    let mut index = vec![ClusterList::<Entity>::new(); lattice.len()];
+    let mut index = vec![ClusterList::<u32>::new(); lattice.len()];
     for (_, members) in table.iter() {
         let e = world
             .spawn((
@@ -232,7 +232,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
                 Stiffness(desc.material.stiffness),
             ))
             .id();
-        crate::cluster_store::index_add(&mut index, members, e);
+        crate::cluster_store::index_add(&mut index, members, e.index_u32());
     }
     let pieces = lattice.piece_count();
     world.entity_mut(body).insert((
@@ -269,7 +269,8 @@ pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
     for (e, body, lattice, index) in bodies.iter(world) {
         let clusters = clusters_by_body.remove(&e).unwrap_or_default();
         if let Some(index) = index {
-            let violations = check_index(clusters.iter().copied(), &index.0);
+            let keyed = clusters.iter().map(|(k, m)| (k.index_u32(), *m));
+            let violations = check_index(keyed, &index.0);
             out.extend(violations.into_iter().map(|v| (e, v)));
         }
         for v in check_body(

@@ -2,13 +2,15 @@
 //! the removed particles and the cut clusters. Writes particle data only (it reads the
 //! particle → clusters index to name the cut clusters).
 
-use crate::components::{BodyLattice, ParticleClusters};
+use crate::components::{BodyLattice, ParticleClusters, cluster_entity};
 use crate::resources::{BodyCutReport, BodySplit, CutList, CutReport, ParticlesCut};
+use bevy_ecs::entity::Entities;
 use bevy_ecs::prelude::*;
 
 /// Deletes the particles of the `CutList`.
 pub fn cut(
     mut commands: Commands,
+    entities: &Entities,
     list: Res<CutList>,
     mut report: ResMut<CutReport>,
     mut bodies: Query<(&mut BodyLattice, &ParticleClusters)>,
@@ -36,6 +38,10 @@ pub fn cut(
         }
         cut_clusters.sort_unstable();
         cut_clusters.dedup();
+        let cut_clusters = cut_clusters
+            .into_iter()
+            .map(|k| cluster_entity(entities, k))
+            .collect();
         let before = body.pieces;
         body.pieces = body.lattice.piece_count();
         if body.pieces != before {

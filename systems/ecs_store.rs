@@ -1,48 +1,88 @@
 //! [`ClusterStore`] over ECS cluster entities: member lists live in `ClusterMembers`
-//! components, the particle index in the body's `ParticleClusters`. New clusters get
-//! reserved entities whose components are inserted by [`EcsClusterStore::finish`].
+//! components, the particle index in the body's `ParticleClusters`. A cluster's key is
+//! its entity index (`Entity::index_u32`), resolved to the live entity when a component
+//! is read or written. New clusters get reserved entities whose components are inserted
+//! by [`EcsClusterStore::finish`]. [`BodyClusters`] is the system parameter the
+//! reconstruction stages open a body's store from.
 
 use crate::cluster_store::{
     ClusterList, ClusterStore, index_add, index_remove, index_replace, merge_sorted, normalise,
 };
-use crate::components::{ClusterMembers, ClusterOf, Stiffness};
+use crate::components::{
+    Body, BodyLattice, ClusterMembers, ClusterOf, ParticleClusters, Stiffness, cluster_entity,
+};
+use crate::config::Material;
+use crate::lattice::Lattice;
+use bevy_ecs::entity::Entities;
 use bevy_ecs::prelude::*;
+use bevy_ecs::system::SystemParam;
 use rustc_hash::{FxHashMap, FxHashSet};
 
-/// The clusters of one body, editable by the reconstruction algorithms.
-pub struct EcsClusterStore<'a, 'd, 'qw, 'qs, 'cw, 'cs> {
-    body: Entity,
-    stiffness: f32,
-    index: &'a mut Vec<ClusterList<Entity>>,
-    clusters: &'a mut Query<'qw, 'qs, &'d mut ClusterMembers>,
-    commands: &'a mut Commands<'cw, 'cs>,
-    created: FxHashMap<Entity, Vec<u32>>,
-    removed: FxHashSet<Entity>,
+/// What a reconstruction stage reads and writes: the bodies' particle indices and the
+/// cluster entities (it reads no particle data).
+#[derive(SystemParam)]
+pub struct BodyClusters<'w, 's> {
+    commands: Commands<'w, 's>,
+    entities: &'w Entities,
+    bodies: Query<
+        'w,
+        's,
+        (
+            &'static Body,
+            &'static BodyLattice,
+            &'static mut ParticleClusters,
+        ),
+    >,
+    clusters: Query<'w, 's, &'static mut ClusterMembers>,
 }
 
-impl<'a, 'd, 'qw, 'qs, 'cw, 'cs> EcsClusterStore<'a, 'd, 'qw, 'qs, 'cw, 'cs> {
-    /// Wraps one body's clusters; new clusters get `stiffness`.
-    pub fn new(
+impl<'w, 's> BodyClusters<'w, 's> {
+    /// The store of `body`'s clusters, with its material and lattice; `None` if `body`
+    /// is not a body.
+    pub fn open(
+        &mut self,
         body: Entity,
-        stiffness: f32,
-        index: &'a mut Vec<ClusterList<Entity>>,
-        clusters: &'a mut Query<'qw, 'qs, &'d mut ClusterMembers>,
-        commands: &'a mut Commands<'cw, 'cs>,
-    ) -> Self {
-        Self {
+    ) -> Option<(EcsClusterStore<'_, 'w, 's>, &Material, &Lattice)> {
+        let (b, lattice, index) = self.bodies.get_mut(body).ok()?;
+        let store = EcsClusterStore {
             body,
-            stiffness,
-            index,
-            clusters,
-            commands,
+            stiffness: b.material.stiffness,
+            index: &mut index.into_inner().0,
+            entities: self.entities,
+            clusters: &mut self.clusters,
+            commands: &mut self.commands,
             created: FxHashMap::default(),
             removed: FxHashSet::default(),
+        };
+        Some((store, &b.material, &lattice.lattice))
+    }
+}
+
+/// The clusters of one body, editable by the reconstruction algorithms.
+pub struct EcsClusterStore<'a, 'w, 's> {
+    body: Entity,
+    stiffness: f32,
+    index: &'a mut Vec<ClusterList<u32>>,
+    entities: &'a Entities,
+    clusters: &'a mut Query<'w, 's, &'static mut ClusterMembers>,
+    commands: &'a mut Commands<'w, 's>,
+    /// Clusters made through this store: key → (reserved entity, members).
+    created: FxHashMap<u32, (Entity, Vec<u32>)>,
+    removed: FxHashSet<u32>,
+}
+
+impl EcsClusterStore<'_, '_, '_> {
+    /// The entity of cluster `k` (reserved, if this store created it).
+    pub fn entity(&self, k: u32) -> Entity {
+        match self.created.get(&k) {
+            Some((e, _)) => *e,
+            None => cluster_entity(self.entities, k),
         }
     }
 
     /// Inserts the components of the clusters created through this store.
     pub fn finish(self) {
-        for (e, members) in self.created {
+        for (e, members) in self.created.into_values() {
             self.commands.entity(e).insert((
                 ClusterMembers(members),
                 ClusterOf(self.body),
@@ -52,37 +92,37 @@ impl<'a, 'd, 'qw, 'qs, 'cw, 'cs> EcsClusterStore<'a, 'd, 'qw, 'qs, 'cw, 'cs> {
     }
 }
 
-impl ClusterStore for EcsClusterStore<'_, '_, '_, '_, '_, '_> {
-    type Key = Entity;
+impl ClusterStore for EcsClusterStore<'_, '_, '_> {
+    type Key = u32;
 
-    fn particle_index(&self) -> &[ClusterList<Entity>] {
+    fn particle_index(&self) -> &[ClusterList<u32>] {
         self.index
     }
 
-    fn members(&self, k: Entity) -> &[u32] {
+    fn members(&self, k: u32) -> &[u32] {
         if self.removed.contains(&k) {
             return &[];
         }
-        stored_members(&self.created, self.clusters, k)
+        stored_members(&self.created, self.clusters, self.entities, k)
     }
 
-    fn set_members(&mut self, k: Entity, members: Vec<u32>) {
+    fn set_members(&mut self, k: u32, members: Vec<u32>) {
         let members = normalise(members);
-        if let Some(m) = self.created.get_mut(&k) {
+        if let Some((_, m)) = self.created.get_mut(&k) {
             index_replace(self.index, m, &members, k);
             *m = members;
         } else if !self.removed.contains(&k)
-            && let Ok(mut m) = self.clusters.get_mut(k)
+            && let Ok(mut m) = self.clusters.get_mut(cluster_entity(self.entities, k))
         {
             index_replace(self.index, &m.0, &members, k);
             m.0 = members;
         }
     }
 
-    fn add_members(&mut self, k: Entity, extra: &[u32]) {
-        let new = if let Some(m) = self.created.get_mut(&k) {
+    fn add_members(&mut self, k: u32, extra: &[u32]) {
+        let new = if let Some((_, m)) = self.created.get_mut(&k) {
             merge_sorted(m, extra)
-        } else if let Ok(mut m) = self.clusters.get_mut(k) {
+        } else if let Ok(mut m) = self.clusters.get_mut(cluster_entity(self.entities, k)) {
             // marked changed only when it did change: the solver layout re-reads changed
             // clusters
             let new = merge_sorted(&mut m.bypass_change_detection().0, extra);
@@ -98,24 +138,26 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_, '_, '_, '_> {
         }
     }
 
-    fn create(&mut self, members: Vec<u32>) -> Entity {
+    fn create(&mut self, members: Vec<u32>) -> u32 {
         let members = normalise(members);
         let e = self.commands.spawn_empty().id();
-        index_add(self.index, &members, e);
-        self.created.insert(e, members);
-        e
+        let k = e.index_u32();
+        index_add(self.index, &members, k);
+        self.created.insert(k, (e, members));
+        k
     }
 
-    fn remove(&mut self, k: Entity) {
-        if !self.removed.contains(&k) {
-            // (the member list and the index are separate fields: no copy of the list)
-            let members = stored_members(&self.created, self.clusters, k);
-            index_remove(self.index, members, k);
+    fn remove(&mut self, k: u32) {
+        if self.removed.contains(&k) {
+            return;
         }
-        if self.created.remove(&k).is_none() {
-            self.removed.insert(k);
-        }
-        self.commands.entity(k).despawn();
+        // (the member list and the index are separate fields: no copy of the list)
+        let members = stored_members(&self.created, self.clusters, self.entities, k);
+        index_remove(self.index, members, k);
+        let e = self.entity(k);
+        self.created.remove(&k);
+        self.removed.insert(k);
+        self.commands.entity(e).despawn();
     }
 }
 
@@ -123,12 +165,16 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_, '_, '_, '_> {
 /// its `ClusterMembers` component (empty if it has none). Takes the fields, not the
 /// store, so that the index can be edited while the list is borrowed.
 fn stored_members<'x>(
-    created: &'x FxHashMap<Entity, Vec<u32>>,
+    created: &'x FxHashMap<u32, (Entity, Vec<u32>)>,
     clusters: &'x Query<'_, '_, &mut ClusterMembers>,
-    k: Entity,
+    entities: &Entities,
+    k: u32,
 ) -> &'x [u32] {
     match created.get(&k) {
-        Some(m) => m,
-        None => clusters.get(k).map(|m| m.0.as_slice()).unwrap_or(&[]),
+        Some((_, m)) => m,
+        None => clusters
+            .get(cluster_entity(entities, k))
+            .map(|m| m.0.as_slice())
+            .unwrap_or(&[]),
     }
 }

@@ -3,9 +3,8 @@
 //! what §3.4 aims at (no isolated cluster).
 //! Writes cluster data only.
 
-use super::ecs_store::EcsClusterStore;
+use super::ecs_store::BodyClusters;
 use crate::clustering::cover_edge_list;
-use crate::components::{Body, BodyLattice, ClusterMembers, ParticleClusters};
 use crate::reconstruct;
 use crate::resources::{ClustersRebuilt, CutTimings, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
@@ -14,12 +13,10 @@ use std::time::Instant;
 /// Runs [`reconstruct::expand_clusters`], then [`cover_edge_list`] on the edges the
 /// splits separated.
 pub fn expand(
-    mut commands: Commands,
     mut rng: ResMut<SimRng>,
     rebuilt: Res<RebuiltClusters>,
     mut timings: ResMut<CutTimings>,
-    mut bodies: Query<(&Body, &BodyLattice, &mut ParticleClusters)>,
-    mut clusters: Query<&mut ClusterMembers>,
+    mut clusters: BodyClusters,
     mut messages: MessageWriter<ClustersRebuilt>,
 ) {
     if rebuilt.bodies.is_empty() {
@@ -27,31 +24,20 @@ pub fn expand(
     }
     let start = Instant::now();
     for rebuilt in &rebuilt.bodies {
-        let Ok((body, lattice, mut index)) = bodies.get_mut(rebuilt.body) else {
+        let Some((mut store, m, lattice)) = clusters.open(rebuilt.body) else {
             continue;
         };
-        let m = &body.material;
-        let mut store = EcsClusterStore::new(
-            rebuilt.body,
-            m.stiffness,
-            &mut index.0,
-            &mut clusters,
-            &mut commands,
-        );
+        let keys: Vec<u32> = rebuilt.clusters.iter().map(|e| e.index_u32()).collect();
+        let max = m.max_cluster_size as usize;
         reconstruct::expand_clusters(
             &mut store,
-            &lattice.lattice,
-            &rebuilt.clusters,
+            lattice,
+            &keys,
             m.expand_count as usize,
-            m.max_cluster_size as usize,
+            max,
             &mut rng.0,
         );
-        cover_edge_list(
-            &mut store,
-            &lattice.lattice,
-            &rebuilt.cut_edges,
-            m.max_cluster_size as usize,
-        );
+        cover_edge_list(&mut store, lattice, &rebuilt.cut_edges, max);
         store.finish();
         messages.write(ClustersRebuilt {
             body: rebuilt.body,

@@ -10,6 +10,7 @@ use crate::resources::{
     BodyCutReport, BodyDense, ClusterSlots, LayoutUpdate, SolverCache, dense_owner,
 };
 use crate::solver::{ClusterSpec, SolverLayout};
+use bevy_ecs::entity::Entities;
 use bevy_ecs::prelude::*;
 use glam::Quat;
 use std::collections::HashMap;
@@ -33,7 +34,9 @@ pub struct LayoutChanges<'a, 'c> {
     /// Each body's particle → clusters index, sorted by body: the clusters whose Jacobi
     /// weights a patch changes are found from it instead of by a pass over every
     /// membership of the layout.
-    pub indices: Vec<(Entity, &'c [ClusterList<Entity>])>,
+    pub indices: Vec<(Entity, &'c [ClusterList<u32>])>,
+    /// Resolves the cluster entity indices that `indices` lists.
+    pub entities: &'c Entities,
 }
 
 /// Brings the layout up to date: patches in the `changes` when that is possible, else
@@ -78,6 +81,7 @@ fn patch(
         clusters: mut changed,
         removed,
         indices,
+        entities,
     } = changes;
     if !cache.layout.can_patch() {
         return false;
@@ -164,6 +168,7 @@ fn patch(
             clusters,
             slot_of,
             indices: &indices,
+            entities,
         };
         layout.patch_with_neighbours(&removed_slots, &specs, &retired, |particles| {
             kept.holding(particles)
@@ -203,7 +208,8 @@ struct KeptClusters<'a> {
     body_dense: &'a [BodyDense],
     clusters: &'a [Entity],
     slot_of: &'a ClusterSlots,
-    indices: &'a [(Entity, &'a [ClusterList<Entity>])],
+    indices: &'a [(Entity, &'a [ClusterList<u32>])],
+    entities: &'a Entities,
 }
 
 impl KeptClusters<'_> {
@@ -214,7 +220,7 @@ impl KeptClusters<'_> {
     fn holding(&self, particles: &[u32]) -> Vec<u32> {
         let mut found = Vec::new();
         // (a cut touches one body, or a few: its index is looked up again only on a change)
-        let mut body_index: Option<(Entity, &[ClusterList<Entity>])> = None;
+        let mut body_index: Option<(Entity, &[ClusterList<u32>])> = None;
         for &d in particles {
             let Some((body, local)) = dense_owner(self.locals, self.body_dense, d as usize) else {
                 continue;
@@ -229,10 +235,10 @@ impl KeptClusters<'_> {
             let Some(list) = body_index.and_then(|(_, index)| index.get(local as usize)) else {
                 continue;
             };
-            found.extend(
-                list.iter()
-                    .filter_map(|e| self.slot_of.get(*e, self.clusters)),
-            );
+            found.extend(list.iter().filter_map(|k| {
+                let e = cluster_entity(self.entities, *k);
+                self.slot_of.get(e, self.clusters)
+            }));
         }
         found
     }

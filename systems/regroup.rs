@@ -1,8 +1,7 @@
 //! Stage regroup (SPEC §3.1–3.2): cut clusters → pieces → merged into neighbours.
 //! Writes cluster data only.
 
-use super::ecs_store::EcsClusterStore;
-use crate::components::{Body, BodyLattice, ClusterMembers, ParticleClusters};
+use super::ecs_store::BodyClusters;
 use crate::reconstruct;
 use crate::resources::{CutReport, CutTimings, RebuiltBody, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
@@ -10,13 +9,11 @@ use std::time::Instant;
 
 /// Runs [`reconstruct::regroup()`] on every body that lost particles.
 pub fn regroup(
-    mut commands: Commands,
     report: Res<CutReport>,
     mut rng: ResMut<SimRng>,
     mut rebuilt: ResMut<RebuiltClusters>,
     mut timings: ResMut<CutTimings>,
-    mut bodies: Query<(&Body, &BodyLattice, &mut ParticleClusters)>,
-    mut clusters: Query<&mut ClusterMembers>,
+    mut clusters: BodyClusters,
 ) {
     rebuilt.bodies.clear();
     if report.bodies.is_empty() {
@@ -24,18 +21,12 @@ pub fn regroup(
     }
     let start = Instant::now();
     for cut in &report.bodies {
-        let Ok((body, lattice, mut index)) = bodies.get_mut(cut.body) else {
+        let Some((mut store, _, lattice)) = clusters.open(cut.body) else {
             continue;
         };
-        let mut store = EcsClusterStore::new(
-            cut.body,
-            body.material.stiffness,
-            &mut index.0,
-            &mut clusters,
-            &mut commands,
-        );
-        let produced =
-            reconstruct::regroup(&mut store, &lattice.lattice, &cut.cut_clusters, &mut rng.0);
+        let cut_clusters: Vec<u32> = cut.cut_clusters.iter().map(|e| e.index_u32()).collect();
+        let produced = reconstruct::regroup(&mut store, lattice, &cut_clusters, &mut rng.0);
+        let produced = produced.into_iter().map(|k| store.entity(k)).collect();
         store.finish();
         rebuilt.bodies.push(RebuiltBody {
             body: cut.body,

@@ -8,6 +8,7 @@ use crate::components::*;
 use crate::resources::{CutReport, SimSettings, SolverCache};
 use crate::solver::Colliders;
 use crate::table_rows::ParticleColumns;
+use bevy_ecs::entity::Entities;
 use bevy_ecs::prelude::*;
 use glam::{Vec3, Vec3A};
 
@@ -41,6 +42,7 @@ pub fn shape_match(
     cut: Res<CutReport>,
     bodies: Query<(Entity, &BodyLattice)>,
     indices: Query<(Entity, &ParticleClusters)>,
+    entities: &Entities,
     changed_bodies: Query<Entity, Changed<BodyLattice>>,
     clusters: Query<(Entity, &ClusterMembers, &ClusterOf, &Stiffness)>,
     changed_clusters: ChangedClusters,
@@ -70,6 +72,7 @@ pub fn shape_match(
                 list.sort_unstable_by_key(|(b, _)| *b);
                 list
             },
+            entities,
         };
         sync_layout(&mut cache, &bodies, changes, clusters.iter(), config.solver);
     }

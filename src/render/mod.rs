@@ -113,9 +113,11 @@ pub fn snapshot(world: &mut World, mode: ColorMode) -> Snapshot {
             let piece = piece_offset + labels[i as usize];
             let rgb = match (mode, clusters) {
                 (ColorMode::Clusters, Some(c)) => {
-                    let list = &c.0[i as usize];
-                    let sum: Vec3 = list.iter().map(|e| cluster_colour(e.to_bits())).sum();
-                    let mean = sum / list.len().max(1) as f32;
+                    let sum: Vec3 = c
+                        .clusters_of(i, world.entities())
+                        .map(|e| cluster_colour(e.to_bits()))
+                        .sum();
+                    let mean = sum / c.0[i as usize].len().max(1) as f32;
                     [mean.x as u8, mean.y as u8, mean.z as u8]
                 }
                 _ => PIECE_COLOURS[piece as usize % PIECE_COLOURS.len()],
