@@ -319,4 +319,37 @@ mod tests {
             );
         }
     }
+
+    #[test]
+    fn the_particle_index_resolves_to_the_clusters_that_hold_each_particle() -> Result<()> {
+        let mut sim = Simulation::new(SimConfig::default())?;
+        // freed indices, so that the body's entities reuse them with a later generation
+        let scratch: Vec<Entity> = (0..200)
+            .map(|_| sim.world_mut().spawn_empty().id())
+            .collect();
+        for e in scratch {
+            sim.world_mut().despawn(e);
+        }
+        let shape = crate::lattice::Shape::cuboid(glam::UVec3::new(5, 4, 3), 0.1);
+        let body = sim.spawn_body(&BodyDesc::new(shape, 0.1))?;
+        let world = sim.world_mut();
+        let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf)>();
+        let mut holding: Vec<Vec<Entity>> = vec![Vec::new(); 5 * 4 * 3];
+        for (e, members, of) in clusters.iter(world) {
+            assert_eq!(of.0, body);
+            for &p in &members.0 {
+                holding[p as usize].push(e);
+            }
+        }
+        let index = world.get::<ParticleClusters>(body).expect("a body's index");
+        for (p, expected) in holding.iter_mut().enumerate() {
+            let mut found: Vec<Entity> = index.clusters_of(p as u32, world.entities()).collect();
+            found.sort_unstable();
+            expected.sort_unstable();
+            assert!(!found.is_empty(), "particle {p} is in no cluster");
+            assert_eq!(&found, expected, "particle {p}");
+        }
+        assert_eq!(index.clusters_of(1000, world.entities()).count(), 0);
+        Ok(())
+    }
 }
