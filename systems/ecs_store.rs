@@ -71,7 +71,17 @@ pub struct EcsClusterStore<'a, 'w, 's> {
     removed: FxHashSet<u32>,
 }
 
+/// The store keys of cluster entities (their entity indices), in order.
+pub fn keys_of(clusters: &[Entity]) -> Vec<u32> {
+    clusters.iter().map(|e| e.index_u32()).collect()
+}
+
 impl EcsClusterStore<'_, '_, '_> {
+    /// The entities of clusters `keys`, in order (see [`EcsClusterStore::entity`]).
+    pub fn entities_of(&self, keys: Vec<u32>) -> Vec<Entity> {
+        keys.into_iter().map(|k| self.entity(k)).collect()
+    }
+
     /// The entity of cluster `k` (reserved, if this store created it).
     pub fn entity(&self, k: u32) -> Entity {
         match self.created.get(&k) {

@@ -3,7 +3,7 @@
 //! what §3.4 aims at (no isolated cluster).
 //! Writes cluster data only.
 
-use super::ecs_store::BodyClusters;
+use super::ecs_store::{BodyClusters, keys_of};
 use crate::clustering::cover_edge_list;
 use crate::reconstruct;
 use crate::resources::{ClustersRebuilt, CutTimings, RebuiltClusters, SimRng};
@@ -27,7 +27,7 @@ pub fn expand(
         let Some((mut store, m, lattice)) = clusters.open(rebuilt.body) else {
             continue;
         };
-        let keys: Vec<u32> = rebuilt.clusters.iter().map(|e| e.index_u32()).collect();
+        let keys = keys_of(&rebuilt.clusters);
         let max = m.max_cluster_size as usize;
         reconstruct::expand_clusters(
             &mut store,

@@ -1,7 +1,7 @@
 //! Stage regroup (SPEC §3.1–3.2): cut clusters → pieces → merged into neighbours.
 //! Writes cluster data only.
 
-use super::ecs_store::BodyClusters;
+use super::ecs_store::{BodyClusters, keys_of};
 use crate::reconstruct;
 use crate::resources::{CutReport, CutTimings, RebuiltBody, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
@@ -24,9 +24,9 @@ pub fn regroup(
         let Some((mut store, _, lattice)) = clusters.open(cut.body) else {
             continue;
         };
-        let cut_clusters: Vec<u32> = cut.cut_clusters.iter().map(|e| e.index_u32()).collect();
+        let cut_clusters = keys_of(&cut.cut_clusters);
         let produced = reconstruct::regroup(&mut store, lattice, &cut_clusters, &mut rng.0);
-        let produced = produced.into_iter().map(|k| store.entity(k)).collect();
+        let produced = store.entities_of(produced);
         store.finish();
         rebuilt.bodies.push(RebuiltBody {
             body: cut.body,

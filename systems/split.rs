@@ -1,7 +1,7 @@
 //! Stage split (SPEC §3.3, §4): splits rebuilt clusters above `max_cluster_size`.
 //! Writes cluster data only.
 
-use super::ecs_store::BodyClusters;
+use super::ecs_store::{BodyClusters, keys_of};
 use crate::reconstruct;
 use crate::resources::{CutTimings, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
@@ -23,13 +23,9 @@ pub fn split(
             continue;
         };
         let max = material.max_cluster_size as usize;
-        let keys: Vec<u32> = rebuilt.clusters.iter().map(|e| e.index_u32()).collect();
+        let keys = keys_of(&rebuilt.clusters);
         let outcome = reconstruct::split_oversized(&mut store, lattice, &keys, max, &mut rng.0);
-        rebuilt.clusters = outcome
-            .clusters
-            .into_iter()
-            .map(|k| store.entity(k))
-            .collect();
+        rebuilt.clusters = store.entities_of(outcome.clusters);
         rebuilt.cut_edges = outcome.cut_edges;
         store.finish();
     }
