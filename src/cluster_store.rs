@@ -1,40 +1,79 @@
-//! The clusters of one body as seen by the algorithms: a small trait for reading and
-//! editing member lists with a particle → clusters index, and [`ClusterTable`], its
-//! plain-data implementation (initial clustering, tests, benchmarks).
+//! The clusters of one body as seen by the algorithms: a small trait for reading member
+//! lists and applying batches of edits ([`ClusterEdits`]) with the particle → clusters
+//! index ([`ClusterIndex`]) kept in step, and [`ClusterTable`], its plain-data
+//! implementation (initial clustering, tests, benchmarks). Clusters are named by `u32`
+//! keys: a slot number in [`ClusterTable`], an entity index in the ECS.
 
-use smallvec::SmallVec;
-use std::fmt::Debug;
-use std::hash::Hash;
+use crate::cluster_edits::{ClusterEdits, IndexChange, diff_into};
+use crate::cluster_index::ClusterIndex;
 
-/// Cluster lists per particle; most particles are in at most 8 clusters.
-pub type ClusterList<K> = SmallVec<[K; 8]>;
-
-/// Read and edit access to one body's clusters. Member lists are kept sorted and
-/// hold body-local particle indices; implementations keep the particle index in sync.
+/// Read access to one body's clusters, and edits in batches. Member lists are ascending
+/// body-local particle indices; implementations keep the particle index in step.
 pub trait ClusterStore {
-    /// Cluster handle (an entity in the ECS, a slot number in [`ClusterTable`]).
-    type Key: Copy + Eq + Ord + Hash + Debug + Send + Sync;
-    /// The particle → clusters index: entry `p` lists the clusters that contain particle
-    /// `p`, ascending. Plain data, so parallel readers can share it.
-    fn particle_index(&self) -> &[ClusterList<Self::Key>];
-    /// Clusters that contain particle `p` (none for a particle out of range).
-    fn clusters_of(&self, p: u32) -> &[Self::Key] {
-        self.particle_index()
-            .get(p as usize)
-            .map(|l| l.as_slice())
-            .unwrap_or(&[])
+    /// The particle → clusters index. Plain data, so parallel readers can share it.
+    fn index(&self) -> &ClusterIndex;
+    /// Members of cluster `k`, ascending; empty if `k` does not exist.
+    fn members(&self, k: u32) -> &[u32];
+    /// Applies a batch of edits and brings the index up to date in one pass; returns
+    /// the keys of the created clusters, in order.
+    fn apply(&mut self, edits: &ClusterEdits) -> Vec<u32>;
+
+    /// Clusters that contain particle `p`, ascending (none for a particle out of range).
+    fn clusters_of(&self, p: u32) -> &[u32] {
+        self.index().clusters_of(p)
     }
-    /// Members of cluster `k` (sorted); empty if `k` does not exist.
-    fn members(&self, k: Self::Key) -> &[u32];
     /// Replaces the members of `k` (the list is sorted and deduplicated here).
-    fn set_members(&mut self, k: Self::Key, members: Vec<u32>);
-    /// Adds `extra` (strictly ascending) to the members of `k`; only new particles touch
-    /// the index.
-    fn add_members(&mut self, k: Self::Key, extra: &[u32]);
-    /// Creates a cluster with the given members.
-    fn create(&mut self, members: Vec<u32>) -> Self::Key;
+    fn set_members(&mut self, k: u32, members: Vec<u32>) {
+        let mut edits = ClusterEdits::default();
+        edits.replace(k, &normalise(members));
+        self.apply(&edits);
+    }
+    /// Adds `extra` (strictly ascending) to the members of `k`.
+    fn add_members(&mut self, k: u32, extra: &[u32]) {
+        let mut edits = ClusterEdits::default();
+        edits.extend(k, extra);
+        self.apply(&edits);
+    }
+    /// Creates a cluster with the given members (sorted and deduplicated here).
+    fn create(&mut self, members: Vec<u32>) -> u32 {
+        let mut edits = ClusterEdits::default();
+        edits.create(&normalise(members));
+        let created = self.apply(&edits);
+        created[0]
+    }
     /// Deletes cluster `k`.
-    fn remove(&mut self, k: Self::Key);
+    fn remove(&mut self, k: u32) {
+        let mut edits = ClusterEdits::default();
+        edits.remove(k);
+        self.apply(&edits);
+    }
+}
+
+/// Writes `extra` (strictly ascending) into the sorted `members` and appends the index
+/// additions of the particles that are new to cluster `k`.
+pub fn extend_members(
+    members: &mut Vec<u32>,
+    extra: &[u32],
+    k: u32,
+    changes: &mut Vec<IndexChange>,
+) {
+    let before = changes.len();
+    let mut i = 0;
+    for &p in extra {
+        while i < members.len() && members[i] < p {
+            i += 1;
+        }
+        if members.get(i) != Some(&p) {
+            changes.push(IndexChange {
+                particle: p,
+                key: k,
+                add: true,
+            });
+        }
+    }
+    if changes.len() > before {
+        merge_sorted(members, extra);
+    }
 }
 
 /// Sorts and deduplicates a member list (a strictly ascending list is returned as is).
@@ -85,60 +124,11 @@ pub fn merge_sorted(members: &mut Vec<u32>, extra: &[u32]) -> usize {
     added - shared
 }
 
-/// Moves the index entries of cluster `k` from the sorted member list `old` to the
-/// sorted list `new`, touching only the particles that left or joined.
-pub fn index_replace<K: Copy + Ord>(index: &mut [ClusterList<K>], old: &[u32], new: &[u32], k: K) {
-    let (mut i, mut j) = (0, 0);
-    while i < old.len() || j < new.len() {
-        match (old.get(i), new.get(j)) {
-            (Some(a), Some(b)) if a == b => {
-                i += 1;
-                j += 1;
-            }
-            (Some(&a), Some(&b)) if a < b => {
-                index_remove(index, &[a], k);
-                i += 1;
-            }
-            (Some(&a), None) => {
-                index_remove(index, &[a], k);
-                i += 1;
-            }
-            (_, Some(&b)) => {
-                index_add(index, &[b], k);
-                j += 1;
-            }
-            (None, None) => break,
-        }
-    }
-}
-
-/// Helpers that keep a particle → clusters index in step with member edits.
-pub fn index_remove<K: Eq>(index: &mut [ClusterList<K>], members: &[u32], k: K) {
-    for &m in members {
-        if let Some(list) = index.get_mut(m as usize)
-            && let Some(pos) = list.iter().position(|x| *x == k)
-        {
-            list.remove(pos);
-        }
-    }
-}
-
-/// Adds `k` to the index entry of every particle in `members` (inserted in order;
-/// entries that already hold `k` are left as they are).
-pub fn index_add<K: Copy + Ord>(index: &mut [ClusterList<K>], members: &[u32], k: K) {
-    for &m in members {
-        let list = &mut index[m as usize];
-        if let Err(pos) = list.binary_search(&k) {
-            list.insert(pos, k);
-        }
-    }
-}
-
 /// Plain-data clusters of one body: slots of member lists plus the particle index.
 #[derive(Clone, Debug, Default)]
 pub struct ClusterTable {
     slots: Vec<Option<Vec<u32>>>,
-    of_particle: Vec<ClusterList<u32>>,
+    index: ClusterIndex,
 }
 
 impl ClusterTable {
@@ -146,16 +136,18 @@ impl ClusterTable {
     pub fn new(particles: usize) -> Self {
         Self {
             slots: Vec::new(),
-            of_particle: vec![ClusterList::new(); particles],
+            index: ClusterIndex::new(particles),
         }
     }
 
     /// Builds a table from member lists.
     pub fn from_clusters(particles: usize, clusters: Vec<Vec<u32>>) -> Self {
         let mut t = Self::new(particles);
+        let mut edits = ClusterEdits::default();
         for c in clusters {
-            t.create(c);
+            edits.create(&normalise(c));
         }
+        t.apply(&edits);
         t
     }
 
@@ -184,10 +176,8 @@ impl ClusterTable {
 }
 
 impl ClusterStore for ClusterTable {
-    type Key = u32;
-
-    fn particle_index(&self) -> &[ClusterList<u32>] {
-        &self.of_particle
+    fn index(&self) -> &ClusterIndex {
+        &self.index
     }
 
     fn members(&self, k: u32) -> &[u32] {
@@ -197,32 +187,36 @@ impl ClusterStore for ClusterTable {
             .unwrap_or(&[])
     }
 
-    fn set_members(&mut self, k: u32, members: Vec<u32>) {
-        let members = normalise(members);
-        let old = self.slots[k as usize].take().unwrap_or_default();
-        index_replace(&mut self.of_particle, &old, &members, k);
-        self.slots[k as usize] = Some(members);
-    }
-
-    fn add_members(&mut self, k: u32, extra: &[u32]) {
-        if let Some(Some(members)) = self.slots.get_mut(k as usize)
-            && merge_sorted(members, extra) > 0
-        {
-            index_add(&mut self.of_particle, extra, k);
+    fn apply(&mut self, edits: &ClusterEdits) -> Vec<u32> {
+        let mut changes = Vec::new();
+        for (k, members) in edits.replaced() {
+            if let Some(Some(old)) = self.slots.get_mut(k as usize) {
+                diff_into(old, members, k, &mut changes);
+                old.clear();
+                old.extend_from_slice(members);
+            }
         }
-    }
-
-    fn create(&mut self, members: Vec<u32>) -> u32 {
-        let k = self.slots.len() as u32;
-        self.slots.push(None);
-        self.set_members(k, members);
-        k
-    }
-
-    fn remove(&mut self, k: u32) {
-        if let Some(old) = self.slots.get_mut(k as usize).and_then(Option::take) {
-            index_remove(&mut self.of_particle, &old, k);
+        for (k, extra) in edits.extended() {
+            if let Some(Some(old)) = self.slots.get_mut(k as usize) {
+                extend_members(old, extra, k, &mut changes);
+            }
         }
+        for &k in edits.removed() {
+            if let Some(old) = self.slots.get_mut(k as usize).and_then(Option::take) {
+                diff_into(&old, &[], k, &mut changes);
+            }
+        }
+        let created: Vec<u32> = edits
+            .created()
+            .map(|members| {
+                let k = self.slots.len() as u32;
+                diff_into(&[], members, k, &mut changes);
+                self.slots.push(Some(members.to_vec()));
+                k
+            })
+            .collect();
+        self.index.apply(&changes);
+        created
     }
 }
 
@@ -255,16 +249,23 @@ mod tests {
     }
 
     #[test]
+    fn a_batch_of_edits_keeps_the_index_in_step() {
+        let mut t = ClusterTable::from_clusters(6, vec![vec![0, 2, 3], vec![2]]);
+        let mut edits = ClusterEdits::default();
+        edits.replace(0, &[2, 4, 5]);
+        edits.extend(1, &[1, 2]);
+        edits.create(&[0, 5]);
+        assert_eq!(t.apply(&edits), [2]);
+        let lists: Vec<&[u32]> = t.index().iter().collect();
+        assert_eq!(lists, [&[2][..], &[1], &[0, 1], &[], &[0], &[0, 2]]);
+        t.remove(0);
+        let lists: Vec<&[u32]> = t.index().iter().collect();
+        assert_eq!(lists, [&[2][..], &[1], &[1], &[], &[], &[2]]);
+        assert_eq!(t.members(0), &[] as &[u32]);
+    }
+
+    #[test]
     fn merge_sorted_keeps_order_and_reports_new_particles() {
-        let mut index: Vec<ClusterList<u32>> = vec![ClusterList::new(); 6];
-        index_add(&mut index, &[0, 2, 3], 7);
-        index_add(&mut index, &[2], 1);
-        index_replace(&mut index, &[0, 2, 3], &[2, 4, 5], 7);
-        let lists: Vec<Vec<u32>> = index.iter().map(|l| l.to_vec()).collect();
-        assert_eq!(
-            lists,
-            [vec![], vec![], vec![1, 7], vec![], vec![7], vec![7]]
-        );
         let mut m = vec![2, 5, 9];
         assert_eq!(merge_sorted(&mut m, &[1, 5, 7, 12]), 3);
         assert_eq!(m, vec![1, 2, 5, 7, 9, 12]);

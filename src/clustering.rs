@@ -162,7 +162,7 @@ fn cover_edge<S: ClusterStore>(store: &mut S, a: u32, b: u32, max: usize) -> boo
     if share_a_cluster(store.clusters_of(a), store.clusters_of(b)) {
         return false;
     }
-    let size = |k: &S::Key| store.members(*k).len();
+    let size = |k: &u32| store.members(*k).len();
     let roomy = |p: u32, other: u32| {
         store
             .clusters_of(p)

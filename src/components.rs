@@ -4,7 +4,7 @@
 //! [`ClusterOf`], [`Stiffness`], and the body's [`ParticleClusters`] index. Tools:
 //! [`Tool`], [`ToolPose`], [`ToolPath`].
 
-use crate::cluster_store::ClusterList;
+use crate::cluster_index::ClusterIndex;
 use crate::config::Material;
 use crate::lattice::Lattice;
 use crate::tool::{Path, Pose, ToolShape};
@@ -65,9 +65,9 @@ pub struct BodyLattice {
 ///
 /// An index names the cluster entity that is alive with it (live entities never share
 /// an index): [`ParticleClusters::clusters_of`] resolves them. Four bytes per entry
-/// instead of an [`Entity`]'s eight keep the index at 40 B per particle.
+/// instead of an [`Entity`]'s eight keep the index at 32 B per particle.
 #[derive(Component, Clone, Debug, Default)]
-pub struct ParticleClusters(pub Vec<ClusterList<u32>>);
+pub struct ParticleClusters(pub ClusterIndex);
 
 impl ParticleClusters {
     /// The cluster entities that contain particle `p` (none for an index out of range).
@@ -77,9 +77,8 @@ impl ParticleClusters {
         entities: &'a Entities,
     ) -> impl Iterator<Item = Entity> + 'a {
         self.0
-            .get(p as usize)
-            .into_iter()
-            .flatten()
+            .clusters_of(p)
+            .iter()
             .map(|k| cluster_entity(entities, *k))
     }
 }

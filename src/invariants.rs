@@ -2,7 +2,6 @@
 //! member, every live particle covered, no isolated cluster, no oversized cluster; and
 //! the particle → clusters index in step with the member lists.
 
-use crate::cluster_store::ClusterList;
 use crate::graph::{body_pieces, is_connected};
 use crate::lattice::Lattice;
 use petgraph::unionfind::UnionFind;
@@ -136,13 +135,15 @@ pub fn check_body<'a>(
     out
 }
 
-/// Checks a particle → clusters index against the member lists it indexes: entry `p`
-/// must list, ascending and once each, the clusters whose members hold `p`.
-pub fn check_index<'a, K: Copy + Ord + 'a>(
-    clusters: impl IntoIterator<Item = (K, &'a [u32])>,
-    index: &[ClusterList<K>],
+/// Checks a particle → clusters index, given as each particle's list in particle order
+/// (e.g. [`crate::cluster_index::ClusterIndex::iter`]), against the member lists it
+/// indexes: entry `p` must list, ascending and once each, the clusters whose members
+/// hold `p`.
+pub fn check_index<'a, 'i>(
+    clusters: impl IntoIterator<Item = (u32, &'a [u32])>,
+    index: impl ExactSizeIterator<Item = &'i [u32]>,
 ) -> Vec<Violation> {
-    let mut expected: Vec<Vec<K>> = vec![Vec::new(); index.len()];
+    let mut expected: Vec<Vec<u32>> = vec![Vec::new(); index.len()];
     let mut out = Vec::new();
     for (k, members) in clusters {
         for &m in members {
@@ -215,21 +216,21 @@ mod tests {
     #[test]
     fn index_mismatches_are_detected() {
         let clusters: [(u32, &[u32]); 2] = [(0, &[0, 1]), (5, &[1, 2])];
-        let list = |ks: &[u32]| ClusterList::from_slice(ks);
+        let list = |ks: &'static [u32]| ks;
         let good = [list(&[0]), list(&[0, 5]), list(&[5])];
-        assert!(check_index(clusters, &good).is_empty());
+        assert!(check_index(clusters, good.into_iter()).is_empty());
         // a missing entry, an extra entry, the wrong order, a member beyond the index
         let missing = [list(&[0]), list(&[5]), list(&[5])];
         let extra = [list(&[0, 5]), list(&[0, 5]), list(&[5])];
         let unsorted = [list(&[0]), list(&[5, 0]), list(&[5])];
         for (bad, particle) in [(missing, 1), (extra, 0), (unsorted, 1)] {
             assert_eq!(
-                check_index(clusters, &bad),
+                check_index(clusters, bad.into_iter()),
                 vec![Violation::IndexMismatch { particle }]
             );
         }
         assert_eq!(
-            check_index([(0u32, &[0u32, 3][..])], &good[..1]),
+            check_index([(0u32, &[0u32, 3][..])], good[..1].iter().copied()),
             vec![Violation::IndexMismatch { particle: 3 }]
         );
     }

@@ -34,7 +34,9 @@ pub struct Lattice {
     dims: UVec3,
     grid: Vec<u32>,
     coords: Vec<IVec3>,
-    live: Vec<bool>,
+    /// Bit `i` set while particle `i` is live (a bit per particle keeps the flags of a
+    /// whole body in cache; a byte each would spread them over many lines).
+    live: Vec<u64>,
     live_count: usize,
     /// Grid cell of each particle.
     cell_of: Vec<u32>,
@@ -67,7 +69,7 @@ impl Lattice {
             min,
             dims,
             grid: vec![NO_PARTICLE; cells as usize],
-            live: vec![true; coords.len()],
+            live: live_bits(coords.len()),
             live_count: coords.len(),
             cell_of: vec![0; coords.len()],
             coords,
@@ -125,16 +127,23 @@ impl Lattice {
 
     /// Whether particle `i` exists and has not been removed.
     pub fn is_live(&self, i: u32) -> bool {
-        self.live.get(i as usize).copied().unwrap_or(false)
+        self.live
+            .get(i as usize / 64)
+            .is_some_and(|w| w >> (i % 64) & 1 != 0)
     }
 
     /// Iterator over live particle indices, ascending.
     pub fn live_particles(&self) -> impl Iterator<Item = u32> + '_ {
-        self.live
-            .iter()
-            .enumerate()
-            .filter(|(_, l)| **l)
-            .map(|(i, _)| i as u32)
+        self.live.iter().enumerate().flat_map(|(k, &word)| {
+            let mut w = word;
+            std::iter::from_fn(move || {
+                (w != 0).then(|| {
+                    let i = k as u32 * 64 + w.trailing_zeros();
+                    w &= w - 1;
+                    i
+                })
+            })
+        })
     }
 
     fn cell(&self, c: IVec3) -> Option<usize> {
@@ -211,6 +220,29 @@ impl Lattice {
         }
     }
 
+    /// The particle in the neighbour cell of particle `i` in direction `d` (an index
+    /// into [`NEIGHBOUR_OFFSETS`]), or [`NO_PARTICLE`]: one cell of
+    /// [`Lattice::neighbour_cells`], read alone (the six cells lie on up to five cache
+    /// lines).
+    ///
+    /// # Panics
+    /// If `d` is not below 6.
+    #[inline]
+    pub fn neighbour_cell(&self, i: u32, d: usize) -> u32 {
+        let (dx, dy) = (
+            self.dims.x as usize,
+            self.dims.x as usize * self.dims.y as usize,
+        );
+        let step = [1, 1, dx, dx, dy, dy][d];
+        let cell = self.cell_of[i as usize] as usize;
+        // the padding keeps every neighbour cell inside the grid
+        if d.is_multiple_of(2) {
+            self.grid[cell - step]
+        } else {
+            self.grid[cell + step]
+        }
+    }
+
     /// Removes particle `i`; returns false if it was not live.
     pub fn remove(&mut self, i: u32) -> bool {
         if !self.is_live(i) {
@@ -220,7 +252,7 @@ impl Lattice {
             .cell(self.coords[i as usize])
             .expect("live particle inside bounds");
         self.grid[cell] = NO_PARTICLE;
-        self.live[i as usize] = false;
+        self.live[i as usize / 64] &= !(1 << (i % 64));
         self.live_count -= 1;
         true
     }
@@ -311,6 +343,17 @@ impl Lattice {
         out.sort_unstable();
         out
     }
+}
+
+/// Live flags of `n` particles, all set.
+fn live_bits(n: usize) -> Vec<u64> {
+    let mut bits = vec![u64::MAX; n.div_ceil(64)];
+    if !n.is_multiple_of(64)
+        && let Some(last) = bits.last_mut()
+    {
+        *last = (1 << (n % 64)) - 1;
+    }
+    bits
 }
 
 /// A signed-distance function (negative inside) with the box that bounds its inside.
@@ -689,6 +732,8 @@ mod tests {
                 .filter(|n| *n != NO_PARTICLE)
                 .collect();
             assert_eq!(cells, expected);
+            let one_by_one: Vec<u32> = (0..6).map(|d| l.neighbour_cell(i, d)).collect();
+            assert_eq!(one_by_one, l.neighbour_cells(i));
         }
     }
 

@@ -12,6 +12,8 @@
 #![warn(missing_docs)]
 
 pub mod bench;
+pub mod cluster_edits;
+pub mod cluster_index;
 pub mod cluster_store;
 pub mod clustering;
 pub mod components;

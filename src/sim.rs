@@ -1,7 +1,7 @@
 //! `Simulation`: a World plus the cleave schedules, for headless use; body and tool
 //! descriptions; `check_invariants` over a World.
 
-use crate::cluster_store::ClusterList;
+use crate::cluster_index::ClusterIndex;
 use crate::clustering::initial_clusters;
 use crate::components::*;
 use crate::config::{Material, SimConfig};
@@ -223,7 +223,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     for (&i, e) in order.iter().zip(spawned) {
         particles[i as usize] = e;
     }
-    let mut index = vec![ClusterList::<u32>::new(); lattice.len()];
+    let mut index = ClusterIndex::new(lattice.len());
     for (_, members) in table.iter() {
         let e = world
             .spawn((
@@ -232,7 +232,9 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
                 Stiffness(desc.material.stiffness),
             ))
             .id();
-        crate::cluster_store::index_add(&mut index, members, e.index_u32());
+        for &m in members {
+            index.add(m, e.index_u32());
+        }
     }
     let pieces = lattice.piece_count();
     world.entity_mut(body).insert((
@@ -270,7 +272,7 @@ pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
         let clusters = clusters_by_body.remove(&e).unwrap_or_default();
         if let Some(index) = index {
             let keyed = clusters.iter().map(|(k, m)| (k.index_u32(), *m));
-            let violations = check_index(keyed, &index.0);
+            let violations = check_index(keyed, index.0.iter());
             out.extend(violations.into_iter().map(|v| (e, v)));
         }
         for v in check_body(

@@ -28,9 +28,7 @@ pub fn cut(
             if body.lattice.remove(p) {
                 removed.push(p);
                 commands.entity(body.particles[p as usize]).despawn();
-                if let Some(list) = index.0.get(p as usize) {
-                    cut_clusters.extend(list.iter().copied());
-                }
+                cut_clusters.extend_from_slice(index.0.clusters_of(p));
             }
         }
         if removed.is_empty() {

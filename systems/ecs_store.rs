@@ -5,9 +5,9 @@
 //! by [`EcsClusterStore::finish`]. [`BodyClusters`] is the system parameter the
 //! reconstruction stages open a body's store from.
 
-use crate::cluster_store::{
-    ClusterList, ClusterStore, index_add, index_remove, index_replace, merge_sorted, normalise,
-};
+use crate::cluster_edits::{ClusterEdits, diff_into};
+use crate::cluster_index::ClusterIndex;
+use crate::cluster_store::{ClusterStore, extend_members};
 use crate::components::{
     Body, BodyLattice, ClusterMembers, ClusterOf, ParticleClusters, Stiffness, cluster_entity,
 };
@@ -62,7 +62,7 @@ impl<'w, 's> BodyClusters<'w, 's> {
 pub struct EcsClusterStore<'a, 'w, 's> {
     body: Entity,
     stiffness: f32,
-    index: &'a mut Vec<ClusterList<u32>>,
+    index: &'a mut ClusterIndex,
     entities: &'a Entities,
     clusters: &'a mut Query<'w, 's, &'static mut ClusterMembers>,
     commands: &'a mut Commands<'w, 's>,
@@ -103,9 +103,7 @@ impl EcsClusterStore<'_, '_, '_> {
 }
 
 impl ClusterStore for EcsClusterStore<'_, '_, '_> {
-    type Key = u32;
-
-    fn particle_index(&self) -> &[ClusterList<u32>] {
+    fn index(&self) -> &ClusterIndex {
         self.index
     }
 
@@ -116,58 +114,59 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_> {
         stored_members(&self.created, self.clusters, self.entities, k)
     }
 
-    fn set_members(&mut self, k: u32, members: Vec<u32>) {
-        let members = normalise(members);
-        if let Some((_, m)) = self.created.get_mut(&k) {
-            index_replace(self.index, m, &members, k);
-            *m = members;
-        } else if !self.removed.contains(&k)
-            && let Ok(mut m) = self.clusters.get_mut(cluster_entity(self.entities, k))
-        {
-            index_replace(self.index, &m.0, &members, k);
-            m.0 = members;
-        }
-    }
-
-    fn add_members(&mut self, k: u32, extra: &[u32]) {
-        let new = if let Some((_, m)) = self.created.get_mut(&k) {
-            merge_sorted(m, extra)
-        } else if let Ok(mut m) = self.clusters.get_mut(cluster_entity(self.entities, k)) {
-            // marked changed only when it did change: the solver layout re-reads changed
-            // clusters
-            let new = merge_sorted(&mut m.bypass_change_detection().0, extra);
-            if new > 0 {
-                m.set_changed();
+    fn apply(&mut self, edits: &ClusterEdits) -> Vec<u32> {
+        let mut changes = Vec::new();
+        for (k, members) in edits.replaced() {
+            if let Some((_, m)) = self.created.get_mut(&k) {
+                diff_into(m, members, k, &mut changes);
+                m.clear();
+                m.extend_from_slice(members);
+            } else if !self.removed.contains(&k)
+                && let Ok(mut m) = self.clusters.get_mut(cluster_entity(self.entities, k))
+            {
+                diff_into(&m.0, members, k, &mut changes);
+                m.0.clear();
+                m.0.extend_from_slice(members);
             }
-            new
-        } else {
-            return;
-        };
-        if new > 0 {
-            index_add(self.index, extra, k);
         }
-    }
-
-    fn create(&mut self, members: Vec<u32>) -> u32 {
-        let members = normalise(members);
-        let e = self.commands.spawn_empty().id();
-        let k = e.index_u32();
-        index_add(self.index, &members, k);
-        self.created.insert(k, (e, members));
-        k
-    }
-
-    fn remove(&mut self, k: u32) {
-        if self.removed.contains(&k) {
-            return;
+        for (k, extra) in edits.extended() {
+            if let Some((_, m)) = self.created.get_mut(&k) {
+                extend_members(m, extra, k, &mut changes);
+            } else if !self.removed.contains(&k)
+                && let Ok(mut m) = self.clusters.get_mut(cluster_entity(self.entities, k))
+            {
+                // marked changed only when it did change: the solver layout re-reads
+                // changed clusters
+                let before = changes.len();
+                extend_members(&mut m.bypass_change_detection().0, extra, k, &mut changes);
+                if changes.len() > before {
+                    m.set_changed();
+                }
+            }
         }
-        // (the member list and the index are separate fields: no copy of the list)
-        let members = stored_members(&self.created, self.clusters, self.entities, k);
-        index_remove(self.index, members, k);
-        let e = self.entity(k);
-        self.created.remove(&k);
-        self.removed.insert(k);
-        self.commands.entity(e).despawn();
+        for &k in edits.removed() {
+            if self.removed.contains(&k) {
+                continue;
+            }
+            let members = stored_members(&self.created, self.clusters, self.entities, k);
+            diff_into(members, &[], k, &mut changes);
+            let e = self.entity(k);
+            self.created.remove(&k);
+            self.removed.insert(k);
+            self.commands.entity(e).despawn();
+        }
+        let created = edits
+            .created()
+            .map(|members| {
+                let e = self.commands.spawn_empty().id();
+                let k = e.index_u32();
+                diff_into(&[], members, k, &mut changes);
+                self.created.insert(k, (e, members.to_vec()));
+                k
+            })
+            .collect();
+        self.index.apply(&changes);
+        created
     }
 }
 

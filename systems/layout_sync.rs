@@ -2,7 +2,7 @@
 //! rebuild when bodies appear or vanish, otherwise a patch of only the clusters that
 //! changed (after a cut) and the particles that were cut.
 
-use crate::cluster_store::ClusterList;
+use crate::cluster_index::ClusterIndex;
 use crate::components::*;
 use crate::config::SolverMode;
 use crate::lattice::Lattice;
@@ -34,7 +34,7 @@ pub struct LayoutChanges<'a, 'c> {
     /// Each body's particle → clusters index, sorted by body: the clusters whose Jacobi
     /// weights a patch changes are found from it instead of by a pass over every
     /// membership of the layout.
-    pub indices: Vec<(Entity, &'c [ClusterList<u32>])>,
+    pub indices: Vec<(Entity, &'c ClusterIndex)>,
     /// Resolves the cluster entity indices that `indices` lists.
     pub entities: &'c Entities,
 }
@@ -208,7 +208,7 @@ struct KeptClusters<'a> {
     body_dense: &'a [BodyDense],
     clusters: &'a [Entity],
     slot_of: &'a ClusterSlots,
-    indices: &'a [(Entity, &'a [ClusterList<u32>])],
+    indices: &'a [(Entity, &'a ClusterIndex)],
     entities: &'a Entities,
 }
 
@@ -220,7 +220,7 @@ impl KeptClusters<'_> {
     fn holding(&self, particles: &[u32]) -> Vec<u32> {
         let mut found = Vec::new();
         // (a cut touches one body, or a few: its index is looked up again only on a change)
-        let mut body_index: Option<(Entity, &[ClusterList<u32>])> = None;
+        let mut body_index: Option<(Entity, &ClusterIndex)> = None;
         for &d in particles {
             let Some((body, local)) = dense_owner(self.locals, self.body_dense, d as usize) else {
                 continue;
@@ -232,9 +232,10 @@ impl KeptClusters<'_> {
                     .ok()
                     .map(|i| self.indices[i]);
             }
-            let Some(list) = body_index.and_then(|(_, index)| index.get(local as usize)) else {
+            let Some((_, index)) = body_index else {
                 continue;
             };
+            let list = index.clusters_of(local);
             found.extend(list.iter().filter_map(|k| {
                 let e = cluster_entity(self.entities, *k);
                 self.slot_of.get(e, self.clusters)

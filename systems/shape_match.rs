@@ -68,7 +68,7 @@ pub fn shape_match(
             clusters: changed_clusters.iter().collect(),
             removed: &removed,
             indices: {
-                let mut list: Vec<_> = indices.iter().map(|(b, i)| (b, i.0.as_slice())).collect();
+                let mut list: Vec<_> = indices.iter().map(|(b, i)| (b, &i.0)).collect();
                 list.sort_unstable_by_key(|(b, _)| *b);
                 list
             },

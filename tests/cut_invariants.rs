@@ -133,7 +133,7 @@ proptest! {
             let v = violations(&table, &lattice, max);
             prop_assert!(v.is_empty(), "after {:?}: {:?}", cut, v);
             // the particle index the merges read stays in step with the members
-            let v = check_index(table.iter(), table.particle_index());
+            let v = check_index(table.iter(), table.index().iter());
             prop_assert!(v.is_empty(), "index after {:?}: {:?}", cut, v);
             // the stronger invariant the local repair relies on: every edge covered
             prop_assert_eq!(uncovered_edges(&table, &lattice), Vec::<(u32, u32)>::new());

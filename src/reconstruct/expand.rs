@@ -9,6 +9,7 @@
 //! where a draw costs one lookup; a cluster with few adjacent particles (the draws keep
 //! missing) is still served by the list, uniformly.
 
+use crate::cluster_edits::ClusterEdits;
 use crate::cluster_store::ClusterStore;
 use crate::graph::{adjacent_particles, position_in};
 use crate::lattice::{Lattice, NO_PARTICLE};
@@ -31,7 +32,7 @@ const DRAWS_PER_PARTICLE: usize = 16;
 pub fn expand_clusters<S: ClusterStore>(
     store: &mut S,
     lattice: &Lattice,
-    keys: &[S::Key],
+    keys: &[u32],
     count: usize,
     max: usize,
     rng: &mut impl Rng,
@@ -39,13 +40,13 @@ pub fn expand_clusters<S: ClusterStore>(
     if count == 0 {
         return 0;
     }
-    let growing: Vec<(S::Key, &[u32], u64)> = keys
+    let growing: Vec<(u32, &[u32], u64)> = keys
         .iter()
         .map(|k| (*k, store.members(*k)))
         .filter(|(_, m)| m.len() < max)
         .map(|(k, m)| (k, m, rng.random()))
         .collect();
-    let additions: Vec<(S::Key, Vec<u32>)> = growing
+    let additions: Vec<(u32, Vec<u32>)> = growing
         .into_par_iter()
         .with_min_len(32)
         .map(|(k, members, seed)| {
@@ -62,12 +63,12 @@ pub fn expand_clusters<S: ClusterStore>(
             (k, extra)
         })
         .collect();
-    let mut added = 0;
-    for (k, extra) in additions {
-        added += extra.len();
-        store.add_members(k, &extra);
+    let mut edits = ClusterEdits::default();
+    for (k, extra) in &additions {
+        edits.extend(*k, extra);
     }
-    added
+    store.apply(&edits);
+    additions.iter().map(|(_, extra)| extra.len()).sum()
 }
 
 /// `take` distinct adjacent particles of the sorted `members`, each found by
@@ -92,7 +93,7 @@ fn draw_adjacent(
             break;
         }
         let pair = rng.random_range(0..pairs) as usize;
-        let n = lattice.neighbour_cells(members[pair / 6])[pair % 6];
+        let n = lattice.neighbour_cell(members[pair / 6], pair % 6);
         if n != NO_PARTICLE && position_in(members, n).is_none() && !drawn.contains(&n) {
             drawn.push(n);
         }

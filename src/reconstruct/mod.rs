@@ -6,6 +6,7 @@
 //! [`rebuild_after_cut`] runs all four in order, as the ECS stages do one per system.
 
 pub mod expand;
+pub mod local;
 pub mod pca;
 pub mod regroup;
 pub mod split;
@@ -26,10 +27,10 @@ use rand::Rng;
 pub fn rebuild_after_cut<S: ClusterStore>(
     store: &mut S,
     lattice: &Lattice,
-    cut_clusters: &[S::Key],
+    cut_clusters: &[u32],
     material: &Material,
     rng: &mut impl Rng,
-) -> Vec<S::Key> {
+) -> Vec<u32> {
     let max = material.max_cluster_size as usize;
     let produced = regroup(store, lattice, cut_clusters, rng);
     let split = split_oversized(store, lattice, &produced, max, rng);

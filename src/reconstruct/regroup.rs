@@ -1,54 +1,236 @@
 //! SPEC §3.1–3.2: cut clusters fall into pieces (connected components of their live
 //! members); each piece merges into a random cluster of one of its adjacent particles,
 //! or stays as an independent cluster when it has been cut off the body.
+//!
+//! The work is split by what it reads. The pieces and their neighbours only read the
+//! clusters as the cut left them and the lattice, so they are found in parallel; the
+//! merge choices draw from the one random stream, piece by piece in order; the merged
+//! member lists are unions, computed in parallel; and the store applies every edit at
+//! once. A piece that merges away is never written as a cluster of its own.
 
+use super::local::LocalGraph;
+use crate::cluster_edits::ClusterEdits;
+use crate::cluster_index::ClusterIndex;
 use crate::cluster_store::ClusterStore;
-use crate::graph::{connected_components, position_in};
-use crate::lattice::Lattice;
+use crate::lattice::{Lattice, NO_PARTICLE};
 use rand::Rng;
 use rayon::prelude::*;
-use rustc_hash::{FxHashMap, FxHashSet};
+use rustc_hash::FxHashMap;
 use smallvec::SmallVec;
 
-/// Particles adjacent to a sorted member set (not in it), in member order then lattice
-/// neighbour order; a particle may appear more than once.
-pub fn adjacent_in_order<'a>(
-    members: &'a [u32],
+/// "None" among piece numbers, particles and labels.
+const NONE: u32 = u32::MAX;
+
+/// Cut clusters per parallel task.
+const CUT_PER_TASK: usize = 64;
+
+/// Merge groups per parallel task.
+const GROUPS_PER_TASK: usize = 64;
+
+/// One piece of a cut cluster (§3.1).
+#[derive(Clone, Copy, Debug)]
+struct Piece {
+    /// Its members, ascending: `particles[start..end]` of its [`Pieces`].
+    span: [u32; 2],
+    /// Its first adjacent particle — members in order, each one's lattice directions in
+    /// order — that belongs to a cluster the cut left intact; `NONE` if there is none.
+    intact_neighbour: u32,
+}
+
+/// The pieces of a run of cut clusters, back to back.
+#[derive(Default)]
+struct Pieces {
+    particles: Vec<u32>,
+    pieces: Vec<Piece>,
+    /// Per cut cluster, its number of pieces (in order).
+    counts: Vec<u32>,
+}
+
+impl Pieces {
+    fn members(&self, p: usize) -> &[u32] {
+        let [start, end] = self.pieces[p].span;
+        &self.particles[start as usize..end as usize]
+    }
+
+    /// Appends `other`'s pieces after these.
+    fn append(&mut self, other: Pieces) {
+        let offset = self.particles.len() as u32;
+        self.particles.extend_from_slice(&other.particles);
+        self.pieces.extend(other.pieces.into_iter().map(|p| Piece {
+            span: p.span.map(|s| s + offset),
+            ..p
+        }));
+        self.counts.extend_from_slice(&other.counts);
+    }
+}
+
+/// What the search for pieces reads: the lattice, the particle → clusters index and the
+/// cut clusters (ascending).
+struct CutView<'a> {
     lattice: &'a Lattice,
-) -> impl Iterator<Item = u32> + 'a {
-    members
-        .iter()
-        .flat_map(|m| lattice.neighbours(*m))
-        .filter(|n| position_in(members, *n).is_none())
+    index: &'a ClusterIndex,
+    cut: &'a [u32],
 }
 
-/// Per piece of one cut cluster, its first adjacent particle (in the order of
-/// [`adjacent_in_order`]) that belongs to a cluster the cut left intact.
-type IntactNeighbours = SmallVec<[Option<u32>; 2]>;
+impl CutView<'_> {
+    /// Position of `k` among the cut clusters, if it is one.
+    fn cut_position(&self, k: u32) -> Option<usize> {
+        self.cut.binary_search(&k).ok()
+    }
 
-/// The merge forest of §3.2 over local node numbers: the pending clusters are nodes
-/// `0..pending`, clusters the cut left intact become nodes when first chosen as a target
-/// (they never merge on, so they stay roots).
-struct MergeForest<K> {
-    node_of: FxHashMap<K, u32>,
-    key: Vec<K>,
-    parent: Vec<u32>,
+    /// Whether particle `a` belongs to a cluster the cut left intact.
+    fn in_intact_cluster(&self, a: u32) -> bool {
+        self.index
+            .clusters_of(a)
+            .iter()
+            .any(|k| self.cut_position(*k).is_none())
+    }
 }
 
-impl<K: Copy + Eq + std::hash::Hash> MergeForest<K> {
-    fn new(pending: &[K]) -> Self {
-        Self {
-            node_of: pending
+/// Buffers one task reuses from cut cluster to cut cluster.
+#[derive(Default)]
+struct PieceScratch {
+    live: Vec<u32>,
+    graph: LocalGraph,
+    /// Per vertex its piece (the sentinel's slot reads as already labelled).
+    label: Vec<u32>,
+    stack: Vec<u32>,
+    /// Vertices grouped by piece, in vertex order inside each.
+    by_piece: Vec<u32>,
+    piece_start: Vec<u32>,
+}
+
+impl PieceScratch {
+    /// Appends the pieces of the cut cluster with `members` (ascending) to `out`.
+    fn find(&mut self, members: &[u32], view: &CutView, out: &mut Pieces) {
+        let lattice = view.lattice;
+        self.live.clear();
+        self.live
+            .extend(members.iter().copied().filter(|m| lattice.is_live(*m)));
+        let n = self.live.len();
+        self.graph.build(&self.live, lattice);
+        let count = self.label_pieces();
+        out.counts.push(count as u32);
+        // vertices by piece (a counting sort: pieces number in order of their smallest
+        // vertex, vertices stay in order inside each)
+        let Self {
+            live,
+            graph,
+            label,
+            by_piece,
+            piece_start,
+            ..
+        } = self;
+        piece_start.clear();
+        piece_start.resize(count + 1, 0);
+        for l in &label[..n] {
+            piece_start[*l as usize + 1] += 1;
+        }
+        for c in 0..count {
+            piece_start[c + 1] += piece_start[c];
+        }
+        by_piece.clear();
+        by_piece.resize(n, 0);
+        let mut next = piece_start.clone();
+        for (v, l) in label[..n].iter().enumerate() {
+            by_piece[next[*l as usize] as usize] = v as u32;
+            next[*l as usize] += 1;
+        }
+        for c in 0..count {
+            let vertices = &by_piece[piece_start[c] as usize..piece_start[c + 1] as usize];
+            let start = out.particles.len() as u32;
+            out.particles
+                .extend(vertices.iter().map(|v| live[*v as usize]));
+            // the first adjacent particle in an intact cluster: a direction without a
+            // live member of the cluster leads out of the piece
+            let intact_neighbour = vertices
                 .iter()
-                .enumerate()
-                .map(|(i, k)| (*k, i as u32))
-                .collect(),
-            key: pending.to_vec(),
-            parent: (0..pending.len() as u32).collect(),
+                .flat_map(|&v| {
+                    let m = live[v as usize];
+                    let row = graph.row(v as usize);
+                    (0..6)
+                        .filter(move |d| row[*d] as usize == n)
+                        .map(move |d| lattice.neighbour_cell(m, d))
+                })
+                .find(|a| *a != NO_PARTICLE && view.in_intact_cluster(*a))
+                .unwrap_or(NONE);
+            out.pieces.push(Piece {
+                span: [start, out.particles.len() as u32],
+                intact_neighbour,
+            });
         }
     }
 
-    /// Root node of `node`, with path halving.
+    /// Labels the vertices of `graph` with their connected component, components
+    /// numbered in order of their smallest vertex; returns how many there are.
+    fn label_pieces(&mut self) -> usize {
+        const UNSEEN: u32 = NONE;
+        let n = self.graph.len();
+        let Self {
+            graph,
+            label,
+            stack,
+            ..
+        } = self;
+        label.clear();
+        label.resize(n, UNSEEN);
+        // the sentinel reads as labelled: it is never pushed
+        label.push(NONE - 1);
+        // Every vertex is pushed once, and a visit writes one slot past the top: each
+        // neighbour is labelled and pushed without a branch, and kept only if unseen.
+        stack.clear();
+        stack.resize(n + 1, 0);
+        let mut count = 0;
+        for start in 0..n {
+            if label[start] != UNSEEN {
+                continue;
+            }
+            label[start] = count;
+            stack[0] = start as u32;
+            let mut top = 1;
+            while top > 0 {
+                top -= 1;
+                for &w in graph.row(stack[top] as usize) {
+                    let unseen = label[w as usize] == UNSEEN;
+                    label[w as usize] = if unseen { count } else { label[w as usize] };
+                    stack[top] = w;
+                    top += usize::from(unseen);
+                }
+            }
+            count += 1;
+        }
+        count as usize
+    }
+}
+
+/// A cluster a piece can merge into: another piece (its number) or a cluster the cut
+/// left intact.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Candidate {
+    Piece(u32),
+    Intact(u32),
+}
+
+/// The merge forest of §3.2: pieces are nodes `0..pieces`; a cluster the cut left intact
+/// becomes a node when first chosen (it never merges on, so it stays a root).
+struct MergeForest {
+    parent: Vec<u32>,
+    pieces: usize,
+    intact: Vec<u32>,
+    node_of_intact: FxHashMap<u32, u32>,
+}
+
+impl MergeForest {
+    fn new(pieces: usize) -> Self {
+        Self {
+            parent: (0..pieces as u32).collect(),
+            pieces,
+            intact: Vec::new(),
+            node_of_intact: FxHashMap::default(),
+        }
+    }
+
+    /// Root of `node`, with path halving.
     fn find(&mut self, mut node: u32) -> u32 {
         while self.parent[node as usize] != node {
             let grand = self.parent[self.parent[node as usize] as usize];
@@ -58,187 +240,232 @@ impl<K: Copy + Eq + std::hash::Hash> MergeForest<K> {
         node
     }
 
-    /// Root node of cluster `k`; `None` for an intact cluster that is not a node yet
-    /// (its own root, different from every node's).
-    fn root_of(&mut self, k: K) -> Option<u32> {
-        let node = *self.node_of.get(&k)?;
-        Some(self.find(node))
+    /// Merges the root piece `own` into `target`.
+    fn merge(&mut self, own: u32, target: Candidate) {
+        let node = match target {
+            Candidate::Piece(q) => self.find(q),
+            Candidate::Intact(k) => {
+                let next = self.parent.len() as u32;
+                let node = *self.node_of_intact.entry(k).or_insert(next);
+                if node == next {
+                    self.parent.push(next);
+                    self.intact.push(k);
+                }
+                node
+            }
+        };
+        self.parent[own as usize] = node;
     }
 
-    /// The node of `k`, created for an intact cluster on first use.
-    fn node(&mut self, k: K) -> u32 {
-        let next = self.key.len() as u32;
-        let node = *self.node_of.entry(k).or_insert(next);
-        if node == next {
-            self.key.push(k);
-            self.parent.push(next);
-        }
-        node
+    /// The intact cluster of a root node, or `None` for a piece.
+    fn intact_key(&self, root: u32) -> Option<u32> {
+        (root as usize >= self.pieces).then(|| self.intact[root as usize - self.pieces])
     }
 }
 
 /// Replaces every cut cluster by its pieces, then merges each piece into a neighbour
 /// cluster (SPEC §3.2). Returns the clusters this produced — the neighbour clusters that
-/// received a merge and the independent pieces — sorted and without duplicates.
+/// received a merge and the pieces that remain clusters — ascending, without duplicates.
 ///
-/// The pieces of all cut clusters are found in parallel (they only read the lattice);
-/// everything that draws from `rng` runs in cluster order, so the result does not
-/// depend on the thread count. Merges are recorded in a union–find over clusters and the
-/// members are moved once at the end, so a chain of merges (a piece merging into a
-/// pending cluster that later merges on, which §3.2 allows) costs its total size, not its
-/// length × size. A piece looks for its adjacent particle around its own members;
-/// particles of pieces already merged into it count as its members, not as neighbours.
+/// The adjacent particle a piece merges through is its first one in a cluster the cut
+/// left intact, else the first one with a cluster outside the piece's merge set (§3.2
+/// leaves the choice open; preferring intact neighbours keeps chains of merges between
+/// pieces, and the giant clusters they make, rare). The candidate clusters are the
+/// clusters of that particle as the cut left them, a cut cluster standing for its piece
+/// that holds the particle, minus the piece's own merge set. Everything that draws from
+/// `rng` runs in piece order, so the result does not depend on the thread count.
 pub fn regroup<S: ClusterStore>(
     store: &mut S,
     lattice: &Lattice,
-    cut_clusters: &[S::Key],
+    cut_clusters: &[u32],
     rng: &mut impl Rng,
-) -> Vec<S::Key> {
-    let mut cut: Vec<S::Key> = cut_clusters.to_vec();
+) -> Vec<u32> {
+    let mut cut: Vec<u32> = cut_clusters.to_vec();
     cut.sort_unstable();
     cut.dedup();
-    // 3.1: pending clusters, and for each the adjacent particle in an intact cluster
-    // (see below). Both only read the clusters, so they are found in parallel; a piece
-    // sees the index before the cut clusters are replaced by their pieces, which holds
-    // the same intact clusters.
-    let found: Vec<(Vec<Vec<u32>>, IntactNeighbours)> = {
+    // 3.1: the pieces of every cut cluster, and their intact neighbours.
+    let pieces = {
         let lists: Vec<&[u32]> = cut.iter().map(|k| store.members(*k)).collect();
-        let index = store.particle_index();
-        let cut_set: FxHashSet<S::Key> = cut.iter().copied().collect();
-        lists
-            .par_iter()
-            .with_min_len(64)
-            .map(|members| {
-                let pieces = connected_components(members, lattice);
-                let intact = pieces
-                    .iter()
-                    .map(|piece| {
-                        adjacent_in_order(piece, lattice).find(|a| {
-                            index
-                                .get(*a as usize)
-                                .is_some_and(|l| l.iter().any(|k| !cut_set.contains(k)))
-                        })
-                    })
-                    .collect();
-                (pieces, intact)
-            })
-            .collect()
-    };
-    // The first piece keeps the cut cluster's handle, but its list is written only once
-    // its fate is known: a piece that merges away is never written back. Until then the
-    // index still lists the handle for all of the cut cluster's old members, so
-    // `holds_now` reads it as the piece. Later pieces become clusters now.
-    let mut pending = Vec::with_capacity(cut.len());
-    let mut unwritten: Vec<Option<Vec<u32>>> = Vec::with_capacity(cut.len());
-    let mut intact_neighbour = Vec::with_capacity(cut.len());
-    for (k, (pieces, intact)) in cut.into_iter().zip(found) {
-        intact_neighbour.extend(intact);
-        let mut pieces = pieces.into_iter();
-        match pieces.next() {
-            Some(first) => {
-                pending.push(k);
-                unwritten.push(Some(first));
-            }
-            None => store.remove(k),
-        }
-        for piece in pieces {
-            pending.push(store.create(piece));
-            unwritten.push(None);
-        }
-    }
-    let first_piece: FxHashMap<S::Key, usize> = pending
-        .iter()
-        .zip(&unwritten)
-        .enumerate()
-        .filter(|(_, (_, piece))| piece.is_some())
-        .map(|(node, (k, _))| (*k, node))
-        .collect();
-    // Whether cluster `k`, listed in the index for live particle `a`, holds `a` now.
-    let holds_now = |k: &S::Key, a: u32, unwritten: &[Option<Vec<u32>>]| {
-        first_piece.get(k).is_none_or(|node| {
-            unwritten[*node]
-                .as_ref()
-                .is_none_or(|piece| piece.binary_search(&a).is_ok())
-        })
-    };
-    // 3.2: choose every merge first, over the merge forest.
-    let mut forest = MergeForest::new(&pending);
-    let mut merged: Vec<u32> = Vec::new();
-    for (own, &p) in pending.iter().enumerate() {
-        let chosen = intact_neighbour[own];
-        let members = unwritten[own]
-            .as_deref()
-            .unwrap_or_else(|| store.members(p));
-        let own = forest.find(own as u32);
-        // The adjacent particle: the first one that belongs to a cluster the cut left
-        // intact, else the first one with any cluster outside this piece's merge set.
-        // (§3.2 leaves the choice open; preferring intact neighbours keeps chains of
-        // merges between pending clusters, and the giant clusters they make, rare.)
-        let fallback = match chosen {
-            Some(_) => None,
-            None => adjacent_in_order(members, lattice).find(|a| {
-                store
-                    .clusters_of(*a)
-                    .iter()
-                    .any(|k| holds_now(k, *a, &unwritten) && forest.root_of(*k) != Some(own))
-            }),
+        let view = CutView {
+            lattice,
+            index: store.index(),
+            cut: &cut,
         };
-        let target = chosen.or(fallback).and_then(|a| {
-            let candidates: SmallVec<[S::Key; 8]> = store
-                .clusters_of(a)
-                .iter()
-                .copied()
-                .filter(|k| holds_now(k, a, &unwritten) && forest.root_of(*k) != Some(own))
-                .collect();
-            (!candidates.is_empty()).then(|| candidates[rng.random_range(0..candidates.len())])
-        });
-        if let Some(t) = target {
-            let target_node = forest.node(t);
-            let root = forest.find(target_node);
-            forest.parent[own as usize] = root;
-            merged.push(own);
+        let found: Vec<Pieces> = lists
+            .par_chunks(CUT_PER_TASK)
+            .map_init(PieceScratch::default, |scratch, lists| {
+                let mut out = Pieces::default();
+                for members in lists {
+                    scratch.find(members, &view, &mut out);
+                }
+                out
+            })
+            .collect();
+        let mut all = Pieces::default();
+        for chunk in found {
+            all.append(chunk);
         }
+        all
+    };
+    // first piece of each cut cluster
+    let mut first = Vec::with_capacity(cut.len() + 1);
+    first.push(0u32);
+    for c in &pieces.counts {
+        first.push(first.last().copied().unwrap_or(0) + c);
     }
-    // Write the first pieces that stay (they may receive merges), then move every merged
-    // piece into its final cluster, once, root by root.
-    let mut merges_away = vec![false; pending.len()];
-    for &p in &merged {
-        merges_away[p as usize] = true;
-    }
-    for (node, piece) in unwritten.iter_mut().enumerate() {
-        if !merges_away[node]
-            && let Some(piece) = piece.take()
-        {
-            store.set_members(pending[node], piece);
-        }
-    }
-    let mut moves: Vec<(u32, u32)> = merged.iter().map(|&p| (forest.find(p), p)).collect();
-    moves.sort_unstable();
-    let mut incoming: Vec<u32> = Vec::new();
-    for group in moves.chunk_by(|a, b| a.0 == b.0) {
-        incoming.clear();
-        for &(_, p) in group {
-            let key = pending[p as usize];
-            match &unwritten[p as usize] {
-                Some(piece) => incoming.extend_from_slice(piece),
-                None => incoming.extend_from_slice(store.members(key)),
+    // 3.2: every merge, chosen in piece order over the merge forest.
+    let forest = choose_merges(store, lattice, &cut, &pieces, &first, rng);
+    // The merged member lists, group by group, then one batch of edits.
+    let mut forest = forest;
+    let mut groups: Vec<(u32, u32)> = (0..pieces.pieces.len() as u32)
+        .map(|p| (forest.find(p), p))
+        .collect();
+    groups.sort_unstable();
+    let groups: Vec<&[(u32, u32)]> = groups.chunk_by(|a, b| a.0 == b.0).collect();
+    let unions: Vec<(Vec<u32>, Vec<[u32; 2]>)> = groups
+        .par_chunks(GROUPS_PER_TASK)
+        .map(|groups| {
+            let (mut particles, mut spans) = (Vec::new(), Vec::with_capacity(groups.len()));
+            for group in groups {
+                let start = particles.len();
+                for (_, p) in *group {
+                    particles.extend_from_slice(pieces.members(*p as usize));
+                }
+                if group.len() > 1 {
+                    let len = sort_dedup(&mut particles[start..]);
+                    particles.truncate(start + len);
+                }
+                spans.push([start as u32, particles.len() as u32]);
             }
-            store.remove(key);
-        }
-        incoming.sort_unstable();
-        incoming.dedup();
-        store.add_members(forest.key[group[0].0 as usize], &incoming);
-    }
-    let mut produced: Vec<S::Key> = (0..pending.len() as u32)
-        .map(|p| {
-            let root = forest.find(p);
-            forest.key[root as usize]
+            (particles, spans)
         })
         .collect();
+    let owner_of_piece = |p: u32| first.partition_point(|f| *f <= p) - 1;
+    let mut edits = ClusterEdits::default();
+    let mut produced = Vec::with_capacity(groups.len());
+    let mut kept = vec![false; cut.len()];
+    // (created clusters are listed by their position among the creations)
+    let mut created_positions = Vec::new();
+    let lists = unions.iter().flat_map(|(particles, spans)| {
+        spans
+            .iter()
+            .map(move |[s, e]| &particles[*s as usize..*e as usize])
+    });
+    for (group, members) in groups.iter().zip(lists) {
+        let root = group[0].0;
+        match forest.intact_key(root) {
+            Some(k) => {
+                edits.extend(k, members);
+                produced.push(k);
+            }
+            None => {
+                let c = owner_of_piece(root);
+                if first[c] == root {
+                    kept[c] = true;
+                    edits.replace(cut[c], members);
+                    produced.push(cut[c]);
+                } else {
+                    created_positions.push(produced.len());
+                    edits.create(members);
+                    // a placeholder until the store names it
+                    produced.push(cut[c]);
+                }
+            }
+        }
+    }
+    for (c, k) in cut.iter().enumerate() {
+        if !kept[c] {
+            edits.remove(*k);
+        }
+    }
+    let created = store.apply(&edits);
+    for (position, k) in created_positions.into_iter().zip(created) {
+        produced[position] = k;
+    }
     produced.sort_unstable();
     produced.dedup();
-    produced.retain(|k| !store.members(*k).is_empty());
     produced
+}
+
+/// Sorts `list` and moves its distinct values to the front; returns how many there are.
+fn sort_dedup(list: &mut [u32]) -> usize {
+    list.sort_unstable();
+    let mut len = 0;
+    for r in 0..list.len() {
+        if len == 0 || list[r] != list[len - 1] {
+            list[len] = list[r];
+            len += 1;
+        }
+    }
+    len
+}
+
+/// §3.2's choices, in piece order: each piece's adjacent particle, its candidate
+/// clusters, and a random one of them to merge into.
+fn choose_merges<S: ClusterStore>(
+    store: &S,
+    lattice: &Lattice,
+    cut: &[u32],
+    pieces: &Pieces,
+    first: &[u32],
+    rng: &mut impl Rng,
+) -> MergeForest {
+    let index = store.index();
+    let cut_position = |k: u32| cut.binary_search(&k).ok();
+    // the piece of cut cluster `c` that holds live particle `a`
+    let piece_holding = |c: usize, a: u32| {
+        let (start, end) = (first[c], first[c + 1]);
+        if end - start == 1 {
+            return start;
+        }
+        (start..end)
+            .find(|p| pieces.members(*p as usize).binary_search(&a).is_ok())
+            .unwrap_or(start)
+    };
+    let mut forest = MergeForest::new(pieces.pieces.len());
+    let mut candidates: SmallVec<[Candidate; 8]> = SmallVec::new();
+    let candidates_at = |a: u32, own: u32, forest: &mut MergeForest, out: &mut SmallVec<_>| {
+        out.clear();
+        for &k in index.clusters_of(a) {
+            match cut_position(k) {
+                Some(c) => {
+                    let q = piece_holding(c, a);
+                    if forest.find(q) != own {
+                        out.push(Candidate::Piece(q));
+                    }
+                }
+                None => out.push(Candidate::Intact(k)),
+            }
+        }
+    };
+    for (p, piece) in pieces.pieces.iter().enumerate() {
+        // a piece has not merged on yet, so it is its own root
+        let own = p as u32;
+        if piece.intact_neighbour != NONE {
+            candidates_at(piece.intact_neighbour, own, &mut forest, &mut candidates);
+        } else {
+            // the first adjacent particle with a cluster outside the merge set
+            let members = pieces.members(p);
+            candidates.clear();
+            'search: for &m in members {
+                for d in 0..6 {
+                    let a = lattice.neighbour_cell(m, d);
+                    if a == NO_PARTICLE || members.binary_search(&a).is_ok() {
+                        continue;
+                    }
+                    candidates_at(a, own, &mut forest, &mut candidates);
+                    if !candidates.is_empty() {
+                        break 'search;
+                    }
+                }
+            }
+        }
+        if !candidates.is_empty() {
+            let target = candidates[rng.random_range(0..candidates.len())];
+            forest.merge(own, target);
+        }
+    }
+    forest
 }
 
 #[cfg(test)]

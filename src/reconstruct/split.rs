@@ -2,93 +2,21 @@
 //! (§4.1), geometric partition grown from a random vertex with the normal flip (§4.2),
 //! and topological repair so both halves are connected (§4.3).
 
+use super::local::{Bits, LocalGraph};
 use super::pca::split_normal;
+use crate::cluster_edits::ClusterEdits;
 use crate::cluster_store::ClusterStore;
-use crate::graph::with_slots;
 use crate::lattice::Lattice;
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use std::cmp::Reverse;
-use std::collections::{BinaryHeap, VecDeque};
+use std::collections::VecDeque;
 
 /// Spare capacity of each half a split returns: the expansion (SPEC §3.4) adds a few
 /// particles to it next, which would otherwise reallocate the list.
 const HALF_HEADROOM: usize = 8;
-
-/// Heap key ordering frontier vertices by signed distance, ties by local index.
-#[derive(Clone, Copy, PartialEq)]
-struct ByDistance(f32, usize);
-impl Eq for ByDistance {}
-impl PartialOrd for ByDistance {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for ByDistance {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
-    }
-}
-
-/// The lattice graph induced on a member set, in compressed rows; vertices are indices
-/// into the member list.
-#[derive(Clone, Debug, Default)]
-struct LocalGraph {
-    /// Vertex `i`'s neighbours are `next[row[i]..row[i + 1]]`.
-    row: Vec<u32>,
-    /// Neighbour lists back to back; entries past `row`'s last end are scratch.
-    next: Vec<u32>,
-}
-
-impl LocalGraph {
-    /// Makes this the graph of `members`, reusing its buffers.
-    fn rebuild(&mut self, members: &[u32], lattice: &Lattice) {
-        // one slot more than particles: an empty cell reads that one, which is never set
-        with_slots(lattice.len() + 1, |local| {
-            self.build(members, lattice, local)
-        });
-    }
-
-    fn build(&mut self, members: &[u32], lattice: &Lattice, local: &mut [u32]) {
-        for (i, &m) in members.iter().enumerate() {
-            local[m as usize] = i as u32;
-        }
-        let (row, next) = (&mut self.row, &mut self.next);
-        row.clear();
-        row.reserve(members.len() + 1);
-        // Room for all six neighbour cells of every member: each cell is written and
-        // kept only if it holds a member, without a branch (whether it does is data and
-        // would mispredict). Entries past the last row's end are never read.
-        if next.len() < 6 * members.len() {
-            next.resize(6 * members.len(), 0);
-        }
-        let unset = local.len() - 1;
-        let mut len = 0;
-        row.push(0);
-        for &m in members {
-            for n in lattice.neighbour_cells(m) {
-                // (an empty cell, `NO_PARTICLE`, reads the unset last slot)
-                let slot = local[(n as usize).min(unset)];
-                next[len] = slot;
-                len += usize::from(slot != u32::MAX);
-            }
-            row.push(len as u32);
-        }
-        for &m in members {
-            local[m as usize] = u32::MAX;
-        }
-    }
-
-    /// Neighbours of vertex `i`.
-    #[inline]
-    fn neighbours(&self, i: usize) -> impl Iterator<Item = usize> + '_ {
-        self.next[self.row[i] as usize..self.row[i + 1] as usize]
-            .iter()
-            .map(|j| *j as usize)
-    }
-}
 
 /// Buffers one thread reuses from split to split: once they have grown, a split
 /// allocates only the two halves it returns.
@@ -99,14 +27,31 @@ pub struct SplitScratch {
     graph: LocalGraph,
     /// Signed distance of every member to the plane through the start vertex.
     distance: Vec<f32>,
+    /// Per vertex `(sortable signed distance, vertex)`: §4.2 takes the frontier vertex
+    /// with the smallest key (smallest distance, ties by vertex).
+    keys: Vec<u64>,
+    /// Vertices with a negative signed distance.
+    negative: Bits,
+    /// Vertices discovered (the sentinel counts as discovered), and the frontier.
+    visited: Bits,
+    frontier: Bits,
+    /// By vertex, with the sentinel's slot set: S, then (after the repair) M.
     in_s: Vec<bool>,
     in_m: Vec<bool>,
-    visited: Vec<bool>,
-    negative: Vec<usize>,
-    frontier: BinaryHeap<Reverse<ByDistance>>,
     label: Vec<u32>,
-    stack: Vec<usize>,
+    stack: Vec<u32>,
     sizes: Vec<usize>,
+}
+
+/// `x`'s bits mapped so that unsigned order is [`f32::total_cmp`]'s order.
+#[inline]
+fn sortable(x: f32) -> u32 {
+    let bits = x.to_bits();
+    if bits >> 31 == 1 {
+        !bits
+    } else {
+        bits | 1 << 31
+    }
 }
 
 impl SplitScratch {
@@ -123,15 +68,16 @@ impl SplitScratch {
         self.points.clear();
         self.points
             .extend(members.iter().map(|m| lattice.coord(*m).as_vec3()));
-        self.graph.rebuild(members, lattice);
+        self.graph.build(members, lattice);
         let normal = split_normal(&self.points);
         let start = rng.random_range(0..members.len());
         self.geometric_partition(start, normal);
         self.topological_repair();
+        let g = members.len();
         let pick = |flags: &[bool]| {
             // sized up front (a filtered collect would grow it by reallocation), with
             // room for the few particles the expansion adds next (SPEC §3.4)
-            let size = flags.iter().filter(|f| **f).count();
+            let size = flags[..g].iter().filter(|f| **f).count();
             let mut half = Vec::with_capacity(size + HALF_HEADROOM);
             half.extend(
                 members
@@ -149,20 +95,21 @@ impl SplitScratch {
     /// split in two) whose ends went to different halves, as `(lower, higher)` particle
     /// pairs in no particular order, read off that split's local graph.
     fn separated_edges(&self, members: &[u32], edges: &mut Vec<(u32, u32)>) {
-        // Each edge is seen from its end in S. Room for every edge from S, filled
-        // without a branch on the far end's side (data, which would mispredict), then
-        // cut to what was kept.
+        // Each edge is seen from its end in S. Room for every neighbour slot of S,
+        // filled without a branch on the far end's side (data, which would
+        // mispredict), then cut to what was kept; the sentinel counts as in S.
         let mut len = edges.len();
-        let directed = self.graph.row.last().map_or(0, |r| *r as usize);
-        edges.resize(len + directed, (0, 0));
+        let g = members.len();
+        let from_s = self.in_s[..g].iter().filter(|s| **s).count();
+        edges.resize(len + 6 * from_s, (0, 0));
         for (i, &a) in members.iter().enumerate() {
             if !self.in_s[i] {
                 continue;
             }
-            for j in self.graph.neighbours(i) {
-                let b = members[j];
+            for &j in self.graph.row(i) {
+                let b = members.get(j as usize).copied().unwrap_or(a);
                 edges[len] = (a.min(b), a.max(b));
-                len += usize::from(!self.in_s[j]);
+                len += usize::from(!self.in_s[j as usize]);
             }
         }
         edges.truncate(len);
@@ -170,70 +117,70 @@ impl SplitScratch {
 
     /// SPEC §4.2: grows a connected set S (`in_s`) from vertex `start` whose boundary
     /// approximates the plane through `start` with normal `normal`.
+    ///
+    /// The frontier is a bit set. Step 3 takes any frontier vertex on the negative side
+    /// (the set it ends with does not depend on the order); step 4 scans the frontier
+    /// for the smallest `(signed distance, vertex)` key, which the frontier's few
+    /// vertices make cheaper than keeping them in a heap.
     fn geometric_partition(&mut self, start: usize, normal: Vec3) {
         let Self {
             points,
             graph,
             distance,
-            in_s,
-            visited,
+            keys,
             negative,
+            visited,
             frontier,
+            in_s,
             ..
         } = self;
         let g = points.len();
         // signed distance to the plane through `start`, before the flip (the flip negates)
         distance.clear();
         distance.extend(points.iter().map(|p| normal.dot(*p - points[start])));
-        in_s.resize(g, false);
-        visited.resize(g, false);
-        // (each vertex enters each list at most once per flip)
-        negative.reserve(g);
-        frontier.reserve(g);
         for flip in [1.0f32, -1.0] {
-            let d = |i: usize| flip * distance[i];
-            in_s.fill(false);
-            visited.fill(false);
-            negative.clear();
-            frontier.clear();
-            let mut size = 1;
-            in_s[start] = true;
-            visited[start] = true;
-            let discover = |i: usize,
-                            visited: &mut [bool],
-                            negative: &mut Vec<usize>,
-                            frontier: &mut BinaryHeap<_>| {
-                for n in graph.neighbours(i) {
-                    if !visited[n] {
-                        visited[n] = true;
-                        let dn = d(n);
-                        if dn < 0.0 {
-                            negative.push(n);
-                        } else {
-                            frontier.push(Reverse(ByDistance(dn, n)));
-                        }
-                    }
+            keys.clear();
+            keys.extend(
+                distance
+                    .iter()
+                    .enumerate()
+                    .map(|(i, d)| (sortable(flip * d) as u64) << 32 | i as u64),
+            );
+            negative.reset(g + 1);
+            for (i, d) in distance.iter().enumerate() {
+                if flip * d < 0.0 {
+                    negative.insert(i);
+                }
+            }
+            visited.reset(g + 1);
+            frontier.reset(g + 1);
+            in_s.clear();
+            in_s.resize(g, false);
+            // the sentinel counts as discovered: it never enters the frontier
+            visited.insert(g);
+            visited.insert(start);
+            let mut take = |i: usize, frontier: &mut Bits| {
+                in_s[i] = true;
+                for &n in graph.row(i) {
+                    visited.insert_new_into(n as usize, frontier);
                 }
             };
-            discover(start, visited, negative, frontier);
+            take(start, frontier);
+            let mut size = 1;
             // Step 3: absorb every reachable vertex on the negative side.
-            while let Some(x) = negative.pop() {
-                in_s[x] = true;
+            while let Some(i) = frontier.lowest_common(negative) {
+                frontier.remove(i);
+                take(i, frontier);
                 size += 1;
-                discover(x, visited, negative, frontier);
             }
             // Step 4: grow by smallest signed distance until |S| + 1 ≥ |G| / 2.
             while 2 * (size + 1) < g {
-                let Some(Reverse(ByDistance(_, x))) = frontier.pop() else {
+                let Some(i) = frontier.min_by_key(keys) else {
                     break;
                 };
-                in_s[x] = true;
+                frontier.remove(i);
+                take(i, frontier);
                 size += 1;
-                discover(x, visited, negative, frontier);
-                while let Some(y) = negative.pop() {
-                    // Only reachable after a flip: keep S connected, take it in order.
-                    frontier.push(Reverse(ByDistance(d(y), y)));
-                }
             }
             // Step 5: too big → flip the normal and start again (at most once is
             // needed: both sides cannot each hold more than half the vertices).
@@ -241,12 +188,14 @@ impl SplitScratch {
                 break;
             }
         }
+        in_s.push(true);
     }
 
     /// SPEC §4.3: moves every component of G − S but the largest into S (`in_s`); the
     /// remaining component is M (`in_m`).
     fn topological_repair(&mut self) {
-        // label: IN_S for S, UNSEEN for G − S not reached yet, else the component id
+        // label: IN_S for S (and the sentinel), UNSEEN for G − S not reached yet, else
+        // the component id
         const UNSEEN: u32 = u32::MAX;
         const IN_S: u32 = u32::MAX - 1;
         let Self {
@@ -258,7 +207,7 @@ impl SplitScratch {
             sizes,
             ..
         } = self;
-        let g = in_s.len();
+        let g = graph.len();
         label.clear();
         label.extend(in_s.iter().map(|s| if *s { IN_S } else { UNSEEN }));
         sizes.clear();
@@ -274,15 +223,15 @@ impl SplitScratch {
             }
             let id = sizes.len() as u32;
             label[start] = id;
-            stack[0] = start;
+            stack[0] = start as u32;
             let (mut top, mut size) = (1, 0);
             while top > 0 {
                 top -= 1;
-                let i = stack[top];
+                let i = stack[top] as usize;
                 size += 1;
-                for n in graph.neighbours(i) {
-                    let unseen = label[n] == UNSEEN;
-                    label[n] = if unseen { id } else { label[n] };
+                for &n in graph.row(i) {
+                    let unseen = label[n as usize] == UNSEEN;
+                    label[n as usize] = if unseen { id } else { label[n as usize] };
                     stack[top] = n;
                     top += usize::from(unseen);
                 }
@@ -366,11 +315,11 @@ pub struct SplitOutcome<K> {
 pub fn split_oversized<S: ClusterStore>(
     store: &mut S,
     lattice: &Lattice,
-    keys: &[S::Key],
+    keys: &[u32],
     max: usize,
     rng: &mut impl Rng,
-) -> SplitOutcome<S::Key> {
-    let oversized: Vec<(S::Key, &[u32], u64)> = keys
+) -> SplitOutcome<u32> {
+    let oversized: Vec<(u32, &[u32], u64)> = keys
         .iter()
         .map(|k| (*k, store.members(*k)))
         .filter(|(_, m)| m.len() > max)
@@ -386,21 +335,21 @@ pub fn split_oversized<S: ClusterStore>(
             )
         })
         .collect();
-    let mut outcome = SplitOutcome {
-        clusters: keys.to_vec(),
-        cut_edges: Vec::new(),
-    };
-    for (k, (parts, edges)) in splits {
-        let mut parts = parts.into_iter();
-        if let Some(first) = parts.next() {
-            store.set_members(k, first);
+    let mut edits = ClusterEdits::default();
+    let mut cut_edges = Vec::new();
+    for (k, (parts, edges)) in &splits {
+        edits.replace(*k, &parts[0]);
+        for part in &parts[1..] {
+            edits.create(part);
         }
-        outcome
-            .clusters
-            .extend(parts.map(|part| store.create(part)));
-        outcome.cut_edges.extend(edges);
+        cut_edges.extend_from_slice(edges);
     }
-    outcome
+    let mut clusters = keys.to_vec();
+    clusters.extend(store.apply(&edits));
+    SplitOutcome {
+        clusters,
+        cut_edges,
+    }
 }
 
 #[cfg(test)]

@@ -117,7 +117,7 @@ pub fn snapshot(world: &mut World, mode: ColorMode) -> Snapshot {
                         .clusters_of(i, world.entities())
                         .map(|e| cluster_colour(e.to_bits()))
                         .sum();
-                    let mean = sum / c.0[i as usize].len().max(1) as f32;
+                    let mean = sum / c.0.clusters_of(i).len().max(1) as f32;
                     [mean.x as u8, mean.y as u8, mean.z as u8]
                 }
                 _ => PIECE_COLOURS[piece as usize % PIECE_COLOURS.len()],

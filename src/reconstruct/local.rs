@@ -1,0 +1,278 @@
+//! The lattice graph induced on one cluster's members, with local vertex numbers, and
+//! small bit sets over those numbers: the common ground of the per-cluster algorithms
+//! of a cut event (pieces §3.1, split §4), which run thousands of times per cut on sets
+//! of tens of particles.
+
+use crate::graph::with_slots;
+use crate::lattice::Lattice;
+use glam::IVec3;
+
+/// Cells of the largest box a member set is numbered in locally; bigger (sprawling) sets
+/// go through the per-thread particle slots instead.
+const BOX_CELLS: usize = 1 << 14;
+
+/// The lattice graph induced on a member list. Vertex `i` is the member at position
+/// `i`; its row holds, per lattice direction (the order of
+/// [`crate::lattice::NEIGHBOUR_OFFSETS`]), the vertex in the neighbouring cell, or the
+/// sentinel [`LocalGraph::len`] when that cell holds no member. Per-vertex arrays with
+/// one slot more, set for the sentinel, let loops over the six neighbours run without a
+/// branch on whether a neighbour exists.
+#[derive(Clone, Debug, Default)]
+pub struct LocalGraph {
+    rows: Vec<[u32; 6]>,
+    /// The vertex in each cell of the members' bounding box (padded by one cell on
+    /// every side), the sentinel where there is none.
+    cells: Vec<u32>,
+}
+
+impl LocalGraph {
+    /// Makes this the graph of `members` (distinct live particles of `lattice`),
+    /// reusing its buffers.
+    ///
+    /// The members are numbered in a box around them, so the graph is found from their
+    /// coordinates alone, without reading the lattice's grid (whose cells around a cut
+    /// are scattered over memory).
+    pub fn build(&mut self, members: &[u32], lattice: &Lattice) {
+        let n = members.len() as u32;
+        self.rows.clear();
+        let Some(&first) = members.first() else {
+            return;
+        };
+        let coords = lattice.coords();
+        let (mut lo, mut hi) = (coords[first as usize], coords[first as usize]);
+        for &m in members {
+            lo = lo.min(coords[m as usize]);
+            hi = hi.max(coords[m as usize]);
+        }
+        let size = (hi - lo + IVec3::splat(3)).as_uvec3();
+        let (dx, dy) = (size.x as usize, size.x as usize * size.y as usize);
+        if (dy as u64) * size.z as u64 > BOX_CELLS as u64 {
+            return self.build_sprawling(members, lattice);
+        }
+        let cells = &mut self.cells;
+        cells.clear();
+        cells.resize(dy * size.z as usize, n);
+        let origin = lo - IVec3::ONE;
+        let cell = |m: u32| {
+            let c = (coords[m as usize] - origin).as_uvec3();
+            (c.z as usize * size.y as usize + c.y as usize) * dx + c.x as usize
+        };
+        for (i, &m) in members.iter().enumerate() {
+            cells[cell(m)] = i as u32;
+        }
+        self.rows.reserve(members.len());
+        // (the padding keeps every neighbour cell inside the box)
+        self.rows.extend(members.iter().map(|&m| {
+            let c = cell(m);
+            [
+                cells[c - 1],
+                cells[c + 1],
+                cells[c - dx],
+                cells[c + dx],
+                cells[c - dy],
+                cells[c + dy],
+            ]
+        }));
+    }
+
+    /// [`Self::build`] for members spread over too big a box: numbered in the
+    /// per-thread particle slots, neighbours read from the lattice's grid.
+    fn build_sprawling(&mut self, members: &[u32], lattice: &Lattice) {
+        let n = members.len() as u32;
+        self.rows.reserve(members.len());
+        // one slot more than particles: an empty cell (`NO_PARTICLE`) reads that one,
+        // which is never set
+        with_slots(lattice.len() + 1, |local| {
+            let unset = local.len() - 1;
+            for (i, &m) in members.iter().enumerate() {
+                local[m as usize] = i as u32;
+            }
+            for &m in members {
+                let cells = lattice.neighbour_cells(m);
+                // a cell without a member reads `u32::MAX`, which becomes the sentinel
+                self.rows
+                    .push(cells.map(|c| local[(c as usize).min(unset)].min(n)));
+            }
+            for &m in members {
+                local[m as usize] = u32::MAX;
+            }
+        });
+    }
+
+    /// Number of vertices (also the sentinel's number).
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// True for the graph of no members.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.rows.is_empty()
+    }
+
+    /// The neighbour slots of vertex `i` (the sentinel where a cell holds no member).
+    #[inline]
+    pub fn row(&self, i: usize) -> &[u32; 6] {
+        &self.rows[i]
+    }
+}
+
+/// A set of small integers as bits; the buffer is reused from use to use.
+#[derive(Clone, Debug, Default)]
+pub struct Bits(Vec<u64>);
+
+impl Bits {
+    /// Empties the set and makes room for the integers `0..n`.
+    pub fn reset(&mut self, n: usize) {
+        self.0.clear();
+        self.0.resize(n.div_ceil(64), 0);
+    }
+
+    /// Adds `i`.
+    #[inline]
+    pub fn insert(&mut self, i: usize) {
+        self.0[i >> 6] |= 1 << (i & 63);
+    }
+
+    /// Removes `i`.
+    #[inline]
+    pub fn remove(&mut self, i: usize) {
+        self.0[i >> 6] &= !(1 << (i & 63));
+    }
+
+    /// Whether `i` is in the set.
+    #[inline]
+    pub fn contains(&self, i: usize) -> bool {
+        self.0[i >> 6] >> (i & 63) & 1 != 0
+    }
+
+    /// Adds `i` to this set and, if it was not here, to `other` too (without a branch
+    /// on whether it was: discovery loops meet both cases unpredictably).
+    #[inline]
+    pub fn insert_new_into(&mut self, i: usize, other: &mut Bits) {
+        let (word, bit) = (i >> 6, 1u64 << (i & 63));
+        other.0[word] |= bit & !self.0[word];
+        self.0[word] |= bit;
+    }
+
+    /// The smallest integer in both this set and `other` (of the same size).
+    #[inline]
+    pub fn lowest_common(&self, other: &Bits) -> Option<usize> {
+        self.0
+            .iter()
+            .zip(&other.0)
+            .position(|(a, b)| a & b != 0)
+            .map(|k| k * 64 + (self.0[k] & other.0[k]).trailing_zeros() as usize)
+    }
+
+    /// The member `i` with the smallest `keys[i]` (`None` for the empty set).
+    #[inline]
+    pub fn min_by_key(&self, keys: &[u64]) -> Option<usize> {
+        let mut best = u64::MAX;
+        let mut found = None;
+        for (k, &word) in self.0.iter().enumerate() {
+            let mut w = word;
+            while w != 0 {
+                let i = k * 64 + w.trailing_zeros() as usize;
+                w &= w - 1;
+                // (a select, not a branch: which member wins is data)
+                let smaller = keys[i] < best;
+                best = if smaller { keys[i] } else { best };
+                found = if smaller { Some(i) } else { found };
+            }
+        }
+        found
+    }
+
+    /// The smallest member.
+    #[inline]
+    pub fn lowest(&self) -> Option<usize> {
+        self.0
+            .iter()
+            .position(|w| *w != 0)
+            .map(|k| k * 64 + self.0[k].trailing_zeros() as usize)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lattice::{NEIGHBOUR_OFFSETS, Shape};
+    use glam::UVec3;
+
+    #[test]
+    fn rows_name_the_member_in_each_direction_or_the_sentinel() {
+        let mut lattice = Shape::cuboid(UVec3::new(4, 3, 3), 1.0)
+            .voxelise(1.0)
+            .unwrap();
+        lattice.remove(5);
+        // every third particle is a member (5 is dead, so not one)
+        let members: Vec<u32> = (0..lattice.len() as u32)
+            .filter(|p| p % 3 != 1 && lattice.is_live(*p))
+            .collect();
+        let mut graph = LocalGraph::default();
+        graph.build(&members, &lattice);
+        assert_eq!(graph.len(), members.len());
+        for (i, &m) in members.iter().enumerate() {
+            for (d, offset) in NEIGHBOUR_OFFSETS.iter().enumerate() {
+                let there = lattice.at(lattice.coord(m) + *offset);
+                let expected = there
+                    .and_then(|p| members.iter().position(|x| *x == p))
+                    .unwrap_or(members.len());
+                assert_eq!(
+                    graph.row(i)[d] as usize,
+                    expected,
+                    "member {m} direction {d}"
+                );
+            }
+        }
+        // a set spread over a box too big to number it in: the same rows, found
+        // through the lattice's grid
+        let mut far = Lattice::from_coords(
+            1.0,
+            vec![
+                glam::IVec3::ZERO,
+                glam::IVec3::X,
+                glam::IVec3::new(40, 0, 0),
+                glam::IVec3::new(40, 40, 0),
+                glam::IVec3::new(40, 40, 40),
+                glam::IVec3::new(40, 40, 41),
+            ],
+        )
+        .unwrap();
+        far.remove(3);
+        let spread = [0, 1, 2, 4, 5];
+        graph.build(&spread, &far);
+        let s = spread.len() as u32;
+        assert_eq!(graph.row(0), &[s, 1, s, s, s, s]);
+        assert_eq!(graph.row(1), &[0, s, s, s, s, s]);
+        assert_eq!(graph.row(2), &[s; 6]);
+        assert_eq!(graph.row(3), &[s, s, s, s, s, 4]);
+        assert_eq!(graph.row(4), &[s, s, s, s, 3, s]);
+        // the scratch is clean afterwards: an empty graph has no rows
+        graph.build(&[], &lattice);
+        assert!(graph.is_empty());
+    }
+
+    #[test]
+    fn bits_insert_remove_and_find_the_lowest() {
+        let mut a = Bits::default();
+        a.reset(130);
+        assert_eq!(a.lowest(), None);
+        for i in [129, 64, 3] {
+            a.insert(i);
+        }
+        assert_eq!(a.lowest(), Some(3));
+        a.remove(3);
+        assert_eq!(a.lowest(), Some(64));
+        assert!(a.contains(129) && !a.contains(128));
+        let mut fresh = Bits::default();
+        fresh.reset(130);
+        a.insert_new_into(64, &mut fresh);
+        a.insert_new_into(100, &mut fresh);
+        assert!(a.contains(100) && fresh.contains(100) && !fresh.contains(64));
+        a.reset(10);
+        assert_eq!(a.lowest(), None);
+    }
+}
