@@ -4,10 +4,10 @@
 //! Eight keys are stored in place per particle, 32 bytes aligned to 32, so two
 //! particles share a cache line and the usual edit (a key in, a key out) is a few
 //! branch-free operations on eight slots. A particle in more clusters keeps its whole
-//! list in a side table, which the bulk edits leave to a sequential pass.
+//! list in a side table.
 
 use crate::cluster_edits::IndexChange;
-use rayon::prelude::*;
+use crate::prefetch::prefetch;
 use rustc_hash::FxHashMap;
 
 /// Keys stored in place per particle.
@@ -22,11 +22,8 @@ const EMPTY: u32 = u32::MAX;
 /// Slot 0 of a particle whose list lives in the side table.
 const SPILLED: u32 = u32::MAX - 1;
 
-/// Particles per block that one task edits in [`ClusterIndex::apply`].
-const BLOCK: usize = 4096;
-
-/// Below this many changes, [`ClusterIndex::apply`] edits in one pass, in order.
-const PARALLEL_CHANGES: usize = 8192;
+/// How many changes ahead [`ClusterIndex::apply`] starts loading a particle's slots.
+const PREFETCH_AHEAD: usize = 16;
 
 /// One particle's keys in place: ascending, then [`EMPTY`] slots.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -206,57 +203,18 @@ impl ClusterIndex {
         }
     }
 
-    /// Applies a batch of changes. A batch never both adds and removes one key at one
-    /// particle, so its changes commute and the result does not depend on their order:
-    /// large batches are sorted by block of particles (a counting sort) and the blocks
-    /// edited in parallel, each in cache; the rare changes that need the side table
-    /// follow in one sequential pass.
+    /// Applies a batch of changes, in order. A batch's changes touch scattered
+    /// particles; each particle's slots are requested a few changes ahead, so the cache
+    /// misses overlap. (Sorting the changes by block of particles and editing blocks in
+    /// parallel was measured three times slower at 64³ on two threads: the sort's
+    /// scattered writes cost more than the second core saves.)
     pub fn apply(&mut self, changes: &[IndexChange]) {
-        if changes.len() < PARALLEL_CHANGES {
-            for c in changes {
-                self.change(c);
+        for (i, c) in changes.iter().enumerate() {
+            if let Some(ahead) = changes.get(i + PREFETCH_AHEAD)
+                && let Some(s) = self.slots.get(ahead.particle as usize)
+            {
+                prefetch(s);
             }
-            return;
-        }
-        let blocks = self.slots.len().div_ceil(BLOCK);
-        let mut start = vec![0u32; blocks + 1];
-        for c in changes {
-            start[c.particle as usize / BLOCK + 1] += 1;
-        }
-        for b in 0..blocks {
-            start[b + 1] += start[b];
-        }
-        let mut next = start.clone();
-        let mut by_block = vec![changes[0]; changes.len()];
-        for c in changes {
-            let slot = &mut next[c.particle as usize / BLOCK];
-            by_block[*slot as usize] = *c;
-            *slot += 1;
-        }
-        let deferred: Vec<IndexChange> = self
-            .slots
-            .par_chunks_mut(BLOCK)
-            .enumerate()
-            .flat_map_iter(|(b, slots)| {
-                let base = b * BLOCK;
-                let mut deferred = Vec::new();
-                for c in &by_block[start[b] as usize..start[b + 1] as usize] {
-                    let s = &mut slots[c.particle as usize - base];
-                    let done = !s.spilled()
-                        && if c.add {
-                            s.insert(c.key) != Inserted::Full
-                        } else {
-                            s.remove(c.key);
-                            true
-                        };
-                    if !done {
-                        deferred.push(*c);
-                    }
-                }
-                deferred
-            })
-            .collect();
-        for c in &deferred {
             self.change(c);
         }
     }
@@ -300,32 +258,37 @@ mod tests {
     }
 
     #[test]
-    fn batches_large_and_small_agree_with_one_change_at_a_time() {
+    fn a_batch_gives_the_lists_of_plain_set_operations() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-        for changes in [50, 30_000] {
-            let particles = 3 * BLOCK + 17;
-            // a random index (some lists past eight keys), then random changes that
-            // never add and remove one pair
-            let mut index = ClusterIndex::new(particles);
-            for p in 0..particles as u32 {
-                for _ in 0..rng.random_range(0..11) {
-                    index.add(p, rng.random_range(0..40));
-                }
-            }
-            let batch: Vec<IndexChange> = (0..changes)
+        let particles = 500;
+        let mut index = ClusterIndex::new(particles);
+        let mut model: Vec<std::collections::BTreeSet<u32>> = vec![Default::default(); particles];
+        for round in 0..4 {
+            // lists of up to twelve keys: some spill past eight, some come back
+            let batch: Vec<IndexChange> = (0..5000)
                 .map(|_| {
-                    let key = rng.random_range(0..40);
-                    change(rng.random_range(0..particles as u32), key, key % 2 == 0)
+                    let key = rng.random_range(0..14);
+                    change(
+                        rng.random_range(0..particles as u32),
+                        key,
+                        rng.random_bool(0.5),
+                    )
                 })
                 .collect();
-            let mut expected = index.clone();
             for c in &batch {
-                expected.change(c);
+                let set = &mut model[c.particle as usize];
+                if c.add {
+                    set.insert(c.key);
+                } else {
+                    set.remove(&c.key);
+                }
             }
             index.apply(&batch);
-            for p in 0..particles as u32 {
-                assert_eq!(index.clusters_of(p), expected.clusters_of(p), "{changes}");
+            for (p, set) in model.iter().enumerate() {
+                let want: Vec<u32> = set.iter().copied().collect();
+                assert_eq!(index.clusters_of(p as u32), want, "round {round}");
             }
         }
+        assert!(model.iter().any(|s| s.len() > INLINE_KEYS));
     }
 }

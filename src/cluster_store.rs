@@ -18,35 +18,39 @@ pub trait ClusterStore {
     /// the keys of the created clusters, in order.
     fn apply(&mut self, edits: &ClusterEdits) -> Vec<u32>;
 
+    /// Adds `extra` (strictly ascending) to the members of `k`: one edit, applied at once
+    /// (many edits are cheaper as one batch, [`Self::apply`]).
+    fn add_members(&mut self, k: u32, extra: &[u32]);
+    /// Creates a cluster with the given members (sorted and deduplicated here): one edit,
+    /// applied at once.
+    fn create(&mut self, members: Vec<u32>) -> u32;
+
     /// Clusters that contain particle `p`, ascending (none for a particle out of range).
     fn clusters_of(&self, p: u32) -> &[u32] {
         self.index().clusters_of(p)
     }
-    /// Replaces the members of `k` (the list is sorted and deduplicated here).
-    fn set_members(&mut self, k: u32, members: Vec<u32>) {
-        let mut edits = ClusterEdits::default();
-        edits.replace(k, &normalise(members));
-        self.apply(&edits);
+}
+
+/// Spare room of a member list a store makes: the expansion (SPEC §3.4) adds a few
+/// particles to a new cluster next, which would otherwise reallocate the list.
+const LIST_HEADROOM: usize = 8;
+
+/// A store's own copy of a member list, with room to grow.
+pub fn owned_list(members: &[u32]) -> Vec<u32> {
+    let mut list = Vec::with_capacity(members.len() + LIST_HEADROOM);
+    list.extend_from_slice(members);
+    list
+}
+
+/// Adds `extra` (strictly ascending) to the sorted `members` of cluster `k`, and `k` to
+/// the index entries of the particles that are new to it.
+pub fn extend_indexed(members: &mut Vec<u32>, extra: &[u32], k: u32, index: &mut ClusterIndex) {
+    for &p in extra {
+        if members.binary_search(&p).is_err() {
+            index.add(p, k);
+        }
     }
-    /// Adds `extra` (strictly ascending) to the members of `k`.
-    fn add_members(&mut self, k: u32, extra: &[u32]) {
-        let mut edits = ClusterEdits::default();
-        edits.extend(k, extra);
-        self.apply(&edits);
-    }
-    /// Creates a cluster with the given members (sorted and deduplicated here).
-    fn create(&mut self, members: Vec<u32>) -> u32 {
-        let mut edits = ClusterEdits::default();
-        edits.create(&normalise(members));
-        let created = self.apply(&edits);
-        created[0]
-    }
-    /// Deletes cluster `k`.
-    fn remove(&mut self, k: u32) {
-        let mut edits = ClusterEdits::default();
-        edits.remove(k);
-        self.apply(&edits);
-    }
+    merge_sorted(members, extra);
 }
 
 /// Writes `extra` (strictly ascending) into the sorted `members` and appends the index
@@ -211,12 +215,28 @@ impl ClusterStore for ClusterTable {
             .map(|members| {
                 let k = self.slots.len() as u32;
                 diff_into(&[], members, k, &mut changes);
-                self.slots.push(Some(members.to_vec()));
+                self.slots.push(Some(owned_list(members)));
                 k
             })
             .collect();
         self.index.apply(&changes);
         created
+    }
+
+    fn add_members(&mut self, k: u32, extra: &[u32]) {
+        if let Some(Some(members)) = self.slots.get_mut(k as usize) {
+            extend_indexed(members, extra, k, &mut self.index);
+        }
+    }
+
+    fn create(&mut self, members: Vec<u32>) -> u32 {
+        let members = normalise(members);
+        let k = self.slots.len() as u32;
+        for &p in &members {
+            self.index.add(p, k);
+        }
+        self.slots.push(Some(members));
+        k
     }
 }
 
@@ -258,7 +278,9 @@ mod tests {
         assert_eq!(t.apply(&edits), [2]);
         let lists: Vec<&[u32]> = t.index().iter().collect();
         assert_eq!(lists, [&[2][..], &[1], &[0, 1], &[], &[0], &[0, 2]]);
-        t.remove(0);
+        let mut edits = ClusterEdits::default();
+        edits.remove(0);
+        t.apply(&edits);
         let lists: Vec<&[u32]> = t.index().iter().collect();
         assert_eq!(lists, [&[2][..], &[1], &[1], &[], &[], &[2]]);
         assert_eq!(t.members(0), &[] as &[u32]);

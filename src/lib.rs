@@ -29,6 +29,7 @@ pub mod lattice;
 pub mod mesh;
 #[cfg(feature = "bevy_app")]
 pub mod plugin;
+pub mod prefetch;
 pub mod profile;
 pub mod reconstruct;
 pub mod render;

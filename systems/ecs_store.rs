@@ -7,7 +7,7 @@
 
 use crate::cluster_edits::{ClusterEdits, diff_into};
 use crate::cluster_index::ClusterIndex;
-use crate::cluster_store::{ClusterStore, extend_members};
+use crate::cluster_store::{ClusterStore, extend_indexed, extend_members, normalise, owned_list};
 use crate::components::{
     Body, BodyLattice, ClusterMembers, ClusterOf, ParticleClusters, Stiffness, cluster_entity,
 };
@@ -161,12 +161,39 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_> {
                 let e = self.commands.spawn_empty().id();
                 let k = e.index_u32();
                 diff_into(&[], members, k, &mut changes);
-                self.created.insert(k, (e, members.to_vec()));
+                self.created.insert(k, (e, owned_list(members)));
                 k
             })
             .collect();
         self.index.apply(&changes);
         created
+    }
+
+    fn add_members(&mut self, k: u32, extra: &[u32]) {
+        if let Some((_, m)) = self.created.get_mut(&k) {
+            extend_indexed(m, extra, k, self.index);
+        } else if !self.removed.contains(&k)
+            && let Ok(mut m) = self.clusters.get_mut(cluster_entity(self.entities, k))
+        {
+            // marked changed only when it did change (see `apply`)
+            let members = &mut m.bypass_change_detection().0;
+            let before = members.len();
+            extend_indexed(members, extra, k, self.index);
+            if members.len() > before {
+                m.set_changed();
+            }
+        }
+    }
+
+    fn create(&mut self, members: Vec<u32>) -> u32 {
+        let members = normalise(members);
+        let e = self.commands.spawn_empty().id();
+        let k = e.index_u32();
+        for &p in &members {
+            self.index.add(p, k);
+        }
+        self.created.insert(k, (e, members));
+        k
     }
 }
 

@@ -14,10 +14,6 @@ use rayon::prelude::*;
 use std::cmp::Reverse;
 use std::collections::VecDeque;
 
-/// Spare capacity of each half a split returns: the expansion (SPEC §3.4) adds a few
-/// particles to it next, which would otherwise reallocate the list.
-const HALF_HEADROOM: usize = 8;
-
 /// Buffers one thread reuses from split to split: once they have grown, a split
 /// allocates only the two halves it returns.
 #[derive(Default)]
@@ -75,10 +71,9 @@ impl SplitScratch {
         self.topological_repair();
         let g = members.len();
         let pick = |flags: &[bool]| {
-            // sized up front (a filtered collect would grow it by reallocation), with
-            // room for the few particles the expansion adds next (SPEC §3.4)
+            // sized up front (a filtered collect would grow it by reallocation)
             let size = flags[..g].iter().filter(|f| **f).count();
-            let mut half = Vec::with_capacity(size + HALF_HEADROOM);
+            let mut half = Vec::with_capacity(size);
             half.extend(
                 members
                     .iter()
