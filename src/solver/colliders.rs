@@ -105,18 +105,16 @@ pub(super) fn collide_block(block: Block, bounds: &Bounds, colliders: &Colliders
     if !bounds.touches(colliders) {
         return;
     }
-    let particles = block
-        .positions
-        .iter_mut()
-        .zip(block.corrections)
-        .zip(block.previous)
-        .zip(block.inv_mass);
-    for (((p, correction), previous), &inv_mass) in particles {
-        if inv_mass != 0.0 {
-            let unconstrained = *p;
-            resolve_colliders(p, *previous, colliders);
-            *correction += *p - unconstrained;
+    // Most particles of a block a collider reaches are not in it: a point test comes
+    // first, and only a particle in a collider has the rest of its state read (the
+    // previous positions are not in cache: no other step of the pass reads them).
+    for (i, p) in block.positions.iter_mut().enumerate() {
+        if block.inv_mass[i] == 0.0 || !colliders.may_touch(*p, *p) {
+            continue;
         }
+        let unconstrained = *p;
+        resolve_colliders(p, block.previous[i], colliders);
+        block.corrections[i] += *p - unconstrained;
     }
 }
 
