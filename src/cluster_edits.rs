@@ -73,6 +73,21 @@ impl ClusterEdits {
     pub fn removed(&self) -> &[u32] {
         &self.removed
     }
+
+    /// Room for the index changes of applying these edits, given the members of the
+    /// removed clusters: every listed particle, plus those of `removed_members`.
+    pub fn changes_capacity(&self, removed_members: usize) -> usize {
+        // (a replacement changes at most its old and new lists; the old ones are close
+        // in size to the new)
+        self.particles.len() + self.replaced_len() + removed_members
+    }
+
+    fn replaced_len(&self) -> usize {
+        self.replaced
+            .iter()
+            .map(|(_, [s, e])| (e - s) as usize)
+            .sum()
+    }
 }
 
 /// One change of a particle → clusters index: `key` joins or leaves `particle`'s list.

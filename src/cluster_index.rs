@@ -143,6 +143,7 @@ impl ClusterIndex {
     ///
     /// # Panics
     /// If `p` is out of range.
+    #[inline]
     pub fn add(&mut self, p: u32, k: u32) -> bool {
         debug_assert!(k <= MAX_KEY, "key {k} is a slot marker");
         let s = &mut self.slots[p as usize];
@@ -172,6 +173,7 @@ impl ClusterIndex {
     ///
     /// # Panics
     /// If `p` is out of range.
+    #[inline]
     pub fn remove(&mut self, p: u32, k: u32) -> bool {
         let s = &mut self.slots[p as usize];
         if !s.spilled() {

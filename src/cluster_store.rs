@@ -192,7 +192,8 @@ impl ClusterStore for ClusterTable {
     }
 
     fn apply(&mut self, edits: &ClusterEdits) -> Vec<u32> {
-        let mut changes = Vec::new();
+        let removed: usize = edits.removed().iter().map(|k| self.members(*k).len()).sum();
+        let mut changes = Vec::with_capacity(edits.changes_capacity(removed));
         for (k, members) in edits.replaced() {
             if let Some(Some(old)) = self.slots.get_mut(k as usize) {
                 diff_into(old, members, k, &mut changes);
