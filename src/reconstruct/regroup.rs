@@ -314,9 +314,8 @@ pub fn regroup<S: ClusterStore>(
         first.push(first.last().copied().unwrap_or(0) + c);
     }
     // 3.2: every merge, chosen in piece order over the merge forest.
-    let forest = choose_merges(store, lattice, &cut, &pieces, &first, rng);
+    let mut forest = choose_merges(store, lattice, &cut, &pieces, &first, rng);
     // The merged member lists, group by group, then one batch of edits.
-    let mut forest = forest;
     let mut groups: Vec<(u32, u32)> = (0..pieces.pieces.len() as u32)
         .map(|p| (forest.find(p), p))
         .collect();
