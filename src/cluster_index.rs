@@ -151,13 +151,23 @@ impl ClusterIndex {
             match s.insert(k) {
                 Inserted::Yes => return true,
                 Inserted::AlreadyThere => return false,
-                Inserted::Full => {
-                    let mut list = s.0.to_vec();
-                    *s = Slots::NONE;
-                    s.0[0] = SPILLED;
-                    self.spill.insert(p, std::mem::take(&mut list));
-                }
+                Inserted::Full => {}
             }
+        }
+        self.add_spilled(p, k)
+    }
+
+    /// [`Self::add`] for a particle whose keys do not fit in place (rare: the side table
+    /// takes them, moving them there first if they were in place).
+    #[cold]
+    #[inline(never)]
+    fn add_spilled(&mut self, p: u32, k: u32) -> bool {
+        let s = &mut self.slots[p as usize];
+        if !s.spilled() {
+            let list = s.0.to_vec();
+            *s = Slots::NONE;
+            s.0[0] = SPILLED;
+            self.spill.insert(p, list);
         }
         let list = self.spill.entry(p).or_default();
         match list.binary_search(&k) {
@@ -179,6 +189,14 @@ impl ClusterIndex {
         if !s.spilled() {
             return s.remove(k);
         }
+        self.remove_spilled(p, k)
+    }
+
+    /// [`Self::remove`] for a particle whose keys are in the side table; they move back
+    /// in place once they fit.
+    #[cold]
+    #[inline(never)]
+    fn remove_spilled(&mut self, p: u32, k: u32) -> bool {
         let Some(list) = self.spill.get_mut(&p) else {
             return false;
         };
@@ -187,16 +205,16 @@ impl ClusterIndex {
         };
         list.remove(at);
         if list.len() <= INLINE_KEYS {
-            // back in place
             let mut inline = Slots::NONE;
             inline.0[..list.len()].copy_from_slice(list);
-            *s = inline;
+            self.slots[p as usize] = inline;
             self.spill.remove(&p);
         }
         true
     }
 
     /// Applies one change; returns whether it changed the index.
+    #[inline]
     pub fn change(&mut self, c: &IndexChange) -> bool {
         if c.add {
             self.add(c.particle, c.key)
