@@ -163,13 +163,16 @@ impl ClusterIndex {
     #[inline(never)]
     fn add_spilled(&mut self, p: u32, k: u32) -> bool {
         let s = &mut self.slots[p as usize];
-        if !s.spilled() {
-            let list = s.0.to_vec();
+        let list = if s.spilled() {
+            self.spill.entry(p).or_default()
+        } else {
+            // (room for twice the keys: a particle past eight usually gains a few more)
+            let mut list = Vec::with_capacity(2 * INLINE_KEYS);
+            list.extend_from_slice(&s.0);
             *s = Slots::NONE;
             s.0[0] = SPILLED;
-            self.spill.insert(p, list);
-        }
-        let list = self.spill.entry(p).or_default();
+            self.spill.entry(p).insert_entry(list).into_mut()
+        };
         match list.binary_search(&k) {
             Ok(_) => false,
             Err(at) => {
