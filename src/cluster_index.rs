@@ -182,6 +182,16 @@ impl ClusterIndex {
         }
     }
 
+    /// Adds cluster `k` to every particle of `members`.
+    ///
+    /// # Panics
+    /// If a member is out of range.
+    pub fn add_cluster(&mut self, k: u32, members: &[u32]) {
+        for &p in members {
+            self.add(p, k);
+        }
+    }
+
     /// Removes cluster `k` from particle `p`; false if it was not there.
     ///
     /// # Panics

@@ -45,12 +45,9 @@ pub fn owned_list(members: &[u32]) -> Vec<u32> {
 /// Adds `extra` (strictly ascending) to the sorted `members` of cluster `k`, and `k` to
 /// the index entries of the particles that are new to it.
 pub fn extend_indexed(members: &mut Vec<u32>, extra: &[u32], k: u32, index: &mut ClusterIndex) {
-    for &p in extra {
-        if members.binary_search(&p).is_err() {
-            index.add(p, k);
-        }
-    }
-    merge_sorted(members, extra);
+    extend_with(members, extra, |p| {
+        index.add(p, k);
+    });
 }
 
 /// Writes `extra` (strictly ascending) into the sorted `members` and appends the index
@@ -61,21 +58,30 @@ pub fn extend_members(
     k: u32,
     changes: &mut Vec<IndexChange>,
 ) {
-    let before = changes.len();
+    extend_with(members, extra, |p| {
+        changes.push(IndexChange {
+            particle: p,
+            key: k,
+            add: true,
+        })
+    });
+}
+
+/// Merges strictly ascending `extra` into the sorted `members`, calling `joined` for each
+/// particle that was not a member yet (the list is rewritten only if there is one).
+fn extend_with(members: &mut Vec<u32>, extra: &[u32], mut joined: impl FnMut(u32)) {
+    let mut new = false;
     let mut i = 0;
     for &p in extra {
         while i < members.len() && members[i] < p {
             i += 1;
         }
         if members.get(i) != Some(&p) {
-            changes.push(IndexChange {
-                particle: p,
-                key: k,
-                add: true,
-            });
+            joined(p);
+            new = true;
         }
     }
-    if changes.len() > before {
+    if new {
         merge_sorted(members, extra);
     }
 }
@@ -233,9 +239,7 @@ impl ClusterStore for ClusterTable {
     fn create(&mut self, members: Vec<u32>) -> u32 {
         let members = normalise(members);
         let k = self.slots.len() as u32;
-        for &p in &members {
-            self.index.add(p, k);
-        }
+        self.index.add_cluster(k, &members);
         self.slots.push(Some(members));
         k
     }

@@ -232,9 +232,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
                 Stiffness(desc.material.stiffness),
             ))
             .id();
-        for &m in members {
-            index.add(m, e.index_u32());
-        }
+        index.add_cluster(e.index_u32(), members);
     }
     let pieces = lattice.piece_count();
     world.entity_mut(body).insert((

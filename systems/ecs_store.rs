@@ -191,9 +191,7 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_> {
         let members = normalise(members);
         let e = self.commands.spawn_empty().id();
         let k = e.index_u32();
-        for &p in &members {
-            self.index.add(p, k);
-        }
+        self.index.add_cluster(k, &members);
         self.created.insert(k, (e, members));
         k
     }

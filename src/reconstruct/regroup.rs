@@ -283,14 +283,14 @@ pub fn regroup<S: ClusterStore>(
     let mut cut: Vec<u32> = cut_clusters.to_vec();
     cut.sort_unstable();
     cut.dedup();
+    let view = CutView {
+        lattice,
+        index: store.index(),
+        cut: &cut,
+    };
     // 3.1: the pieces of every cut cluster, and their intact neighbours.
     let pieces = {
         let lists: Vec<&[u32]> = cut.iter().map(|k| store.members(*k)).collect();
-        let view = CutView {
-            lattice,
-            index: store.index(),
-            cut: &cut,
-        };
         let found: Vec<Pieces> = lists
             .par_chunks(CUT_PER_TASK)
             .map_init(PieceScratch::default, |scratch, lists| {
@@ -314,7 +314,7 @@ pub fn regroup<S: ClusterStore>(
         first.push(first.last().copied().unwrap_or(0) + c);
     }
     // 3.2: every merge, chosen in piece order over the merge forest.
-    let mut forest = choose_merges(store, lattice, &cut, &pieces, &first, rng);
+    let mut forest = choose_merges(&view, &pieces, &first, rng);
     // The merged member lists, group by group, then one batch of edits.
     let mut groups: Vec<(u32, u32)> = (0..pieces.pieces.len() as u32)
         .map(|p| (forest.find(p), p))
@@ -401,16 +401,13 @@ fn sort_dedup(list: &mut [u32]) -> usize {
 
 /// §3.2's choices, in piece order: each piece's adjacent particle, its candidate
 /// clusters, and a random one of them to merge into.
-fn choose_merges<S: ClusterStore>(
-    store: &S,
-    lattice: &Lattice,
-    cut: &[u32],
+fn choose_merges(
+    view: &CutView,
     pieces: &Pieces,
     first: &[u32],
     rng: &mut impl Rng,
 ) -> MergeForest {
-    let index = store.index();
-    let cut_position = |k: u32| cut.binary_search(&k).ok();
+    let CutView { lattice, index, .. } = *view;
     // the piece of cut cluster `c` that holds live particle `a`
     let piece_holding = |c: usize, a: u32| {
         let (start, end) = (first[c], first[c + 1]);
@@ -426,7 +423,7 @@ fn choose_merges<S: ClusterStore>(
     let candidates_at = |a: u32, own: u32, forest: &mut MergeForest, out: &mut SmallVec<_>| {
         out.clear();
         for &k in index.clusters_of(a) {
-            match cut_position(k) {
+            match view.cut_position(k) {
                 Some(c) => {
                     let q = piece_holding(c, a);
                     if forest.find(q) != own {

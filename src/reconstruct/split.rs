@@ -293,9 +293,9 @@ pub fn split_until_fits(
 
 /// What [`split_oversized`] produced.
 #[derive(Clone, Debug, Default)]
-pub struct SplitOutcome<K> {
+pub struct SplitOutcome {
     /// Every resulting cluster: the inputs (first parts keep their handle) and the new ones.
-    pub clusters: Vec<K>,
+    pub clusters: Vec<u32>,
     /// Lattice edges whose ends ended in different parts of a split; they may need a
     /// bridge (see [`crate::clustering::cover_edge_list`]).
     pub cut_edges: Vec<(u32, u32)>,
@@ -313,7 +313,7 @@ pub fn split_oversized<S: ClusterStore>(
     keys: &[u32],
     max: usize,
     rng: &mut impl Rng,
-) -> SplitOutcome<u32> {
+) -> SplitOutcome {
     let oversized: Vec<(u32, &[u32], u64)> = keys
         .iter()
         .map(|k| (*k, store.members(*k)))
