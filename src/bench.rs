@@ -10,7 +10,7 @@ use crate::error::Result;
 use crate::lattice::Shape;
 use crate::resources::{CutTimings, SimSettings, SolverCache};
 use crate::sim::{BodyDesc, Simulation, ToolDesc};
-use crate::solver::{ClusterSpec, Colliders, SolverLayout};
+use crate::solver::{ClusterSpec, Colliders, ConstraintKinds, SolverLayout};
 use crate::stats::rigid_fit_error;
 use crate::systems::layout_sync::rebuild_cache;
 use crate::tool::{Path, Pose, ToolShape};
@@ -113,7 +113,7 @@ fn bare_step(
     layout: &mut SolverLayout,
     velocities: &mut [Vec3A],
     config: &SimConfig,
-    colliders: &Colliders,
+    kinds: &mut ConstraintKinds,
 ) {
     let dt = config.dt / config.substeps as f32;
     let keep = (-config.damping * dt).exp();
@@ -134,7 +134,7 @@ fn bare_step(
             *v = (*v + dv) * keep;
             *x += *v * dt;
         }
-        layout.solve(config.iterations, colliders);
+        layout.solve(config.iterations, kinds);
         layout.update_velocities(velocities, 1.0 / dt);
     }
 }
@@ -165,16 +165,16 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
                 .map_or(Vec3A::ZERO, |v| v.0.into())
         })
         .collect();
-    let colliders = Colliders {
-        ground: config.ground,
-        boxes: config.boxes.clone(),
+    let mut kinds = ConstraintKinds {
+        colliders: Colliders::from_config(config, std::iter::empty()),
+        ..Default::default()
     };
     // Engine and bare steps alternate, so both see the same machine noise.
     let (mut engine, mut bare) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
     for _ in 0..steps {
         engine.push(time_ms(1, || sim.step()));
         bare.push(time_ms(1, || {
-            bare_step(&mut layout, &mut velocities, config, &colliders)
+            bare_step(&mut layout, &mut velocities, config, &mut kinds)
         }));
     }
     drop((layout, velocities));
@@ -238,7 +238,10 @@ fn slice_event(sim: &mut Simulation, n: u32) -> Result<(f64, f64, f64)> {
         },
         cut_width: 2.0 * H,
         path: Path {
-            keys: vec![(now, at(2.0 * half + 1.0)), (now + dt, at(-1.0))],
+            keys: vec![
+                (now as f32, at(2.0 * half + 1.0)),
+                (now as f32 + dt, at(-1.0)),
+            ],
         },
         pose: at(2.0 * half + 1.0),
     })?;
@@ -306,7 +309,7 @@ pub fn convergence_table(n: u32, iteration_counts: &[u32]) -> Result<Vec<(u32, f
         });
         let mut layout = SolverLayout::new(&rest, specs, mode);
         layout.positions.clone_from(&twisted);
-        layout.solve(iterations, &Colliders::default());
+        layout.solve(iterations, &mut ConstraintKinds::default());
         let current: Vec<Vec3> = layout.positions.iter().map(|p| Vec3::from(*p)).collect();
         (rigid_fit_error(&rest, &current) / H) as f64
     };

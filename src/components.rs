@@ -2,9 +2,11 @@
 //! [`Velocity`], [`InvMass`], and the body's [`BodyLattice`] (which holds what never
 //! changes: lattice coordinates and rest positions). Cluster side: [`ClusterMembers`],
 //! [`ClusterOf`], [`Stiffness`], and the body's [`ParticleClusters`] index. Tools:
-//! [`Tool`], [`ToolPose`], [`ToolPath`].
+//! [`Tool`], [`ToolPose`], [`ToolPath`]. Colliders: [`Collider`], [`ColliderPose`],
+//! [`ColliderPath`].
 
 use crate::cluster_index::ClusterIndex;
+use crate::collider::ColliderShape;
 use crate::config::Material;
 use crate::lattice::Lattice;
 use crate::tool::{Path, Pose, ToolShape};
@@ -126,3 +128,28 @@ pub struct ToolPose {
 /// A keyframed path that drives the tool's pose from the simulation clock.
 #[derive(Component, Clone, Debug, PartialEq)]
 pub struct ToolPath(pub Path);
+
+/// A collider that particles cannot enter: static, moved by a [`ColliderPath`], or
+/// moved by game code through its [`ColliderPose`].
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct Collider {
+    /// Shape in the local frame.
+    pub shape: ColliderShape,
+    /// Coulomb friction coefficient (≥ 0).
+    pub friction: f32,
+}
+
+/// The collider's pose at the end of the current frame and at its start; the substeps
+/// move it from one to the other.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct ColliderPose {
+    /// Pose at the end of the frame being simulated.
+    pub current: Pose,
+    /// Pose at its start.
+    pub last: Pose,
+}
+
+/// A keyframed path that drives a collider's pose from the simulation clock (a press, a
+/// paddle).
+#[derive(Component, Clone, Debug, PartialEq)]
+pub struct ColliderPath(pub Path);

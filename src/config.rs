@@ -58,6 +58,8 @@ pub struct SimConfig {
     pub boxes: Vec<StaticBox>,
     /// Solver scheme.
     pub solver: SolverMode,
+    /// Whether particles collide with each other (see [`Material::contact_radius`]).
+    pub contacts: bool,
     /// Seed for every random choice (clustering offsets, merges, splits, expansion).
     pub seed: u64,
     /// Run `check_invariants` after every frame and panic on a violation (tests, debugging).
@@ -78,6 +80,7 @@ impl Default for SimConfig {
             }),
             boxes: Vec::new(),
             solver: SolverMode::Jacobi,
+            contacts: true,
             seed: 0,
             check_invariants_every_frame: false,
         }
@@ -157,6 +160,16 @@ pub struct Material {
     pub max_cluster_size: u32,
     /// Particles added to each rebuilt cluster by the expand stage (SPEC §3.4).
     pub expand_count: u32,
+    /// Radius of each particle's contact ball; `None`: half the lattice spacing, so
+    /// that neighbouring balls touch.
+    pub contact_radius: Option<f32>,
+    /// Static friction coefficient of particle contacts (≥ 0).
+    pub static_friction: f32,
+    /// Dynamic friction coefficient of particle contacts (≥ 0).
+    pub dynamic_friction: f32,
+    /// Whether particles of one piece collide when the piece folds onto itself
+    /// (particles more than two lattice cells apart).
+    pub self_contact: bool,
 }
 
 impl Default for Material {
@@ -168,6 +181,10 @@ impl Default for Material {
             cluster_overlap: 1,
             max_cluster_size: 40,
             expand_count: 4,
+            contact_radius: None,
+            static_friction: 0.6,
+            dynamic_friction: 0.4,
+            self_contact: true,
         }
     }
 }
@@ -216,6 +233,29 @@ impl Material {
                 "0 ≤ expand_count ≤ 1000",
             ));
         }
+        if let Some(r) = self.contact_radius {
+            check_range(
+                "material.contact_radius",
+                r,
+                1e-6,
+                1e6,
+                "1e-6 ≤ contact_radius ≤ 1e6 (metres)",
+            )?;
+        }
+        check_range(
+            "material.static_friction",
+            self.static_friction,
+            0.0,
+            100.0,
+            "0 ≤ static_friction ≤ 100",
+        )?;
+        check_range(
+            "material.dynamic_friction",
+            self.dynamic_friction,
+            0.0,
+            100.0,
+            "0 ≤ dynamic_friction ≤ 100",
+        )?;
         Ok(())
     }
 }
@@ -228,6 +268,43 @@ mod tests {
     fn defaults_are_valid() {
         SimConfig::default().validate().unwrap();
         Material::default().validate().unwrap();
+    }
+
+    #[test]
+    fn bad_contact_fields_are_named() {
+        for (m, field) in [
+            (
+                Material {
+                    contact_radius: Some(-0.1),
+                    ..Default::default()
+                },
+                "material.contact_radius",
+            ),
+            (
+                Material {
+                    contact_radius: Some(f32::NAN),
+                    ..Default::default()
+                },
+                "material.contact_radius",
+            ),
+            (
+                Material {
+                    static_friction: f32::NAN,
+                    ..Default::default()
+                },
+                "material.static_friction",
+            ),
+            (
+                Material {
+                    dynamic_friction: -1.0,
+                    ..Default::default()
+                },
+                "material.dynamic_friction",
+            ),
+        ] {
+            let e = m.validate().unwrap_err().to_string();
+            assert!(e.contains(field), "{e}");
+        }
     }
 
     #[test]

@@ -190,6 +190,13 @@ impl Lattice {
         }
     }
 
+    /// Whether live particle `i` lies on its piece's surface: fewer than six live lattice
+    /// neighbours.
+    #[inline]
+    pub fn is_surface(&self, i: u32) -> bool {
+        self.neighbour_cells(i).contains(&NO_PARTICLE)
+    }
+
     /// The particles in the six neighbour cells of particle `i`, in the order of
     /// [`Lattice::neighbours`], with [`NO_PARTICLE`] for an empty cell. Loops that test
     /// every neighbour anyway (marks, labels) run straight through these six.

@@ -16,6 +16,7 @@ pub mod cluster_edits;
 pub mod cluster_index;
 pub mod cluster_store;
 pub mod clustering;
+pub mod collider;
 pub mod components;
 pub mod config;
 pub mod detection;
@@ -47,12 +48,15 @@ pub mod tool;
 
 /// The types most users need.
 pub mod prelude {
+    pub use crate::collider::ColliderShape;
     pub use crate::components::*;
     pub use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
     pub use crate::error::{CleaveError, Result};
     pub use crate::lattice::{SdfShape, Shape};
     pub use crate::resources::{BodySplit, ClustersRebuilt, ParticlesCut};
-    pub use crate::sim::{BodyDesc, PinRegion, Simulation, ToolDesc, check_invariants};
+    pub use crate::sim::{
+        BodyDesc, ColliderDesc, PinRegion, Simulation, ToolDesc, check_invariants,
+    };
     pub use crate::systems::{CleaveSchedule, SimStage, SubstepSchedule, install};
     pub use crate::tool::{Path, Pose, ToolShape};
 }

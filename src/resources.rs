@@ -19,8 +19,18 @@ pub struct SimRng(pub ChaCha8Rng);
 pub struct SimClock {
     /// Frames completed.
     pub frame: u64,
-    /// Simulated seconds.
-    pub time: f32,
+    /// Simulated seconds (`frame × dt`, in f64 so that it keeps advancing on long runs).
+    pub time: f64,
+}
+
+/// Which substep of the frame is running (set by the frame schedule before each run of
+/// the substep schedule), so that kinematic colliders are placed at the right time.
+#[derive(Resource, Clone, Copy, Debug, Default)]
+pub struct SubstepClock {
+    /// Substeps done in this frame.
+    pub index: u32,
+    /// Substeps per frame.
+    pub count: u32,
 }
 
 /// Particles to cut in one body.
@@ -101,6 +111,11 @@ pub struct SolverCache {
     pub valid: bool,
     /// How the layout was last brought up to date, and how long it took.
     pub last_update: Option<LayoutUpdate>,
+    /// The constraint kinds solved with the clusters (contacts, colliders).
+    pub kinds: crate::solver::ConstraintKinds,
+    /// The `contacts` setting the contact particles were built for with the current
+    /// layout (`None`: not built since the layout last changed).
+    pub contacts_built: Option<bool>,
 }
 
 /// The layout slot of each cluster entity, as a table by entity index: a lookup is two

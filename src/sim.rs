@@ -3,9 +3,10 @@
 
 use crate::cluster_index::ClusterIndex;
 use crate::clustering::initial_clusters;
+use crate::collider::ColliderShape;
 use crate::components::*;
 use crate::config::{Material, SimConfig};
-use crate::error::{CleaveError, Result, check_finite_vec, check_positive};
+use crate::error::{CleaveError, Result, check_finite_vec, check_positive, check_range};
 use crate::invariants::{Violation, check_body, check_index};
 use crate::lattice::Shape;
 use crate::resources::*;
@@ -73,6 +74,20 @@ pub struct ToolDesc {
     pub pose: Pose,
 }
 
+/// Everything needed to spawn a collider.
+#[derive(Clone, Debug)]
+pub struct ColliderDesc {
+    /// Shape in the local frame.
+    pub shape: ColliderShape,
+    /// Coulomb friction coefficient (≥ 0).
+    pub friction: f32,
+    /// Pose (before the path starts, or for good without a path).
+    pub pose: Pose,
+    /// Keyframed path; empty: static, or moved by game code through
+    /// [`ColliderPose::current`].
+    pub path: Path,
+}
+
 /// A headless simulation: a [`World`] with the cleave resources and schedules.
 pub struct Simulation {
     world: World,
@@ -112,6 +127,11 @@ impl Simulation {
         spawn_tool(&mut self.world, desc)
     }
 
+    /// Spawns a collider; returns its entity.
+    pub fn spawn_collider(&mut self, desc: &ColliderDesc) -> Result<Entity> {
+        spawn_collider(&mut self.world, desc)
+    }
+
     /// Advances one frame.
     pub fn step(&mut self) {
         self.world.run_system_cached(message_update_system).ok();
@@ -133,7 +153,7 @@ pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
     desc.path.validate()?;
     check_finite_vec("tool.pose.position", desc.pose.position)?;
     let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time);
-    let pose = desc.path.sample(now).unwrap_or(desc.pose);
+    let pose = desc.path.sample(now as f32).unwrap_or(desc.pose);
     let mut e = world.spawn((
         Tool {
             shape: desc.shape,
@@ -146,6 +166,43 @@ pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
     ));
     if !desc.path.keys.is_empty() {
         e.insert(ToolPath(desc.path.clone()));
+    }
+    Ok(e.id())
+}
+
+/// Spawns a collider into any world prepared with [`crate::systems::install`].
+pub fn spawn_collider(world: &mut World, desc: &ColliderDesc) -> Result<Entity> {
+    desc.shape.validate("collider.shape")?;
+    check_range(
+        "collider.friction",
+        desc.friction,
+        0.0,
+        100.0,
+        "0 ≤ friction ≤ 100",
+    )?;
+    check_finite_vec("collider.pose.position", desc.pose.position)?;
+    if !desc.pose.rotation.is_finite() || desc.pose.rotation.length() < 1e-6 {
+        return Err(crate::error::out_of_range(
+            "collider.pose.rotation",
+            desc.pose.rotation,
+            "finite, non-zero quaternion",
+        ));
+    }
+    desc.path.validate()?;
+    let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time);
+    let pose = desc.path.sample(now as f32).unwrap_or(desc.pose);
+    let mut e = world.spawn((
+        Collider {
+            shape: desc.shape,
+            friction: desc.friction,
+        },
+        ColliderPose {
+            current: pose,
+            last: pose,
+        },
+    ));
+    if !desc.path.keys.is_empty() {
+        e.insert(ColliderPath(desc.path.clone()));
     }
     Ok(e.id())
 }

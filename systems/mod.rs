@@ -1,17 +1,20 @@
 //! The ECS stages of SPEC §2 as ordered system sets, and the schedules that run them.
 //!
-//! [`CleaveSchedule`] runs once per frame: [`SimStage::Substeps`] (an exclusive system
-//! that runs [`SubstepSchedule`] — predict → shape-match — `substeps` times), then
+//! [`CleaveSchedule`] runs once per frame: [`SimStage::MoveColliders`], then
+//! [`SimStage::Substeps`] (an exclusive system that runs [`SubstepSchedule`] — predict →
+//! shape-match — `substeps` times), then
 //! `MoveTools → Detect → Cut → Regroup → Split → Expand`, chained, then the optional
 //! invariant check. Access contract (tested in `tests/schedule_access.rs`): predict and
 //! shape-match write particle data only; detect writes only its `CutList`; cut writes
 //! no cluster data; regroup/split/expand write no particle data.
 
+pub mod contact_sync;
 pub mod cut;
 pub mod detect;
 pub mod ecs_store;
 pub mod expand;
 pub mod layout_sync;
+pub mod move_colliders;
 pub mod move_tools;
 pub mod predict;
 pub mod regroup;
@@ -31,6 +34,8 @@ pub enum SimStage {
     Predict,
     /// Shape-matching constraint iterations and colliders (in [`SubstepSchedule`]).
     ShapeMatch,
+    /// Advances keyframed colliders to the end of the frame (in [`CleaveSchedule`]).
+    MoveColliders,
     /// Runs the substep schedule (in [`CleaveSchedule`]).
     Substeps,
     /// Advances keyframed tools.
@@ -81,6 +86,7 @@ pub fn build_schedule() -> Schedule {
     strict(&mut s);
     s.configure_sets(
         (
+            SimStage::MoveColliders,
             SimStage::Substeps,
             SimStage::MoveTools,
             SimStage::Detect,
@@ -92,6 +98,7 @@ pub fn build_schedule() -> Schedule {
         )
             .chain(),
     );
+    s.add_systems(move_colliders::move_colliders.in_set(SimStage::MoveColliders));
     s.add_systems(run_substeps.in_set(SimStage::Substeps));
     s.add_systems(move_tools::move_tools.in_set(SimStage::MoveTools));
     s.add_systems(detect::detect.in_set(SimStage::Detect));
@@ -113,6 +120,7 @@ pub fn install(world: &mut World, config: crate::config::SimConfig) {
     world.insert_resource(SimRng(rand_chacha::ChaCha8Rng::seed_from_u64(config.seed)));
     world.insert_resource(SimSettings(config));
     world.init_resource::<SimClock>();
+    world.init_resource::<SubstepClock>();
     world.init_resource::<CutList>();
     world.init_resource::<CutReport>();
     world.init_resource::<RebuiltClusters>();
@@ -128,12 +136,16 @@ pub fn install(world: &mut World, config: crate::config::SimConfig) {
 /// Exclusive system: runs the substep schedule `substeps` times and advances the clock.
 pub fn run_substeps(world: &mut World) {
     let config = world.resource::<SimSettings>().0.clone();
-    for _ in 0..config.substeps {
+    for index in 0..config.substeps {
+        *world.resource_mut::<SubstepClock>() = SubstepClock {
+            index,
+            count: config.substeps,
+        };
         world.run_schedule(SubstepSchedule);
     }
     let mut clock = world.resource_mut::<SimClock>();
     clock.frame += 1;
-    clock.time += config.dt;
+    clock.time = clock.frame as f64 * config.dt as f64;
 }
 
 fn invariant_checks_enabled(settings: Res<SimSettings>) -> bool {

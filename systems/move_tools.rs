@@ -10,7 +10,7 @@ pub fn move_tools(clock: Res<SimClock>, mut tools: Query<(&mut ToolPose, Option<
     for (mut pose, path) in &mut tools {
         let now = pose.current;
         pose.last = now;
-        if let Some(p) = path.and_then(|p| p.0.sample(clock.time)) {
+        if let Some(p) = path.and_then(|p| p.0.sample(clock.time as f32)) {
             pose.current = p;
         }
     }

@@ -1,12 +1,14 @@
 //! Stage shape-match (SPEC §2.2): gathers particles into the dense solver layout
-//! (brought up to date only when topology changes, see [`super::layout_sync`]), runs the
-//! iterations with colliders, derives velocities, and scatters back. Writes particle
-//! data and its own cache only.
+//! (brought up to date only when topology changes, see [`super::layout_sync`]), places
+//! the colliders for this substep, runs the iterations with every constraint kind
+//! (contacts, colliders), derives velocities, and scatters back. Writes particle data
+//! and its own cache only.
 
+use super::contact_sync::sync_contacts;
 use super::layout_sync::{LayoutChanges, sync_layout};
 use crate::components::*;
-use crate::resources::{CutReport, SimSettings, SolverCache};
-use crate::solver::Colliders;
+use crate::resources::{CutReport, SimSettings, SolverCache, SubstepClock};
+use crate::solver::{Colliders, PosedCollider};
 use crate::table_rows::ParticleColumns;
 use bevy_ecs::entity::Entities;
 use bevy_ecs::prelude::*;
@@ -38,9 +40,12 @@ type ParticleData = (
 #[allow(clippy::too_many_arguments)]
 pub fn shape_match(
     settings: Res<SimSettings>,
+    substep: Res<SubstepClock>,
     mut cache: ResMut<SolverCache>,
     cut: Res<CutReport>,
     bodies: Query<(Entity, &BodyLattice)>,
+    materials: Query<&Body>,
+    colliders: Query<(&Collider, &ColliderPose)>,
     indices: Query<(Entity, &ParticleClusters)>,
     entities: &Entities,
     changed_bodies: Query<Entity, Changed<BodyLattice>>,
@@ -75,6 +80,10 @@ pub fn shape_match(
             entities,
         };
         sync_layout(&mut cache, &bodies, changes, clusters.iter(), config.solver);
+        cache.contacts_built = None;
+    }
+    if cache.contacts_built != Some(config.contacts) {
+        sync_contacts(&mut cache, &bodies, &materials, config.contacts);
     }
     let cache = &mut *cache;
     // Usually every particle sits in one table: its columns are copied in parallel.
@@ -103,11 +112,8 @@ pub fn shape_match(
     if !one_table {
         gather_entities(cache, &particles);
     }
-    let colliders = Colliders {
-        ground: config.ground,
-        boxes: config.boxes.clone(),
-    };
-    cache.layout.solve(config.iterations, &colliders);
+    cache.kinds.colliders = substep_colliders(config, &substep, &colliders);
+    cache.layout.solve(config.iterations, &mut cache.kinds);
     let inv_dt = config.substeps as f32 / config.dt;
     if one_table {
         let tables = particles
@@ -123,6 +129,29 @@ pub fn shape_match(
     } else {
         scatter_entities(cache, inv_dt, &mut particles);
     }
+}
+
+/// The ground, the config's static boxes and every collider entity, placed for this
+/// substep (a kinematic collider moves from its frame-start pose to its frame-end pose
+/// over the substeps).
+fn substep_colliders(
+    config: &crate::config::SimConfig,
+    substep: &SubstepClock,
+    entities: &Query<(&Collider, &ColliderPose)>,
+) -> Colliders {
+    let count = substep.count.max(1) as f32;
+    let (t0, t1) = (
+        substep.index as f32 / count,
+        (substep.index + 1) as f32 / count,
+    );
+    let moving = entities.iter().map(|(c, pose)| {
+        let (start, end) = (
+            pose.last.lerp(&pose.current, t0),
+            pose.last.lerp(&pose.current, t1),
+        );
+        PosedCollider::new(c.shape, c.friction, start, end)
+    });
+    Colliders::from_config(config, moving)
 }
 
 /// Copies particle state into the layout entity by entity (particles in several tables).

@@ -175,3 +175,18 @@ pub fn keys<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(f32, PoseFile)>, D::
     }
     Ok(keys)
 }
+pub fn friction<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, (0.0..=100.0).contains(&v), "0 ≤ friction ≤ 100")
+}
+pub fn contact_radius<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
+    let v = Option::<f32>::deserialize(d)?;
+    if let Some(r) = v {
+        range::<D>(
+            r,
+            (1e-6..=1e6).contains(&r),
+            "1e-6 ≤ contact_radius ≤ 1e6 (metres), or None for half the spacing",
+        )?;
+    }
+    Ok(v)
+}

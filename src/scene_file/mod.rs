@@ -67,6 +67,8 @@ pub struct SettingsFile {
     pub boxes: Vec<StaticBox>,
     /// Solver scheme.
     pub solver: SolverMode,
+    /// Whether particles collide with each other.
+    pub contacts: bool,
     /// Check the invariants after every frame (slow; for tests).
     pub check_invariants_every_frame: bool,
 }
@@ -161,6 +163,17 @@ pub struct MaterialFile {
     pub max_cluster_size: u32,
     /// Particles added to each rebuilt cluster (SPEC §3.4).
     pub expand_count: u32,
+    /// Contact ball radius in metres; `None`: half the spacing.
+    #[serde(deserialize_with = "check::contact_radius")]
+    pub contact_radius: Option<f32>,
+    /// Static friction of particle contacts.
+    #[serde(deserialize_with = "check::friction")]
+    pub static_friction: f32,
+    /// Dynamic friction of particle contacts.
+    #[serde(deserialize_with = "check::friction")]
+    pub dynamic_friction: f32,
+    /// Whether a piece folded onto itself collides with itself.
+    pub self_contact: bool,
 }
 
 impl Default for MaterialFile {
@@ -229,6 +242,7 @@ impl SettingsFile {
             ground: c.ground,
             boxes: c.boxes.clone(),
             solver: c.solver,
+            contacts: c.contacts,
             check_invariants_every_frame: c.check_invariants_every_frame,
         }
     }
@@ -243,6 +257,7 @@ impl SettingsFile {
             ground: self.ground,
             boxes: self.boxes.clone(),
             solver: self.solver,
+            contacts: self.contacts,
             seed,
             check_invariants_every_frame: self.check_invariants_every_frame,
         }
@@ -258,6 +273,10 @@ impl MaterialFile {
             cluster_overlap: m.cluster_overlap,
             max_cluster_size: m.max_cluster_size,
             expand_count: m.expand_count,
+            contact_radius: m.contact_radius,
+            static_friction: m.static_friction,
+            dynamic_friction: m.dynamic_friction,
+            self_contact: m.self_contact,
         }
     }
 
@@ -269,6 +288,10 @@ impl MaterialFile {
             cluster_overlap: self.cluster_overlap,
             max_cluster_size: self.max_cluster_size,
             expand_count: self.expand_count,
+            contact_radius: self.contact_radius,
+            static_friction: self.static_friction,
+            dynamic_friction: self.dynamic_friction,
+            self_contact: self.self_contact,
         }
     }
 }

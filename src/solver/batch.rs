@@ -684,7 +684,7 @@ impl SolverLayout {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solver::Colliders;
+    use crate::solver::ConstraintKinds;
     use crate::solver::unit_specs as specs;
     use glam::Vec3;
 
@@ -803,7 +803,7 @@ mod tests {
             for (i, p) in l.positions.iter_mut().enumerate() {
                 p.y += 0.02 * (i % 7) as f32 - 0.05 * (i % 3) as f32;
             }
-            l.solve(20, &Colliders::default());
+            l.solve(20, &mut ConstraintKinds::default());
         }
         let [with, without] = &layouts;
         let moved: f32 = with.corrections.iter().map(|c| c.length()).sum();

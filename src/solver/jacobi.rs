@@ -2,11 +2,10 @@
 //! `sₖ (gᵢ − pᵢ)` to each member's accumulator (spatial groups of clusters, the groups
 //! of one colour in parallel, so no two tasks write the same accumulator and each
 //! particle sums its pulls in a fixed order for any thread count); then every particle
-//! moves by the average pull and the colliders apply.
+//! moves by the average pull.
 
-use super::colliders::{Block, Bounds, collide_block};
 use super::sweep::Disjoint;
-use super::{Colliders, PARTICLES_PER_TASK, SolverLayout};
+use super::{PARTICLES_PER_TASK, SolverLayout};
 use glam::Vec3A;
 use rayon::prelude::*;
 
@@ -54,11 +53,10 @@ impl SolverLayout {
         });
     }
 
-    /// Particle pass: `pᵢ += (1/nᵢ) Σₖ sₖ (gᵢₖ − pᵢ)` (pinned particles stay), then the
-    /// colliders; clears the accumulators.
-    pub(super) fn move_particles_jacobi(&mut self, colliders: &Colliders) {
-        let (inv_count, inv_mass, previous) = (&self.inv_count, &self.inv_mass, &self.previous);
-        let collide = colliders.ground.is_some() || !colliders.boxes.is_empty();
+    /// Particle pass: `pᵢ += (1/nᵢ) Σₖ sₖ (gᵢₖ − pᵢ)` (pinned particles stay); clears
+    /// the accumulators.
+    pub(super) fn move_particles_jacobi(&mut self) {
+        let (inv_count, inv_mass) = (&self.inv_count, &self.inv_mass);
         self.positions
             .par_chunks_mut(PARTICLES_PER_TASK)
             .zip(self.corrections.par_chunks_mut(PARTICLES_PER_TASK))
@@ -66,39 +64,33 @@ impl SolverLayout {
             .enumerate()
             .for_each(|(task, ((positions, corrections), pulls))| {
                 let range = task * PARTICLES_PER_TASK..task * PARTICLES_PER_TASK + positions.len();
-                let (inv_count, inv_mass) = (&inv_count[range.clone()], &inv_mass[range.clone()]);
-                let bounds = move_block(positions, corrections, pulls, inv_count, inv_mass);
-                // (Morton order: a task's particles are a compact block, mostly far
-                // from every collider)
-                if collide {
-                    let block = Block {
-                        positions,
-                        corrections,
-                        previous: &previous[range],
-                        inv_mass,
-                    };
-                    collide_block(block, &bounds, colliders);
-                }
+                move_block(
+                    positions,
+                    corrections,
+                    pulls,
+                    &inv_count[range.clone()],
+                    &inv_mass[range],
+                );
             });
     }
 }
 
 /// The particle pass over one block: `p += step`, `correction += step` with
-/// `step = pull / n` (zero for a pinned particle), pulls cleared; returns the block's
-/// bounds. With AVX, two particles at a time: a pair of `Vec3A`s fills one eight-lane
-/// vector (their fourth lanes ride along and are never read), so each operation moves
-/// two particles. Every lane computes exactly what the one-particle loop does.
+/// `step = pull / n` (zero for a pinned particle), pulls cleared. With AVX, two
+/// particles at a time: a pair of `Vec3A`s fills one eight-lane vector (their fourth
+/// lanes ride along and are never read), so each operation moves two particles. Every
+/// lane computes exactly what the one-particle loop does.
 fn move_block(
     positions: &mut [Vec3A],
     corrections: &mut [Vec3A],
     pulls: &mut [Vec3A],
     inv_count: &[f32],
     inv_mass: &[f32],
-) -> Bounds {
+) {
     #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
-    let (mut bounds, first) = pairs::move_pairs(positions, corrections, pulls, inv_count, inv_mass);
+    let first = pairs::move_pairs(positions, corrections, pulls, inv_count, inv_mass);
     #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
-    let (mut bounds, first) = (Bounds::default(), 0);
+    let first = 0;
     let rest = positions[first..]
         .iter_mut()
         .zip(&mut corrections[first..])
@@ -107,13 +99,9 @@ fn move_block(
     for (((p, correction), pull), (&count, &mass)) in rest {
         let step = *pull * step_scale(mass, count);
         *pull = Vec3A::ZERO;
-        // (the sum kept in a register: reading `*p` back costs a load)
-        let moved = *p + step;
-        *p = moved;
+        *p += step;
         *correction += step;
-        bounds.add(moved);
     }
-    bounds
 }
 
 /// A particle's step per unit pull: `1/n`, or zero for a pinned particle (a select, not
@@ -126,13 +114,13 @@ fn step_scale(inv_mass: f32, inv_count: f32) -> f32 {
 /// The particle pass two particles at a time (see [`move_block`]).
 #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
 mod pairs {
-    use super::{Bounds, step_scale};
+    use super::step_scale;
     use glam::Vec3A;
     use std::arch::x86_64::*;
     use wide::f32x8;
 
-    /// Moves the particles of `positions` in pairs; returns the pairs' bounds and the
-    /// index of the first particle left (the last one of an odd count).
+    /// Moves the particles of `positions` in pairs; returns the index of the first
+    /// particle left (the last one of an odd count).
     #[inline(always)]
     pub(super) fn move_pairs(
         positions: &mut [Vec3A],
@@ -140,18 +128,13 @@ mod pairs {
         pulls: &mut [Vec3A],
         inv_count: &[f32],
         inv_mass: &[f32],
-    ) -> (Bounds, usize) {
+    ) -> usize {
         let (position_pairs, _) = positions.as_chunks_mut::<2>();
         let (correction_pairs, _) = corrections.as_chunks_mut::<2>();
         let (pull_pairs, _) = pulls.as_chunks_mut::<2>();
         let (count_pairs, _) = inv_count.as_chunks::<2>();
         let (mass_pairs, _) = inv_mass.as_chunks::<2>();
         let done = 2 * position_pairs.len();
-        let (mut lo, mut hi, mut probe) = (
-            f32x8::splat(f32::INFINITY),
-            f32x8::splat(f32::NEG_INFINITY),
-            f32x8::ZERO,
-        );
         let pairs = position_pairs
             .iter_mut()
             .zip(correction_pairs.iter_mut())
@@ -164,11 +147,8 @@ mod pairs {
             let moved = load(p) + step;
             store(p, moved);
             store(correction, load(correction) + step);
-            lo = lo.min(moved);
-            hi = hi.max(moved);
-            probe = moved.mul_add(f32x8::ZERO, probe);
         }
-        (Bounds::from_pairs(lo, hi, probe), done)
+        done
     }
 
     /// Two `Vec3A`s as one eight-lane vector.
@@ -203,8 +183,7 @@ mod tests {
         pulls: &mut [Vec3A],
         inv_count: &[f32],
         inv_mass: &[f32],
-    ) -> Bounds {
-        let mut bounds = Bounds::default();
+    ) {
         for i in 0..positions.len() {
             let scale = if inv_mass[i] == 0.0 {
                 0.0
@@ -215,9 +194,7 @@ mod tests {
             pulls[i] = Vec3A::ZERO;
             positions[i] += step;
             corrections[i] += step;
-            bounds.add(positions[i]);
         }
-        bounds
     }
 
     #[test]
@@ -240,21 +217,14 @@ mod tests {
                     (positions.clone(), corrections.clone(), pulls.clone());
                 let (mut p2, mut c2, mut u2) =
                     (positions.clone(), corrections.clone(), pulls.clone());
-                let pairwise = move_block(&mut p1, &mut c1, &mut u1, &inv_count, &inv_mass);
-                let single = moved_one_by_one(&mut p2, &mut c2, &mut u2, &inv_count, &inv_mass);
+                move_block(&mut p1, &mut c1, &mut u1, &inv_count, &inv_mass);
+                moved_one_by_one(&mut p2, &mut c2, &mut u2, &inv_count, &inv_mass);
                 let bits = |v: &[Vec3A]| -> Vec<[u32; 3]> {
                     v.iter().map(|x| x.to_array().map(f32::to_bits)).collect()
                 };
                 assert_eq!(bits(&p1), bits(&p2), "positions, n = {n}");
                 assert_eq!(bits(&c1), bits(&c2), "corrections, n = {n}");
                 assert_eq!(bits(&u1), bits(&u2), "pulls, n = {n}");
-                let ((lo1, hi1, finite1), (lo2, hi2, finite2)) =
-                    (pairwise.corners(), single.corners());
-                assert_eq!(finite1, finite2, "n = {n}");
-                assert_eq!(finite1, !(poison && n > 0), "n = {n}");
-                if finite1 {
-                    assert_eq!((lo1, hi1), (lo2, hi2), "n = {n}");
-                }
             }
         }
     }

@@ -24,16 +24,20 @@
 mod batch;
 mod colliders;
 mod colouring;
+mod contacts;
 mod gauss_seidel;
 mod jacobi;
+mod kinds;
 mod patch;
 mod sweep;
 mod template;
 
-pub use colliders::{Colliders, resolve_colliders};
+pub use colliders::{Colliders, PosedCollider};
 pub use colouring::{
     colour_clusters, colour_clusters_by_bits, colour_clusters_by_lists, order_by_colour,
 };
+pub use contacts::{ContactGroup, ContactParticles, Contacts, SELF_CONTACT_EXCLUSION};
+pub use kinds::{ConstraintKind, ConstraintKinds, ParticleState};
 
 use crate::config::SolverMode;
 use crate::rotation::warm_start;
@@ -315,21 +319,41 @@ impl SolverLayout {
             + self.inv_weight_sum.capacity() * 4 * 2
     }
 
-    /// Runs `iterations` iterations of the layout's scheme, each followed by collisions,
-    /// and records the total correction per particle in [`SolverLayout::corrections`].
-    pub fn solve(&mut self, iterations: u32, colliders: &Colliders) {
+    /// Runs `iterations` iterations: each runs the layout's cluster scheme, then every
+    /// other constraint kind in `kinds` in their registered order
+    /// ([`ConstraintKinds::in_order`]); records the total correction per particle in
+    /// [`SolverLayout::corrections`].
+    pub fn solve(&mut self, iterations: u32, kinds: &mut ConstraintKinds) {
         self.corrections.iter_mut().for_each(|c| *c = Vec3A::ZERO);
         self.predicted.clone_from(&self.positions);
+        let mut kinds = kinds.in_order();
+        {
+            let state = ParticleState {
+                positions: &mut self.positions,
+                previous: &self.previous,
+                inv_mass: &self.inv_mass,
+                corrections: &mut self.corrections,
+            };
+            for kind in kinds.iter_mut().filter(|k| !k.is_empty()) {
+                kind.begin_substep(&state);
+            }
+        }
         for _ in 0..iterations {
             match self.mode {
                 SolverMode::Jacobi => {
                     self.accumulate_pulls();
-                    self.move_particles_jacobi(colliders);
+                    self.move_particles_jacobi();
                 }
-                SolverMode::GaussSeidel => {
-                    self.sweep_colours();
-                    self.collide_particles(colliders);
-                }
+                SolverMode::GaussSeidel => self.sweep_colours(),
+            }
+            let mut state = ParticleState {
+                positions: &mut self.positions,
+                previous: &self.previous,
+                inv_mass: &self.inv_mass,
+                corrections: &mut self.corrections,
+            };
+            for kind in kinds.iter_mut().filter(|k| !k.is_empty()) {
+                kind.project(&mut state);
             }
         }
         self.drop_rounding_noise();
@@ -366,31 +390,6 @@ impl SolverLayout {
             .zip(&self.corrections)
             .with_min_len(PARTICLES_PER_TASK)
             .for_each(|(v, c)| *v += *c * inv_dt);
-    }
-
-    /// Applies the colliders to every unpinned particle, adding their push to the
-    /// corrections (as the Jacobi particle pass does).
-    fn collide_particles(&mut self, colliders: &Colliders) {
-        if colliders.ground.is_none() && colliders.boxes.is_empty() {
-            return;
-        }
-        let (previous, inv_mass) = (&self.previous, &self.inv_mass);
-        self.positions
-            .par_chunks_mut(PARTICLES_PER_TASK)
-            .zip(self.corrections.par_chunks_mut(PARTICLES_PER_TASK))
-            .zip(previous.par_chunks(PARTICLES_PER_TASK))
-            .zip(inv_mass.par_chunks(PARTICLES_PER_TASK))
-            .for_each(|(((positions, corrections), previous), inv_mass)| {
-                let mut bounds = colliders::Bounds::default();
-                positions.iter().for_each(|p| bounds.add(*p));
-                let block = colliders::Block {
-                    positions,
-                    corrections,
-                    previous,
-                    inv_mass,
-                };
-                colliders::collide_block(block, &bounds, colliders);
-            });
     }
 }
 
@@ -437,14 +436,15 @@ mod tests {
             }
             l.inv_mass[2] = 0.0;
             let pinned = l.positions[2];
-            let colliders = Colliders {
-                ground: Some(crate::config::GroundPlane {
+            let mut kinds = ConstraintKinds::default();
+            kinds.colliders = Colliders::new(
+                Some(crate::config::GroundPlane {
                     height: 0.0,
                     friction: 0.0,
                 }),
-                boxes: vec![],
-            };
-            l.solve(5, &colliders);
+                vec![],
+            );
+            l.solve(5, &mut kinds);
             assert_eq!(l.positions[2], pinned, "{mode:?}");
             assert!(
                 l.positions[7].y > -0.5,
@@ -459,7 +459,7 @@ mod tests {
             let mut l = perturbed_bar(mode);
             let momentum = |l: &SolverLayout| l.positions.iter().copied().sum::<Vec3A>();
             let before = momentum(&l);
-            l.solve(200, &Colliders::default());
+            l.solve(200, &mut ConstraintKinds::default());
             assert!((momentum(&l) - before).length() < 1e-4, "{mode:?}");
             // straight again (up to a rigid motion): the ends are 7 apart
             let d = (l.positions[7] - l.positions[0]).length();
@@ -505,7 +505,7 @@ mod tests {
     fn gauss_seidel_converges_faster_than_jacobi_on_a_twisted_block() {
         let error = |mode, iterations| {
             let (rest, mut l) = twisted_block(mode);
-            l.solve(iterations, &Colliders::default());
+            l.solve(iterations, &mut ConstraintKinds::default());
             let current: Vec<Vec3> = l.positions.iter().map(|p| Vec3::from(*p)).collect();
             crate::stats::rigid_fit_error(&rest, &current)
         };

@@ -214,7 +214,7 @@ mod tests {
     use super::*;
     use crate::lanes::LANES;
     use crate::solver::colouring::order_by_colour;
-    use crate::solver::{Colliders, unit_specs as specs};
+    use crate::solver::{ConstraintKinds, unit_specs as specs};
     use glam::Vec3;
 
     /// A 200-particle bar with clusters of three consecutive particles (enough batches
@@ -329,7 +329,7 @@ mod tests {
                     for (i, p) in l.positions.iter_mut().enumerate() {
                         p.y -= 0.01 * i as f32;
                     }
-                    l.solve(20, &Colliders::default());
+                    l.solve(20, &mut ConstraintKinds::default());
                 }
                 for (p, q) in patched.positions.iter().zip(&rebuilt.positions) {
                     assert!((*p - *q).length() < 1e-5, "{p} vs {q}");
