@@ -1,8 +1,9 @@
 //! Built-in scenes: a simulation config, bodies, tools and a default frame count.
 
+use crate::collider::ColliderShape;
 use crate::config::{Material, SimConfig, StaticBox};
 use crate::lattice::Shape;
-use crate::sim::{BodyDesc, PinRegion, ToolDesc};
+use crate::sim::{BodyDesc, ColliderDesc, PinRegion, ToolDesc};
 use crate::tool::{Path, Pose, ToolShape};
 use glam::{Quat, UVec3, Vec3};
 use rand::{Rng, SeedableRng};
@@ -17,12 +18,14 @@ pub struct Scene {
     pub bodies: Vec<BodyDesc>,
     /// Tools to spawn.
     pub tools: Vec<ToolDesc>,
+    /// Colliders to spawn (besides the config's ground and static boxes).
+    pub colliders: Vec<ColliderDesc>,
     /// Default number of frames.
     pub frames: u32,
 }
 
 /// Names and one-line descriptions of the built-in scenes.
-pub const BUILTIN_SCENES: [(&str, &str); 6] = [
+pub const BUILTIN_SCENES: [(&str, &str); 9] = [
     ("drop", "a 16×8×8 box falls on the ground and settles"),
     (
         "cantilever",
@@ -43,6 +46,18 @@ pub const BUILTIN_SCENES: [(&str, &str); 6] = [
     (
         "random",
         "a seeded sequence of random blade and sphere cuts (stress test)",
+    ),
+    (
+        "stack",
+        "a 16×8×8 box dropped onto an 8×8×8 box resting on the ground comes to rest on top",
+    ),
+    (
+        "pile",
+        "boxes, balls and a capsule dropped into a walled bin of tilted static boxes",
+    ),
+    (
+        "press",
+        "a moving plate squeezes a block, then a blade cuts it while squeezed",
     ),
 ];
 
@@ -110,6 +125,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
                 config,
                 bodies: vec![body],
                 tools: vec![],
+                colliders: vec![],
                 frames: 300,
             }
         }
@@ -133,6 +149,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
                 config,
                 bodies: vec![body],
                 tools: vec![],
+                colliders: vec![],
                 frames: 600,
             }
         }
@@ -150,6 +167,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
                 config,
                 bodies: vec![body],
                 tools: vec![tool],
+                colliders: vec![],
                 frames: 300,
             }
         }
@@ -168,6 +186,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
                 config,
                 bodies: vec![body],
                 tools: vec![a, b],
+                colliders: vec![],
                 frames: 300,
             }
         }
@@ -188,10 +207,14 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
                 config: cutting_config(seed),
                 bodies: vec![body],
                 tools: vec![tool],
+                colliders: vec![],
                 frames: 120,
             }
         }
         "random" => random_scene(seed),
+        "stack" => stack_scene(config),
+        "pile" => pile_scene(config, H),
+        "press" => press_scene(config),
         _ => return None,
     })
 }
@@ -274,6 +297,138 @@ fn random_scene(seed: u64) -> Scene {
         config: cutting_config(seed),
         bodies: vec![body],
         tools,
+        colliders: vec![],
         frames: 300,
+    }
+}
+
+/// A box of `cells` lattice points whose lowest layer is at height `bottom`.
+fn box_at(cells: UVec3, x: f32, bottom: f32, z: f32) -> BodyDesc {
+    let mut body = BodyDesc::new(Shape::cuboid(cells, H), H);
+    body.position = Vec3::new(x, bottom + (cells.y - 1) as f32 * H * 0.5, z);
+    body
+}
+
+fn stack_scene(config: SimConfig) -> Scene {
+    let lower = box_at(UVec3::new(8, 8, 8), 0.0, 0.0, 0.0);
+    let upper = box_at(UVec3::new(16, 8, 8), 0.0, 1.2, 0.0);
+    Scene {
+        config,
+        bodies: vec![lower, upper],
+        tools: vec![],
+        colliders: vec![],
+        frames: 300,
+    }
+}
+
+/// A walled bin (four static boxes, each tilted 10° outwards about its long axis) and
+/// seven bodies of four shapes dropped into it one above another, at spacing `h`; with a
+/// smaller `h` the same scene has more particles (the bench's contact row).
+pub fn pile_scene(config: SimConfig, h: f32) -> Scene {
+    let inner = 1.0; // half width of the bin's floor
+    let (height, thickness, tilt) = (1.2, 0.1, 10f32.to_radians());
+    let mut colliders = Vec::new();
+    for k in 0..4 {
+        // wall k faces the centre from the side at angle k·90° about Y
+        let yaw = Quat::from_rotation_y(k as f32 * std::f32::consts::FRAC_PI_2);
+        let outward = yaw * Vec3::X;
+        let lean = Quat::from_axis_angle(yaw * Vec3::Z, -tilt);
+        let centre =
+            outward * (inner + thickness + height * 0.5 * tilt.sin()) + Vec3::Y * (height * 0.5);
+        colliders.push(ColliderDesc {
+            shape: ColliderShape::Box {
+                half_extents: Vec3::new(thickness, height * 0.5, inner + 2.0 * thickness),
+            },
+            friction: 0.3,
+            pose: Pose {
+                position: centre,
+                rotation: lean * yaw,
+            },
+            path: Path::default(),
+        });
+    }
+    let shapes = [
+        Shape::Box {
+            half_extents: Vec3::new(0.35, 0.2, 0.25),
+        },
+        Shape::Sphere { radius: 0.3 },
+        Shape::Capsule {
+            radius: 0.18,
+            half_length: 0.35,
+        },
+        Shape::Box {
+            half_extents: Vec3::splat(0.22),
+        },
+        Shape::Sphere { radius: 0.22 },
+        Shape::Box {
+            half_extents: Vec3::new(0.5, 0.12, 0.15),
+        },
+        Shape::Sphere { radius: 0.25 },
+    ];
+    let bodies = shapes
+        .into_iter()
+        .enumerate()
+        .map(|(i, shape)| {
+            let mut body = BodyDesc::new(shape, h);
+            let a = i as f32 * 2.4;
+            body.position = Vec3::new(0.35 * a.cos(), 0.6 + 0.75 * i as f32, 0.35 * a.sin());
+            body.rotation = Quat::from_rotation_y(0.7 * i as f32);
+            body
+        })
+        .collect();
+    Scene {
+        config,
+        bodies,
+        tools: vec![],
+        colliders,
+        frames: 400,
+    }
+}
+
+fn press_scene(config: SimConfig) -> Scene {
+    let block = box_at(UVec3::new(16, 8, 8), 0.0, 0.0, 0.0);
+    let top = 0.7;
+    let plate_at = |y: f32| Pose::at(Vec3::new(0.0, y + 0.05, 0.0));
+    let plate = ColliderDesc {
+        shape: ColliderShape::Box {
+            half_extents: Vec3::new(1.2, 0.05, 0.8),
+        },
+        friction: 0.5,
+        pose: plate_at(1.2),
+        path: Path {
+            keys: vec![
+                (0.2, plate_at(1.2)),
+                (0.8, plate_at(top - 0.2)),
+                (2.6, plate_at(top - 0.2)),
+                (3.2, plate_at(1.5)),
+            ],
+        },
+    };
+    // a blade in the YZ plane (normal X) sweeping along Z through the squeezed block
+    let blade_at = |z: f32| Pose {
+        position: Vec3::new(0.05, 0.3, z),
+        rotation: Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+    };
+    let blade = ToolDesc {
+        shape: ToolShape::Blade {
+            half_width: 0.3,
+            half_height: 0.6,
+        },
+        cut_width: 1.01 * H,
+        path: Path {
+            keys: vec![
+                (1.2, blade_at(1.5)),
+                (1.8, blade_at(-1.5)),
+                (1.85, blade_at(-5.0)),
+            ],
+        },
+        pose: blade_at(1.5),
+    };
+    Scene {
+        config,
+        bodies: vec![block],
+        tools: vec![blade],
+        colliders: vec![plate],
+        frames: 240,
     }
 }

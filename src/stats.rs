@@ -58,6 +58,65 @@ pub fn rigid_fit_error(rest: &[Vec3], current: &[Vec3]) -> f32 {
     (sum / n).sqrt()
 }
 
+/// The smallest distance between two of `points` with different `labels`, when some
+/// such pair is closer than `reach`; `None` otherwise. A uniform grid of cells of side
+/// `reach`, so the cost is linear in the points (written apart from the contact kind's
+/// broad phase, so that it can check it).
+pub fn min_distance_between_labels(points: &[Vec3], labels: &[u64], reach: f32) -> Option<f32> {
+    use std::collections::HashMap;
+    let cell = |p: Vec3| (p / reach).floor().as_ivec3();
+    let mut grid: HashMap<glam::IVec3, Vec<usize>> = HashMap::new();
+    for (i, p) in points.iter().enumerate() {
+        if p.is_finite() {
+            grid.entry(cell(*p)).or_default().push(i);
+        }
+    }
+    let mut best: Option<f32> = None;
+    for (c, members) in &grid {
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let Some(others) = grid.get(&(*c + glam::IVec3::new(dx, dy, dz))) else {
+                        continue;
+                    };
+                    for &a in members {
+                        for &b in others {
+                            if labels[a] != labels[b] {
+                                let d = points[a].distance(points[b]);
+                                if d < reach && best.is_none_or(|m| d < m) {
+                                    best = Some(d);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    best
+}
+
+/// Live particle positions of every body with their body and piece: `(position, body
+/// ordinal, piece label)`, bodies in entity order.
+pub fn labelled_positions(world: &mut World) -> Vec<(Vec3, u32, u32)> {
+    let mut bodies: Vec<(Entity, BodyLattice)> = world
+        .query::<(Entity, &BodyLattice)>()
+        .iter(world)
+        .map(|(e, b)| (e, b.clone()))
+        .collect();
+    bodies.sort_unstable_by_key(|(e, _)| *e);
+    let mut out = Vec::new();
+    for (ordinal, (_, body)) in bodies.iter().enumerate() {
+        let (labels, _) = body_pieces(&body.lattice);
+        for i in body.lattice.live_particles() {
+            if let Some(p) = world.get::<Position>(body.particles[i as usize]) {
+                out.push((p.0, ordinal as u32, labels[i as usize]));
+            }
+        }
+    }
+    out
+}
+
 /// Statistics of one body.
 pub fn body_stats(world: &mut World, body: Entity) -> Option<BodyStats> {
     let lattice = world.get::<BodyLattice>(body)?.clone();
@@ -117,4 +176,27 @@ pub fn body_stats(world: &mut World, body: Entity) -> Option<BodyStats> {
         piece_centroids: centroids,
         finite: live.iter().all(|p| p.is_finite()),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_closest_pair_of_different_labels_is_found() {
+        let points = [
+            Vec3::ZERO,
+            Vec3::new(0.05, 0.0, 0.0),
+            Vec3::new(0.3, 0.0, 0.0),
+            Vec3::new(0.38, 0.0, 0.0),
+        ];
+        // 0–1 share a label; 2–3 are the closest pair of different labels
+        let d = min_distance_between_labels(&points, &[0, 0, 1, 2], 0.5).unwrap();
+        assert!((d - 0.08).abs() < 1e-6, "{d}");
+        assert_eq!(min_distance_between_labels(&points, &[7; 4], 0.5), None);
+        assert_eq!(
+            min_distance_between_labels(&points, &[0, 0, 1, 1], 0.2),
+            None
+        );
+    }
 }

@@ -1,17 +1,19 @@
 //! Software rendering of a simulation for people to look at: particles as shaded,
-//! depth-tested spheres coloured by piece or by cluster, the ground as a grid, static
-//! boxes, and the tools, seen by a fixed three-quarter camera that frames the scene.
+//! depth-tested spheres coloured by piece or by cluster, the ground as a grid, the
+//! colliders, and the tools, seen by a fixed three-quarter camera that frames the scene.
 //! [`snapshot`] reads a World into plain data; [`render`] draws plain data.
 //!
 //! Known simplification: the ground, boxes and tools are flat layers (ground and boxes
-//! behind all particles, tools in front), only the particles are depth-tested.
+//! behind all particles, tools in front); only the particles, and collider balls and
+//! capsules (drawn as balls), are depth-tested.
 
 pub mod camera;
 pub mod canvas;
 pub mod encode;
 
-use crate::components::{BodyLattice, ParticleClusters, Tool, ToolPose};
-use crate::config::{GroundPlane, StaticBox};
+use crate::collider::ColliderShape;
+use crate::components::{BodyLattice, Collider, ColliderPose, ParticleClusters, Tool, ToolPose};
+use crate::config::GroundPlane;
 use crate::graph::body_pieces;
 use crate::resources::SimSettings;
 use crate::tool::{Pose, ToolShape};
@@ -52,8 +54,8 @@ pub struct Snapshot {
     pub tools: Vec<(ToolShape, Pose)>,
     /// Ground plane.
     pub ground: Option<GroundPlane>,
-    /// Static boxes.
-    pub boxes: Vec<StaticBox>,
+    /// Colliders (the config's static boxes among them) and their poses.
+    pub colliders: Vec<(ColliderShape, Pose)>,
 }
 
 /// Distinct colours for pieces.
@@ -139,19 +141,38 @@ pub fn snapshot(world: &mut World, mode: ColorMode) -> Snapshot {
         .collect();
     tools.sort_by_key(|(e, _, _)| *e);
     let settings = &world.resource::<SimSettings>().0;
+    let mut colliders: Vec<(ColliderShape, Pose)> = settings
+        .boxes
+        .iter()
+        .map(|b| {
+            let shape = ColliderShape::Box {
+                half_extents: 0.5 * (b.max - b.min),
+            };
+            (shape, Pose::at(0.5 * (b.min + b.max)))
+        })
+        .collect();
+    let mut collider_query = world.try_query::<(Entity, &Collider, &ColliderPose)>();
+    let mut moving: Vec<(Entity, ColliderShape, Pose)> = collider_query
+        .iter_mut()
+        .flat_map(|q| q.iter(world))
+        .map(|(e, c, p)| (e, c.shape, p.current))
+        .collect();
+    moving.sort_by_key(|(e, _, _)| *e);
+    colliders.extend(moving.into_iter().map(|(_, s, p)| (s, p)));
     Snapshot {
         spheres,
         tools: tools.into_iter().map(|(_, s, p)| (s, p)).collect(),
         ground: settings.ground,
-        boxes: settings.boxes.clone(),
+        colliders,
     }
 }
 
-/// A camera that frames the particles and boxes of `snapshot`.
+/// A camera that frames the particles and colliders of `snapshot`.
 pub fn frame_camera(snapshot: &Snapshot, width: u32, height: u32) -> Camera {
     let mut points: Vec<Vec3> = snapshot.spheres.iter().map(|s| s.position).collect();
-    for b in &snapshot.boxes {
-        points.extend([b.min, b.max]);
+    for (shape, pose) in &snapshot.colliders {
+        let half = shape.local_half_extents();
+        points.extend([pose.position - half, pose.position + half]);
     }
     if points.is_empty() {
         return Camera::framing(Vec3::ZERO, 1.0, width, height);
@@ -171,8 +192,8 @@ pub fn render(snapshot: &Snapshot, camera: &Camera, width: u32, height: u32) -> 
     if let Some(ground) = snapshot.ground {
         draw_ground(&mut canvas, camera, ground.height, snapshot);
     }
-    for b in &snapshot.boxes {
-        draw_box(&mut canvas, camera, b);
+    for (shape, pose) in &snapshot.colliders {
+        draw_collider(&mut canvas, camera, shape, pose);
     }
     for s in &snapshot.spheres {
         if let Some((x, y, z)) = camera.project(s.position) {
@@ -243,77 +264,53 @@ fn nice_step(x: f32) -> f32 {
         .unwrap_or(10.0 * p)
 }
 
-fn draw_box(canvas: &mut Canvas, camera: &Camera, b: &StaticBox) {
-    let (lo, hi) = (b.min, b.max);
-    let faces: [(Vec3, [Vec3; 4]); 6] = [
-        (
-            Vec3::X,
-            [
-                Vec3::new(hi.x, lo.y, lo.z),
-                Vec3::new(hi.x, hi.y, lo.z),
-                Vec3::new(hi.x, hi.y, hi.z),
-                Vec3::new(hi.x, lo.y, hi.z),
-            ],
-        ),
-        (
-            -Vec3::X,
-            [
-                Vec3::new(lo.x, lo.y, lo.z),
-                Vec3::new(lo.x, lo.y, hi.z),
-                Vec3::new(lo.x, hi.y, hi.z),
-                Vec3::new(lo.x, hi.y, lo.z),
-            ],
-        ),
-        (
-            Vec3::Y,
-            [
-                Vec3::new(lo.x, hi.y, lo.z),
-                Vec3::new(lo.x, hi.y, hi.z),
-                Vec3::new(hi.x, hi.y, hi.z),
-                Vec3::new(hi.x, hi.y, lo.z),
-            ],
-        ),
-        (
-            -Vec3::Y,
-            [
-                Vec3::new(lo.x, lo.y, lo.z),
-                Vec3::new(hi.x, lo.y, lo.z),
-                Vec3::new(hi.x, lo.y, hi.z),
-                Vec3::new(lo.x, lo.y, hi.z),
-            ],
-        ),
-        (
-            Vec3::Z,
-            [
-                Vec3::new(lo.x, lo.y, hi.z),
-                Vec3::new(hi.x, lo.y, hi.z),
-                Vec3::new(hi.x, hi.y, hi.z),
-                Vec3::new(lo.x, hi.y, hi.z),
-            ],
-        ),
-        (
-            -Vec3::Z,
-            [
-                Vec3::new(lo.x, lo.y, lo.z),
-                Vec3::new(lo.x, hi.y, lo.z),
-                Vec3::new(hi.x, hi.y, lo.z),
-                Vec3::new(hi.x, lo.y, lo.z),
-            ],
-        ),
-    ];
-    for (normal, corners) in faces {
-        let centre = corners.iter().sum::<Vec3>() * 0.25;
-        if normal.dot(camera.eye() - centre) <= 0.0 {
-            continue;
+/// A box as its visible faces (behind every particle); a ball as a depth-tested
+/// sphere; a capsule as a row of such spheres along its axis.
+fn draw_collider(canvas: &mut Canvas, camera: &Camera, shape: &ColliderShape, pose: &Pose) {
+    const STONE: [u8; 3] = [150, 150, 158];
+    let world = |p: Vec3| pose.position + pose.rotation * p;
+    let ball = |canvas: &mut Canvas, centre: Vec3, radius: f32| {
+        if let Some((x, y, z)) = camera.project(centre) {
+            canvas.sphere(x, y, z, radius * camera.scale_at(z), radius, STONE);
         }
-        let shade = 0.55 + 0.45 * normal.dot(Vec3::new(-0.3, 0.9, 0.4).normalize()).max(0.0);
-        let grey = (150.0 * shade) as u8;
-        let quad: Option<Vec<(f32, f32)>> = corners
-            .iter()
-            .map(|c| camera.project(*c).map(|p| (p.0, p.1)))
-            .collect();
-        if let Some(quad) = quad {
-            canvas.fill_polygon(&quad, [grey, grey, grey.saturating_add(8)], 255);
+    };
+    match *shape {
+        ColliderShape::Box { half_extents: h } => {
+            for axis in 0..3 {
+                for sign in [-1.0f32, 1.0] {
+                    let mut normal = Vec3::ZERO;
+                    normal[axis] = sign;
+                    let (u, v) = (Vec3::AXES[(axis + 1) % 3], Vec3::AXES[(axis + 2) % 3]);
+                    let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+                        .map(|(a, b): (f32, f32)| world(normal * h + u * (a * h) + v * (b * h)));
+                    let normal = pose.rotation * normal;
+                    let centre = corners.iter().sum::<Vec3>() * 0.25;
+                    if normal.dot(camera.eye() - centre) <= 0.0 {
+                        continue;
+                    }
+                    let light = Vec3::new(-0.3, 0.9, 0.4).normalize();
+                    let shade = 0.55 + 0.45 * normal.dot(light).max(0.0);
+                    let grey = (STONE[0] as f32 * shade) as u8;
+                    let quad: Option<Vec<(f32, f32)>> = corners
+                        .iter()
+                        .map(|c| camera.project(*c).map(|p| (p.0, p.1)))
+                        .collect();
+                    if let Some(quad) = quad {
+                        canvas.fill_polygon(&quad, [grey, grey, grey.saturating_add(8)], 255);
+                    }
+                }
+            }
+        }
+        ColliderShape::Sphere { radius } => ball(canvas, pose.position, radius),
+        ColliderShape::Capsule {
+            radius,
+            half_length,
+        } => {
+            let steps = ((2.0 * half_length / (0.5 * radius)).ceil() as u32).clamp(1, 64);
+            for k in 0..=steps {
+                let x = -half_length + 2.0 * half_length * k as f32 / steps as f32;
+                ball(canvas, world(Vec3::new(x, 0.0, 0.0)), radius);
+            }
         }
     }
 }

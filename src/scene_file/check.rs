@@ -3,6 +3,7 @@
 //! adds the file position and the field path.
 
 use super::{BodyFile, PoseFile};
+use crate::collider::ColliderShape;
 use crate::config::{GroundPlane, StaticBox};
 use crate::sim::PinRegion;
 use crate::tool::ToolShape;
@@ -143,6 +144,11 @@ pub fn pins<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<PinRegion>, D::Error>
         }
     }
     Ok(pins)
+}
+pub fn collider_shape<'de, D: Deserializer<'de>>(d: D) -> Result<ColliderShape, D::Error> {
+    let shape = ColliderShape::deserialize(d)?;
+    shape.validate("shape").map_err(D::Error::custom)?;
+    Ok(shape)
 }
 pub fn tool_shape<'de, D: Deserializer<'de>>(d: D) -> Result<ToolShape, D::Error> {
     let shape = ToolShape::deserialize(d)?;

@@ -2,11 +2,12 @@
 //! names the file, line, column and field (and, for a value out of range, the allowed
 //! range); conversion to and from [`Scene`], so every built-in scene is also a file.
 
+use crate::collider::ColliderShape;
 use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
 use crate::lattice::Shape;
 use crate::mesh::TriangleMesh;
 use crate::scene::Scene;
-use crate::sim::{BodyDesc, PinRegion, ToolDesc};
+use crate::sim::{BodyDesc, ColliderDesc, PinRegion, ToolDesc};
 use crate::tool::{Path as ToolPath, Pose, ToolShape};
 use glam::{Quat, UVec3, Vec3};
 use serde::{Deserialize, Serialize};
@@ -38,6 +39,9 @@ pub struct SceneFile {
     /// Cutting tools.
     #[serde(default)]
     pub tools: Vec<ToolFile>,
+    /// Colliders: oriented boxes, balls and capsules, static or on a keyframed path.
+    #[serde(default)]
+    pub colliders: Vec<ColliderFile>,
 }
 
 /// Simulation settings ([`SimConfig`] without the seed).
@@ -201,6 +205,32 @@ pub struct ToolFile {
     pub pose: Option<PoseFile>,
 }
 
+/// A collider.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ColliderFile {
+    /// Shape: `Box(half_extents)`, `Sphere(radius)` or `Capsule(radius, half_length)`
+    /// (along local X).
+    #[serde(deserialize_with = "check::collider_shape")]
+    pub shape: ColliderShape,
+    /// Coulomb friction coefficient.
+    #[serde(
+        default = "default_collider_friction",
+        deserialize_with = "check::friction"
+    )]
+    pub friction: f32,
+    /// Keyframes `(time in seconds, pose)`, ascending; empty: the collider is static.
+    #[serde(default, deserialize_with = "check::keys")]
+    pub path: Vec<(f32, PoseFile)>,
+    /// Pose before the path starts (default: the first key's).
+    #[serde(default)]
+    pub pose: Option<PoseFile>,
+}
+
+fn default_collider_friction() -> f32 {
+    0.5
+}
+
 /// A pose.
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -340,12 +370,23 @@ impl SceneFile {
                 pose: Some(t.pose.into()),
             })
             .collect();
+        let colliders = scene
+            .colliders
+            .iter()
+            .map(|c| ColliderFile {
+                shape: c.shape,
+                friction: c.friction,
+                path: c.path.keys.iter().map(|(k, p)| (*k, (*p).into())).collect(),
+                pose: Some(c.pose.into()),
+            })
+            .collect();
         Some(Self {
             seed: scene.config.seed,
             frames: scene.frames,
             settings: SettingsFile::from_config(&scene.config),
             bodies,
             tools,
+            colliders,
         })
     }
 
@@ -391,17 +432,24 @@ impl SceneFile {
             .tools
             .iter()
             .map(|t| {
-                let keys: Vec<(f32, Pose)> =
-                    t.path.iter().map(|(k, p)| (*k, (*p).into())).collect();
-                let pose = t
-                    .pose
-                    .map(Pose::from)
-                    .or_else(|| keys.first().map(|k| k.1))
-                    .unwrap_or(Pose::at(Vec3::ZERO));
+                let (path, pose) = path_and_pose(&t.path, t.pose);
                 ToolDesc {
                     shape: t.shape,
                     cut_width: t.cut_width,
-                    path: ToolPath { keys },
+                    path,
+                    pose,
+                }
+            })
+            .collect();
+        let colliders = self
+            .colliders
+            .iter()
+            .map(|c| {
+                let (path, pose) = path_and_pose(&c.path, c.pose);
+                ColliderDesc {
+                    shape: c.shape,
+                    friction: c.friction,
+                    path,
                     pose,
                 }
             })
@@ -412,6 +460,7 @@ impl SceneFile {
             config,
             bodies,
             tools,
+            colliders,
             frames: self.frames,
         })
     }
@@ -439,6 +488,17 @@ impl SceneFile {
         de.end().map_err(|e| spanned(&de.span_error(e), ""))?;
         Ok(file)
     }
+}
+
+/// A keyframed path and the pose before it starts (default: the first key's, else the
+/// origin).
+fn path_and_pose(keys: &[(f32, PoseFile)], pose: Option<PoseFile>) -> (ToolPath, Pose) {
+    let keys: Vec<(f32, Pose)> = keys.iter().map(|(k, p)| (*k, (*p).into())).collect();
+    let pose = pose
+        .map(Pose::from)
+        .or_else(|| keys.first().map(|k| k.1))
+        .unwrap_or(Pose::at(Vec3::ZERO));
+    (ToolPath { keys }, pose)
 }
 
 fn spanned(e: &ron::error::SpannedError, path: &str) -> String {

@@ -511,7 +511,7 @@ mod tests {
             .map(|_| Vec3A::new(rng.random(), rng.random(), rng.random()) * 1.2)
             .collect();
         let groups: Vec<u32> = (0..n).map(|i| (i % 7) as u32).collect();
-        let coords: Vec<IVec3> = (0..n as i32).map(|i| IVec3::new(i, 0, 0)).collect();
+        let coords: Vec<IVec3> = (0..n).map(|i| IVec3::new(i, 0, 0)).collect();
         let run = |threads| {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)

@@ -436,14 +436,16 @@ mod tests {
             }
             l.inv_mass[2] = 0.0;
             let pinned = l.positions[2];
-            let mut kinds = ConstraintKinds::default();
-            kinds.colliders = Colliders::new(
-                Some(crate::config::GroundPlane {
-                    height: 0.0,
-                    friction: 0.0,
-                }),
-                vec![],
-            );
+            let mut kinds = ConstraintKinds {
+                colliders: Colliders::new(
+                    Some(crate::config::GroundPlane {
+                        height: 0.0,
+                        friction: 0.0,
+                    }),
+                    vec![],
+                ),
+                ..Default::default()
+            };
             l.solve(5, &mut kinds);
             assert_eq!(l.positions[2], pinned, "{mode:?}");
             assert!(

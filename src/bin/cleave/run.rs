@@ -5,13 +5,13 @@ use crate::pictures::{PictureOptions, Pictures};
 use bevy_ecs::prelude::*;
 use cleave::bench::median;
 use cleave::components::{BodyLattice, InvMass, Position};
-use cleave::dump::dump_body;
+use cleave::dump::dump_world;
 use cleave::profile::StageProfile;
 use cleave::resources::{CutTimings, ParticlesCut};
 use cleave::scene::{BUILTIN_SCENES, Scene, builtin};
 use cleave::scene_file::load_scene_file;
-use cleave::sim::{Simulation, check_invariants, only_body};
-use cleave::stats::{BodyStats, body_stats};
+use cleave::sim::{Simulation, check_invariants};
+use cleave::stats::{BodyStats, body_stats, labelled_positions, min_distance_between_labels};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::io::IsTerminal;
@@ -24,6 +24,7 @@ struct Summary {
     frames: u32,
     seed: u64,
     threads: usize,
+    /// Totals over every body at the end.
     particles: usize,
     clusters: usize,
     memberships: usize,
@@ -33,21 +34,159 @@ struct Summary {
     simulate_ms_total: f64,
     pictures_ms_total: f64,
     pictures_written: usize,
+    /// The largest over the bodies.
     final_shape_error_h: f64,
+    /// The lowest over the bodies, in units of the first body's spacing.
     lowest_particle_y_h: f64,
     finite: bool,
+    /// Smallest distance between particles of different pieces (of one body or of two),
+    /// over every frame from the first with two pieces in the scene, in units of the
+    /// smallest spacing; `null` when no two pieces came within 2 h.
+    min_gap_between_pieces_h: Option<f64>,
+    /// The same between particles of different bodies, at the end.
+    final_min_gap_between_bodies_h: Option<f64>,
+    cut_events: usize,
+    cut_event_ms_median: f64,
+    cut_event_ms_max: f64,
+    invariant_violations: usize,
+    /// Per body, in spawn order.
+    bodies: Vec<BodySummary>,
+}
+
+/// What the summary reports of one body.
+#[derive(Serialize)]
+struct BodySummary {
     before: BodyStats,
-    after: BodyStats,
     half_time: BodyStats,
+    after: BodyStats,
+    /// Drop of the particle with the largest lattice x (a cantilever's tip), in h.
     tip_drop_h_half: f64,
     tip_drop_h_end: f64,
     pinned_max_displacement_h: f64,
     piece_separation_start_h: f64,
     piece_separation_end_h: f64,
-    cut_events: usize,
-    cut_event_ms_median: f64,
-    cut_event_ms_max: f64,
-    invariant_violations: usize,
+}
+
+/// What a run follows of one body.
+struct Tracked {
+    body: Entity,
+    h: f32,
+    lattice: BodyLattice,
+    tip: u32,
+    tip_start: Option<glam::Vec3>,
+    pinned: Vec<(u32, glam::Vec3)>,
+    start_positions: Vec<glam::Vec3>,
+    before: BodyStats,
+    half: BodyStats,
+    tip_half: f64,
+}
+
+impl Tracked {
+    fn new(sim: &mut Simulation, body: Entity, h: f32) -> Result<Self, String> {
+        let lattice = sim
+            .world()
+            .get::<BodyLattice>(body)
+            .ok_or("no lattice")?
+            .clone();
+        let l = &lattice.lattice;
+        let tip = (0..l.len() as u32)
+            .max_by_key(|i| (l.coord(*i).x, -(*i as i64)))
+            .unwrap_or(0);
+        let mut tracked = Self {
+            body,
+            h,
+            tip,
+            tip_start: None,
+            pinned: Vec::new(),
+            start_positions: Vec::new(),
+            before: body_stats(sim.world_mut(), body).ok_or("no body")?,
+            half: BodyStats::default(),
+            tip_half: 0.0,
+            lattice,
+        };
+        tracked.tip_start = tracked.position(sim, tip);
+        tracked.pinned = (0..tracked.lattice.lattice.len() as u32)
+            .filter(|i| {
+                sim.world()
+                    .get::<InvMass>(tracked.lattice.particles[*i as usize])
+                    .is_some_and(|m| m.0 == 0.0)
+            })
+            .filter_map(|i| Some((i, tracked.position(sim, i)?)))
+            .collect();
+        tracked.start_positions = tracked.all_positions(sim);
+        Ok(tracked)
+    }
+
+    fn position(&self, sim: &Simulation, i: u32) -> Option<glam::Vec3> {
+        sim.world()
+            .get::<Position>(self.lattice.particles[i as usize])
+            .map(|p| p.0)
+    }
+
+    fn all_positions(&self, sim: &Simulation) -> Vec<glam::Vec3> {
+        (0..self.lattice.lattice.len() as u32)
+            .map(|i| self.position(sim, i).unwrap_or(glam::Vec3::ZERO))
+            .collect()
+    }
+
+    fn tip_drop(&self, sim: &Simulation) -> f64 {
+        match (self.tip_start, self.position(sim, self.tip)) {
+            (Some(a), Some(b)) => ((a.y - b.y) / self.h) as f64,
+            _ => f64::NAN,
+        }
+    }
+
+    fn at_half_time(&mut self, sim: &mut Simulation) -> Result<(), String> {
+        self.half = body_stats(sim.world_mut(), self.body).ok_or("no body")?;
+        self.tip_half = self.tip_drop(sim);
+        Ok(())
+    }
+
+    fn summary(self, sim: &mut Simulation) -> Result<BodySummary, String> {
+        let after = body_stats(sim.world_mut(), self.body).ok_or("no body")?;
+        let pinned_max = self
+            .pinned
+            .iter()
+            .filter_map(|(i, p0)| Some(self.position(sim, *i)?.distance(*p0) / self.h))
+            .fold(0.0f32, f32::max) as f64;
+        let final_lattice = &sim
+            .world()
+            .get::<BodyLattice>(self.body)
+            .ok_or("no lattice")?
+            .lattice;
+        let separation = piece_separation(
+            final_lattice,
+            &self.start_positions,
+            &self.all_positions(sim),
+            self.h,
+        );
+        Ok(BodySummary {
+            tip_drop_h_half: self.tip_half,
+            tip_drop_h_end: self.tip_drop(sim),
+            pinned_max_displacement_h: pinned_max,
+            piece_separation_start_h: separation.0,
+            piece_separation_end_h: separation.1,
+            before: self.before,
+            half_time: self.half,
+            after,
+        })
+    }
+}
+
+/// The smallest distances between particles of different pieces and of different
+/// bodies, in units of `h`, among pairs closer than 2 h.
+fn gaps(sim: &mut Simulation, h: f32) -> (Option<f64>, Option<f64>) {
+    let labelled = labelled_positions(sim.world_mut());
+    let points: Vec<glam::Vec3> = labelled.iter().map(|(p, ..)| *p).collect();
+    let pieces: Vec<u64> = labelled
+        .iter()
+        .map(|(_, body, piece)| ((*body as u64) << 32) | *piece as u64)
+        .collect();
+    let bodies: Vec<u64> = labelled.iter().map(|(_, body, _)| *body as u64).collect();
+    let gap = |labels: &[u64]| {
+        min_distance_between_labels(&points, labels, 2.0 * h).map(|d| (d / h) as f64)
+    };
+    (gap(&pieces), gap(&bodies))
 }
 
 /// Mean pairwise distance between the centroids of the final pieces, in units of h,
@@ -156,41 +295,28 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     for t in &scene.tools {
         sim.spawn_tool(t).map_err(|e| e.to_string())?;
     }
-    let body = only_body(sim.world_mut()).map_err(|e| e.to_string())?;
-    let h = scene.bodies[0].spacing;
-    let lattice = sim
-        .world()
-        .get::<BodyLattice>(body)
-        .ok_or("no lattice")?
-        .clone();
-    let tip_index = (0..lattice.lattice.len() as u32)
-        .max_by_key(|i| (lattice.lattice.coord(*i).x, -(*i as i64)))
-        .unwrap_or(0);
-    let position_of = |sim: &Simulation, i: u32| {
-        sim.world()
-            .get::<Position>(lattice.particles[i as usize])
-            .map(|p| p.0)
-    };
-    let tip_start = position_of(&sim, tip_index);
-    let pinned: Vec<(u32, glam::Vec3)> = (0..lattice.lattice.len() as u32)
-        .filter(|i| {
-            sim.world()
-                .get::<InvMass>(lattice.particles[*i as usize])
-                .is_some_and(|m| m.0 == 0.0)
-        })
-        .filter_map(|i| Some((i, position_of(&sim, i)?)))
-        .collect();
-    let before = body_stats(sim.world_mut(), body).ok_or("no body")?;
-    let all_positions = |sim: &Simulation| -> Vec<glam::Vec3> {
-        (0..lattice.lattice.len() as u32)
-            .map(|i| position_of(sim, i).unwrap_or(glam::Vec3::ZERO))
-            .collect()
-    };
-    let start_positions = all_positions(&sim);
+    for c in &scene.colliders {
+        sim.spawn_collider(c).map_err(|e| e.to_string())?;
+    }
+    let mut bodies = sim
+        .world_mut()
+        .query_filtered::<Entity, With<BodyLattice>>()
+        .iter(sim.world())
+        .collect::<Vec<_>>();
+    bodies.sort_unstable();
+    let mut tracked = Vec::with_capacity(bodies.len());
+    for (body, desc) in bodies.iter().zip(&scene.bodies) {
+        tracked.push(Tracked::new(&mut sim, *body, desc.spacing)?);
+    }
+    let h = scene
+        .bodies
+        .iter()
+        .map(|b| b.spacing)
+        .fold(f32::INFINITY, f32::min);
+    let h_first = scene.bodies.first().map_or(1.0, |b| b.spacing);
     let mut step_ms = Vec::new();
-    let mut half = before.clone();
-    let mut tip_half = 0.0;
     let mut cut_particles = 0;
+    let mut min_gap: Option<f64> = None;
     let mut cursor = sim
         .world()
         .resource::<Messages<ParticlesCut>>()
@@ -214,61 +340,63 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
             .read(sim.world().resource::<Messages<ParticlesCut>>())
             .map(|m| m.particles.len())
             .sum::<usize>();
+        let pieces: usize = sim
+            .world_mut()
+            .query::<&BodyLattice>()
+            .iter(sim.world())
+            .map(|b| b.pieces)
+            .sum();
+        if pieces > 1
+            && let (Some(gap), _) = gaps(&mut sim, h)
+        {
+            min_gap = Some(min_gap.map_or(gap, |m| m.min(gap)));
+        }
         if frame == frames / 2 {
-            half = body_stats(sim.world_mut(), body).ok_or("no body")?;
-            if let (Some(a), Some(b)) = (tip_start, position_of(&sim, tip_index)) {
-                tip_half = ((a.y - b.y) / h) as f64;
+            for t in &mut tracked {
+                t.at_half_time(&mut sim)?;
             }
         }
     }
     progress.finish_and_clear();
-    let after = body_stats(sim.world_mut(), body).ok_or("no body")?;
-    let tip_end = match (tip_start, position_of(&sim, tip_index)) {
-        (Some(a), Some(b)) => ((a.y - b.y) / h) as f64,
-        _ => f64::NAN,
-    };
-    let pinned_max = pinned
-        .iter()
-        .filter_map(|(i, p0)| Some(position_of(&sim, *i)?.distance(*p0) / h))
-        .fold(0.0f32, f32::max) as f64;
     let violations = check_invariants(sim.world());
-    let final_lattice = sim
-        .world()
-        .get::<BodyLattice>(body)
-        .ok_or("no lattice")?
-        .lattice
-        .clone();
-    let separation = piece_separation(&final_lattice, &start_positions, &all_positions(&sim), h);
+    let final_gaps = gaps(&mut sim, h);
+    let mut per_body = Vec::with_capacity(tracked.len());
+    for t in tracked {
+        per_body.push(t.summary(&mut sim)?);
+    }
     let mut events = sim.world().resource::<CutTimings>().event_ms.clone();
+    let total = |f: fn(&BodyStats) -> usize| per_body.iter().map(|b| f(&b.after)).sum();
     let summary = Summary {
         scene: scene_name.into(),
         frames,
         seed,
         threads,
-        particles: after.particles,
-        clusters: after.clusters,
-        memberships: after.memberships,
-        pieces: after.pieces,
+        particles: total(|s| s.particles),
+        clusters: total(|s| s.clusters),
+        memberships: total(|s| s.memberships),
+        pieces: total(|s| s.pieces),
         cut_particles,
         simulate_ms_total: step_ms.iter().sum(),
         pictures_ms_total: pictures.ms,
         pictures_written: pictures.files,
         median_ms_per_step: median(&mut step_ms),
-        final_shape_error_h: after.shape_error_h,
-        lowest_particle_y_h: after.lowest_y / h as f64,
-        finite: after.finite,
-        piece_separation_start_h: separation.0,
-        piece_separation_end_h: separation.1,
-        half_time: half,
-        tip_drop_h_half: tip_half,
-        tip_drop_h_end: tip_end,
-        pinned_max_displacement_h: pinned_max,
+        final_shape_error_h: per_body
+            .iter()
+            .map(|b| b.after.shape_error_h)
+            .fold(0.0, f64::max),
+        lowest_particle_y_h: per_body
+            .iter()
+            .map(|b| b.after.lowest_y)
+            .fold(f64::INFINITY, f64::min)
+            / h_first as f64,
+        finite: per_body.iter().all(|b| b.after.finite),
+        min_gap_between_pieces_h: min_gap,
+        final_min_gap_between_bodies_h: final_gaps.1,
         cut_events: events.len(),
         cut_event_ms_max: events.iter().copied().fold(0.0, f64::max),
         cut_event_ms_median: median(&mut events),
         invariant_violations: violations.len(),
-        before,
-        after: after.clone(),
+        bodies: per_body,
     };
     std::fs::create_dir_all(&out).map_err(|e| format!("cannot create `{}`: {e}", out.display()))?;
     let path = out.join("summary.json");
@@ -278,7 +406,7 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     )
     .map_err(|e| format!("cannot write `{}`: {e}", path.display()))?;
     if let Some(file) = dump {
-        let state = dump_body(sim.world_mut(), body).ok_or("no body")?;
+        let state = dump_world(sim.world_mut());
         std::fs::write(
             &file,
             serde_json::to_string(&state).map_err(|e| e.to_string())?,
@@ -286,7 +414,7 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         .map_err(|e| format!("cannot write `{}`: {e}", file.display()))?;
     }
     if !args.quiet {
-        print_table(&summary, &separation, &path, &out);
+        print_table(&summary, &path, &out);
     }
     if args.profile {
         print!("{}", profile.table(frames));
@@ -297,44 +425,68 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     Ok(())
 }
 
-/// The short report printed after a run.
-fn print_table(s: &Summary, separation: &(f64, f64), path: &Path, out: &Path) {
+/// A row of the report: its name and what it reads of a body's statistics.
+type Row = (&'static str, fn(&BodyStats) -> f64);
+
+/// The short report printed after a run: totals, then one block per body.
+fn print_table(s: &Summary, path: &Path, out: &Path) {
     println!(
-        "scene {}: {} frames, seed {}, {} thread(s)",
-        s.scene, s.frames, s.seed, s.threads
+        "scene {}: {} frames, seed {}, {} thread(s), {} bod{}",
+        s.scene,
+        s.frames,
+        s.seed,
+        s.threads,
+        s.bodies.len(),
+        if s.bodies.len() == 1 { "y" } else { "ies" }
     );
-    println!("  {:<28} {:>12} {:>12}", "", "start", "end");
-    let rows: [(&str, f64, f64); 6] = [
-        (
-            "particles",
-            s.before.particles as f64,
-            s.after.particles as f64,
-        ),
-        (
-            "clusters",
-            s.before.clusters as f64,
-            s.after.clusters as f64,
-        ),
-        (
-            "mean cluster size",
-            s.before.mean_cluster_size,
-            s.after.mean_cluster_size,
-        ),
-        (
-            "memberships / particle",
-            s.before.memberships_per_particle,
-            s.after.memberships_per_particle,
-        ),
-        ("pieces", s.before.pieces as f64, s.after.pieces as f64),
-        (
-            "shape error (h)",
-            s.before.shape_error_h,
-            s.after.shape_error_h,
-        ),
+    let sum = |f: fn(&BodyStats) -> f64, before: bool| -> f64 {
+        s.bodies
+            .iter()
+            .map(|b| f(if before { &b.before } else { &b.after }))
+            .sum()
+    };
+    let rows: [Row; 6] = [
+        ("particles", |b| b.particles as f64),
+        ("clusters", |b| b.clusters as f64),
+        ("mean cluster size", |b| b.mean_cluster_size),
+        ("memberships / particle", |b| b.memberships_per_particle),
+        ("pieces", |b| b.pieces as f64),
+        ("shape error (h)", |b| b.shape_error_h),
     ];
-    for (name, a, b) in rows {
-        println!("  {name:<28} {a:>12.3} {b:>12.3}");
+    println!("  {:<28} {:>12} {:>12}", "", "start", "end");
+    for (i, b) in s.bodies.iter().enumerate() {
+        if s.bodies.len() > 1 {
+            println!("  body {i}");
+        }
+        for (name, f) in &rows {
+            println!("  {name:<28} {:>12.3} {:>12.3}", f(&b.before), f(&b.after));
+        }
+        println!(
+            "  piece centroids {:.2} h apart at start, {:.2} h at end; tip drop {:.3} h at half time, {:.3} h at end; pinned moved ≤ {:.4} h",
+            b.piece_separation_start_h,
+            b.piece_separation_end_h,
+            b.tip_drop_h_half,
+            b.tip_drop_h_end,
+            b.pinned_max_displacement_h
+        );
     }
+    if s.bodies.len() > 1 {
+        println!("  total");
+        for (name, f) in &rows[..2] {
+            println!(
+                "  {name:<28} {:>12.0} {:>12.0}",
+                sum(*f, true),
+                sum(*f, false)
+            );
+        }
+        println!(
+            "  {:<28} {:>12.0} {:>12.0}",
+            "pieces",
+            sum(|b| b.pieces as f64, true),
+            s.pieces
+        );
+    }
+    let gap = |g: Option<f64>| g.map_or("none within 2 h".to_string(), |g| format!("{g:.2} h"));
     println!(
         "  median step {:.3} ms; lowest particle {:.3} h; cut particles {}; cut events {} (median {:.3} ms, max {:.3} ms)",
         s.median_ms_per_step,
@@ -345,12 +497,10 @@ fn print_table(s: &Summary, separation: &(f64, f64), path: &Path, out: &Path) {
         s.cut_event_ms_max
     );
     println!(
-        "  piece centroids {:.2} h apart at start, {:.2} h at end",
-        separation.0, separation.1
-    );
-    println!(
-        "  tip drop {:.3} h at half time, {:.3} h at end; pinned moved ≤ {:.4} h; invariant violations {}",
-        s.tip_drop_h_half, s.tip_drop_h_end, s.pinned_max_displacement_h, s.invariant_violations
+        "  smallest gap between pieces {}; between bodies at the end {}; invariant violations {}",
+        gap(s.min_gap_between_pieces_h),
+        gap(s.final_min_gap_between_bodies_h),
+        s.invariant_violations
     );
     println!(
         "  simulated in {:.0} ms; {} picture file(s) in {:.0} ms",
