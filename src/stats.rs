@@ -32,6 +32,8 @@ pub struct BodyStats {
     pub piece_centroids: Vec<[f32; 3]>,
     /// Whether every position is finite.
     pub finite: bool,
+    /// The largest speed of a live particle (m/s).
+    pub max_speed: f64,
 }
 
 /// RMS distance between `current` and the best rigid transform of `rest`.
@@ -175,6 +177,11 @@ pub fn body_stats(world: &mut World, body: Entity) -> Option<BodyStats> {
         lowest_y: live.iter().map(|p| p.y).fold(f32::INFINITY, f32::min) as f64,
         piece_centroids: centroids,
         finite: live.iter().all(|p| p.is_finite()),
+        max_speed: l
+            .live_particles()
+            .filter_map(|i| world.get::<Velocity>(lattice.particles[i as usize]))
+            .map(|v| v.0.length() as f64)
+            .fold(0.0, f64::max),
     })
 }
 

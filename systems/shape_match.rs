@@ -14,6 +14,11 @@ use bevy_ecs::entity::Entities;
 use bevy_ecs::prelude::*;
 use glam::{Vec3, Vec3A};
 
+/// The largest speed (m/s) a particle gains from being pushed out of a collider it
+/// started the substep inside: a body spawned in a collider comes out at a walk, not
+/// shot out.
+pub const MAX_DEPENETRATION_SPEED: f32 = 2.0;
+
 /// Clusters that changed (or appeared) since the last run (any body).
 type ChangedClusters<'w, 's> = Query<
     'w,
@@ -151,7 +156,9 @@ fn substep_colliders(
         );
         PosedCollider::new(c.shape, c.friction, start, end)
     });
-    Colliders::from_config(config, moving)
+    let mut colliders = Colliders::from_config(config, moving);
+    colliders.depenetration_step = MAX_DEPENETRATION_SPEED * config.dt / count;
+    colliders
 }
 
 /// Copies particle state into the layout entity by entity (particles in several tables).

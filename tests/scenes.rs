@@ -8,7 +8,13 @@ use std::path::PathBuf;
 use std::process::Command;
 
 fn run(scene: &str, frames: Option<u32>) -> (Value, Value) {
-    let dir = std::env::temp_dir().join(format!("cleave-test-{scene}-{}", std::process::id()));
+    run_with(scene, frames, &[])
+}
+
+/// Runs `scene` with extra arguments; returns the summary and the dump.
+fn run_with(scene: &str, frames: Option<u32>, extra: &[&str]) -> (Value, Value) {
+    let tag = extra.join("_").replace('-', "");
+    let dir = std::env::temp_dir().join(format!("cleave-test-{scene}{tag}-{}", std::process::id()));
     let dump = dir.join("state.json");
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_cleave"));
     cmd.args(["run", scene, "--out"])
@@ -18,6 +24,7 @@ fn run(scene: &str, frames: Option<u32>) -> (Value, Value) {
     if let Some(f) = frames {
         cmd.args(["--frames", &f.to_string()]);
     }
+    cmd.args(extra);
     let out = cmd.output().expect("run cleave");
     assert!(
         out.status.success(),
@@ -28,9 +35,84 @@ fn run(scene: &str, frames: Option<u32>) -> (Value, Value) {
     (read(dir.join("summary.json")), read(dump))
 }
 
-/// Independent check of the dump: returns the number of pieces, panics on a violation.
+/// Independent check of a `cleave-state/2` dump: returns the number of pieces over all
+/// bodies, panics on a violation.
 fn check_dump(dump: &Value) -> usize {
-    assert_eq!(dump["format"], "cleave-state/1");
+    pieces_of(dump).len()
+}
+
+/// Every piece of every body of a checked dump, as `(body index, particle ids)`.
+fn pieces_of(dump: &Value) -> Vec<(usize, HashSet<u64>)> {
+    assert_eq!(dump["format"], "cleave-state/2");
+    assert!(dump["frame"].as_u64().is_some() && dump["time"].as_f64().is_some());
+    let mut all_ids = HashSet::new();
+    let mut out = Vec::new();
+    for (b, body) in dump["bodies"].as_array().unwrap().iter().enumerate() {
+        for p in body["particles"].as_array().unwrap() {
+            assert!(
+                all_ids.insert(p["id"].as_u64().unwrap()),
+                "particle id repeated"
+            );
+            assert!(p["mass"].as_f64().unwrap() > 0.0);
+        }
+        out.extend(check_body(body).into_iter().map(|piece| (b, piece)));
+    }
+    out
+}
+
+/// Positions by particle id over every body of a dump.
+fn positions_of(dump: &Value) -> HashMap<u64, [f64; 3]> {
+    let mut out = HashMap::new();
+    for body in dump["bodies"].as_array().unwrap() {
+        for p in body["particles"].as_array().unwrap() {
+            let x: Vec<f64> = (0..3).map(|k| p["position"][k].as_f64().unwrap()).collect();
+            out.insert(p["id"].as_u64().unwrap(), [x[0], x[1], x[2]]);
+        }
+    }
+    out
+}
+
+/// The smallest distance between particles of different groups (by brute force).
+fn min_distance_between(groups: &[Vec<[f64; 3]>]) -> f64 {
+    let mut best = f64::INFINITY;
+    for (i, a) in groups.iter().enumerate() {
+        for b in &groups[i + 1..] {
+            for p in a {
+                for q in b {
+                    let d = (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>().sqrt();
+                    best = best.min(d);
+                }
+            }
+        }
+    }
+    best
+}
+
+/// The smallest distance between particles of different pieces, and of different
+/// bodies, in a dump.
+fn dump_gaps(dump: &Value) -> (f64, f64) {
+    let pieces = pieces_of(dump);
+    let at = positions_of(dump);
+    let points = |ids: &HashSet<u64>| ids.iter().map(|i| at[i]).collect::<Vec<_>>();
+    let by_piece: Vec<Vec<[f64; 3]>> = pieces.iter().map(|(_, p)| points(p)).collect();
+    let bodies = pieces.iter().map(|(b, _)| b + 1).max().unwrap_or(0);
+    let by_body: Vec<Vec<[f64; 3]>> = (0..bodies)
+        .map(|b| {
+            pieces
+                .iter()
+                .filter(|(body, _)| *body == b)
+                .flat_map(|(_, p)| points(p))
+                .collect()
+        })
+        .collect();
+    (
+        min_distance_between(&by_piece),
+        min_distance_between(&by_body),
+    )
+}
+
+/// Checks one body of a dump; returns its pieces.
+fn check_body(dump: &Value) -> Vec<HashSet<u64>> {
     let max = dump["config"]["max_cluster_size"].as_u64().unwrap() as usize;
     let ids: HashSet<u64> = dump["particles"]
         .as_array()
@@ -136,7 +218,7 @@ fn check_dump(dump: &Value) -> usize {
             piece.len()
         );
     }
-    pieces.len()
+    pieces
 }
 
 fn f(v: &Value) -> f64 {
@@ -168,6 +250,7 @@ fn drop_rests_on_the_ground_undeformed() {
 #[test]
 fn cantilever_sag_is_steady_and_pin_holds() {
     let (s, _) = run("cantilever", Some(600));
+    let s = &s["bodies"][0];
     let (half, end) = (f(&s["tip_drop_h_half"]), f(&s["tip_drop_h_end"]));
     assert!(end.is_finite() && end > 0.5, "beam must sag: {end}");
     assert!(
@@ -182,12 +265,22 @@ fn slice_makes_two_pieces_that_move_apart() {
     let (s, dump) = run("slice", None);
     assert_eq!(s["pieces"], 2);
     assert_eq!(check_dump(&dump), 2);
-    assert!(f(&s["piece_separation_end_h"]) >= f(&s["piece_separation_start_h"]) + 1.0);
+    let body = &s["bodies"][0];
+    assert!(f(&body["piece_separation_end_h"]) >= f(&body["piece_separation_start_h"]) + 1.0);
     for key in ["mean_cluster_size", "memberships_per_particle"] {
-        let (b, a) = (f(&s["before"][key]), f(&s["after"][key]));
+        let (b, a) = (f(&body["before"][key]), f(&body["after"][key]));
         assert!((a / b - 1.0).abs() <= 0.25, "{key}: {b} -> {a}");
     }
     assert_eq!(s["invariant_violations"], 0);
+    // the halves never came closer than 0.8 h, by the summary and by the final dump
+    let h = f(&dump["bodies"][0]["spacing"]);
+    assert!(
+        f(&s["min_gap_between_pieces_h"]) >= 0.8,
+        "{}",
+        s["min_gap_between_pieces_h"]
+    );
+    let (pieces, _) = dump_gaps(&dump);
+    assert!(pieces / h >= 0.8, "final gap {} h", pieces / h);
 }
 
 #[test]
@@ -210,6 +303,83 @@ fn random_cuts_keep_invariants() {
     assert!(s["cut_particles"].as_u64().unwrap() > 0);
     assert_eq!(s["invariant_violations"], 0);
     assert_eq!(check_dump(&dump), s["pieces"].as_u64().unwrap() as usize);
+}
+
+#[test]
+fn stack_comes_to_rest_on_top_without_overlap() {
+    let (s, dump) = run("stack", Some(300));
+    assert_eq!(check_dump(&dump), 2);
+    let h = f(&dump["bodies"][0]["spacing"]);
+    for body in s["bodies"].as_array().unwrap() {
+        assert!(
+            f(&body["after"]["max_speed"]) < 0.05,
+            "at rest: {}",
+            body["after"]
+        );
+    }
+    let heights = |b: usize| -> Vec<f64> {
+        dump["bodies"][b]["particles"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| f(&p["position"][1]))
+            .collect()
+    };
+    // the upper box is the larger one (the dump lists bodies by id, not spawn order)
+    let (lower, upper) = if heights(0).len() < heights(1).len() {
+        (0, 1)
+    } else {
+        (1, 0)
+    };
+    let lower_top = heights(lower).into_iter().fold(f64::MIN, f64::max);
+    let upper_bottom = heights(upper).into_iter().fold(f64::MAX, f64::min);
+    assert!(upper_bottom > lower_top, "{upper_bottom} ≤ {lower_top}");
+    let (_, bodies) = dump_gaps(&dump);
+    assert!(bodies / h >= 0.8, "bodies {} h apart", bodies / h);
+}
+
+#[test]
+fn pile_settles_in_the_bin_without_overlap() {
+    let (s, dump) = run("pile", Some(400));
+    assert_eq!(s["invariant_violations"], 0);
+    assert_eq!(check_dump(&dump), 7);
+    let h = f(&dump["bodies"][0]["spacing"]);
+    let (_, bodies) = dump_gaps(&dump);
+    assert!(bodies / h >= 0.7, "bodies {} h apart", bodies / h);
+    for body in s["bodies"].as_array().unwrap() {
+        assert!(
+            f(&body["after"]["max_speed"]) < 0.1,
+            "at rest: {}",
+            body["after"]
+        );
+    }
+    // inside the bin: within its floor's square (the walls lean outwards from it)
+    for p in positions_of(&dump).values() {
+        assert!(
+            p[0].abs() < 1.25 && p[2].abs() < 1.25 && p[1] >= -1e-6,
+            "{p:?}"
+        );
+    }
+}
+
+#[test]
+fn press_squeezes_then_cuts_in_two() {
+    let (s, dump) = run("press", None);
+    assert_eq!(s["pieces"], 2);
+    assert_eq!(check_dump(&dump), 2);
+    assert_eq!(s["invariant_violations"], 0);
+    // squeezed to under 80 % of its height while the plate is down
+    let half = &s["bodies"][0]["half_time"]["piece_centroids"];
+    assert!(f(&half[0][1]) < 0.8 * 0.35, "{half}");
+}
+
+#[test]
+fn contact_scenes_are_identical_for_one_and_two_threads() {
+    for scene in ["stack", "pile", "press"] {
+        let (_, one) = run_with(scene, Some(120), &["--threads", "1"]);
+        let (_, two) = run_with(scene, Some(120), &["--threads", "2"]);
+        assert_eq!(one.to_string(), two.to_string(), "{scene}");
+    }
 }
 
 #[test]

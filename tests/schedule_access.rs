@@ -1,5 +1,6 @@
 //! The access contract of every stage, read from the systems' own access sets: predict
-//! and shape-match write particle data only; detect writes only its CutList and spawns
+//! and shape-match (with its contacts and colliders) write particle data only; the
+//! collider mover writes collider poses only; detect writes only its CutList and spawns
 //! nothing; cut writes no cluster data; regroup/split/expand write no particle data.
 
 use bevy_ecs::component::ComponentId;
@@ -83,6 +84,16 @@ fn predict_and_shape_match_write_particle_data_only() {
         assert!(access.writes.contains(&particle[1]), "must write Position");
         assert!(!access.deferred, "must not spawn or despawn");
     }
+}
+
+#[test]
+fn moving_colliders_writes_collider_poses_only() {
+    let mut w = world();
+    ids(&mut w);
+    let access = access_of(&mut w, move_colliders::move_colliders);
+    let pose = w.register_component::<ColliderPose>();
+    assert_eq!(access.writes, vec![pose]);
+    assert!(!access.deferred);
 }
 
 #[test]

@@ -79,8 +79,9 @@ impl PosedCollider {
     }
 
     /// The position `p` (which started the substep at `previous`) resolved against this
-    /// collider, or `None` when the collider does not touch it.
-    pub fn resolve(&self, p: Vec3A, previous: Vec3A) -> Option<Vec3A> {
+    /// collider, and whether the particle started the substep inside it; `None` when the
+    /// collider does not touch it.
+    pub fn resolve(&self, p: Vec3A, previous: Vec3A) -> Option<(Vec3A, bool)> {
         let (from, to) = (
             self.start_inverse.transform_point3a(previous),
             self.end_inverse.transform_point3a(p),
@@ -93,10 +94,11 @@ impl PosedCollider {
             let at = from + moved * t;
             Some((at, shape.nearest_surface(at).1))
         };
+        let start = shape.signed_distance(from);
         let (target, normal) = if distance < 0.0 {
             let nearest = to - normal * distance;
             // pushing it out forward would carry it through the shape: it came in behind
-            let through = (nearest - to).dot(moved) > 0.0 && shape.signed_distance(from) >= 0.0;
+            let through = (nearest - to).dot(moved) > 0.0 && start >= 0.0;
             match through.then(entry).flatten() {
                 Some(hit) => hit,
                 None => (nearest, normal),
@@ -105,7 +107,6 @@ impl PosedCollider {
             // outside now; if it was outside at the start, did its motion pass through
             // the shape (the middle of the chord it cut lies inside; a graze along a
             // face, as a particle resting on it slides, cuts none)?
-            let start = shape.signed_distance(from);
             let reach = start + distance;
             if start < 0.0 || moved.length_squared() <= reach * reach {
                 return None;
@@ -120,7 +121,7 @@ impl PosedCollider {
         };
         let depth = (target - to).length();
         let resolved = with_friction(target, from, normal, depth, self.friction);
-        Some(self.end.transform_point3a(resolved))
+        Some((self.end.transform_point3a(resolved), start < 0.0))
     }
 }
 
@@ -152,14 +153,25 @@ fn with_friction(target: Vec3A, from: Vec3A, normal: Vec3A, depth: f32, friction
 }
 
 /// The ground and every posed collider of one substep.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Colliders {
     /// Ground plane.
     pub ground: Option<GroundPlane>,
     /// Boxes, balls and capsules, static or moving.
     pub shapes: Vec<PosedCollider>,
+    /// The longest push out of a collider that a particle which started the substep
+    /// inside it (spawned there, or pressed in by something else) turns into velocity;
+    /// the rest of the push moves it without speeding it up, so that an overlap is
+    /// resolved without an explosion. Infinite by default.
+    pub depenetration_step: f32,
     /// Bounds of each block's substep-start positions (see `begin_substep`).
     previous_bounds: Vec<(Vec3A, Vec3A)>,
+}
+
+impl Default for Colliders {
+    fn default() -> Self {
+        Self::new(None, Vec::new())
+    }
 }
 
 impl Colliders {
@@ -168,6 +180,7 @@ impl Colliders {
         Self {
             ground,
             shapes,
+            depenetration_step: f32::INFINITY,
             previous_bounds: Vec::new(),
         }
     }
@@ -186,8 +199,10 @@ impl Colliders {
 
     /// Pushes `p` out of the ground and every collider, with friction against its
     /// displacement since `previous`; pure, so the kernel's blocks run it in parallel.
-    pub fn resolve(&self, p: Vec3A, previous: Vec3A) -> Vec3A {
-        let mut p = p;
+    /// Returns the new position and the part of the move that is not to become velocity
+    /// (see [`Colliders::depenetration_step`]).
+    pub fn resolve(&self, p: Vec3A, previous: Vec3A) -> (Vec3A, Vec3A) {
+        let (mut p, mut quiet) = (p, Vec3A::ZERO);
         if let Some(g) = &self.ground
             && p.y < g.height
         {
@@ -198,12 +213,19 @@ impl Colliders {
         let (lo, hi) = (p.min(previous), p.max(previous));
         for shape in &self.shapes {
             if shape.reaches(lo, hi)
-                && let Some(q) = shape.resolve(p, previous)
+                && let Some((q, started_inside)) = shape.resolve(p, previous)
             {
+                if started_inside {
+                    let push = q - p;
+                    let length = push.length();
+                    if length > self.depenetration_step {
+                        quiet += push * (1.0 - self.depenetration_step / length);
+                    }
+                }
                 p = q;
             }
         }
-        p
+        (p, quiet)
     }
 }
 
@@ -257,8 +279,8 @@ impl ConstraintKind for Colliders {
                         if inv_mass[i] == 0.0 {
                             continue;
                         }
-                        let resolved = this.resolve(*p, previous[i]);
-                        corrections[i] += resolved - *p;
+                        let (resolved, quiet) = this.resolve(*p, previous[i]);
+                        corrections[i] += resolved - *p - quiet;
                         *p = resolved;
                     }
                 },
@@ -291,9 +313,9 @@ mod tests {
             Pose::at(Vec3::splat(1.5)),
         );
         let colliders = Colliders::new(ground(0.0).ground, vec![block]);
-        let p = colliders.resolve(Vec3A::new(0.0, -0.5, 0.0), Vec3A::ZERO);
+        let (p, _) = colliders.resolve(Vec3A::new(0.0, -0.5, 0.0), Vec3A::ZERO);
         assert_eq!(p.y, 0.0);
-        let p = colliders.resolve(Vec3A::new(1.5, 1.9, 1.5), Vec3A::new(1.5, 2.5, 1.5));
+        let (p, _) = colliders.resolve(Vec3A::new(1.5, 1.9, 1.5), Vec3A::new(1.5, 2.5, 1.5));
         assert!((p - Vec3A::new(1.5, 2.0, 1.5)).length() < 1e-6, "{p}");
     }
 
@@ -301,10 +323,10 @@ mod tests {
     fn friction_stops_small_slides() {
         let colliders = ground(1.0);
         // slid 0.05 sideways while sinking 0.1: the friction cone holds it
-        let p = colliders.resolve(Vec3A::new(0.05, -0.1, 0.0), Vec3A::ZERO);
+        let (p, _) = colliders.resolve(Vec3A::new(0.05, -0.1, 0.0), Vec3A::ZERO);
         assert_eq!(p, Vec3A::ZERO);
         // slid 0.5 sideways while sinking 0.1: kinetic friction removes 0.1 of it
-        let p = colliders.resolve(Vec3A::new(0.5, -0.1, 0.0), Vec3A::ZERO);
+        let (p, _) = colliders.resolve(Vec3A::new(0.5, -0.1, 0.0), Vec3A::ZERO);
         assert!((p.x - 0.4).abs() < 1e-6 && p.y == 0.0, "{p}");
     }
 
@@ -326,7 +348,7 @@ mod tests {
         let colliders = Colliders::new(None, vec![block]);
         for end_x in [2.0, 0.25] {
             let (from, to) = (Vec3A::new(-2.0, 0.05, 0.0), Vec3A::new(end_x, 0.05, 0.0));
-            let p = colliders.resolve(to, from);
+            let (p, _) = colliders.resolve(to, from);
             assert!(p.x < -0.29, "ended at {p} (end {end_x})");
             assert!(
                 block

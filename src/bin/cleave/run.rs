@@ -289,8 +289,9 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     let seed = scene.config.seed;
     let frames = frames.unwrap_or(scene.frames);
     let mut sim = Simulation::new(scene.config.clone()).map_err(|e| e.to_string())?;
+    let mut bodies = Vec::with_capacity(scene.bodies.len());
     for b in &scene.bodies {
-        sim.spawn_body(b).map_err(|e| e.to_string())?;
+        bodies.push(sim.spawn_body(b).map_err(|e| e.to_string())?);
     }
     for t in &scene.tools {
         sim.spawn_tool(t).map_err(|e| e.to_string())?;
@@ -298,12 +299,6 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     for c in &scene.colliders {
         sim.spawn_collider(c).map_err(|e| e.to_string())?;
     }
-    let mut bodies = sim
-        .world_mut()
-        .query_filtered::<Entity, With<BodyLattice>>()
-        .iter(sim.world())
-        .collect::<Vec<_>>();
-    bodies.sort_unstable();
     let mut tracked = Vec::with_capacity(bodies.len());
     for (body, desc) in bodies.iter().zip(&scene.bodies) {
         tracked.push(Tracked::new(&mut sim, *body, desc.spacing)?);

@@ -1,0 +1,303 @@
+//! Contacts and colliders through the public API: no tunnelling through static or
+//! kinematic colliders, random drops that never end overlapping, overlapping spawns
+//! resolved without an explosion, and bad input refused with the field named. Overlap is
+//! measured here by brute force over the particle positions, apart from the engine.
+
+use bevy_ecs::prelude::*;
+use cleave::prelude::*;
+use glam::{Quat, UVec3, Vec3, Vec3A};
+use proptest::prelude::*;
+
+const H: f32 = 0.1;
+
+/// Live particle positions of every body, by body (in spawn order of `bodies`).
+fn positions(sim: &mut Simulation, bodies: &[Entity]) -> Vec<Vec<Vec3>> {
+    bodies
+        .iter()
+        .map(|b| {
+            let world = sim.world();
+            let lattice = world.get::<BodyLattice>(*b).expect("a body");
+            lattice
+                .lattice
+                .live_particles()
+                .filter_map(|i| world.get::<Position>(lattice.particles[i as usize]))
+                .map(|p| p.0)
+                .collect()
+        })
+        .collect()
+}
+
+/// The smallest distance between particles of different bodies (brute force).
+fn min_gap(groups: &[Vec<Vec3>]) -> f32 {
+    let mut best = f32::INFINITY;
+    for (i, a) in groups.iter().enumerate() {
+        for b in &groups[i + 1..] {
+            for p in a {
+                for q in b {
+                    best = best.min(p.distance(*q));
+                }
+            }
+        }
+    }
+    best
+}
+
+fn no_gravity() -> SimConfig {
+    SimConfig {
+        gravity: Vec3::ZERO,
+        ground: None,
+        damping: 0.0,
+        ..SimConfig::default()
+    }
+}
+
+#[test]
+fn a_body_at_100_m_per_s_stops_outside_a_06_m_box() -> cleave::error::Result<()> {
+    let mut sim = Simulation::new(no_gravity())?;
+    // a turned 0.6 m box, 3 m ahead of the body
+    let shape = ColliderShape::Box {
+        half_extents: Vec3::splat(0.3),
+    };
+    let pose = Pose {
+        position: Vec3::new(3.0, 0.0, 0.0),
+        rotation: Quat::from_rotation_y(0.3),
+    };
+    sim.spawn_collider(&ColliderDesc {
+        shape,
+        friction: 0.0,
+        pose,
+        path: Path::default(),
+    })?;
+    let mut body = BodyDesc::new(Shape::cuboid(UVec3::splat(4), H), H);
+    body.velocity = Vec3::new(100.0, 0.0, 0.0);
+    let body = sim.spawn_body(&body)?;
+    // one substep moves the body 0.83 m: more than the box is deep
+    for _ in 0..20 {
+        sim.step();
+    }
+    let inverse = glam::Affine3A::from_rotation_translation(pose.rotation, pose.position).inverse();
+    for p in &positions(&mut sim, &[body])[0] {
+        let local = inverse.transform_point3a(Vec3A::from(*p));
+        assert!(shape.signed_distance(local) > -1e-4, "{p} inside the box");
+        assert!(p.x < 3.0, "{p} went through the box");
+    }
+    Ok(())
+}
+
+#[test]
+fn a_plate_at_20_m_per_s_pushes_a_body_instead_of_passing_through() -> cleave::error::Result<()> {
+    let mut sim = Simulation::new(SimConfig::default())?;
+    let plate = ColliderShape::Box {
+        half_extents: Vec3::new(0.02, 1.0, 1.0),
+    };
+    let at = |x: f32| Pose::at(Vec3::new(x, 0.5, 0.0));
+    sim.spawn_collider(&ColliderDesc {
+        shape: plate,
+        friction: 0.2,
+        pose: at(-1.0),
+        path: Path {
+            keys: vec![(0.0, at(-1.0)), (0.1, at(1.0))],
+        },
+    })?;
+    let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(4, 4, 4), H), H);
+    body.position = Vec3::new(0.0, 0.16, 0.0);
+    let body = sim.spawn_body(&body)?;
+    for _ in 0..12 {
+        sim.step();
+    }
+    // the plate stopped at x = 1 (front face 1.02): every particle is in front of it
+    for p in &positions(&mut sim, &[body])[0] {
+        assert!(p.x > 1.02 - 1e-3, "{p} is behind the plate");
+    }
+    Ok(())
+}
+
+/// The largest speed of a particle of `body`.
+fn body_speed(sim: &Simulation, body: Entity) -> f32 {
+    let world = sim.world();
+    let lattice = world.get::<BodyLattice>(body).expect("a body");
+    lattice
+        .lattice
+        .live_particles()
+        .filter_map(|i| world.get::<Velocity>(lattice.particles[i as usize]))
+        .map(|v| v.0.length())
+        .fold(0.0, f32::max)
+}
+
+#[test]
+fn overlapping_spawns_are_resolved_without_an_explosion() -> cleave::error::Result<()> {
+    let mut sim = Simulation::new(SimConfig::default())?;
+    // a, b: faces 0.04 apart (their balls overlap by 60 %); c: two thirds inside a
+    // collider box; d, e: lattices interleaved half a layer deep (faces crossed)
+    let mut a = BodyDesc::new(Shape::cuboid(UVec3::splat(6), H), H);
+    a.position = Vec3::new(0.0, 0.26, 0.0);
+    let at = |x: f32, z: f32| {
+        let mut d = a.clone();
+        d.position += Vec3::new(x, 0.0, z);
+        d
+    };
+    sim.spawn_collider(&ColliderDesc {
+        shape: ColliderShape::Box {
+            half_extents: Vec3::new(0.2, 0.5, 0.5),
+        },
+        friction: 0.5,
+        pose: Pose::at(Vec3::new(3.1, 0.3, 0.0)),
+        path: Path::default(),
+    })?;
+    let descs = [
+        at(0.0, 0.0),
+        at(0.54, 0.0),
+        at(3.0, 0.0),
+        at(0.0, 3.0),
+        at(0.45, 3.0),
+    ];
+    let [a, b, c, d, e] = descs.map(|d| sim.spawn_body(&d).expect("spawned"));
+    sim.step();
+    // the bounds stated in the issue note: after the first frame every particle is
+    // slower than 3 m/s, but those of a body spawned in a collider (10 m/s)
+    for body in [a, b, d, e] {
+        assert!(body_speed(&sim, body) < 3.0, "{}", body_speed(&sim, body));
+    }
+    assert!(body_speed(&sim, c) < 10.0, "{}", body_speed(&sim, c));
+    sim.run(180);
+    let all = positions(&mut sim, &[a, b, c, d, e]);
+    assert!(
+        all.iter().flatten().all(|p| p.is_finite()),
+        "a NaN position"
+    );
+    assert!(min_gap(&all[..2]) > 0.8 * H, "a–b {}", min_gap(&all[..2]));
+    // interleaved lattices cannot tell inside from outside pair by pair: they stay
+    // locked together, a documented limit, jittering but not flying apart
+    assert!(body_speed(&sim, d) < 1.0 && body_speed(&sim, e) < 1.0);
+    Ok(())
+}
+
+#[test]
+fn bad_colliders_are_refused_with_the_field_named() {
+    let mut sim = Simulation::new(SimConfig::default()).expect("a simulation");
+    let good = ColliderDesc {
+        shape: ColliderShape::Sphere { radius: 0.5 },
+        friction: 0.5,
+        pose: Pose::at(Vec3::ZERO),
+        path: Path::default(),
+    };
+    let cases = [
+        (
+            ColliderDesc {
+                shape: ColliderShape::Sphere { radius: -1.0 },
+                ..good.clone()
+            },
+            "collider.shape.radius",
+        ),
+        (
+            ColliderDesc {
+                shape: ColliderShape::Box {
+                    half_extents: Vec3::new(1.0, f32::NAN, 1.0),
+                },
+                ..good.clone()
+            },
+            "collider.shape.half_extents",
+        ),
+        (
+            ColliderDesc {
+                friction: f32::NAN,
+                ..good.clone()
+            },
+            "collider.friction",
+        ),
+        (
+            ColliderDesc {
+                path: Path {
+                    keys: vec![(1.0, Pose::at(Vec3::ZERO)), (0.5, Pose::at(Vec3::X))],
+                },
+                ..good.clone()
+            },
+            "path[1].time",
+        ),
+        (
+            ColliderDesc {
+                path: Path {
+                    keys: vec![(f32::NAN, Pose::at(Vec3::ZERO))],
+                },
+                ..good.clone()
+            },
+            "path[0].time",
+        ),
+    ];
+    for (desc, field) in cases {
+        let e = sim.spawn_collider(&desc).unwrap_err().to_string();
+        assert!(e.contains(field), "{e}");
+    }
+    assert!(sim.spawn_collider(&good).is_ok());
+}
+
+/// A random small body shape.
+fn body_shape() -> impl Strategy<Value = Shape> {
+    prop_oneof![
+        (0.12f32..0.3, 0.12f32..0.3, 0.12f32..0.3).prop_map(|(x, y, z)| Shape::Box {
+            half_extents: Vec3::new(x, y, z)
+        }),
+        (0.15f32..0.3).prop_map(|radius| Shape::Sphere { radius }),
+        (0.1f32..0.2, 0.05f32..0.25).prop_map(|(radius, half_length)| Shape::Capsule {
+            radius,
+            half_length
+        }),
+    ]
+}
+
+/// A random collider shape.
+fn collider_shape() -> impl Strategy<Value = ColliderShape> {
+    prop_oneof![
+        (0.1f32..0.5, 0.05f32..0.3, 0.1f32..0.5).prop_map(|(x, y, z)| ColliderShape::Box {
+            half_extents: Vec3::new(x, y, z)
+        }),
+        (0.1f32..0.4).prop_map(|radius| ColliderShape::Sphere { radius }),
+        (0.05f32..0.2, 0.1f32..0.4).prop_map(|(radius, half_length)| ColliderShape::Capsule {
+            radius,
+            half_length
+        }),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
+
+    /// Two random bodies dropped onto a random turned collider on the ground, one above
+    /// the other: they never end overlapping, nor inside the collider.
+    #[test]
+    fn random_drops_never_end_overlapping(
+        lower in body_shape(),
+        upper in body_shape(),
+        collider in collider_shape(),
+        yaw in 0.0f32..3.0,
+        tilt in -0.5f32..0.5,
+        offset in -0.15f32..0.15,
+        seed in 0u64..1000,
+    ) {
+        let mut sim = Simulation::new(SimConfig { seed, ..SimConfig::default() }).expect("sim");
+        let rotation = Quat::from_rotation_y(yaw) * Quat::from_rotation_z(tilt);
+        let pose = Pose { position: Vec3::new(0.0, 0.2, 0.0), rotation };
+        sim.spawn_collider(&ColliderDesc {
+            shape: collider,
+            friction: 0.5,
+            pose,
+            path: Path::default(),
+        }).expect("collider");
+        let mut a = BodyDesc::new(lower, H);
+        a.position = Vec3::new(offset, 1.2, 0.0);
+        let mut b = BodyDesc::new(upper, H);
+        b.position = Vec3::new(-offset, 2.0, 0.05);
+        b.rotation = Quat::from_rotation_x(0.4);
+        let bodies = [sim.spawn_body(&a).expect("a"), sim.spawn_body(&b).expect("b")];
+        sim.run(150);
+        let groups = positions(&mut sim, &bodies);
+        prop_assert!(min_gap(&groups) > 0.7 * H, "bodies {} apart", min_gap(&groups));
+        let inverse = glam::Affine3A::from_rotation_translation(pose.rotation, pose.position)
+            .inverse();
+        for p in groups.iter().flatten() {
+            let depth = -collider.signed_distance(inverse.transform_point3a(Vec3A::from(*p)));
+            prop_assert!(depth < 0.05 * H, "{p} is {depth} inside the collider");
+        }
+        prop_assert!(check_invariants(sim.world()).is_empty());
+    }
+}
