@@ -380,9 +380,10 @@ mod tests {
             assert_eq!(block.resolve(to, from), None, "{to}");
         }
         // sinking a little while it slides: kinetic friction, not a stop
-        let p = block
+        let (p, started_inside) = block
             .resolve(Vec3A::new(0.1, 0.49, 0.0), from)
             .expect("a contact");
+        assert!(!started_inside);
         assert!((p.y - 0.5).abs() < 1e-6 && p.x > 0.09, "{p}");
     }
 
@@ -399,9 +400,10 @@ mod tests {
             Pose::at(Vec3::new(0.5, 0.0, 0.0)),
         );
         let at = Vec3A::new(0.2, 0.3, 0.0);
-        let p = moving
+        let (p, started_inside) = moving
             .resolve(at, at)
             .expect("the plate reaches the particle");
+        assert!(!started_inside, "the plate came to it");
         assert!(
             (p.x - 0.55).abs() < 1e-5,
             "pushed to the plate's front face: {p}"
@@ -409,6 +411,33 @@ mod tests {
         // a particle behind the plate is left alone
         let behind = Vec3A::new(-0.2, 0.3, 0.0);
         assert_eq!(moving.resolve(behind, behind), None);
+    }
+
+    #[test]
+    fn a_push_out_of_a_collider_entered_before_the_substep_is_mostly_quiet() {
+        // a particle that starts and ends 0.3 deep in a box is pushed out by 0.3, of
+        // which only `depenetration_step` is to become velocity
+        let mut colliders = Colliders::new(
+            None,
+            vec![PosedCollider::fixed(
+                ColliderShape::Box {
+                    half_extents: Vec3::splat(0.5),
+                },
+                0.0,
+                Pose::at(Vec3::ZERO),
+            )],
+        );
+        colliders.depenetration_step = 0.01;
+        let inside = Vec3A::new(0.0, 0.2, 0.0);
+        let (p, quiet) = colliders.resolve(inside, inside);
+        assert!((p.y - 0.5).abs() < 1e-6, "{p}");
+        assert!((quiet.y - 0.29).abs() < 1e-5 && quiet.x == 0.0, "{quiet}");
+        // one that entered during the substep keeps its whole push as velocity
+        let (p, quiet) = colliders.resolve(inside, Vec3A::new(0.0, 0.6, 0.0));
+        assert!(
+            (p.y - 0.5).abs() < 1e-6 && quiet == Vec3A::ZERO,
+            "{p} {quiet}"
+        );
     }
 
     #[test]
