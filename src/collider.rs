@@ -3,11 +3,14 @@
 //! swept test that keeps fast particles and fast colliders from tunnelling).
 
 use crate::error::{Result, check_positive, out_of_range};
+use crate::mesh_sdf::MeshSdf;
 use glam::{Vec3, Vec3A};
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
-/// A convex collider shape in its local frame (centred on the origin).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// A collider shape in its local frame: a box, ball or capsule centred on the origin, or
+/// a closed triangle mesh in its own coordinates.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub enum ColliderShape {
     /// A box with the given half size per local axis.
@@ -27,6 +30,10 @@ pub enum ColliderShape {
         /// Half length of the shaft.
         half_length: f32,
     },
+    /// A closed triangle mesh, through its sampled signed distance (scene files name
+    /// the OBJ file; see `scene_file`).
+    #[serde(skip)]
+    Mesh(Arc<MeshSdf>),
 }
 
 impl ColliderShape {
@@ -58,10 +65,11 @@ impl ColliderShape {
                 }
                 Ok(())
             }
+            ColliderShape::Mesh(_) => Ok(()),
         }
     }
 
-    /// Half size of the shape's local axis-aligned bounding box.
+    /// Half size of the shape's local axis-aligned bounding box about the origin.
     pub fn local_half_extents(&self) -> Vec3 {
         match *self {
             ColliderShape::Box { half_extents } => half_extents,
@@ -70,6 +78,7 @@ impl ColliderShape {
                 radius,
                 half_length,
             } => Vec3::new(radius + half_length, radius, radius),
+            ColliderShape::Mesh(ref sdf) => sdf.half_extents(),
         }
     }
 
@@ -110,6 +119,7 @@ impl ColliderShape {
                 let axis = Vec3A::new(p.x.clamp(-half_length, half_length), 0.0, 0.0);
                 round_around(p - axis, radius)
             }
+            ColliderShape::Mesh(ref sdf) => (sdf.distance(p), sdf.normal(p)),
         }
     }
 
@@ -153,6 +163,7 @@ impl ColliderShape {
                 .filter(|t| (a.x + d.x * t).abs() <= half_length);
                 ends.into_iter().chain([shaft]).flatten().reduce(f32::min)?
             }
+            ColliderShape::Mesh(ref sdf) => sdf.segment_entry(a, b)?,
         };
         (0.0..=1.0).contains(&t).then_some(t)
     }

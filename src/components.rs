@@ -131,7 +131,7 @@ pub struct ToolPath(pub Path);
 
 /// A collider that particles cannot enter: static, moved by a [`ColliderPath`], or
 /// moved by game code through its [`ColliderPose`].
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[derive(Component, Clone, Debug, PartialEq)]
 pub struct Collider {
     /// Shape in the local frame.
     pub shape: ColliderShape,

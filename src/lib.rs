@@ -28,6 +28,7 @@ pub mod invariants;
 pub mod lanes;
 pub mod lattice;
 pub mod mesh;
+pub mod mesh_sdf;
 #[cfg(feature = "bevy_app")]
 pub mod plugin;
 pub mod prefetch;

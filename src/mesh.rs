@@ -7,7 +7,7 @@ use std::collections::HashMap;
 use std::path::Path;
 
 /// A closed triangle mesh.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct TriangleMesh {
     /// Vertex positions.
     pub vertices: Vec<Vec3>,

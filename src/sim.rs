@@ -193,7 +193,7 @@ pub fn spawn_collider(world: &mut World, desc: &ColliderDesc) -> Result<Entity> 
     let pose = desc.path.sample(now as f32).unwrap_or(desc.pose);
     let mut e = world.spawn((
         Collider {
-            shape: desc.shape,
+            shape: desc.shape.clone(),
             friction: desc.friction,
         },
         ColliderPose {

@@ -154,7 +154,7 @@ fn substep_colliders(
             pose.last.lerp(&pose.current, t0),
             pose.last.lerp(&pose.current, t1),
         );
-        PosedCollider::new(c.shape, c.friction, start, end)
+        PosedCollider::new(c.shape.clone(), c.friction, start, end)
     });
     let mut colliders = Colliders::from_config(config, moving);
     colliders.depenetration_step = MAX_DEPENETRATION_SPEED * config.dt / count;

@@ -63,7 +63,7 @@ fn a_body_at_100_m_per_s_stops_outside_a_06_m_box() -> cleave::error::Result<()>
         rotation: Quat::from_rotation_y(0.3),
     };
     sim.spawn_collider(&ColliderDesc {
-        shape,
+        shape: shape.clone(),
         friction: 0.0,
         pose,
         path: Path::default(),
@@ -109,6 +109,68 @@ fn a_plate_at_20_m_per_s_pushes_a_body_instead_of_passing_through() -> cleave::e
     for p in &positions(&mut sim, &[body])[0] {
         assert!(p.x > 1.02 - 1e-3, "{p} is behind the plate");
     }
+    Ok(())
+}
+
+/// A closed octahedron |x| + |y| + |z| = `r` as a triangle mesh.
+fn octahedron(r: f32) -> cleave::mesh::TriangleMesh {
+    let v = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z].map(|v| v * r);
+    let t = vec![
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ];
+    cleave::mesh::TriangleMesh::new(v.to_vec(), t, std::path::Path::new("octahedron"))
+        .expect("a closed mesh")
+}
+
+#[test]
+fn bodies_rest_on_and_do_not_tunnel_into_a_mesh_collider() -> cleave::error::Result<()> {
+    let mut sim = Simulation::new(SimConfig::default())?;
+    let sdf = cleave::mesh_sdf::MeshSdf::new(&octahedron(0.6), 48)?;
+    let shape = ColliderShape::Mesh(std::sync::Arc::new(sdf));
+    // turned, its lower tip in the ground: a ramp of four sloped faces
+    let pose = Pose {
+        position: Vec3::new(0.0, 0.3, 0.0),
+        rotation: Quat::from_rotation_y(0.4),
+    };
+    sim.spawn_collider(&ColliderDesc {
+        shape: shape.clone(),
+        friction: 0.8,
+        pose,
+        path: Path::default(),
+    })?;
+    // one dropped gently on top, one thrown at it at 60 m/s
+    let mut gentle = BodyDesc::new(Shape::cuboid(UVec3::splat(4), H), H);
+    gentle.position = Vec3::new(0.05, 1.3, 0.0);
+    let mut thrown = gentle.clone();
+    thrown.position = Vec3::new(-3.0, 0.35, 0.1);
+    thrown.velocity = Vec3::new(60.0, 0.0, 0.0);
+    let bodies = [sim.spawn_body(&gentle)?, sim.spawn_body(&thrown)?];
+    let inverse = glam::Affine3A::from_rotation_translation(pose.rotation, pose.position).inverse();
+    let deepest = |sim: &mut Simulation| {
+        positions(sim, &bodies)
+            .iter()
+            .flatten()
+            .map(|p| -shape.signed_distance(inverse.transform_point3a(Vec3A::from(*p))))
+            .fold(f32::NEG_INFINITY, f32::max)
+    };
+    for _ in 0..120 {
+        sim.step();
+        let depth = deepest(&mut sim);
+        assert!(depth < 0.1 * H, "a particle {depth} inside the mesh");
+    }
+    // the thrown body stopped on the near side
+    assert!(
+        positions(&mut sim, &bodies[1..])[0]
+            .iter()
+            .all(|p| p.x < 0.0)
+    );
     Ok(())
 }
 
@@ -278,7 +340,7 @@ proptest! {
         let rotation = Quat::from_rotation_y(yaw) * Quat::from_rotation_z(tilt);
         let pose = Pose { position: Vec3::new(0.0, 0.2, 0.0), rotation };
         sim.spawn_collider(&ColliderDesc {
-            shape: collider,
+            shape: collider.clone(),
             friction: 0.5,
             pose,
             path: Path::default(),

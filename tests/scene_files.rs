@@ -15,6 +15,9 @@ fn positions_after(scene: &Scene, frames: u32) -> Vec<u32> {
     for t in &scene.tools {
         sim.spawn_tool(t).unwrap();
     }
+    for c in &scene.colliders {
+        sim.spawn_collider(c).unwrap();
+    }
     sim.run(frames);
     let mut q = sim.world_mut().query::<(&Particle, &Position)>();
     let mut v: Vec<(u32, [f32; 3])> = q
@@ -41,6 +44,7 @@ fn every_builtin_round_trips_through_ron() {
         );
         assert_eq!(again.frames, scene.frames);
         assert_eq!(again.tools.len(), scene.tools.len());
+        assert_eq!(again.colliders.len(), scene.colliders.len());
         // and it is the same simulation
         assert!(
             positions_after(&again, 40) == positions_after(&scene, 40),
@@ -93,8 +97,44 @@ fn a_minimal_file_runs() {
 }
 
 #[test]
+fn a_file_with_many_bodies_and_colliders_runs() {
+    let text = GOOD.replace(
+        "bodies: [(shape: Cells(cells: (4, 4, 4)), spacing: 0.1, position: (0.0, 0.5, 0.0))],",
+        "bodies: [(shape: Cells(cells: (4, 4, 4)), spacing: 0.1, position: (0.0, 0.5, 0.0)), \
+         (shape: Sphere(radius: 0.2), spacing: 0.1, position: (0.0, 1.2, 0.0))], \
+         colliders: [(shape: Capsule(radius: 0.1, half_length: 0.5), \
+         pose: Some((position: (0.0, 0.1, 1.0), rotation: (0.0, 0.38268343, 0.0, 0.9238795)))), \
+         (shape: Box(half_extents: (0.5, 0.05, 0.5)), friction: 0.2, \
+         path: [(0.0, (position: (2.0, 0.5, 0.0))), (1.0, (position: (2.0, 0.1, 0.0)))])],",
+    );
+    let (code, err) = run_file("many.ron", &text);
+    assert_eq!(code, Some(0), "{err}");
+}
+
+#[test]
 fn bad_files_give_one_line_naming_file_position_and_field() {
-    let cases: [(&str, String, &[&str]); 7] = [
+    let collider = |shape: &str| {
+        GOOD.replace(
+            "    tools: [(",
+            &format!("    colliders: [(shape: {shape})],\n    tools: [("),
+        )
+    };
+    let cases: [(&str, String, &[&str]); 10] = [
+        (
+            "ball.ron",
+            collider("Sphere(radius: -1.0)"),
+            &["ball.ron:4:", "colliders[0].shape", "allowed: radius finite and > 0"],
+        ),
+        (
+            "friction.ron",
+            GOOD.replace("spacing: 0.1,", "spacing: 0.1, material: (static_friction: NaN),"),
+            &["friction.ron:3:", "bodies[0].material.static_friction", "allowed: 0 ≤ friction"],
+        ),
+        (
+            "meshcollider.ron",
+            collider(r#"Mesh(path: "nowhere.obj")"#),
+            &["meshcollider.ron", "colliders[0].shape.path", "nowhere.obj"],
+        ),
         (
             "pin.ron",
             GOOD.replace(

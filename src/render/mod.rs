@@ -155,7 +155,7 @@ pub fn snapshot(world: &mut World, mode: ColorMode) -> Snapshot {
     let mut moving: Vec<(Entity, ColliderShape, Pose)> = collider_query
         .iter_mut()
         .flat_map(|q| q.iter(world))
-        .map(|(e, c, p)| (e, c.shape, p.current))
+        .map(|(e, c, p)| (e, c.shape.clone(), p.current))
         .collect();
     moving.sort_by_key(|(e, _, _)| *e);
     colliders.extend(moving.into_iter().map(|(_, s, p)| (s, p)));
@@ -274,8 +274,8 @@ fn draw_collider(canvas: &mut Canvas, camera: &Camera, shape: &ColliderShape, po
             canvas.sphere(x, y, z, radius * camera.scale_at(z), radius, STONE);
         }
     };
-    match *shape {
-        ColliderShape::Box { half_extents: h } => {
+    match shape {
+        &ColliderShape::Box { half_extents: h } => {
             for axis in 0..3 {
                 for sign in [-1.0f32, 1.0] {
                     let mut normal = Vec3::ZERO;
@@ -301,8 +301,8 @@ fn draw_collider(canvas: &mut Canvas, camera: &Camera, shape: &ColliderShape, po
                 }
             }
         }
-        ColliderShape::Sphere { radius } => ball(canvas, pose.position, radius),
-        ColliderShape::Capsule {
+        &ColliderShape::Sphere { radius } => ball(canvas, pose.position, radius),
+        &ColliderShape::Capsule {
             radius,
             half_length,
         } => {
@@ -310,6 +310,30 @@ fn draw_collider(canvas: &mut Canvas, camera: &Camera, shape: &ColliderShape, po
             for k in 0..=steps {
                 let x = -half_length + 2.0 * half_length * k as f32 / steps as f32;
                 ball(canvas, world(Vec3::new(x, 0.0, 0.0)), radius);
+            }
+        }
+        ColliderShape::Mesh(sdf) => {
+            // the triangles that face the camera, shaded, behind every particle
+            let mesh = sdf.mesh();
+            let light = Vec3::new(-0.3, 0.9, 0.4).normalize();
+            for t in &mesh.triangles {
+                let [a, b, c] = t.map(|v| world(mesh.vertices[v as usize]));
+                let normal = (b - a).cross(c - a).normalize_or_zero();
+                // either orientation: shade the side that faces the camera
+                let normal = if normal.dot(camera.eye() - a) < 0.0 {
+                    -normal
+                } else {
+                    normal
+                };
+                let shade = 0.55 + 0.45 * normal.dot(light).max(0.0);
+                let grey = (STONE[0] as f32 * shade) as u8;
+                let tri: Option<Vec<(f32, f32)>> = [a, b, c]
+                    .iter()
+                    .map(|c| camera.project(*c).map(|p| (p.0, p.1)))
+                    .collect();
+                if let Some(tri) = tri {
+                    canvas.fill_polygon(&tri, [grey, grey, grey.saturating_add(8)], 255);
+                }
             }
         }
     }

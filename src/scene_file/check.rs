@@ -2,8 +2,7 @@
 //! out-of-range value with a message that states the allowed range, and the RON reader
 //! adds the file position and the field path.
 
-use super::{BodyFile, PoseFile};
-use crate::collider::ColliderShape;
+use super::{BodyFile, ColliderShapeFile, PoseFile};
 use crate::config::{GroundPlane, StaticBox};
 use crate::sim::PinRegion;
 use crate::tool::ToolShape;
@@ -145,10 +144,40 @@ pub fn pins<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<PinRegion>, D::Error>
     }
     Ok(pins)
 }
-pub fn collider_shape<'de, D: Deserializer<'de>>(d: D) -> Result<ColliderShape, D::Error> {
-    let shape = ColliderShape::deserialize(d)?;
-    shape.validate("shape").map_err(D::Error::custom)?;
-    Ok(shape)
+pub fn collider_shape<'de, D: Deserializer<'de>>(d: D) -> Result<ColliderShapeFile, D::Error> {
+    let shape = ColliderShapeFile::deserialize(d)?;
+    let (value, ok, allowed) = match &shape {
+        ColliderShapeFile::Box { half_extents: h } => (
+            format!("{h}"),
+            h.is_finite() && h.cmpgt(Vec3::ZERO).all(),
+            "half_extents finite and > 0",
+        ),
+        ColliderShapeFile::Sphere { radius } => (
+            format!("{radius}"),
+            radius.is_finite() && *radius > 0.0,
+            "radius finite and > 0",
+        ),
+        ColliderShapeFile::Capsule {
+            radius,
+            half_length,
+        } => (
+            format!("({radius}, {half_length})"),
+            radius.is_finite() && *radius > 0.0 && half_length.is_finite() && *half_length >= 0.0,
+            "radius finite and > 0, half_length finite and ≥ 0",
+        ),
+        ColliderShapeFile::Mesh { resolution, .. } => (
+            format!("{resolution}"),
+            (4..=256).contains(resolution),
+            "4 ≤ resolution ≤ 256",
+        ),
+    };
+    if ok {
+        Ok(shape)
+    } else {
+        Err(D::Error::custom(format!(
+            "{value} is out of range (allowed: {allowed})"
+        )))
+    }
 }
 pub fn tool_shape<'de, D: Deserializer<'de>>(d: D) -> Result<ToolShape, D::Error> {
     let shape = ToolShape::deserialize(d)?;

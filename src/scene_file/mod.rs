@@ -209,10 +209,10 @@ pub struct ToolFile {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ColliderFile {
-    /// Shape: `Box(half_extents)`, `Sphere(radius)` or `Capsule(radius, half_length)`
-    /// (along local X).
+    /// Shape: `Box(half_extents)`, `Sphere(radius)`, `Capsule(radius, half_length)`
+    /// (along local X) or `Mesh(path, resolution)` (a closed OBJ mesh).
     #[serde(deserialize_with = "check::collider_shape")]
-    pub shape: ColliderShape,
+    pub shape: ColliderShapeFile,
     /// Coulomb friction coefficient.
     #[serde(
         default = "default_collider_friction",
@@ -229,6 +229,88 @@ pub struct ColliderFile {
 
 fn default_collider_friction() -> f32 {
     0.5
+}
+
+fn default_mesh_resolution() -> u32 {
+    64
+}
+
+/// A collider's shape in a scene file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum ColliderShapeFile {
+    /// A box with the given half size per local axis.
+    Box {
+        /// Half size per axis.
+        half_extents: Vec3,
+    },
+    /// A ball.
+    Sphere {
+        /// Radius.
+        radius: f32,
+    },
+    /// A capsule along the local X axis.
+    Capsule {
+        /// Radius.
+        radius: f32,
+        /// Half length of the shaft.
+        half_length: f32,
+    },
+    /// A closed triangle mesh from an OBJ file (relative to the scene file), in the
+    /// collider's frame.
+    Mesh {
+        /// The OBJ file.
+        path: String,
+        /// Cells of its sampled distance along its longest axis (4–256).
+        #[serde(default = "default_mesh_resolution")]
+        resolution: u32,
+    },
+}
+
+impl ColliderShapeFile {
+    /// The file form of `shape`; `None` for a mesh given in memory.
+    fn from_shape(shape: &ColliderShape) -> Option<Self> {
+        Some(match *shape {
+            ColliderShape::Box { half_extents } => Self::Box { half_extents },
+            ColliderShape::Sphere { radius } => Self::Sphere { radius },
+            ColliderShape::Capsule {
+                radius,
+                half_length,
+            } => Self::Capsule {
+                radius,
+                half_length,
+            },
+            ColliderShape::Mesh(_) => return None,
+        })
+    }
+
+    /// The shape, checked; a mesh is read relative to `base_dir`. `field` names it in
+    /// errors.
+    fn to_shape(&self, base_dir: &Path, field: &str) -> Result<ColliderShape, String> {
+        let shape = match self {
+            Self::Box { half_extents } => ColliderShape::Box {
+                half_extents: *half_extents,
+            },
+            Self::Sphere { radius } => ColliderShape::Sphere { radius: *radius },
+            Self::Capsule {
+                radius,
+                half_length,
+            } => ColliderShape::Capsule {
+                radius: *radius,
+                half_length: *half_length,
+            },
+            Self::Mesh { path, resolution } => {
+                let file = base_dir.join(path);
+                let mesh =
+                    TriangleMesh::load_obj(&file).map_err(|e| format!("{field}.path: {e}"))?;
+                let sdf = crate::mesh_sdf::MeshSdf::new(&mesh, *resolution)
+                    .map_err(|e| format!("{field}: {e}"))?;
+                ColliderShape::Mesh(Arc::new(sdf))
+            }
+        };
+        shape.validate(field).map_err(|e| e.to_string())?;
+        Ok(shape)
+    }
 }
 
 /// A pose.
@@ -373,13 +455,15 @@ impl SceneFile {
         let colliders = scene
             .colliders
             .iter()
-            .map(|c| ColliderFile {
-                shape: c.shape,
-                friction: c.friction,
-                path: c.path.keys.iter().map(|(k, p)| (*k, (*p).into())).collect(),
-                pose: Some(c.pose.into()),
+            .map(|c| {
+                Some(ColliderFile {
+                    shape: ColliderShapeFile::from_shape(&c.shape)?,
+                    friction: c.friction,
+                    path: c.path.keys.iter().map(|(k, p)| (*k, (*p).into())).collect(),
+                    pose: Some(c.pose.into()),
+                })
             })
-            .collect();
+            .collect::<Option<Vec<_>>>()?;
         Some(Self {
             seed: scene.config.seed,
             frames: scene.frames,
@@ -441,19 +525,18 @@ impl SceneFile {
                 }
             })
             .collect();
-        let colliders = self
-            .colliders
-            .iter()
-            .map(|c| {
-                let (path, pose) = path_and_pose(&c.path, c.pose);
-                ColliderDesc {
-                    shape: c.shape,
-                    friction: c.friction,
-                    path,
-                    pose,
-                }
-            })
-            .collect();
+        let mut colliders = Vec::with_capacity(self.colliders.len());
+        for (i, c) in self.colliders.iter().enumerate() {
+            let (path, pose) = path_and_pose(&c.path, c.pose);
+            colliders.push(ColliderDesc {
+                shape: c
+                    .shape
+                    .to_shape(base_dir, &format!("colliders[{i}].shape"))?,
+                friction: c.friction,
+                path,
+                pose,
+            });
+        }
         let config = self.settings.to_config(self.seed);
         config.validate().map_err(|e| e.to_string())?;
         Ok(Scene {

@@ -24,7 +24,7 @@ use rayon::prelude::*;
 const GRAZE: f32 = 1e-5;
 
 /// A collider placed for one substep.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct PosedCollider {
     /// Shape in the local frame.
     pub shape: ColliderShape,
@@ -350,7 +350,7 @@ mod tests {
                 rotation,
             },
         );
-        let colliders = Colliders::new(None, vec![block]);
+        let colliders = Colliders::new(None, vec![block.clone()]);
         for end_x in [2.0, 0.25] {
             let (from, to) = (Vec3A::new(-2.0, 0.05, 0.0), Vec3A::new(end_x, 0.05, 0.0));
             let (p, _) = colliders.resolve(to, from);
