@@ -69,6 +69,82 @@ pub struct BenchRow {
     pub rebuild_ms: f64,
 }
 
+/// The contact row of the bench: the `pile` scene at a finer spacing, stepped with and
+/// without particle contacts in the same run.
+#[derive(Clone, Debug, Serialize)]
+pub struct PileRow {
+    /// Always `"pile"` (tells this row from the size rows in JSON lines).
+    pub row: &'static str,
+    /// Lattice spacing of the bodies.
+    pub spacing: f32,
+    /// Bodies.
+    pub bodies: usize,
+    /// Particles over all bodies.
+    pub particles: usize,
+    /// Frames stepped (the medians are over the second half, when the bodies touch).
+    pub frames: u32,
+    /// Particles that take part in contacts (surface particles), at the end.
+    pub contact_particles: usize,
+    /// Contact pairs found in the last substep (each counted from both sides).
+    pub contact_pairs: usize,
+    /// Median step with contacts, ms.
+    pub ms_per_step: f64,
+    /// Median step of the same scene with contacts off, ms.
+    pub ms_per_step_without_contacts: f64,
+    /// `ms_per_step / ms_per_step_without_contacts`.
+    pub contacts_over_without: f64,
+    /// What contacts add, per particle (all of them) and solver iteration, ns.
+    pub contact_ns_per_particle_iteration: f64,
+}
+
+/// Runs the `pile` scene at `spacing` for `frames` frames twice, with and without
+/// contacts, alternating steps so both see the same machine noise.
+pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileRow> {
+    let build = |contacts: bool| -> Result<Simulation> {
+        let scene = crate::scene::pile_scene(
+            SimConfig {
+                contacts,
+                ..config.clone()
+            },
+            spacing,
+        );
+        let mut sim = Simulation::new(scene.config.clone())?;
+        for b in &scene.bodies {
+            sim.spawn_body(b)?;
+        }
+        for c in &scene.colliders {
+            sim.spawn_collider(c)?;
+        }
+        Ok(sim)
+    };
+    let (mut with, mut without) = (build(true)?, build(false)?);
+    let (mut on, mut off) = (Vec::new(), Vec::new());
+    for frame in 0..frames.max(2) {
+        let (a, b) = (time_ms(1, || with.step()), time_ms(1, || without.step()));
+        if frame >= frames / 2 {
+            on.push(a);
+            off.push(b);
+        }
+    }
+    let cache = with.world().resource::<SolverCache>();
+    let particles = cache.layout.particle_count();
+    let (ms_on, ms_off) = (median(&mut on), median(&mut off));
+    let iterations = (config.substeps * config.iterations) as f64;
+    Ok(PileRow {
+        row: "pile",
+        spacing,
+        bodies: cache.body_dense.len(),
+        particles,
+        frames,
+        contact_particles: cache.kinds.contacts.particle_count(),
+        contact_pairs: cache.kinds.contacts.pair_count(),
+        ms_per_step: ms_on,
+        ms_per_step_without_contacts: ms_off,
+        contacts_over_without: ms_on / ms_off,
+        contact_ns_per_particle_iteration: (ms_on - ms_off) * 1e6 / (particles as f64 * iterations),
+    })
+}
+
 /// The median of `samples` (0 for none).
 pub fn median(samples: &mut [f64]) -> f64 {
     if samples.is_empty() {

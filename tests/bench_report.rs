@@ -16,6 +16,10 @@ fn bench_json_has_one_consistent_line_per_size() {
             "3",
             "--threads",
             "1",
+            "--pile-spacing",
+            "0.1",
+            "--pile-frames",
+            "60",
         ])
         .output()
         .expect("run cleave bench");
@@ -24,11 +28,30 @@ fn bench_json_has_one_consistent_line_per_size() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let lines: Vec<Value> = String::from_utf8(out.stdout)
+    let mut lines: Vec<Value> = String::from_utf8(out.stdout)
         .unwrap()
         .lines()
         .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
         .collect();
+    // the last line is the contact row
+    let pile = lines.pop().expect("a pile row");
+    assert_eq!(pile["row"], "pile");
+    let number = |key: &str| {
+        pile[key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("`{key}` in {pile}"))
+    };
+    assert!(
+        number("particles") > 500.0 && number("bodies") == 7.0,
+        "{pile}"
+    );
+    assert!(number("contact_particles") < number("particles"), "{pile}");
+    assert!(
+        number("contact_pairs") > 0.0,
+        "the bodies touch by the end: {pile}"
+    );
+    let ratio = number("ms_per_step") / number("ms_per_step_without_contacts");
+    assert!((ratio - number("contacts_over_without")).abs() < 1e-9 * ratio);
     assert_eq!(lines.len(), 2);
     // ascending sizes
     assert_eq!(lines[0]["size"], 6);

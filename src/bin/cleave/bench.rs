@@ -1,19 +1,37 @@
 //! `cleave bench`: the report of [`cleave::bench`] as a table or as JSON lines.
 
-use cleave::bench::{bench_size, convergence_table};
+use cleave::bench::{bench_pile, bench_size, convergence_table};
 use cleave::config::SimConfig;
 
 /// Iteration counts of the convergence table.
 const CONVERGENCE_ITERATIONS: [u32; 6] = [1, 2, 5, 10, 20, 50];
 
-/// Benchmarks every size (ascending, so peak memory belongs to the current size).
+/// The contact row: the `pile` scene at this spacing (or none).
+#[derive(Clone, Copy, Debug)]
+pub struct PileOptions {
+    /// Lattice spacing of the pile's bodies; `None`: no pile row.
+    pub spacing: Option<f32>,
+    /// Frames to step.
+    pub frames: u32,
+}
+
+/// Benchmarks every size (ascending, so peak memory belongs to the current size), then
+/// the pile with and without contacts.
 pub fn bench(
     sizes: &[u32],
     steps: usize,
     config: SimConfig,
     json: bool,
     convergence: bool,
+    pile: PileOptions,
 ) -> Result<(), String> {
+    if let Some(h) = pile.spacing
+        && !(h.is_finite() && (0.02..=0.5).contains(&h))
+    {
+        return Err(format!(
+            "--pile-spacing: {h} is out of range (allowed 0.02 ≤ spacing ≤ 0.5)"
+        ));
+    }
     if steps == 0 {
         return Err("--steps must be at least 1".into());
     }
@@ -79,6 +97,29 @@ pub fn bench(
                 row.relayout_ms,
                 if row.relayout_patched { "p" } else { "r" },
                 row.rebuild_ms
+            );
+        }
+    }
+    if let Some(spacing) = pile.spacing {
+        let row = bench_pile(spacing, pile.frames, &config).map_err(|e| e.to_string())?;
+        if json {
+            println!(
+                "{}",
+                serde_json::to_string(&row).map_err(|e| e.to_string())?
+            );
+        } else {
+            println!(
+                "pile (contacts): {} bodies, {} particles at h = {}, {} taking part, {} pairs; \
+                 {:.3} ms/step with contacts, {:.3} without: ×{:.2}; contacts {:.2} ns per particle-iteration",
+                row.bodies,
+                row.particles,
+                row.spacing,
+                row.contact_particles,
+                row.contact_pairs,
+                row.ms_per_step,
+                row.ms_per_step_without_contacts,
+                row.contacts_over_without,
+                row.contact_ns_per_particle_iteration
             );
         }
     }

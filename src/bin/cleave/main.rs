@@ -104,6 +104,15 @@ enum Command {
         /// Solver iterations per substep.
         #[arg(long, default_value_t = 10)]
         iterations: u32,
+X
+        #[arg(long, default_value_t = 0.035)]
+        pile_spacing: f32,
+        /// Frames of the contact row.
+        #[arg(long, default_value_t = 160)]
+        pile_frames: u32,
+        /// Skip the contact row.
+        #[arg(long)]
+        no_pile: bool,
     },
 }
 
@@ -230,6 +239,9 @@ fn main() -> ExitCode {
             no_convergence,
             substeps,
             iterations,
+            pile_spacing,
+            pile_frames,
+            no_pile,
         } => with_threads(threads, |_| {
             let config = SimConfig {
                 solver: solver.into(),
@@ -238,7 +250,11 @@ fn main() -> ExitCode {
                 ..SimConfig::default()
             };
             config.validate().map_err(|e| e.to_string())?;
-            bench::bench(&sizes, steps, config, json, !no_convergence)
+            let pile = bench::PileOptions {
+                spacing: (!no_pile).then_some(pile_spacing),
+                frames: pile_frames,
+            };
+            bench::bench(&sizes, steps, config, json, !no_convergence, pile)
         }),
     };
     match result {
