@@ -79,9 +79,9 @@ impl PosedCollider {
     }
 
     /// The position `p` (which started the substep at `previous`) resolved against this
-    /// collider, and whether the particle started the substep inside it; `None` when the
-    /// collider does not touch it.
-    pub fn resolve(&self, p: Vec3A, previous: Vec3A) -> Option<(Vec3A, bool)> {
+    /// collider, and how deep inside it the particle started the substep (0 outside);
+    /// `None` when the collider does not touch it.
+    pub fn resolve(&self, p: Vec3A, previous: Vec3A) -> Option<(Vec3A, f32)> {
         let (from, to) = (
             self.start_inverse.transform_point3a(previous),
             self.end_inverse.transform_point3a(p),
@@ -121,7 +121,7 @@ impl PosedCollider {
         };
         let depth = (target - to).length();
         let resolved = with_friction(target, from, normal, depth, self.friction);
-        Some((self.end.transform_point3a(resolved), start < 0.0))
+        Some((self.end.transform_point3a(resolved), (-start).max(0.0)))
     }
 }
 
@@ -213,14 +213,16 @@ impl Colliders {
         let (lo, hi) = (p.min(previous), p.max(previous));
         for shape in &self.shapes {
             if shape.reaches(lo, hi)
-                && let Some((q, started_inside)) = shape.resolve(p, previous)
+                && let Some((q, depth_before)) = shape.resolve(p, previous)
             {
-                if started_inside {
-                    let push = q - p;
-                    let length = push.length();
-                    if length > self.depenetration_step {
-                        quiet += push * (1.0 - self.depenetration_step / length);
-                    }
+                // only the depth it already had is undone quietly, and only beyond the
+                // allowance: what this substep's motion carried in (a particle resting
+                // on the surface, rounding a hair inside) must stop with velocity
+                let push = q - p;
+                let length = push.length();
+                let quiet_length = (length.min(depth_before) - self.depenetration_step).max(0.0);
+                if quiet_length > 0.0 {
+                    quiet += push * (quiet_length / length);
                 }
                 p = q;
             }
@@ -380,10 +382,10 @@ mod tests {
             assert_eq!(block.resolve(to, from), None, "{to}");
         }
         // sinking a little while it slides: kinetic friction, not a stop
-        let (p, started_inside) = block
+        let (p, depth_before) = block
             .resolve(Vec3A::new(0.1, 0.49, 0.0), from)
             .expect("a contact");
-        assert!(!started_inside);
+        assert_eq!(depth_before, 0.0);
         assert!((p.y - 0.5).abs() < 1e-6 && p.x > 0.09, "{p}");
     }
 
@@ -400,10 +402,10 @@ mod tests {
             Pose::at(Vec3::new(0.5, 0.0, 0.0)),
         );
         let at = Vec3A::new(0.2, 0.3, 0.0);
-        let (p, started_inside) = moving
+        let (p, depth_before) = moving
             .resolve(at, at)
             .expect("the plate reaches the particle");
-        assert!(!started_inside, "the plate came to it");
+        assert_eq!(depth_before, 0.0, "the plate came to it");
         assert!(
             (p.x - 0.55).abs() < 1e-5,
             "pushed to the plate's front face: {p}"

@@ -23,9 +23,12 @@
 //!
 //! **Projection (every iteration).** Jacobi-style: each particle sums, over its pairs,
 //! its inverse-mass share of the overlap along the pair's normal and of the friction
-//! correction, reads only positions, and the average is applied afterwards; so the result
-//! does not depend on the order of pairs or the thread count, and each pair's pushes on its
-//! two particles are equal and opposite.
+//! correction, each divided by the larger number of touching pairs of the pair's two
+//! particles (counted in the previous iteration), reads only positions, and the sum is
+//! applied afterwards; so the result does not depend on the order of pairs or the
+//! thread count, and each pair's pushes on its two particles are equal and opposite —
+//! momentum is kept even where overlaps persist (an average per particle would not keep
+//! it, and a persistent overlap would then accelerate the bodies).
 
 use super::kinds::{ConstraintKind, ParticleState};
 use glam::{IVec3, Vec3A, Vec4};
@@ -44,6 +47,11 @@ const CELL_BIAS: i64 = 1 << 20;
 /// are found and still be kept for the substep's iterations (which move particles). A
 /// pair that closes faster than this within one substep is found in the next one.
 const PAIR_MARGIN: f32 = 0.5;
+
+/// Over-relaxation of the pair corrections (as in Macklin et al. 2014, §4.2.2): a pair's
+/// correction is divided by the larger load of its particles over this factor (at least
+/// by 1), so that particles in a few contacts converge in fewer iterations.
+pub const RELAXATION: f32 = 2.0;
 
 /// Lattice distance (cells, largest axis) up to which two particles of one piece are
 /// neighbours in the material and never a contact pair.
@@ -117,8 +125,14 @@ pub struct Contacts {
     owners: Vec<u32>,
     starts: Vec<u32>,
     partners: Vec<Partner>,
-    /// Each owner's step in the current iteration.
-    steps: Vec<Vec3A>,
+    /// Each owner's step in the current iteration, and how many of its pairs touched.
+    steps: Vec<(Vec3A, u32)>,
+    /// Per contact particle, how many of its pairs touched in the last iteration (its
+    /// pair count before the first): a pair's correction is divided by the larger load
+    /// of its two particles, so that both sides move by equal and opposite amounts
+    /// (momentum kept, pair by pair) while a particle in many contacts does not
+    /// overshoot.
+    load: Vec<u32>,
 }
 
 impl Contacts {
@@ -278,6 +292,8 @@ impl Contacts {
         self.starts.clear();
         self.starts.push(0);
         let mut slot = vec![0u32; n];
+        self.load.clear();
+        self.load.extend_from_slice(&count[..n]);
         let mut total = 0u32;
         for (k, c) in count[..n].iter().enumerate() {
             if *c > 0 {
@@ -330,6 +346,7 @@ impl ConstraintKind for Contacts {
         let p = &self.particles;
         let (positions, previous, inv_mass) = (&*state.positions, state.previous, state.inv_mass);
         let (owners, starts, partners) = (&self.owners, &self.starts, &self.partners);
+        let load = &self.load;
         owners
             .par_iter()
             .enumerate()
@@ -337,9 +354,6 @@ impl ConstraintKind for Contacts {
             .map(|(o, &a)| {
                 let da = p.dense[a as usize] as usize;
                 let wa = inv_mass[da];
-                if wa == 0.0 {
-                    return Vec3A::ZERO;
-                }
                 let (xa, slip_a) = (positions[da], positions[da] - previous[da]);
                 let (mut sum, mut touching) = (Vec3A::ZERO, 0u32);
                 for b in &partners[starts[o] as usize..starts[o + 1] as usize] {
@@ -349,7 +363,13 @@ impl ConstraintKind for Contacts {
                     if distance_squared >= b.reach * b.reach {
                         continue;
                     }
+                    touching += 1;
+                    if wa == 0.0 {
+                        continue; // pinned: its partner takes the whole correction
+                    }
                     let share = wa / (wa + inv_mass[db]);
+                    let divide =
+                        (load[a as usize].max(load[b.index as usize]) as f32 / RELAXATION).max(1.0);
                     let distance = distance_squared.sqrt();
                     // coincident centres: the lower contact index goes up, the other down
                     let normal = if distance > 0.0 {
@@ -370,19 +390,15 @@ impl ConstraintKind for Contacts {
                     } else {
                         step -= tangential * (b.dynamic_friction * depth / length).min(1.0);
                     }
-                    sum += step * share;
-                    touching += 1;
+                    sum += step * (share / divide);
                 }
-                if touching == 0 {
-                    Vec3A::ZERO
-                } else {
-                    sum / touching as f32
-                }
+                (sum, touching)
             })
             .collect_into_vec(&mut self.steps);
-        for (&a, step) in self.owners.iter().zip(&self.steps) {
-            if *step != Vec3A::ZERO {
-                state.shift(p.dense[a as usize] as usize, *step);
+        for (&a, &(step, touching)) in self.owners.iter().zip(&self.steps) {
+            self.load[a as usize] = touching;
+            if step != Vec3A::ZERO {
+                state.shift(p.dense[a as usize] as usize, step);
             }
         }
     }
