@@ -150,10 +150,7 @@ impl Simulation {
 pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
     desc.shape.validate()?;
     check_positive("tool.cut_width", desc.cut_width)?;
-    desc.path.validate()?;
-    check_finite_vec("tool.pose.position", desc.pose.position)?;
-    let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time);
-    let pose = desc.path.sample(now as f32).unwrap_or(desc.pose);
+    let pose = starting_pose(world, "tool", &desc.path, desc.pose)?;
     let mut e = world.spawn((
         Tool {
             shape: desc.shape,
@@ -170,6 +167,22 @@ pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
     Ok(e.id())
 }
 
+/// Checks a keyframed object's `path` and `pose` (errors name `what`) and returns its
+/// pose at the world's current time: the path's, or `pose` without a path.
+fn starting_pose(world: &World, what: &str, path: &Path, pose: Pose) -> Result<Pose> {
+    path.validate(what)?;
+    check_finite_vec(&format!("{what}.pose.position"), pose.position)?;
+    if !pose.rotation.is_finite() || pose.rotation.length() < 1e-6 {
+        return Err(crate::error::out_of_range(
+            &format!("{what}.pose.rotation"),
+            pose.rotation,
+            "finite, non-zero quaternion",
+        ));
+    }
+    let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time);
+    Ok(path.sample(now as f32).unwrap_or(pose))
+}
+
 /// Spawns a collider into any world prepared with [`crate::systems::install`].
 pub fn spawn_collider(world: &mut World, desc: &ColliderDesc) -> Result<Entity> {
     desc.shape.validate("collider.shape")?;
@@ -180,17 +193,7 @@ pub fn spawn_collider(world: &mut World, desc: &ColliderDesc) -> Result<Entity> 
         100.0,
         "0 ≤ friction ≤ 100",
     )?;
-    check_finite_vec("collider.pose.position", desc.pose.position)?;
-    if !desc.pose.rotation.is_finite() || desc.pose.rotation.length() < 1e-6 {
-        return Err(crate::error::out_of_range(
-            "collider.pose.rotation",
-            desc.pose.rotation,
-            "finite, non-zero quaternion",
-        ));
-    }
-    desc.path.validate()?;
-    let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time);
-    let pose = desc.path.sample(now as f32).unwrap_or(desc.pose);
+    let pose = starting_pose(world, "collider", &desc.path, desc.pose)?;
     let mut e = world.spawn((
         Collider {
             shape: desc.shape.clone(),
@@ -339,21 +342,6 @@ pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
         }
     }
     out
-}
-
-/// Finds the single body of a world, or an error naming how many there are.
-pub fn only_body(world: &mut World) -> Result<Entity> {
-    let bodies: Vec<Entity> = world
-        .query_filtered::<Entity, With<Body>>()
-        .iter(world)
-        .collect();
-    match bodies[..] {
-        [b] => Ok(b),
-        _ => Err(CleaveError::InvalidEntity(format!(
-            "expected one body, found {}",
-            bodies.len()
-        ))),
-    }
 }
 
 #[cfg(test)]

@@ -130,23 +130,28 @@ pub struct Path {
 }
 
 impl Path {
-    /// Checks that times increase and every key is finite; the error names the key.
-    pub fn validate(&self) -> Result<()> {
+    /// Checks that times increase and every key is finite; the error names the key as
+    /// `{owner}.path[i]` (`owner`: `tool`, `collider`).
+    pub fn validate(&self, owner: &str) -> Result<()> {
         for (i, (t, pose)) in self.keys.iter().enumerate() {
             if !t.is_finite() {
-                return Err(out_of_range(&format!("tool.path[{i}].time"), t, "finite"));
+                return Err(out_of_range(
+                    &format!("{owner}.path[{i}].time"),
+                    t,
+                    "finite",
+                ));
             }
-            check_finite_vec(&format!("tool.path[{i}].position"), pose.position)?;
+            check_finite_vec(&format!("{owner}.path[{i}].position"), pose.position)?;
             if !pose.rotation.is_finite() || pose.rotation.length() < 1e-6 {
                 return Err(out_of_range(
-                    &format!("tool.path[{i}].rotation"),
+                    &format!("{owner}.path[{i}].rotation"),
                     pose.rotation,
                     "finite, non-zero quaternion",
                 ));
             }
             if i > 0 && *t < self.keys[i - 1].0 {
                 return Err(out_of_range(
-                    &format!("tool.path[{i}].time"),
+                    &format!("{owner}.path[{i}].time"),
                     t,
                     "times in increasing order",
                 ));
@@ -307,12 +312,12 @@ mod tests {
         };
         assert_eq!(p.sample(0.5).unwrap().position, Vec3::X);
         assert_eq!(p.sample(9.0).unwrap().position, Vec3::X * 2.0);
-        p.validate().unwrap();
+        p.validate("tool").unwrap();
         let bad = Path {
             keys: vec![(0.0, Pose::at(Vec3::new(f32::NAN, 0.0, 0.0)))],
         };
         assert!(
-            bad.validate()
+            bad.validate("tool")
                 .unwrap_err()
                 .to_string()
                 .contains("tool.path[0].position")

@@ -277,7 +277,7 @@ fn bad_colliders_are_refused_with_the_field_named() {
                 },
                 ..good.clone()
             },
-            "path[1].time",
+            "collider.path[1].time",
         ),
         (
             ColliderDesc {
@@ -286,7 +286,7 @@ fn bad_colliders_are_refused_with_the_field_named() {
                 },
                 ..good.clone()
             },
-            "path[0].time",
+            "collider.path[0].time",
         ),
     ];
     for (desc, field) in cases {

@@ -74,10 +74,7 @@ pub fn bench(
     for n in sizes {
         let row = bench_size(n, steps, &config).map_err(|e| e.to_string())?;
         if json {
-            println!(
-                "{}",
-                serde_json::to_string(&row).map_err(|e| e.to_string())?
-            );
+            print_json(&row)?;
         } else {
             println!(
                 "{:>5} {:>9} {:>8} {:>11} {:>10.3} {:>9.3} {:>10.3} {:>9.3} {:>7.3} {:>8.0} {:>9.3} {:>9.3} {:>11.3} {:>9.3}{} {:>9.3}",
@@ -103,10 +100,7 @@ pub fn bench(
     if let Some(spacing) = pile.spacing {
         let row = bench_pile(spacing, pile.frames, &config).map_err(|e| e.to_string())?;
         if json {
-            println!(
-                "{}",
-                serde_json::to_string(&row).map_err(|e| e.to_string())?
-            );
+            print_json(&row)?;
         } else {
             println!(
                 "pile (contacts): {} bodies, {} particles at h = {}, {} taking part, {} pairs; \
@@ -138,5 +132,11 @@ pub fn bench(
             print!("{out}");
         }
     }
+    Ok(())
+}
+
+/// Prints `row` as one line of JSON.
+fn print_json(row: &impl serde::Serialize) -> Result<(), String> {
+    println!("{}", serde_json::to_string(row).map_err(|e| e.to_string())?);
     Ok(())
 }
