@@ -32,7 +32,8 @@ use rand::SeedableRng;
 pub enum SimStage {
     /// Forces, damping, predicted positions (in [`SubstepSchedule`]).
     Predict,
-    /// Shape-matching constraint iterations and colliders (in [`SubstepSchedule`]).
+    /// Constraint iterations: cluster shape matching, then every other constraint kind
+    /// (contacts, colliders) in each iteration (in [`SubstepSchedule`]).
     ShapeMatch,
     /// Advances keyframed colliders to the end of the frame (in [`CleaveSchedule`]).
     MoveColliders,

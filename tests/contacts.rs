@@ -402,3 +402,68 @@ fn the_pile_ends_with_no_particle_inside_a_wall() -> cleave::error::Result<()> {
     assert!(check_invariants(sim.world()).is_empty());
     Ok(())
 }
+
+/// A horseshoe lying on its side: two arms of 20×2×4 particles, 3 layers apart,
+/// joined by a spine at one end, its upper arm free to sag onto the lower one.
+fn horseshoe(self_contact: bool) -> BodyDesc {
+    let boxes = [
+        (Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.95, 0.15, 0.35)),
+        (Vec3::new(0.0, 0.5, 0.0), Vec3::new(1.95, 0.65, 0.35)),
+        (Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.15, 0.65, 0.35)),
+    ];
+    let sdf = move |p: Vec3| {
+        boxes
+            .iter()
+            .map(|(lo, hi)| {
+                let (c, e) = ((*lo + *hi) * 0.5, (*hi - *lo) * 0.5);
+                let q = (p - c).abs() - e;
+                q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+            })
+            .fold(f32::INFINITY, f32::min)
+    };
+    let shape = Shape::Sdf(cleave::lattice::SdfShape {
+        sdf: std::sync::Arc::new(sdf),
+        min: Vec3::splat(-0.1),
+        max: Vec3::new(2.0, 0.7, 0.4),
+    });
+    let mut body = BodyDesc::new(shape, H);
+    body.position = Vec3::new(-1.0, 0.05, 0.0);
+    body.material.self_contact = self_contact;
+    body
+}
+
+#[test]
+fn a_piece_folding_onto_itself_collides_with_itself_unless_switched_off() {
+    let closest = |self_contact: bool| -> f32 {
+        let mut sim = Simulation::new(SimConfig::default()).expect("sim");
+        let body = sim.spawn_body(&horseshoe(self_contact)).expect("body");
+        sim.run(240);
+        // the arms' particles away from the spine, by lattice coordinate: the lower arm's
+        // two layers and the upper arm's two, four or more cells from the spine's start
+        let world = sim.world();
+        let l = &world.get::<BodyLattice>(body).expect("a body").lattice;
+        let origin = l
+            .live_particles()
+            .map(|i| l.coord(i))
+            .fold(glam::IVec3::MAX, |a, c| a.min(c));
+        let (mut lower, mut upper) = (vec![], vec![]);
+        for i in l.live_particles() {
+            let c = l.coord(i) - origin;
+            let particle = world.get::<BodyLattice>(body).expect("a body").particles[i as usize];
+            let p = world.get::<Position>(particle).expect("a position").0;
+            match (c.x >= 4, c.y) {
+                (true, 0..=1) => lower.push(p),
+                (true, 5..) => upper.push(p),
+                _ => {}
+            }
+        }
+        assert!(lower.len() >= 100 && upper.len() >= 100);
+        min_gap(&[lower, upper])
+    };
+    let (on, off) = (closest(true), closest(false));
+    assert!(on > 0.8 * H, "with self-contact the arms stay apart: {on}");
+    assert!(
+        off < 0.5 * H,
+        "without it the upper arm sinks into the lower: {off}"
+    );
+}
