@@ -91,8 +91,14 @@ pub struct PileRow {
     pub ms_per_step: f64,
     /// Median step of the same scene with contacts off, ms.
     pub ms_per_step_without_contacts: f64,
-    /// `ms_per_step / ms_per_step_without_contacts`.
+    /// `ms_per_step / ms_per_step_without_contacts`. The two runs differ in more than
+    /// contacts: without them the bodies sink through each other and lie otherwise.
     pub contacts_over_without: f64,
+    /// Median time the contact kind itself took in a step (pairs and projection), ms.
+    pub contact_ms_per_step: f64,
+    /// What contacts add to the rest of the same step: `contact_ms_per_step /
+    /// (ms_per_step − contact_ms_per_step)`.
+    pub contact_share: f64,
     /// What contacts add, per particle (all of them) and solver iteration, ns.
     pub contact_ns_per_particle_iteration: f64,
 }
@@ -118,17 +124,20 @@ pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileR
         Ok(sim)
     };
     let (mut with, mut without) = (build(true)?, build(false)?);
-    let (mut on, mut off) = (Vec::new(), Vec::new());
+    let (mut on, mut off, mut inside) = (Vec::new(), Vec::new(), Vec::new());
+    let contact_seconds = |sim: &Simulation| sim.world().resource::<SolverCache>().kinds.seconds[0];
     for frame in 0..frames.max(2) {
+        let before = contact_seconds(&with);
         let (a, b) = (time_ms(1, || with.step()), time_ms(1, || without.step()));
         if frame >= frames / 2 {
             on.push(a);
             off.push(b);
+            inside.push((contact_seconds(&with) - before) * 1e3);
         }
     }
     let cache = with.world().resource::<SolverCache>();
     let particles = cache.layout.particle_count();
-    let (ms_on, ms_off) = (median(&mut on), median(&mut off));
+    let (ms_on, ms_off, ms_in) = (median(&mut on), median(&mut off), median(&mut inside));
     let iterations = (config.substeps * config.iterations) as f64;
     Ok(PileRow {
         row: "pile",
@@ -141,6 +150,8 @@ pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileR
         ms_per_step: ms_on,
         ms_per_step_without_contacts: ms_off,
         contacts_over_without: ms_on / ms_off,
+        contact_ms_per_step: ms_in,
+        contact_share: ms_in / (ms_on - ms_in),
         contact_ns_per_particle_iteration: (ms_on - ms_off) * 1e6 / (particles as f64 * iterations),
     })
 }

@@ -52,6 +52,10 @@ fn bench_json_has_one_consistent_line_per_size() {
     );
     let ratio = number("ms_per_step") / number("ms_per_step_without_contacts");
     assert!((ratio - number("contacts_over_without")).abs() < 1e-9 * ratio);
+    let (inside, step) = (number("contact_ms_per_step"), number("ms_per_step"));
+    assert!(inside > 0.0 && inside < step, "{pile}");
+    let share = inside / (step - inside);
+    assert!((share - number("contact_share")).abs() < 1e-9 * share);
     assert_eq!(lines.len(), 2);
     // ascending sizes
     assert_eq!(lines[0]["size"], 6);

@@ -21,14 +21,15 @@
 //! groups (pieces), or in one group with self-contact on and more than two lattice cells
 //! apart along some axis (closer ones are the material's own neighbours).
 //!
-//! **Projection (every iteration).** Jacobi-style: each particle sums, over its pairs,
-//! its inverse-mass share of the overlap along the pair's normal and of the friction
-//! correction, each divided by the larger number of touching pairs of the pair's two
-//! particles (counted in the previous iteration), reads only positions, and the sum is
-//! applied afterwards; so the result does not depend on the order of pairs or the
-//! thread count, and each pair's pushes on its two particles are equal and opposite —
-//! momentum is kept even where overlaps persist (an average per particle would not keep
-//! it, and a persistent overlap would then accelerate the bodies).
+//! **Projection (every iteration).** Jacobi-style, reading only positions: each pair,
+//! once, computes the correction along its normal (the overlap) and against its slip
+//! (friction), divided by the larger number of touching pairs of its two particles
+//! (counted in the previous iteration, over a relaxation factor), and splits it by
+//! inverse mass; then each particle sums its pairs' moves in a fixed order, and the sums
+//! are applied. So the result does not depend on the thread count, and each pair's
+//! pushes on its two particles are equal and opposite — momentum is kept even where
+//! overlaps persist (an average per particle would not keep it, and a persistent overlap
+//! would then accelerate the bodies).
 
 use super::kinds::{ConstraintKind, ParticleState};
 use glam::{IVec3, Vec3A, Vec4};
@@ -39,6 +40,9 @@ const PER_TASK: usize = 1024;
 
 /// Particles with pairs per parallel task of the projection.
 const OWNERS_PER_TASK: usize = 512;
+
+/// Pairs per parallel task of the projection.
+const PAIRS_PER_TASK: usize = 512;
 
 /// Offset that makes cell coordinates non-negative in a key (21 bits per axis).
 const CELL_BIAS: i64 = 1 << 20;
@@ -68,20 +72,24 @@ pub struct ContactGroup {
     pub dynamic_friction: f32,
 }
 
-/// One side of a pair as the projection reads it: everything it needs of the pair in
-/// one place.
+/// A pair as the projection reads it: everything it needs in one place.
 #[derive(Clone, Copy, Debug, Default)]
-struct Partner {
-    /// The partner's dense particle index.
-    dense: u32,
-    /// The partner's contact index (orders coincident centres).
-    index: u32,
+struct Pair {
+    /// Contact indices of the two particles, `a < b`.
+    a: u32,
+    b: u32,
+    /// Their dense particle indices.
+    dense_a: u32,
+    dense_b: u32,
     /// Sum of the two radii.
     reach: f32,
     /// Mean static and dynamic friction of the two groups.
     static_friction: f32,
     dynamic_friction: f32,
 }
+
+/// Marks a reference to a pair from its second particle (`b`).
+const SECOND: u32 = 1 << 31;
 
 /// The particles that take part in contacts, in the solver's dense order.
 #[derive(Clone, Debug, Default)]
@@ -120,11 +128,15 @@ pub struct Contacts {
     groups: Vec<ContactGroup>,
     /// Largest radius.
     max_radius: f32,
-    /// This substep's pairs, by owner: `owners[o]` (a contact index) has the partners
-    /// `partners[starts[o]..starts[o + 1]]`.
+    /// This substep's pairs, each once.
+    pairs: Vec<Pair>,
+    /// The pairs by particle: `owners[o]` (a contact index) is in the pairs
+    /// `refs[starts[o]..starts[o + 1]]` (a pair index, [`SECOND`] set where it is `b`).
     owners: Vec<u32>,
     starts: Vec<u32>,
-    partners: Vec<Partner>,
+    refs: Vec<u32>,
+    /// Each pair's moves of `a` and of `b` in the current iteration (zero when apart).
+    moves: Vec<[Vec3A; 2]>,
     /// Each owner's step in the current iteration, and how many of its pairs touched.
     steps: Vec<(Vec3A, u32)>,
     /// Per contact particle, how many of its pairs touched in the last iteration (its
@@ -141,14 +153,15 @@ impl Contacts {
         self.max_radius = particles.radius.iter().copied().fold(0.0, f32::max);
         self.particles = particles;
         self.groups = groups;
+        self.pairs.clear();
         self.owners.clear();
         self.starts.clear();
-        self.partners.clear();
+        self.refs.clear();
     }
 
     /// Number of pairs found in the current substep (each pair counted from both sides).
     pub fn pair_count(&self) -> usize {
-        self.partners.len()
+        self.refs.len()
     }
 
     /// Number of taking-part particles.
@@ -280,22 +293,40 @@ impl Contacts {
                 pairs
             })
             .collect();
-        // each pair from both sides, grouped by owner (a counting sort: the partners of
-        // an owner keep the order in which the tasks met them, fixed for any thread count)
+        // each pair once, then listed under both its particles (a counting sort: the
+        // pairs of a particle keep the order in which the tasks met them, fixed for any
+        // thread count)
         let n = p.len();
-        let mut count = vec![0u32; n + 1];
-        for &(a, b) in found.iter().flatten() {
-            count[a as usize] += 1;
-            count[b as usize] += 1;
+        self.pairs.clear();
+        self.pairs.extend(found.iter().flatten().map(|&(a, b)| {
+            let (a, b) = (a.min(b), a.max(b));
+            let (ga, gb) = (
+                self.groups[p.group[a as usize] as usize],
+                self.groups[p.group[b as usize] as usize],
+            );
+            Pair {
+                a,
+                b,
+                dense_a: p.dense[a as usize],
+                dense_b: p.dense[b as usize],
+                reach: p.radius[a as usize] + p.radius[b as usize],
+                static_friction: 0.5 * (ga.static_friction + gb.static_friction),
+                dynamic_friction: 0.5 * (ga.dynamic_friction + gb.dynamic_friction),
+            }
+        }));
+        let mut count = vec![0u32; n];
+        for pair in &self.pairs {
+            count[pair.a as usize] += 1;
+            count[pair.b as usize] += 1;
         }
+        self.load.clear();
+        self.load.extend_from_slice(&count);
         self.owners.clear();
         self.starts.clear();
         self.starts.push(0);
         let mut slot = vec![0u32; n];
-        self.load.clear();
-        self.load.extend_from_slice(&count[..n]);
         let mut total = 0u32;
-        for (k, c) in count[..n].iter().enumerate() {
+        for (k, c) in count.iter().enumerate() {
             if *c > 0 {
                 slot[k] = total;
                 total += c;
@@ -303,23 +334,12 @@ impl Contacts {
                 self.starts.push(total);
             }
         }
-        self.partners.clear();
-        self.partners.resize(total as usize, Partner::default());
-        for &(a, b) in found.iter().flatten() {
-            let (ga, gb) = (
-                self.groups[p.group[a as usize] as usize],
-                self.groups[p.group[b as usize] as usize],
-            );
-            let reach = p.radius[a as usize] + p.radius[b as usize];
-            for (owner, partner) in [(a, b), (b, a)] {
+        self.refs.clear();
+        self.refs.resize(total as usize, 0);
+        for (i, pair) in self.pairs.iter().enumerate() {
+            for (owner, mark) in [(pair.a, 0), (pair.b, SECOND)] {
                 let at = &mut slot[owner as usize];
-                self.partners[*at as usize] = Partner {
-                    dense: p.dense[partner as usize],
-                    index: partner,
-                    reach,
-                    static_friction: 0.5 * (ga.static_friction + gb.static_friction),
-                    dynamic_friction: 0.5 * (ga.dynamic_friction + gb.dynamic_friction),
-                };
+                self.refs[*at as usize] = i as u32 | mark;
                 *at += 1;
             }
         }
@@ -340,61 +360,67 @@ impl ConstraintKind for Contacts {
     }
 
     fn project(&mut self, state: &mut ParticleState) {
-        if self.owners.is_empty() {
+        if self.pairs.is_empty() {
             return;
         }
-        let p = &self.particles;
         let (positions, previous, inv_mass) = (&*state.positions, state.previous, state.inv_mass);
-        let (owners, starts, partners) = (&self.owners, &self.starts, &self.partners);
         let load = &self.load;
-        owners
+        // each pair once: its moves of a and of b, equal and opposite up to the shares
+        self.pairs
+            .par_iter()
+            .with_min_len(PAIRS_PER_TASK)
+            .map(|pair| {
+                let (da, db) = (pair.dense_a as usize, pair.dense_b as usize);
+                let apart = positions[da] - positions[db];
+                let distance_squared = apart.length_squared();
+                let (wa, wb) = (inv_mass[da], inv_mass[db]);
+                if distance_squared >= pair.reach * pair.reach || wa + wb == 0.0 {
+                    return [Vec3A::ZERO; 2];
+                }
+                let distance = distance_squared.sqrt();
+                // coincident centres: a (the lower contact index) goes up, b down
+                let normal = if distance > 0.0 {
+                    apart / distance
+                } else {
+                    Vec3A::Y
+                };
+                let depth = pair.reach - distance;
+                let mut step = normal * depth;
+                // friction against the slip of a relative to b in this substep
+                let slip = (positions[da] - previous[da]) - (positions[db] - previous[db]);
+                let tangential = slip - normal * slip.dot(normal);
+                let length = tangential.length();
+                if length <= pair.static_friction * depth {
+                    step -= tangential;
+                } else {
+                    step -= tangential * (pair.dynamic_friction * depth / length).min(1.0);
+                }
+                let divide =
+                    (load[pair.a as usize].max(load[pair.b as usize]) as f32 / RELAXATION).max(1.0);
+                let scale = 1.0 / ((wa + wb) * divide);
+                [step * (wa * scale), step * (-wb * scale)]
+            })
+            .collect_into_vec(&mut self.moves);
+        // then each particle sums its pairs' moves
+        let (refs, starts, moves) = (&self.refs, &self.starts, &self.moves);
+        self.owners
             .par_iter()
             .enumerate()
             .with_min_len(OWNERS_PER_TASK)
-            .map(|(o, &a)| {
-                let da = p.dense[a as usize] as usize;
-                let wa = inv_mass[da];
-                let (xa, slip_a) = (positions[da], positions[da] - previous[da]);
+            .map(|(o, _)| {
                 let (mut sum, mut touching) = (Vec3A::ZERO, 0u32);
-                for b in &partners[starts[o] as usize..starts[o + 1] as usize] {
-                    let db = b.dense as usize;
-                    let apart = xa - positions[db];
-                    let distance_squared = apart.length_squared();
-                    if distance_squared >= b.reach * b.reach {
-                        continue;
+                for r in &refs[starts[o] as usize..starts[o + 1] as usize] {
+                    let side = (r & SECOND != 0) as usize;
+                    let [to_a, to_b] = moves[(r & !SECOND) as usize];
+                    if to_a != Vec3A::ZERO || to_b != Vec3A::ZERO {
+                        touching += 1;
                     }
-                    touching += 1;
-                    if wa == 0.0 {
-                        continue; // pinned: its partner takes the whole correction
-                    }
-                    let share = wa / (wa + inv_mass[db]);
-                    let divide =
-                        (load[a as usize].max(load[b.index as usize]) as f32 / RELAXATION).max(1.0);
-                    let distance = distance_squared.sqrt();
-                    // coincident centres: the lower contact index goes up, the other down
-                    let normal = if distance > 0.0 {
-                        apart / distance
-                    } else if a < b.index {
-                        Vec3A::Y
-                    } else {
-                        Vec3A::NEG_Y
-                    };
-                    let depth = b.reach - distance;
-                    let mut step = normal * depth;
-                    // friction against the slip relative to the partner in this substep
-                    let slip = slip_a - (positions[db] - previous[db]);
-                    let tangential = slip - normal * slip.dot(normal);
-                    let length = tangential.length();
-                    if length <= b.static_friction * depth {
-                        step -= tangential;
-                    } else {
-                        step -= tangential * (b.dynamic_friction * depth / length).min(1.0);
-                    }
-                    sum += step * (share / divide);
+                    sum += [to_a, to_b][side];
                 }
                 (sum, touching)
             })
             .collect_into_vec(&mut self.steps);
+        let p = &self.particles;
         for (&a, &(step, touching)) in self.owners.iter().zip(&self.steps) {
             self.load[a as usize] = touching;
             if step != Vec3A::ZERO {
@@ -477,10 +503,9 @@ mod tests {
         let mut c = contacts(&groups, &coords);
         c.find_pairs(&positions);
         let mut found = vec![];
-        for (o, a) in c.owners.iter().enumerate() {
-            for b in &c.partners[c.starts[o] as usize..c.starts[o + 1] as usize] {
-                found.push((*a, b.index));
-            }
+        for pair in &c.pairs {
+            found.push((pair.a, pair.b));
+            found.push((pair.b, pair.a));
         }
         found.sort_unstable();
         // radii 0.05 and the margin half a radius

@@ -58,12 +58,15 @@ pub struct ConstraintKinds {
     pub contacts: Contacts,
     /// The ground, static and kinematic colliders.
     pub colliders: Colliders,
+    /// Wall-clock seconds each kind has spent in solves, in [`ConstraintKinds::in_order`]
+    /// order (for reports; never read by the solver).
+    pub seconds: [f64; 2],
 }
 
 impl ConstraintKinds {
     /// The kinds in the order they are projected: the one place a kind is registered.
     /// Colliders come last so that no other kind leaves a particle inside one.
-    pub fn in_order(&mut self) -> [&mut dyn ConstraintKind; 2] {
-        [&mut self.contacts, &mut self.colliders]
+    pub fn in_order(&mut self) -> ([&mut dyn ConstraintKind; 2], &mut [f64; 2]) {
+        ([&mut self.contacts, &mut self.colliders], &mut self.seconds)
     }
 }

@@ -326,7 +326,7 @@ impl SolverLayout {
     pub fn solve(&mut self, iterations: u32, kinds: &mut ConstraintKinds) {
         self.corrections.iter_mut().for_each(|c| *c = Vec3A::ZERO);
         self.predicted.clone_from(&self.positions);
-        let mut kinds = kinds.in_order();
+        let (mut kinds, seconds) = kinds.in_order();
         {
             let state = ParticleState {
                 positions: &mut self.positions,
@@ -334,8 +334,12 @@ impl SolverLayout {
                 inv_mass: &self.inv_mass,
                 corrections: &mut self.corrections,
             };
-            for kind in kinds.iter_mut().filter(|k| !k.is_empty()) {
-                kind.begin_substep(&state);
+            for (kind, seconds) in kinds.iter_mut().zip(seconds.iter_mut()) {
+                if !kind.is_empty() {
+                    let start = std::time::Instant::now();
+                    kind.begin_substep(&state);
+                    *seconds += start.elapsed().as_secs_f64();
+                }
             }
         }
         for _ in 0..iterations {
@@ -352,8 +356,12 @@ impl SolverLayout {
                 inv_mass: &self.inv_mass,
                 corrections: &mut self.corrections,
             };
-            for kind in kinds.iter_mut().filter(|k| !k.is_empty()) {
-                kind.project(&mut state);
+            for (kind, seconds) in kinds.iter_mut().zip(seconds.iter_mut()) {
+                if !kind.is_empty() {
+                    let start = std::time::Instant::now();
+                    kind.project(&mut state);
+                    *seconds += start.elapsed().as_secs_f64();
+                }
             }
         }
         self.drop_rounding_noise();

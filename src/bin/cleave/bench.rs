@@ -104,7 +104,8 @@ pub fn bench(
         } else {
             println!(
                 "pile (contacts): {} bodies, {} particles at h = {}, {} taking part, {} pairs; \
-                 {:.3} ms/step with contacts, {:.3} without: ×{:.2}; contacts {:.2} ns per particle-iteration",
+                 {:.3} ms/step with contacts, {:.3} without: ×{:.2}; contacts {:.2} ns per particle-iteration; \
+                 in the step: contacts {:.3} ms, +{:.0} % on the rest",
                 row.bodies,
                 row.particles,
                 row.spacing,
@@ -113,7 +114,9 @@ pub fn bench(
                 row.ms_per_step,
                 row.ms_per_step_without_contacts,
                 row.contacts_over_without,
-                row.contact_ns_per_particle_iteration
+                row.contact_ns_per_particle_iteration,
+                row.contact_ms_per_step,
+                100.0 * row.contact_share
             );
         }
     }
