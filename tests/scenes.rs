@@ -383,6 +383,22 @@ fn contact_scenes_are_identical_for_one_and_two_threads() {
 }
 
 #[test]
+fn thread_counts_out_of_range_are_clear_errors() {
+    for threads in ["0", "100000"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_cleave"))
+            .args(["run", "drop", "--frames", "1", "--threads", threads])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "--threads {threads}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("--threads") && err.contains("allowed 1 ≤ threads ≤ 1024"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
 fn unknown_scene_is_a_clear_error() {
     let out = Command::new(env!("CARGO_BIN_EXE_cleave"))
         .args(["run", "nope"])

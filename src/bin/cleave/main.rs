@@ -155,7 +155,12 @@ impl From<SolverArg> for SolverMode {
     }
 }
 
-/// Runs `f` on a rayon pool of `threads` threads (default: all cores).
+/// Most worker threads `--threads` accepts: far more than any machine's cores, far
+/// fewer than would take the process minutes to start.
+const MAX_THREADS: usize = 1024;
+
+/// Runs `f` on a rayon pool of `threads` threads (default: all cores); a count outside
+/// 1..=[`MAX_THREADS`] is an error.
 fn with_threads<T>(
     threads: Option<usize>,
     f: impl FnOnce(usize) -> Result<T, String> + Send,
@@ -163,6 +168,13 @@ fn with_threads<T>(
 where
     T: Send,
 {
+    if let Some(t) = threads
+        && !(1..=MAX_THREADS).contains(&t)
+    {
+        return Err(format!(
+            "--threads: {t} is out of range (allowed 1 ≤ threads ≤ {MAX_THREADS})"
+        ));
+    }
     let threads = threads.unwrap_or_else(rayon::current_num_threads).max(1);
     match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
         Ok(pool) => pool.install(|| f(threads)),
