@@ -47,6 +47,13 @@ pub mod systems;
 pub mod table_rows;
 pub mod tool;
 
+/// The glam version cleave's types use (vectors, quaternions), so that users need not
+/// depend on a matching version themselves.
+pub use glam;
+
+/// The bevy_ecs version cleave's systems and components use.
+pub use bevy_ecs;
+
 /// The types most users need.
 pub mod prelude {
     pub use crate::collider::ColliderShape;
@@ -60,6 +67,8 @@ pub mod prelude {
     };
     pub use crate::systems::{CleaveSchedule, SimStage, SubstepSchedule, install};
     pub use crate::tool::{Path, Pose, ToolShape};
+    pub use bevy_ecs::message::MessageReader;
+    pub use glam::{Quat, UVec3, Vec3};
 }
 
 /// The README's code blocks, compiled and run as doctests.
