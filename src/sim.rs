@@ -144,6 +144,93 @@ impl Simulation {
             self.step();
         }
     }
+
+    /// Every body entity, in entity order.
+    pub fn bodies(&mut self) -> Vec<Entity> {
+        let mut bodies: Vec<Entity> = self
+            .world
+            .query_filtered::<Entity, With<BodyLattice>>()
+            .iter(&self.world)
+            .collect();
+        bodies.sort_unstable();
+        bodies
+    }
+
+    /// The live particles of `body`, by body-local index, each with a value read from
+    /// its entity.
+    fn read_particles<T>(
+        &self,
+        body: Entity,
+        read: impl Fn(EntityRef) -> Option<T>,
+    ) -> Result<Vec<(u32, T)>> {
+        let lattice = self
+            .world
+            .get::<BodyLattice>(body)
+            .ok_or_else(|| CleaveError::InvalidEntity(format!("{body} is not a body")))?;
+        lattice
+            .lattice
+            .live_particles()
+            .map(|i| {
+                let e = lattice.particles[i as usize];
+                let value = self
+                    .world
+                    .get_entity(e)
+                    .ok()
+                    .and_then(&read)
+                    .ok_or_else(|| {
+                        CleaveError::InvalidEntity(format!(
+                            "particle {i} of body {body} has lost its entity or components"
+                        ))
+                    })?;
+                Ok((i, value))
+            })
+            .collect()
+    }
+
+    /// Positions of the live particles of `body`, with their body-local indices, in
+    /// index order.
+    pub fn positions(&self, body: Entity) -> Result<Vec<(u32, Vec3)>> {
+        self.read_particles(body, |e| e.get::<Position>().map(|p| p.0))
+    }
+
+    /// Velocities of the live particles of `body`, with their body-local indices, in
+    /// index order.
+    pub fn velocities(&self, body: Entity) -> Result<Vec<(u32, Vec3)>> {
+        self.read_particles(body, |e| e.get::<Velocity>().map(|v| v.0))
+    }
+
+    /// The pieces of `body` (connected components of its live particles), each as its
+    /// sorted body-local particle indices, ordered by their smallest index.
+    pub fn pieces(&self, body: Entity) -> Result<Vec<Vec<u32>>> {
+        let lattice = &self
+            .world
+            .get::<BodyLattice>(body)
+            .ok_or_else(|| CleaveError::InvalidEntity(format!("{body} is not a body")))?
+            .lattice;
+        let (labels, count) = crate::graph::body_pieces(lattice);
+        let mut pieces = vec![Vec::new(); count];
+        for i in lattice.live_particles() {
+            pieces[labels[i as usize] as usize].push(i);
+        }
+        Ok(pieces)
+    }
+
+    /// The clusters of `body` as `(cluster entity, sorted body-local members)`, by
+    /// entity.
+    pub fn clusters(&mut self, body: Entity) -> Result<Vec<(Entity, Vec<u32>)>> {
+        if self.world.get::<BodyLattice>(body).is_none() {
+            return Err(CleaveError::InvalidEntity(format!("{body} is not a body")));
+        }
+        let mut clusters: Vec<(Entity, Vec<u32>)> = self
+            .world
+            .query::<(Entity, &ClusterMembers, &ClusterOf)>()
+            .iter(&self.world)
+            .filter(|(_, _, of)| of.0 == body)
+            .map(|(e, m, _)| (e, m.0.clone()))
+            .collect();
+        clusters.sort_unstable_by_key(|(e, _)| *e);
+        Ok(clusters)
+    }
 }
 
 /// Spawns a cutting tool into any world prepared with [`crate::systems::install`].
@@ -347,6 +434,51 @@ pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_simulation_reads_out_positions_velocities_pieces_and_clusters() -> Result<()> {
+        let mut sim = Simulation::new(SimConfig::default())?;
+        let shape = crate::lattice::Shape::cuboid(glam::UVec3::new(6, 3, 3), 0.1);
+        let mut desc = BodyDesc::new(shape, 0.1);
+        desc.position = Vec3::new(0.0, 1.0, 0.0);
+        let body = sim.spawn_body(&desc)?;
+        let start = sim.positions(body)?;
+        sim.run(5);
+        assert_eq!(sim.bodies(), vec![body]);
+        let (positions, velocities) = (sim.positions(body)?, sim.velocities(body)?);
+        assert_eq!(positions.len(), 54);
+        // falling: every particle below its start and moving down, as the ECS says
+        for (((i, p), (j, v)), (k, p0)) in positions.iter().zip(&velocities).zip(&start) {
+            assert_eq!((i, j), (k, k));
+            assert!(p.y < p0.y && v.y < 0.0, "{p0} → {p}, {v}");
+            let entity = sim
+                .world()
+                .get::<BodyLattice>(body)
+                .expect("a body")
+                .particles[*i as usize];
+            assert_eq!(sim.world().get::<Position>(entity).map(|x| x.0), Some(*p));
+        }
+        let pieces = sim.pieces(body)?;
+        assert_eq!(pieces.len(), 1);
+        assert_eq!(pieces[0].len(), 54);
+        let clusters = sim.clusters(body)?;
+        assert!(!clusters.is_empty());
+        let covered: std::collections::BTreeSet<u32> = clusters
+            .iter()
+            .flat_map(|(_, m)| m.iter().copied())
+            .collect();
+        assert_eq!(covered.len(), 54, "every particle in a cluster");
+        // not a body: a clear error
+        let tool = sim.world_mut().spawn_empty().id();
+        assert!(
+            sim.positions(tool)
+                .unwrap_err()
+                .to_string()
+                .contains("is not a body")
+        );
+        assert!(sim.clusters(tool).is_err());
+        Ok(())
+    }
 
     #[test]
     fn bodies_past_the_solver_limit_are_refused() {
