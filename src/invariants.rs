@@ -49,6 +49,12 @@ pub enum Violation {
         /// The particle.
         particle: u32,
     },
+    /// A live particle's position is not finite (NaN or infinite), or its entity has
+    /// lost its position.
+    NonFinite {
+        /// The particle.
+        particle: u32,
+    },
 }
 
 impl fmt::Display for Violation {
@@ -73,6 +79,9 @@ impl fmt::Display for Violation {
                 f,
                 "the cluster index entry of particle {particle} disagrees with the members"
             ),
+            Violation::NonFinite { particle } => {
+                write!(f, "particle {particle} has no finite position")
+            }
         }
     }
 }

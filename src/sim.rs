@@ -393,8 +393,9 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     Ok(body)
 }
 
-/// Checks SPEC §1/§3 invariants of every body in `world`, and that each body's
-/// particle → clusters index matches its clusters' members; returns `(body, violation)`.
+/// Checks SPEC §1/§3 invariants of every body in `world`, that each body's particle →
+/// clusters index matches its clusters' members, and that every live particle has a
+/// finite position; returns `(body, violation)`.
 pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
     let mut clusters_by_body: std::collections::BTreeMap<Entity, Vec<(Entity, &[u32])>> =
         Default::default();
@@ -426,6 +427,12 @@ pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
             body.material.max_cluster_size as usize,
         ) {
             out.push((e, v));
+        }
+        for i in lattice.lattice.live_particles() {
+            let position = world.get::<Position>(lattice.particles[i as usize]);
+            if !position.is_some_and(|p| p.0.is_finite()) {
+                out.push((e, Violation::NonFinite { particle: i }));
+            }
         }
     }
     out
@@ -468,6 +475,20 @@ mod tests {
             .flat_map(|(_, m)| m.iter().copied())
             .collect();
         assert_eq!(covered.len(), 54, "every particle in a cluster");
+        // a NaN written into one position is reported
+        assert!(check_invariants(sim.world()).is_empty());
+        let entity = sim
+            .world()
+            .get::<BodyLattice>(body)
+            .expect("a body")
+            .particles[7];
+        sim.world_mut()
+            .entity_mut(entity)
+            .insert(Position(Vec3::NAN));
+        assert_eq!(
+            check_invariants(sim.world()),
+            vec![(body, Violation::NonFinite { particle: 7 })]
+        );
         // not a body: a clear error
         let tool = sim.world_mut().spawn_empty().id();
         assert!(
