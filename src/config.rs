@@ -1,6 +1,6 @@
 //! Simulation and material parameters, with validation of every field.
 
-use crate::error::{Result, check_finite_vec, check_positive, check_range, out_of_range};
+use crate::error::{MAX_COORDINATE, Result, check_range, check_vec_within, out_of_range};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -105,7 +105,12 @@ impl SimConfig {
                 "1 ≤ iterations ≤ 10000",
             ));
         }
-        check_finite_vec("config.gravity", self.gravity)?;
+        check_vec_within(
+            "config.gravity",
+            self.gravity,
+            1e4,
+            "|gx|, |gy|, |gz| ≤ 1e4 (m/s²)",
+        )?;
         check_range(
             "config.damping",
             self.damping,
@@ -114,7 +119,13 @@ impl SimConfig {
             "0 ≤ damping ≤ 1000 (per second)",
         )?;
         if let Some(g) = &self.ground {
-            check_range("config.ground.height", g.height, -1e9, 1e9, "finite")?;
+            check_range(
+                "config.ground.height",
+                g.height,
+                -MAX_COORDINATE,
+                MAX_COORDINATE,
+                "-1e6 ≤ height ≤ 1e6 (metres)",
+            )?;
             check_range(
                 "config.ground.friction",
                 g.friction,
@@ -124,8 +135,14 @@ impl SimConfig {
             )?;
         }
         for (i, b) in self.boxes.iter().enumerate() {
-            check_finite_vec(&format!("config.boxes[{i}].min"), b.min)?;
-            check_finite_vec(&format!("config.boxes[{i}].max"), b.max)?;
+            for (corner, v) in [("min", b.min), ("max", b.max)] {
+                check_vec_within(
+                    &format!("config.boxes[{i}].{corner}"),
+                    v,
+                    MAX_COORDINATE,
+                    "|x|, |y|, |z| ≤ 1e6 (metres)",
+                )?;
+            }
             if !b.min.cmple(b.max).all() {
                 return Err(out_of_range(
                     &format!("config.boxes[{i}]"),
@@ -204,7 +221,13 @@ impl Material {
             1.0,
             "0 ≤ stiffness ≤ 1",
         )?;
-        check_positive("material.particle_mass", self.particle_mass)?;
+        check_range(
+            "material.particle_mass",
+            self.particle_mass,
+            1e-9,
+            1e9,
+            "1e-9 ≤ particle_mass ≤ 1e9 (kg)",
+        )?;
         if self.cluster_radius == 0 || self.cluster_radius > 8 {
             return Err(out_of_range(
                 "material.cluster_radius",

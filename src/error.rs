@@ -75,6 +75,24 @@ pub fn check_positive(field: &str, value: f32) -> Result<()> {
     }
 }
 
+/// Largest coordinate (metres) of any position a user gives: far beyond any scene, and
+/// far below where single precision loses the lattice spacing.
+pub const MAX_COORDINATE: f32 = 1e6;
+
+/// Checks that every component of a vector lies within `±max` (and so is finite).
+pub fn check_vec_within(
+    field: &str,
+    value: glam::Vec3,
+    max: f32,
+    allowed: &'static str,
+) -> Result<()> {
+    if value.is_finite() && value.abs().max_element() <= max {
+        Ok(())
+    } else {
+        Err(out_of_range(field, value, allowed))
+    }
+}
+
 /// Checks that every component of a vector is finite.
 pub fn check_finite_vec(field: &str, value: glam::Vec3) -> Result<()> {
     if value.is_finite() {

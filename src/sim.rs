@@ -6,7 +6,10 @@ use crate::clustering::initial_clusters;
 use crate::collider::ColliderShape;
 use crate::components::*;
 use crate::config::{Material, SimConfig};
-use crate::error::{CleaveError, Result, check_finite_vec, check_positive, check_range};
+use crate::error::{
+    CleaveError, MAX_COORDINATE, Result, check_finite_vec, check_positive, check_range,
+    check_vec_within,
+};
 use crate::invariants::{Violation, check_body, check_index};
 use crate::lattice::Shape;
 use crate::resources::*;
@@ -258,7 +261,12 @@ pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
 /// pose at the world's current time: the path's, or `pose` without a path.
 fn starting_pose(world: &World, what: &str, path: &Path, pose: Pose) -> Result<Pose> {
     path.validate(what)?;
-    check_finite_vec(&format!("{what}.pose.position"), pose.position)?;
+    check_vec_within(
+        &format!("{what}.pose.position"),
+        pose.position,
+        MAX_COORDINATE,
+        "|x|, |y|, |z| ≤ 1e6 (metres)",
+    )?;
     if !pose.rotation.is_finite() || pose.rotation.length() < 1e-6 {
         return Err(crate::error::out_of_range(
             &format!("{what}.pose.rotation"),
@@ -321,9 +329,25 @@ fn check_particle_budget(existing: u64, new: u64) -> Result<()> {
 /// Spawns a body into any world prepared with [`crate::systems::install`].
 pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     desc.material.validate()?;
-    check_positive("spacing", desc.spacing)?;
-    check_finite_vec("body.position", desc.position)?;
-    check_finite_vec("body.velocity", desc.velocity)?;
+    check_range(
+        "spacing",
+        desc.spacing,
+        1e-4,
+        100.0,
+        "1e-4 ≤ spacing ≤ 100 (metres)",
+    )?;
+    check_vec_within(
+        "body.position",
+        desc.position,
+        MAX_COORDINATE,
+        "|x|, |y|, |z| ≤ 1e6 (metres)",
+    )?;
+    check_vec_within(
+        "body.velocity",
+        desc.velocity,
+        1e4,
+        "|vx|, |vy|, |vz| ≤ 1e4 (m/s)",
+    )?;
     if !desc.rotation.is_finite() || desc.rotation.length() < 1e-6 {
         return Err(crate::error::out_of_range(
             "body.rotation",

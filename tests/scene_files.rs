@@ -119,7 +119,7 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
             &format!("    colliders: [(shape: {shape})],\n    tools: [("),
         )
     };
-    let cases: [(&str, String, &[&str]); 10] = [
+    let cases: [(&str, String, &[&str]); 16] = [
         (
             "ball.ron",
             collider("Sphere(radius: -1.0)"),
@@ -160,8 +160,38 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
                 "spacing.ron:3:",
                 "bodies[0].spacing",
                 "-0.1",
-                "allowed: > 0",
+                "allowed: 1e-4 ≤ spacing ≤ 100",
             ],
+        ),
+        (
+            "tiny.ron",
+            GOOD.replace("spacing: 0.1", "spacing: 1e-44"),
+            &["tiny.ron:3:", "bodies[0].spacing", "allowed: 1e-4 ≤ spacing"],
+        ),
+        (
+            "far.ron",
+            GOOD.replace("position: (0.0, 0.5, 0.0))],", "position: (1e30, 0.5, 0.0))],"),
+            &["far.ron:3:", "bodies[0].position", "allowed: |x|, |y|, |z| ≤ 1e6"],
+        ),
+        (
+            "fast.ron",
+            GOOD.replace("spacing: 0.1,", "spacing: 0.1, velocity: (0.0, -1e30, 0.0),"),
+            &["fast.ron:3:", "bodies[0].velocity", "≤ 1e4 (m/s)"],
+        ),
+        (
+            "heavy.ron",
+            GOOD.replace("frames: 2,", "frames: 2, settings: (gravity: (0.0, -1e38, 0.0)),"),
+            &["heavy.ron:2:", "settings.gravity", "≤ 1e4 (m/s²)"],
+        ),
+        (
+            "ground.ron",
+            GOOD.replace("frames: 2,", "frames: 2, settings: (ground: Some((height: 1e30, friction: 0.5))),"),
+            &["ground.ron:2:", "settings.ground", "-1e6 ≤ height ≤ 1e6"],
+        ),
+        (
+            "mass.ron",
+            GOOD.replace("spacing: 0.1,", "spacing: 0.1, material: (particle_mass: 1e-40),"),
+            &["mass.ron:3:", "bodies[0].material.particle_mass", "1e-9 ≤ particle_mass"],
         ),
         (
             "nan.ron",
@@ -169,7 +199,7 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
                 "(1.0, (position: (0.0, 0.5, 0.0)))",
                 "(1.0, (position: (NaN, 0.5, 0.0)))",
             ),
-            &["nan.ron:7:", "tools[0].path", "allowed: finite"],
+            &["nan.ron:7:", "tools[0].path", "allowed: |x|, |y|, |z| ≤ 1e6"],
         ),
         (
             "empty.ron",

@@ -53,6 +53,46 @@ pub fn vec3<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
         )))
     }
 }
+/// A vector whose components lie within `±max`; `allowed` is the text shown.
+fn bounded<'de, D: Deserializer<'de>>(d: D, max: f32, allowed: &str) -> Result<Vec3, D::Error> {
+    let v = Vec3::deserialize(d)?;
+    if v.is_finite() && v.abs().max_element() <= max {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "{v} is out of range (allowed: {allowed})"
+        )))
+    }
+}
+pub fn coordinates<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
+    bounded(
+        d,
+        crate::error::MAX_COORDINATE,
+        "|x|, |y|, |z| ≤ 1e6 (metres)",
+    )
+}
+pub fn velocity<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
+    bounded(d, 1e4, "|vx|, |vy|, |vz| ≤ 1e4 (m/s)")
+}
+pub fn gravity<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
+    bounded(d, 1e4, "|gx|, |gy|, |gz| ≤ 1e4 (m/s²)")
+}
+pub fn spacing<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(
+        v,
+        (1e-4..=100.0).contains(&v),
+        "1e-4 ≤ spacing ≤ 100 (metres)",
+    )
+}
+pub fn particle_mass<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(
+        v,
+        (1e-9..=1e9).contains(&v),
+        "1e-9 ≤ particle_mass ≤ 1e9 (kg)",
+    )
+}
 pub fn rotation<'de, D: Deserializer<'de>>(d: D) -> Result<Quat, D::Error> {
     let q = Quat::deserialize(d)?;
     if q.is_finite() && q.length() > 1e-6 {
@@ -106,7 +146,11 @@ pub fn cells<'de, D: Deserializer<'de>>(d: D) -> Result<UVec3, D::Error> {
 pub fn ground<'de, D: Deserializer<'de>>(d: D) -> Result<Option<GroundPlane>, D::Error> {
     let ground = Option::<GroundPlane>::deserialize(d)?;
     if let Some(g) = &ground {
-        range::<D>(g.height, true, "a finite height")?;
+        range::<D>(
+            g.height,
+            g.height.abs() <= crate::error::MAX_COORDINATE,
+            "-1e6 ≤ height ≤ 1e6 (metres)",
+        )?;
         range::<D>(
             g.friction,
             (0.0..=100.0).contains(&g.friction),

@@ -58,7 +58,7 @@ pub struct SettingsFile {
     #[serde(deserialize_with = "check::iterations")]
     pub iterations: u32,
     /// Gravity (m/s²).
-    #[serde(deserialize_with = "check::vec3")]
+    #[serde(deserialize_with = "check::gravity")]
     pub gravity: Vec3,
     /// Velocity damping per second.
     #[serde(deserialize_with = "check::damping")]
@@ -90,16 +90,16 @@ pub struct BodyFile {
     /// Shape to voxelise.
     pub shape: ShapeFile,
     /// Lattice spacing h in metres.
-    #[serde(deserialize_with = "check::positive")]
+    #[serde(deserialize_with = "check::spacing")]
     pub spacing: f32,
     /// Position of the shape's origin.
-    #[serde(default, deserialize_with = "check::vec3")]
+    #[serde(default, deserialize_with = "check::coordinates")]
     pub position: Vec3,
     /// Initial rotation, a quaternion (x, y, z, w).
     #[serde(default, deserialize_with = "check::rotation")]
     pub rotation: Quat,
     /// Initial velocity.
-    #[serde(default, deserialize_with = "check::vec3")]
+    #[serde(default, deserialize_with = "check::velocity")]
     pub velocity: Vec3,
     /// Material and clustering.
     #[serde(default)]
@@ -155,7 +155,7 @@ pub struct MaterialFile {
     #[serde(deserialize_with = "check::unit")]
     pub stiffness: f32,
     /// Mass of one particle (kg).
-    #[serde(deserialize_with = "check::positive")]
+    #[serde(deserialize_with = "check::particle_mass")]
     pub particle_mass: f32,
     /// Cluster radius in lattice units.
     #[serde(deserialize_with = "check::cluster_radius")]
@@ -318,7 +318,7 @@ impl ColliderShapeFile {
 #[serde(deny_unknown_fields)]
 pub struct PoseFile {
     /// Position.
-    #[serde(deserialize_with = "check::vec3")]
+    #[serde(deserialize_with = "check::coordinates")]
     pub position: Vec3,
     /// Rotation, a quaternion (x, y, z, w).
     #[serde(default, deserialize_with = "check::rotation")]
