@@ -221,6 +221,17 @@ pub struct ParticlesCut {
     pub particles: Vec<u32>,
 }
 
+/// Sent by shape-match: particles whose position had become non-finite (a NaN written
+/// from outside, say) were put back where they started the substep, with zero velocity,
+/// before the NaN could spread through their clusters.
+#[derive(Message, Clone, Debug)]
+pub struct ParticlesRepaired {
+    /// The body.
+    pub body: Entity,
+    /// The repaired body-local indices, ascending.
+    pub particles: Vec<u32>,
+}
+
 /// Sent by expand: the clusters rebuilt by a cut event.
 #[derive(Message, Clone, Debug)]
 pub struct ClustersRebuilt {

@@ -130,6 +130,7 @@ pub fn install(world: &mut World, config: crate::config::SimConfig) {
     MessageRegistry::register_message::<ParticlesCut>(world);
     MessageRegistry::register_message::<ClustersRebuilt>(world);
     MessageRegistry::register_message::<BodySplit>(world);
+    MessageRegistry::register_message::<ParticlesRepaired>(world);
     world.add_schedule(build_substep_schedule());
     world.add_schedule(build_schedule());
 }

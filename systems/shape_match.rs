@@ -7,7 +7,7 @@
 use super::contact_sync::sync_contacts;
 use super::layout_sync::{LayoutChanges, sync_layout};
 use crate::components::*;
-use crate::resources::{CutReport, SimSettings, SolverCache, SubstepClock};
+use crate::resources::{CutReport, ParticlesRepaired, SimSettings, SolverCache, SubstepClock};
 use crate::solver::{Colliders, PosedCollider};
 use crate::table_rows::ParticleColumns;
 use bevy_ecs::entity::Entities;
@@ -59,6 +59,7 @@ pub fn shape_match(
     mut removed_clusters: RemovedComponents<ClusterMembers>,
     mut removed_bodies: RemovedComponents<BodyLattice>,
     mut particles: Query<ParticleData>,
+    mut repaired_messages: MessageWriter<ParticlesRepaired>,
 ) {
     let config = &settings.0;
     let removed: Vec<Entity> = removed_clusters.read().collect();
@@ -117,6 +118,7 @@ pub fn shape_match(
     if !one_table {
         gather_entities(cache, &particles);
     }
+    let repaired = repair_non_finite(cache, &bodies);
     cache.kinds.colliders = substep_colliders(config, &substep, &colliders);
     cache.layout.solve(config.iterations, &mut cache.kinds);
     let inv_dt = config.substeps as f32 / config.dt;
@@ -133,6 +135,71 @@ pub fn shape_match(
         }
     } else {
         scatter_entities(cache, inv_dt, &mut particles);
+    }
+    report_repaired(cache, &repaired, &mut particles, &mut repaired_messages);
+}
+
+/// Puts every live particle whose loaded position is not finite back where it started
+/// the substep (or, if that is not finite either, at the mean of its finite lattice
+/// neighbours, else at the origin), before it can spread through its clusters; returns
+/// them.
+fn repair_non_finite(cache: &mut SolverCache, bodies: &Query<(Entity, &BodyLattice)>) -> Vec<u32> {
+    let SolverCache {
+        layout,
+        live,
+        locals,
+        body_dense,
+        ..
+    } = cache;
+    layout.repair_non_finite(live, |d, positions| {
+        let Some((body, local)) = crate::resources::dense_owner(locals, body_dense, d) else {
+            return Vec3A::ZERO;
+        };
+        let (Ok((_, lattice)), Ok(b)) = (
+            bodies.get(body),
+            body_dense.binary_search_by_key(&body, |b| b.body),
+        ) else {
+            return Vec3A::ZERO;
+        };
+        let (sum, count) = lattice
+            .lattice
+            .neighbours(local)
+            .filter_map(|n| body_dense[b].dense.get(n as usize).copied())
+            .filter(|n| *n != u32::MAX && positions[*n as usize].is_finite())
+            .fold((Vec3A::ZERO, 0u32), |(sum, count), n| {
+                (sum + positions[n as usize], count + 1)
+            });
+        if count > 0 {
+            sum / count as f32
+        } else {
+            Vec3A::ZERO
+        }
+    })
+}
+
+/// Zeroes the velocities of the repaired particles (a NaN velocity would carry the
+/// particle off again at the next prediction) and reports them per body.
+fn report_repaired(
+    cache: &SolverCache,
+    repaired: &[u32],
+    particles: &mut Query<ParticleData>,
+    messages: &mut MessageWriter<ParticlesRepaired>,
+) {
+    let mut by_body: Vec<(Entity, u32)> = Vec::with_capacity(repaired.len());
+    for &d in repaired {
+        if let Ok((_, _, mut velocity, ..)) = particles.get_mut(cache.particles[d as usize]) {
+            velocity.0 = Vec3::ZERO;
+        }
+        if let Some(owner) = cache.owner(d as usize) {
+            by_body.push(owner);
+        }
+    }
+    by_body.sort_unstable();
+    for group in by_body.chunk_by(|a, b| a.0 == b.0) {
+        messages.write(ParticlesRepaired {
+            body: group[0].0,
+            particles: group.iter().map(|(_, i)| *i).collect(),
+        });
     }
 }
 

@@ -333,3 +333,43 @@ fn closed_obj_mesh_voxelises() {
         "a unit cube at h = 0.25 holds 4³ lattice points"
     );
 }
+
+#[test]
+fn a_nan_written_into_one_particle_is_repaired_and_does_not_spread() {
+    let mut sim = Simulation::new(SimConfig::default()).unwrap();
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(8, 4, 4), 0.1), 0.1);
+    desc.position = Vec3::new(0.0, 0.3, 0.0);
+    let body = sim.spawn_body(&desc).unwrap();
+    sim.run(10);
+    let victim = sim.world().get::<BodyLattice>(body).unwrap().particles[13];
+    sim.world_mut()
+        .entity_mut(victim)
+        .insert((Position(Vec3::NAN), Velocity(Vec3::splat(f32::NAN))));
+    let mut cursor = sim
+        .world()
+        .resource::<Messages<ParticlesRepaired>>()
+        .get_cursor();
+    let mut reports: Vec<ParticlesRepaired> = Vec::new();
+    for _ in 0..30 {
+        sim.step();
+        reports.extend(
+            cursor
+                .read(sim.world().resource::<Messages<ParticlesRepaired>>())
+                .cloned(),
+        );
+    }
+    assert_eq!(reports.len(), 1, "one report: {reports:?}");
+    assert_eq!(
+        (reports[0].body, reports[0].particles.clone()),
+        (body, vec![13])
+    );
+    let positions = sim.positions(body).unwrap();
+    assert!(
+        positions.iter().all(|(_, p)| p.is_finite()),
+        "the NaN spread"
+    );
+    assert!(check_invariants(sim.world()).is_empty());
+    // back in its place among its neighbours: within a spacing of the body's shape
+    let (_, p) = positions.iter().find(|(i, _)| *i == 13).copied().unwrap();
+    assert!(p.y > 0.0 && p.y < 0.5, "{p}");
+}

@@ -29,6 +29,7 @@ mod gauss_seidel;
 mod jacobi;
 mod kinds;
 mod patch;
+mod repair;
 mod sweep;
 mod template;
 
