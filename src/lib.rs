@@ -22,6 +22,7 @@ pub mod config;
 pub mod detection;
 pub mod dump;
 pub mod error;
+#[cfg(feature = "render")]
 pub mod export;
 pub mod graph;
 pub mod invariants;
@@ -34,6 +35,7 @@ pub mod plugin;
 pub mod prefetch;
 pub mod profile;
 pub mod reconstruct;
+#[cfg(feature = "render")]
 pub mod render;
 pub mod resources;
 pub mod rotation;
