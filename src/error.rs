@@ -41,6 +41,24 @@ pub enum CleaveError {
         /// Limit.
         max: u64,
     },
+    /// A shape would need more memory than the budget allows.
+    #[error(
+        "shape too large: `{field}` would make up to {particles} particles, about {gigabytes:.1} GB at ~{bytes_per_particle} B each (the memory budget of {budget_gigabytes} GB allows {max} particles per body)"
+    )]
+    OverBudget {
+        /// Which field described the shape.
+        field: String,
+        /// Upper bound of its particle count (the lattice cells of its bounding box).
+        particles: u64,
+        /// Estimated memory, GB.
+        gigabytes: f64,
+        /// Estimated memory per particle, bytes.
+        bytes_per_particle: u64,
+        /// The budget, GB.
+        budget_gigabytes: u64,
+        /// Most particles the budget allows.
+        max: u64,
+    },
     /// The bodies of one world would hold more particles than the solver can address.
     #[error("too many particles: {particles} in the world's bodies together (at most {max})")]
     TooManyParticles {

@@ -23,6 +23,30 @@ pub const NEIGHBOUR_OFFSETS: [IVec3; 6] = [
 /// Largest number of lattice cells (bounding box) a body may span.
 pub const MAX_LATTICE_CELLS: u64 = 1 << 27;
 
+/// Estimated memory per particle of a running body (entity, components, solver layout,
+/// cluster index; measured with `cleave bench` as peak resident memory per particle).
+pub const BYTES_PER_PARTICLE: u64 = 600;
+
+/// Memory one body may take, in GB; with [`BYTES_PER_PARTICLE`] it bounds the particles
+/// of a body before anything is allocated.
+pub const MEMORY_BUDGET_GB: u64 = 8;
+
+/// Refuses a shape whose lattice could hold more particles than the memory budget.
+fn check_budget(field: &str, particles: u64) -> Result<()> {
+    let max = MEMORY_BUDGET_GB * 1_000_000_000 / BYTES_PER_PARTICLE;
+    if particles > max {
+        return Err(CleaveError::OverBudget {
+            field: field.into(),
+            particles,
+            gigabytes: (particles as f64) * BYTES_PER_PARTICLE as f64 / 1e9,
+            bytes_per_particle: BYTES_PER_PARTICLE,
+            budget_gigabytes: MEMORY_BUDGET_GB,
+            max,
+        });
+    }
+    Ok(())
+}
+
 /// Dense lattice of one body: maps integer coordinates to particle indices and back.
 ///
 /// Particle indices are stable for the life of the body (never reused); a removed
@@ -507,6 +531,7 @@ impl Shape {
                     spacing: h,
                 });
             }
+            check_budget("shape.cells", total)?;
             if total > MAX_LATTICE_CELLS {
                 return Err(CleaveError::TooLarge {
                     field: "shape.cells".into(),
@@ -530,6 +555,9 @@ impl Shape {
         let kmax = (hi / h - Vec3::splat(0.5)).ceil();
         let extent = (kmax - kmin + Vec3::ONE).max(Vec3::ZERO);
         let cells = extent.x as f64 * extent.y as f64 * extent.z as f64;
+        if cells.is_finite() {
+            check_budget("shape", cells as u64)?;
+        }
         if !cells.is_finite() || cells > MAX_LATTICE_CELLS as f64 {
             return Err(CleaveError::TooLarge {
                 field: "shape".into(),

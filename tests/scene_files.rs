@@ -227,6 +227,25 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
 }
 
 #[test]
+fn a_body_past_the_memory_budget_is_refused_before_anything_is_allocated() {
+    let text = GOOD.replace("Cells(cells: (4, 4, 4))", "Cells(cells: (400, 400, 400))");
+    let start = std::time::Instant::now();
+    let (code, err) = run_file("huge.ron", &text);
+    assert_eq!(code, Some(2), "{err}");
+    for e in [
+        "huge.ron",
+        "bodies[0]",
+        "shape.cells",
+        "64000000 particles",
+        "memory budget",
+    ] {
+        assert!(err.contains(e), "`{e}` missing from: {err}");
+    }
+    // refused up front: well under the seconds a 38 GB allocation would take to fail
+    assert!(start.elapsed().as_secs_f64() < 5.0);
+}
+
+#[test]
 fn the_readme_scene_file_parses() {
     let readme = include_str!("../README.md");
     let start = readme.find("```ron\n").expect("a RON block in the README") + 7;

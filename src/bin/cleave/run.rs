@@ -290,14 +290,18 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     let frames = frames.unwrap_or(scene.frames);
     let mut sim = Simulation::new(scene.config.clone()).map_err(|e| e.to_string())?;
     let mut bodies = Vec::with_capacity(scene.bodies.len());
-    for b in &scene.bodies {
-        bodies.push(sim.spawn_body(b).map_err(|e| e.to_string())?);
+    // errors name the scene and the list entry
+    let fail = |what: &str, i: usize, e: cleave::error::CleaveError| {
+        format!("{scene_name}: {what}[{i}]: {e}")
+    };
+    for (i, b) in scene.bodies.iter().enumerate() {
+        bodies.push(sim.spawn_body(b).map_err(|e| fail("bodies", i, e))?);
     }
-    for t in &scene.tools {
-        sim.spawn_tool(t).map_err(|e| e.to_string())?;
+    for (i, t) in scene.tools.iter().enumerate() {
+        sim.spawn_tool(t).map_err(|e| fail("tools", i, e))?;
     }
-    for c in &scene.colliders {
-        sim.spawn_collider(c).map_err(|e| e.to_string())?;
+    for (i, c) in scene.colliders.iter().enumerate() {
+        sim.spawn_collider(c).map_err(|e| fail("colliders", i, e))?;
     }
     let mut tracked = Vec::with_capacity(bodies.len());
     for (body, desc) in bodies.iter().zip(&scene.bodies) {
