@@ -6,6 +6,9 @@ use glam::Vec3;
 use std::collections::HashMap;
 use std::path::Path;
 
+/// Largest OBJ file read (bytes).
+pub const MAX_OBJ_BYTES: u64 = 256 << 20;
+
 /// A closed triangle mesh.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TriangleMesh {
@@ -57,8 +60,24 @@ impl TriangleMesh {
         })
     }
 
-    /// Reads every object of an OBJ file into one closed mesh.
+    /// Reads every object of an OBJ file into one closed mesh. The file must be a regular
+    /// file of at most [`MAX_OBJ_BYTES`] (an endless stream such as `/dev/zero` would be
+    /// read until memory ran out).
     pub fn load_obj(path: &Path) -> Result<Self> {
+        let fail = |reason: String| CleaveError::Mesh {
+            path: path.to_path_buf(),
+            reason,
+        };
+        let meta = std::fs::metadata(path).map_err(|e| fail(format!("cannot open: {e}")))?;
+        if !meta.is_file() {
+            return Err(fail("not a regular file".into()));
+        }
+        if meta.len() > MAX_OBJ_BYTES {
+            return Err(fail(format!(
+                "{} bytes (allowed: at most {MAX_OBJ_BYTES})",
+                meta.len()
+            )));
+        }
         let options = tobj::LoadOptions {
             triangulate: true,
             single_index: true,
@@ -166,6 +185,19 @@ mod tests {
         let e = TriangleMesh::load_obj(Path::new("/nonexistent/x.obj"))
             .unwrap_err()
             .to_string();
-        assert!(e.contains("/nonexistent/x.obj"), "{e}");
+        assert!(
+            e.contains("/nonexistent/x.obj") && e.contains("cannot open"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn an_endless_stream_or_a_folder_is_refused_before_reading() {
+        for path in ["/dev/zero", "/tmp"] {
+            let e = TriangleMesh::load_obj(Path::new(path))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(path) && e.contains("not a regular file"), "{e}");
+        }
     }
 }
