@@ -241,20 +241,29 @@ pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
     desc.shape.validate()?;
     check_positive("tool.cut_width", desc.cut_width)?;
     let pose = starting_pose(world, "tool", &desc.path, desc.pose)?;
-    let mut e = world.spawn((
-        Tool {
-            shape: desc.shape,
-            cut_width: desc.cut_width,
-        },
-        ToolPose {
-            current: pose,
-            last: pose,
-        },
-    ));
-    if !desc.path.keys.is_empty() {
-        e.insert(ToolPath(desc.path.clone()));
+    let tool = Tool {
+        shape: desc.shape,
+        cut_width: desc.cut_width,
+    };
+    let at = ToolPose {
+        current: pose,
+        last: pose,
+    };
+    Ok(spawn_keyframed(world, (tool, at), &desc.path, ToolPath))
+}
+
+/// Spawns `object`, with the component `follow` makes of `path` when it has keys.
+fn spawn_keyframed<C: Component>(
+    world: &mut World,
+    object: impl Bundle,
+    path: &Path,
+    follow: impl FnOnce(Path) -> C,
+) -> Entity {
+    let mut e = world.spawn(object);
+    if !path.keys.is_empty() {
+        e.insert(follow(path.clone()));
     }
-    Ok(e.id())
+    e.id()
 }
 
 /// Checks a keyframed object's `path` and `pose` (errors name `what`) and returns its
@@ -289,20 +298,20 @@ pub fn spawn_collider(world: &mut World, desc: &ColliderDesc) -> Result<Entity> 
         "0 ≤ friction ≤ 100",
     )?;
     let pose = starting_pose(world, "collider", &desc.path, desc.pose)?;
-    let mut e = world.spawn((
-        Collider {
-            shape: desc.shape.clone(),
-            friction: desc.friction,
-        },
-        ColliderPose {
-            current: pose,
-            last: pose,
-        },
-    ));
-    if !desc.path.keys.is_empty() {
-        e.insert(ColliderPath(desc.path.clone()));
-    }
-    Ok(e.id())
+    let collider = Collider {
+        shape: desc.shape.clone(),
+        friction: desc.friction,
+    };
+    let at = ColliderPose {
+        current: pose,
+        last: pose,
+    };
+    Ok(spawn_keyframed(
+        world,
+        (collider, at),
+        &desc.path,
+        ColliderPath,
+    ))
 }
 
 /// Particle slots of the bodies already in `world` (live or cut).

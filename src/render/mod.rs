@@ -141,16 +141,8 @@ pub fn snapshot(world: &mut World, mode: ColorMode) -> Snapshot {
         .collect();
     tools.sort_by_key(|(e, _, _)| *e);
     let settings = &world.resource::<SimSettings>().0;
-    let mut colliders: Vec<(ColliderShape, Pose)> = settings
-        .boxes
-        .iter()
-        .map(|b| {
-            let shape = ColliderShape::Box {
-                half_extents: 0.5 * (b.max - b.min),
-            };
-            (shape, Pose::at(0.5 * (b.min + b.max)))
-        })
-        .collect();
+    let mut colliders: Vec<(ColliderShape, Pose)> =
+        settings.boxes.iter().map(|b| b.shape_and_pose()).collect();
     let mut collider_query = world.try_query::<(Entity, &Collider, &ColliderPose)>();
     let mut moving: Vec<(Entity, ColliderShape, Pose)> = collider_query
         .iter_mut()

@@ -126,12 +126,18 @@ impl PosedCollider {
 }
 
 impl StaticBox {
-    /// The box as a posed collider.
-    pub fn posed(&self) -> PosedCollider {
+    /// The box as a collider shape and the pose of its centre.
+    pub fn shape_and_pose(&self) -> (ColliderShape, Pose) {
         let shape = ColliderShape::Box {
             half_extents: 0.5 * (self.max - self.min),
         };
-        PosedCollider::fixed(shape, self.friction, Pose::at(0.5 * (self.min + self.max)))
+        (shape, Pose::at(0.5 * (self.min + self.max)))
+    }
+
+    /// The box as a posed collider.
+    pub fn posed(&self) -> PosedCollider {
+        let (shape, pose) = self.shape_and_pose();
+        PosedCollider::fixed(shape, self.friction, pose)
     }
 }
 

@@ -328,21 +328,18 @@ impl SolverLayout {
         self.corrections.iter_mut().for_each(|c| *c = Vec3A::ZERO);
         self.predicted.clone_from(&self.positions);
         let (mut kinds, seconds) = kinds.in_order();
-        {
-            let state = ParticleState {
-                positions: &mut self.positions,
-                previous: &self.previous,
-                inv_mass: &self.inv_mass,
-                corrections: &mut self.corrections,
-            };
+        // every kind that has something to do, timed into its entry of `seconds`
+        let mut each_kind = |f: &mut dyn FnMut(&mut dyn ConstraintKind)| {
             for (kind, seconds) in kinds.iter_mut().zip(seconds.iter_mut()) {
                 if !kind.is_empty() {
                     let start = std::time::Instant::now();
-                    kind.begin_substep(&state);
+                    f(&mut **kind);
                     *seconds += start.elapsed().as_secs_f64();
                 }
             }
-        }
+        };
+        let state = self.particle_state();
+        each_kind(&mut |kind| kind.begin_substep(&state));
         for _ in 0..iterations {
             match self.mode {
                 SolverMode::Jacobi => {
@@ -351,21 +348,20 @@ impl SolverLayout {
                 }
                 SolverMode::GaussSeidel => self.sweep_colours(),
             }
-            let mut state = ParticleState {
-                positions: &mut self.positions,
-                previous: &self.previous,
-                inv_mass: &self.inv_mass,
-                corrections: &mut self.corrections,
-            };
-            for (kind, seconds) in kinds.iter_mut().zip(seconds.iter_mut()) {
-                if !kind.is_empty() {
-                    let start = std::time::Instant::now();
-                    kind.project(&mut state);
-                    *seconds += start.elapsed().as_secs_f64();
-                }
-            }
+            let mut state = self.particle_state();
+            each_kind(&mut |kind| kind.project(&mut state));
         }
         self.drop_rounding_noise();
+    }
+
+    /// The particle arrays as the constraint kinds see them.
+    fn particle_state(&mut self) -> ParticleState<'_> {
+        ParticleState {
+            positions: &mut self.positions,
+            previous: &self.previous,
+            inv_mass: &self.inv_mass,
+            corrections: &mut self.corrections,
+        }
     }
 
     /// Restores the predicted position of every particle whose total correction is below
