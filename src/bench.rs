@@ -4,7 +4,7 @@
 //! the two solver schemes.
 
 use crate::clustering::initial_clusters;
-use crate::components::{BodyLattice, ClusterMembers, ClusterOf, Stiffness, Velocity};
+use crate::components::{BodyLattice, ClusterMembers, ClusterOf, Compliance, Velocity};
 use crate::config::{Material, SimConfig, SolverMode};
 use crate::error::Result;
 use crate::lattice::Shape;
@@ -221,7 +221,7 @@ fn bare_step(
             *v = (*v + dv) * keep;
             *x += *v * dt;
         }
-        layout.solve(config.iterations, kinds);
+        layout.solve(config.iterations, dt, kinds);
         layout.update_velocities(velocities, 1.0 / dt);
     }
 }
@@ -273,7 +273,7 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
     let rebuild_ms = time_ms(1, || {
         let world = sim.world_mut();
         let mut bodies = world.query::<(Entity, &BodyLattice)>();
-        let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf, &Stiffness)>();
+        let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf, &Compliance)>();
         let mut fresh = SolverCache::default();
         rebuild_cache(
             &mut fresh,
@@ -391,12 +391,12 @@ pub fn convergence_table(n: u32, iteration_counts: &[u32]) -> Result<Vec<(u32, f
     let error_after = |mode: SolverMode, iterations: u32| {
         let specs = members.iter().map(|m| ClusterSpec {
             members: m,
-            stiffness: 1.0,
+            compliance: 0.0,
             rotation: Quat::IDENTITY,
         });
         let mut layout = SolverLayout::new(&rest, specs, mode);
         layout.positions.clone_from(&twisted);
-        layout.solve(iterations, &mut ConstraintKinds::default());
+        layout.solve(iterations, 1.0 / 120.0, &mut ConstraintKinds::default());
         let current: Vec<Vec3> = layout.positions.iter().map(|p| Vec3::from(*p)).collect();
         (rigid_fit_error(&rest, &current) / H) as f64
     };

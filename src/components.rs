@@ -1,7 +1,7 @@
 //! ECS components. Particle side: [`Particle`], [`Position`], [`PrevPosition`],
 //! [`Velocity`], [`InvMass`], and the body's [`BodyLattice`] (which holds what never
 //! changes: lattice coordinates and rest positions). Cluster side: [`ClusterMembers`],
-//! [`ClusterOf`], [`Stiffness`], and the body's [`ParticleClusters`] index. Tools:
+//! [`ClusterOf`], [`Compliance`], and the body's [`ParticleClusters`] index. Tools:
 //! [`Tool`], [`ToolPose`], [`ToolPath`]. Colliders: [`Collider`], [`ColliderPose`],
 //! [`ColliderPath`].
 
@@ -102,9 +102,10 @@ pub struct ClusterMembers(pub Vec<u32>);
 #[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ClusterOf(pub Entity);
 
-/// Shape-matching stiffness of a cluster, in [0, 1].
+/// Compliance `1/κ` of a cluster's elastic energy in m/N (0: rigid); see
+/// [`crate::config::Material::compliance`].
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
-pub struct Stiffness(pub f32);
+pub struct Compliance(pub f32);
 
 /// A cutting tool: shape and cut width (particles within half the width of the surface,
 /// or inside it, are cut).

@@ -4,17 +4,90 @@ use crate::error::{MAX_COORDINATE, Result, check_range, check_vec_within, out_of
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-/// Which iteration scheme the shape-matching solver uses.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+/// Which scheme solves each substep's constraints. All three solve the same problem —
+/// one implicit Euler step of the clusters' elastic energy (see [`Material::compliance`])
+/// with the other constraint kinds projected after each iteration — and differ in how
+/// fast they converge. In files, on the command line and in JSON they are spelled
+/// `"jacobi"`, `"gauss-seidel"` and `"projective"`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum SolverMode {
     /// Every cluster computes its goals from the same positions; each particle moves to
-    /// the (mass-weighted) average of its clusters' goals. Parallel and deterministic.
+    /// the mass-weighted average of its clusters' goals and its inertial prediction.
+    /// Parallel and deterministic.
     #[default]
     Jacobi,
     /// Clusters are coloured so that clusters of one colour share no particle; colour
-    /// after colour, each cluster moves its members to its goals at once. Converges in
-    /// fewer iterations; parallel inside a colour and deterministic.
+    /// after colour, each cluster moves its members toward its goals (XPBD, with each
+    /// membership's accumulated correction). Converges in fewer iterations; parallel
+    /// inside a colour and deterministic.
     GaussSeidel,
+    /// Projective dynamics (Bouaziz et al. 2014): the clusters' rotation fits are the
+    /// local step; the global step solves the whole body's linear system with a sparse
+    /// Cholesky factor, computed once per topology. Converges across the whole body in
+    /// each iteration.
+    Projective,
+}
+
+impl SolverMode {
+    /// Every scheme, in the order the documentation lists them.
+    pub const ALL: [SolverMode; 3] = [
+        SolverMode::Jacobi,
+        SolverMode::GaussSeidel,
+        SolverMode::Projective,
+    ];
+
+    /// The scheme's name in files, on the command line and in JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            SolverMode::Jacobi => "jacobi",
+            SolverMode::GaussSeidel => "gauss-seidel",
+            SolverMode::Projective => "projective",
+        }
+    }
+}
+
+impl std::fmt::Display for SolverMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for SolverMode {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        SolverMode::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| format!("unknown solver `{s}` (allowed: {SOLVER_NAMES})"))
+    }
+}
+
+/// The solver names, as error messages list them.
+const SOLVER_NAMES: &str = "\"jacobi\", \"gauss-seidel\", \"projective\"";
+
+impl Serialize for SolverMode {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> Deserialize<'de> for SolverMode {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct Name;
+        impl serde::de::Visitor<'_> for Name {
+            type Value = SolverMode;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                write!(f, "one of the strings {SOLVER_NAMES}")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> std::result::Result<SolverMode, E> {
+                v.parse().map_err(E::custom)
+            }
+        }
+        // (`any`: a bare RON identifier such as `GaussSeidel` then fails with the list
+        // of quoted names instead of a bare "expected string")
+        d.deserialize_any(Name)
+    }
 }
 
 /// A horizontal ground plane `y = height` with Coulomb friction.
@@ -165,10 +238,20 @@ impl SimConfig {
 /// Material and clustering parameters of one body.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Material {
-    /// Shape-matching stiffness of every cluster, in [0, 1].
-    pub stiffness: f32,
-    /// Mass of one particle (> 0).
-    pub particle_mass: f32,
+    /// Compliance of the material, `1/E` in 1/Pa (E: Young's modulus, Poisson's ratio
+    /// 0); 0 makes every cluster rigid. Each cluster stores the elastic energy
+    /// `(κ/2) Σᵢ wᵢ |xᵢ − gᵢ|²` of its members' distances to their goals (weights
+    /// `wᵢ = 1/nᵢ`, nᵢ the particle's cluster count), with `κ = E·V/σ²` (V a particle's
+    /// volume, σ² a full cluster's per-axis spread of rest offsets), which approximates
+    /// the as-rigid-as-possible energy density `(E/2)·|F − R|²`. The solvers take it
+    /// into one implicit step the way XPBD does (Macklin et al. 2016), so the stiffness
+    /// does not depend on the time step or the iteration count.
+    pub compliance: f32,
+    /// Density in kg/m³: a particle's mass is `density · spacing³` unless
+    /// [`Material::particle_mass`] overrides it.
+    pub density: f32,
+    /// Mass of one particle in kg, overriding the density (`None`: from the density).
+    pub particle_mass: Option<f32>,
     /// Cluster radius in lattice units (Chebyshev): a cluster spans up to `2r+1` cells per axis.
     pub cluster_radius: u32,
     /// Layers shared by neighbouring clusters; cluster centres are `2r+1-overlap` cells apart.
@@ -192,8 +275,9 @@ pub struct Material {
 impl Default for Material {
     fn default() -> Self {
         Self {
-            stiffness: 1.0,
-            particle_mass: 1.0,
+            compliance: 0.0,
+            density: 1000.0,
+            particle_mass: None,
             cluster_radius: 1,
             cluster_overlap: 1,
             max_cluster_size: 40,
@@ -207,6 +291,20 @@ impl Default for Material {
 }
 
 impl Material {
+    /// The mass of one particle of a lattice with this spacing (metres).
+    pub fn mass_at_spacing(&self, spacing: f32) -> f32 {
+        self.particle_mass
+            .unwrap_or(self.density * spacing * spacing * spacing)
+    }
+
+    /// Each cluster's compliance `1/κ` in m/N on a lattice with this spacing (see
+    /// [`Material::compliance`]): `σ²/(E·V)` with `V = spacing³` and
+    /// `σ² = spacing²·r(r+1)/3`, the per-axis spread of a full `(2r+1)³` cluster.
+    pub fn cluster_compliance(&self, spacing: f32) -> f32 {
+        let r = self.cluster_radius as f32;
+        self.compliance * r * (r + 1.0) / (3.0 * spacing)
+    }
+
     /// Distance between neighbouring cluster centres, in lattice cells.
     pub fn cluster_stride(&self) -> u32 {
         2 * self.cluster_radius + 1 - self.cluster_overlap
@@ -215,19 +313,28 @@ impl Material {
     /// Checks every field; the error names the field and its allowed range.
     pub fn validate(&self) -> Result<()> {
         check_range(
-            "material.stiffness",
-            self.stiffness,
+            "material.compliance",
+            self.compliance,
             0.0,
             1.0,
-            "0 ≤ stiffness ≤ 1",
+            "0 ≤ compliance ≤ 1 (1/Pa)",
         )?;
         check_range(
-            "material.particle_mass",
-            self.particle_mass,
-            1e-9,
-            1e9,
-            "1e-9 ≤ particle_mass ≤ 1e9 (kg)",
+            "material.density",
+            self.density,
+            1e-3,
+            1e6,
+            "1e-3 ≤ density ≤ 1e6 (kg/m³)",
         )?;
+        if let Some(mass) = self.particle_mass {
+            check_range(
+                "material.particle_mass",
+                mass,
+                1e-9,
+                1e9,
+                "1e-9 ≤ particle_mass ≤ 1e9 (kg)",
+            )?;
+        }
         if self.cluster_radius == 0 || self.cluster_radius > 8 {
             return Err(out_of_range(
                 "material.cluster_radius",
@@ -331,6 +438,24 @@ mod tests {
     }
 
     #[test]
+    fn solver_names_round_trip_and_unknown_names_list_the_choices() {
+        for mode in SolverMode::ALL {
+            assert_eq!(mode.name().parse::<SolverMode>(), Ok(mode));
+            let json = serde_json::to_string(&mode).unwrap();
+            assert_eq!(json, format!("\"{}\"", mode.name()));
+            assert_eq!(serde_json::from_str::<SolverMode>(&json).unwrap(), mode);
+            let ron = ron::to_string(&mode).unwrap();
+            assert_eq!(ron::from_str::<SolverMode>(&ron).unwrap(), mode);
+        }
+        let e = ron::from_str::<SolverMode>("GaussSeidel")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("\"gauss-seidel\""), "{e}");
+        let e = "gauss_seidel".parse::<SolverMode>().unwrap_err();
+        assert!(e.contains("\"gauss-seidel\""), "{e}");
+    }
+
+    #[test]
     fn bad_fields_are_named() {
         let c = SimConfig {
             gravity: Vec3::new(0.0, f32::NAN, 0.0),
@@ -362,15 +487,39 @@ mod tests {
                 .to_string()
                 .contains("config.iterations")
         );
-        let m = Material {
-            stiffness: 1.5,
-            ..Default::default()
-        };
-        let e = m.validate().unwrap_err().to_string();
-        assert!(
-            e.contains("material.stiffness") && e.contains("0 ≤ stiffness ≤ 1"),
-            "{e}"
-        );
+        for (m, field) in [
+            (
+                Material {
+                    compliance: -1e-6,
+                    ..Default::default()
+                },
+                "material.compliance",
+            ),
+            (
+                Material {
+                    compliance: f32::INFINITY,
+                    ..Default::default()
+                },
+                "material.compliance",
+            ),
+            (
+                Material {
+                    density: f32::NAN,
+                    ..Default::default()
+                },
+                "material.density",
+            ),
+            (
+                Material {
+                    particle_mass: Some(0.0),
+                    ..Default::default()
+                },
+                "material.particle_mass",
+            ),
+        ] {
+            let e = m.validate().unwrap_err().to_string();
+            assert!(e.contains(field) && e.contains("allowed"), "{e}");
+        }
         let m = Material {
             max_cluster_size: 1,
             ..Default::default()

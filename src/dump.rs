@@ -107,7 +107,7 @@ pub fn dump_body(world: &mut World, body: Entity) -> Option<DumpBody> {
             position: world
                 .get::<Position>(lattice.particles[i as usize])
                 .map_or([f32::NAN; 3], |p| p.0.to_array()),
-            mass: material.particle_mass,
+            mass: material.mass_at_spacing(l.spacing()),
         })
         .collect();
     let edges = l.edges().into_iter().map(|(a, b)| [id(a), id(b)]).collect();

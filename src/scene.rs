@@ -136,7 +136,9 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
                 min: Vec3::new(-1.3, 0.0, -1.0),
                 max: Vec3::new(-1.2 + 2.0 * H, 2.0, 1.0),
             }];
+            // rubber-like: E ≈ 0.83 MPa (Euler–Bernoulli tip sag ≈ 11.5 h)
             body.material = Material {
+                compliance: 1.2e-6,
                 ..Material::default()
             };
             let config = SimConfig {

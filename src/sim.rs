@@ -368,6 +368,13 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         check_finite_vec(&format!("body.pins[{i}].min"), pin.min)?;
         check_finite_vec(&format!("body.pins[{i}].max"), pin.max)?;
     }
+    check_range(
+        "material.particle_mass",
+        desc.material.mass_at_spacing(desc.spacing),
+        1e-9,
+        1e9,
+        "1e-9 ≤ density·spacing³ ≤ 1e9 (kg per particle)",
+    )?;
     let lattice = desc.shape.voxelise(desc.spacing)?;
     check_particle_budget(existing_particles(world), lattice.len() as u64)?;
     let table = {
@@ -384,7 +391,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     // layout's slots run in step and the shape-match stage copies them in sequence; in one
     // batch, so that the table is sized once instead of grown by doubling.
     let order = lattice.live_in_morton_order();
-    let inv_mass = 1.0 / desc.material.particle_mass;
+    let inv_mass = 1.0 / desc.material.mass_at_spacing(desc.spacing);
     let spawned = world.spawn_batch(order.iter().map(|&i| {
         let x = desc.position + rotation * lattice.rest_position(i);
         let pinned = desc
@@ -409,7 +416,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             .spawn((
                 ClusterMembers(members.to_vec()),
                 ClusterOf(body),
-                Stiffness(desc.material.stiffness),
+                Compliance(desc.material.cluster_compliance(desc.spacing)),
             ))
             .id();
         index.add_cluster(e.index_u32(), members);

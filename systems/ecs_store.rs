@@ -9,7 +9,7 @@ use crate::cluster_edits::{ClusterEdits, diff_into};
 use crate::cluster_index::ClusterIndex;
 use crate::cluster_store::{ClusterStore, extend_indexed, extend_members, normalise, owned_list};
 use crate::components::{
-    Body, BodyLattice, ClusterMembers, ClusterOf, ParticleClusters, Stiffness, cluster_entity,
+    Body, BodyLattice, ClusterMembers, ClusterOf, Compliance, ParticleClusters, cluster_entity,
 };
 use crate::config::Material;
 use crate::lattice::Lattice;
@@ -46,7 +46,7 @@ impl<'w, 's> BodyClusters<'w, 's> {
         let (b, lattice, index) = self.bodies.get_mut(body).ok()?;
         let store = EcsClusterStore {
             body,
-            stiffness: b.material.stiffness,
+            compliance: b.material.cluster_compliance(lattice.lattice.spacing()),
             index: &mut index.into_inner().0,
             entities: self.entities,
             clusters: &mut self.clusters,
@@ -61,7 +61,8 @@ impl<'w, 's> BodyClusters<'w, 's> {
 /// The clusters of one body, editable by the reconstruction algorithms.
 pub struct EcsClusterStore<'a, 'w, 's> {
     body: Entity,
-    stiffness: f32,
+    /// Compliance of the clusters this store creates.
+    compliance: f32,
     index: &'a mut ClusterIndex,
     entities: &'a Entities,
     clusters: &'a mut Query<'w, 's, &'static mut ClusterMembers>,
@@ -96,7 +97,7 @@ impl EcsClusterStore<'_, '_, '_> {
             self.commands.entity(e).insert((
                 ClusterMembers(members),
                 ClusterOf(self.body),
-                Stiffness(self.stiffness),
+                Compliance(self.compliance),
             ));
         }
     }

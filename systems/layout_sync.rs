@@ -17,7 +17,7 @@ use std::collections::HashMap;
 use std::time::Instant;
 
 /// Cluster data as the shape-match stage reads it.
-pub type ClusterItem<'a> = (Entity, &'a ClusterMembers, &'a ClusterOf, &'a Stiffness);
+pub type ClusterItem<'a> = (Entity, &'a ClusterMembers, &'a ClusterOf, &'a Compliance);
 
 /// What changed since the layout was last brought up to date.
 pub struct LayoutChanges<'a, 'c> {
@@ -27,7 +27,7 @@ pub struct LayoutChanges<'a, 'c> {
     /// lattices; without it (or when it does not account for every lost particle) every
     /// particle of a changed body is looked at.
     pub cut: &'a [BodyCutReport],
-    /// Clusters whose members or stiffness changed, or that are new.
+    /// Clusters whose members or compliance changed, or that are new.
     pub clusters: Vec<ClusterItem<'c>>,
     /// Cluster entities that lost their members (despawned).
     pub removed: &'a [Entity],
@@ -117,7 +117,7 @@ fn patch(
     changed.sort_unstable_by_key(|c| c.0);
     let mut flat = Vec::new();
     let mut entries = Vec::with_capacity(changed.len());
-    for (e, members, of, stiffness) in changed {
+    for (e, members, of, compliance) in changed {
         let Some(b) = body_index(cache, of.0) else {
             return false;
         };
@@ -130,13 +130,18 @@ fn patch(
         };
         let start = flat.len();
         dense_members(&cache.body_dense[b].dense, &members.0, &mut flat);
-        entries.push((e, start..flat.len(), stiffness.0.clamp(0.0, 1.0), rotation));
+        entries.push((
+            e,
+            start..flat.len(),
+            solver_compliance(compliance),
+            rotation,
+        ));
     }
     let specs: Vec<ClusterSpec> = entries
         .iter()
-        .map(|(_, range, stiffness, rotation)| ClusterSpec {
+        .map(|(_, range, compliance, rotation)| ClusterSpec {
             members: &flat[range.clone()],
-            stiffness: *stiffness,
+            compliance: *compliance,
             rotation: *rotation,
         })
         .collect();
@@ -297,11 +302,11 @@ fn retired_by_scan(
 }
 
 /// One cluster while the layout is rebuilt: sort key `(body, first dense member,
-/// entity)`, its members' range in the flat member array, and its stiffness.
+/// entity)`, its members' range in the flat member array, and its compliance.
 struct ClusterEntry {
     order: (Entity, u32, Entity),
     range: std::ops::Range<usize>,
-    stiffness: f32,
+    compliance: f32,
 }
 
 /// Rebuilds the dense layout from the bodies and clusters, keeping warm-start rotations
@@ -350,7 +355,7 @@ pub fn rebuild_cache<'b, 'c>(
     // Every cluster's dense members in one flat array (no allocation per cluster).
     let mut flat: Vec<u32> = Vec::new();
     let mut cluster_list: Vec<ClusterEntry> = Vec::new();
-    for (e, members, of, stiffness) in clusters {
+    for (e, members, of, compliance) in clusters {
         let Ok(b) = body_dense.binary_search_by_key(&of.0, |b| b.body) else {
             continue;
         };
@@ -360,7 +365,7 @@ pub fn rebuild_cache<'b, 'c>(
             cluster_list.push(ClusterEntry {
                 order: (of.0, first, e),
                 range: start..flat.len(),
-                stiffness: stiffness.0.clamp(0.0, 1.0),
+                compliance: solver_compliance(compliance),
             });
         }
     }
@@ -368,7 +373,7 @@ pub fn rebuild_cache<'b, 'c>(
     cluster_list.sort_unstable_by_key(|c| c.order);
     let specs = cluster_list.iter().map(|c| ClusterSpec {
         members: &flat[c.range.clone()],
-        stiffness: c.stiffness,
+        compliance: c.compliance,
         rotation: warm.get(&c.order.2).copied().unwrap_or(Quat::IDENTITY),
     });
     cache.layout = SolverLayout::new(&rest, specs, mode);
@@ -390,4 +395,14 @@ pub fn rebuild_cache<'b, 'c>(
     cache.clusters = cluster_list.iter().map(|c| c.order.2).collect();
     cache.slot_of = ClusterSlots::from_clusters(&cache.clusters);
     cache.valid = true;
+}
+
+/// A cluster's compliance as the solver takes it: a negative or non-finite value
+/// (written into the component by hand) counts as 0, a rigid cluster.
+fn solver_compliance(c: &Compliance) -> f32 {
+    if c.0.is_finite() && c.0 > 0.0 {
+        c.0
+    } else {
+        0.0
+    }
 }

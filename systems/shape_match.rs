@@ -27,9 +27,9 @@ type ChangedClusters<'w, 's> = Query<
         Entity,
         &'static ClusterMembers,
         &'static ClusterOf,
-        &'static Stiffness,
+        &'static Compliance,
     ),
-    Or<(Changed<ClusterMembers>, Changed<Stiffness>)>,
+    Or<(Changed<ClusterMembers>, Changed<Compliance>)>,
 >;
 
 /// Particle data the stage reads and writes.
@@ -54,7 +54,7 @@ pub fn shape_match(
     indices: Query<(Entity, &ParticleClusters)>,
     entities: &Entities,
     changed_bodies: Query<Entity, Changed<BodyLattice>>,
-    clusters: Query<(Entity, &ClusterMembers, &ClusterOf, &Stiffness)>,
+    clusters: Query<(Entity, &ClusterMembers, &ClusterOf, &Compliance)>,
     changed_clusters: ChangedClusters,
     mut removed_clusters: RemovedComponents<ClusterMembers>,
     mut removed_bodies: RemovedComponents<BodyLattice>,
@@ -120,7 +120,8 @@ pub fn shape_match(
     }
     let repaired = repair_non_finite(cache, &bodies);
     cache.kinds.colliders = substep_colliders(config, &substep, &colliders);
-    cache.layout.solve(config.iterations, &mut cache.kinds);
+    let dt = config.dt / config.substeps as f32;
+    cache.layout.solve(config.iterations, dt, &mut cache.kinds);
     let inv_dt = config.substeps as f32 / config.dt;
     if one_table {
         let tables = particles

@@ -31,7 +31,7 @@ fn clusters_of(cache: &SolverCache) -> Clusters {
 
 fn fresh_rebuild(world: &mut World, mode: SolverMode) -> SolverCache {
     let mut bodies = world.query::<(Entity, &BodyLattice)>();
-    let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf, &Stiffness)>();
+    let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf, &Compliance)>();
     let mut fresh = SolverCache::default();
     rebuild_cache(&mut fresh, bodies.iter(world), clusters.iter(world), mode);
     fresh

@@ -231,20 +231,35 @@ fn bad_input_is_an_error_naming_the_field() {
         max: Vec3::ONE,
     }];
     assert!(err(sim.spawn_body(&pinned)).contains("body.pins[0].min"));
+    // density and spacing each in range, their particle mass (1e-15 kg) not
+    let mut tiny = BodyDesc::new(Shape::Cells { cells: UVec3::ONE }, 1e-4);
+    tiny.material.density = 1e-3;
+    let e = err(sim.spawn_body(&tiny));
+    assert!(
+        e.contains("material.particle_mass") && e.contains("density"),
+        "{e}"
+    );
     for (material, field) in [
         (
             Material {
-                stiffness: -0.1,
+                compliance: -0.1,
                 ..Material::default()
             },
-            "stiffness",
+            "compliance",
         ),
         (
             Material {
-                stiffness: f32::NAN,
+                compliance: f32::NAN,
                 ..Material::default()
             },
-            "stiffness",
+            "compliance",
+        ),
+        (
+            Material {
+                density: 1e30,
+                ..Material::default()
+            },
+            "density",
         ),
         (
             Material {

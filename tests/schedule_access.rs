@@ -57,7 +57,7 @@ fn ids(world: &mut World) -> (Vec<ComponentId>, Vec<ComponentId>) {
     let cluster = vec![
         world.register_component::<ClusterMembers>(),
         world.register_component::<ClusterOf>(),
-        world.register_component::<Stiffness>(),
+        world.register_component::<Compliance>(),
         world.register_component::<ParticleClusters>(),
     ];
     (particle, cluster)

@@ -27,10 +27,6 @@ pub fn finite<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;
     range::<D>(v, true, "a finite number")
 }
-pub fn unit<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(v, (0.0..=1.0).contains(&v), "0 ≤ value ≤ 1")
-}
 pub fn dt<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;
     range::<D>(v, (1e-6..=1.0).contains(&v), "1e-6 ≤ dt ≤ 1 (seconds)")
@@ -85,13 +81,24 @@ pub fn spacing<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
         "1e-4 ≤ spacing ≤ 100 (metres)",
     )
 }
-pub fn particle_mass<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+pub fn particle_mass<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
+    match Option::<f32>::deserialize(d)? {
+        Some(v) => range::<D>(
+            v,
+            (1e-9..=1e9).contains(&v),
+            "1e-9 ≤ particle_mass ≤ 1e9 (kg)",
+        )
+        .map(Some),
+        None => Ok(None),
+    }
+}
+pub fn compliance<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;
-    range::<D>(
-        v,
-        (1e-9..=1e9).contains(&v),
-        "1e-9 ≤ particle_mass ≤ 1e9 (kg)",
-    )
+    range::<D>(v, (0.0..=1.0).contains(&v), "0 ≤ compliance ≤ 1 (1/Pa)")
+}
+pub fn density<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, (1e-3..=1e6).contains(&v), "1e-3 ≤ density ≤ 1e6 (kg/m³)")
 }
 pub fn rotation<'de, D: Deserializer<'de>>(d: D) -> Result<Quat, D::Error> {
     let q = Quat::deserialize(d)?;

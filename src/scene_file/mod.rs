@@ -151,12 +151,15 @@ pub enum ShapeFile {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct MaterialFile {
-    /// Shape-matching stiffness.
-    #[serde(deserialize_with = "check::unit")]
-    pub stiffness: f32,
-    /// Mass of one particle (kg).
+    /// Compliance `1/E` in 1/Pa (0: rigid clusters).
+    #[serde(deserialize_with = "check::compliance")]
+    pub compliance: f32,
+    /// Density in kg/m³.
+    #[serde(deserialize_with = "check::density")]
+    pub density: f32,
+    /// Mass of one particle in kg, overriding the density.
     #[serde(deserialize_with = "check::particle_mass")]
-    pub particle_mass: f32,
+    pub particle_mass: Option<f32>,
     /// Cluster radius in lattice units.
     #[serde(deserialize_with = "check::cluster_radius")]
     pub cluster_radius: u32,
@@ -379,7 +382,8 @@ impl SettingsFile {
 impl MaterialFile {
     fn from_material(m: &Material) -> Self {
         Self {
-            stiffness: m.stiffness,
+            compliance: m.compliance,
+            density: m.density,
             particle_mass: m.particle_mass,
             cluster_radius: m.cluster_radius,
             cluster_overlap: m.cluster_overlap,
@@ -394,7 +398,8 @@ impl MaterialFile {
 
     fn to_material(&self) -> Material {
         Material {
-            stiffness: self.stiffness,
+            compliance: self.compliance,
+            density: self.density,
             particle_mass: self.particle_mass,
             cluster_radius: self.cluster_radius,
             cluster_overlap: self.cluster_overlap,
@@ -560,9 +565,13 @@ impl SceneFile {
         )
     }
 
-    /// Parses RON text; errors read `LINE:COLUMN: FIELD: MESSAGE`.
+    /// Parses RON text; errors read `LINE:COLUMN: FIELD: MESSAGE`. An optional value
+    /// may be written bare (`particle_mass: 0.5`) or as `Some(0.5)`.
     pub fn parse(text: &str) -> Result<Self, String> {
-        let mut de = ron::Deserializer::from_str(text).map_err(|e| spanned(&e, ""))?;
+        let options = ron::Options::default()
+            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
+        let mut de = ron::Deserializer::from_str_with_options(text, &options)
+            .map_err(|e| spanned(&e, ""))?;
         let file: Self = serde_path_to_error::deserialize(&mut de).map_err(|e| {
             let path = e.path().to_string();
             let span = de.span_error(e.into_inner());

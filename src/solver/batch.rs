@@ -2,7 +2,7 @@
 //! one colour are fitted at once, one per SIMD lane. Their members are gathered into
 //! rows (row `j` holds member `j` of every lane's cluster), the moment matrices are
 //! accumulated and the rotations extracted (Müller 2016, warm-started) eight wide, and
-//! every row's pull `s (R q + c − p)` is computed eight wide and handed to the caller,
+//! every row's pull `R q + c − p` is computed eight wide and handed to the caller,
 //! which applies it member by member.
 //!
 //! Batches run in *groups*: one task runs a group's batches in order, and the groups of
@@ -26,7 +26,6 @@ use super::colouring::order_by_colour;
 use super::sweep::Disjoint;
 use super::template::Template;
 use super::{CLUSTERS_PER_TASK, FREE_SLOT, PATCH_HEADROOM, ROTATION_ITERATIONS, SolverLayout};
-use crate::config::SolverMode;
 use crate::lanes::{LANES, Mat3x8, Quatx8, Vec3x8};
 use crate::rotation::extract_rotation_x8;
 use glam::{Quat, Vec3A};
@@ -74,7 +73,7 @@ pub(super) struct RowPulls<'a> {
     pub(super) at: &'a [u32; LANES],
     /// The members' positions the fit saw.
     pub(super) position: &'a Vec3x8,
-    /// The pull `s (R q + c − p)` of each lane's member; exactly zero on a padding row
+    /// The pull `R q + c − p` of each lane's member; exactly zero on a padding row
     /// (whose particle is the lane's first member, so adding it changes nothing).
     pub(super) pull: [Vec3A; LANES],
     /// The row's index in the batch.
@@ -184,7 +183,7 @@ impl SolverLayout {
             .map(|k| self.colour_of[k] != FREE_SLOT && self.template_order(k, &template).is_some())
             .collect();
         let mut batches = empty();
-        let spatial = self.mode == SolverMode::Jacobi && {
+        let spatial = super::weighted_by_count(self.mode) && {
             let mut order: Vec<u32> = (0..self.cluster_range.len() as u32)
                 .filter(|&k| self.colour_of[k as usize] != FREE_SLOT)
                 .collect();
@@ -548,6 +547,33 @@ impl SolverLayout {
         }
     }
 
+    /// The index of batch `b`'s first particle row among all batches' rows.
+    #[inline(always)]
+    pub(super) fn first_row(&self, b: usize) -> usize {
+        self.batches.start[b] as usize
+    }
+
+    /// The particle of every membership slot, row by row, lane by lane (a padding
+    /// slot names its lane's first member).
+    pub(super) fn membership_particles(&self) -> Vec<u32> {
+        self.batches
+            .particles
+            .iter()
+            .flat_map(|row| row.map(|at| at / PARTICLE_BYTES))
+            .collect()
+    }
+
+    /// Particle rows of all batches.
+    pub(super) fn row_count(&self) -> usize {
+        self.batches.particles.len()
+    }
+
+    /// The cluster slot in each lane of batch `b` (`None`: an empty lane).
+    #[inline(always)]
+    pub(super) fn lane_clusters(&self, b: usize) -> [Option<usize>; LANES] {
+        self.batches.lanes[b].map(|k| (k != EMPTY_LANE).then_some(k as usize))
+    }
+
     /// Which lanes of batch `b` hold a cluster.
     #[inline(always)]
     pub(super) fn lanes_in_use(&self, b: usize) -> [bool; LANES] {
@@ -604,7 +630,6 @@ impl SolverLayout {
         let template = &self.batches.template;
         let mut size = [0u32; LANES];
         let mut warm = [Quat::IDENTITY; LANES];
-        let mut stiffness = [0.0f32; LANES];
         let lanes = &self.batches.lanes[b];
         for (l, &k) in lanes.iter().enumerate() {
             if k == EMPTY_LANE {
@@ -614,7 +639,6 @@ impl SolverLayout {
             size[l] = self.cluster_size(k) as u32;
             // SAFETY: rotation `k` belongs to the calling task (the caller's contract).
             warm[l] = unsafe { rotations.read(k) };
-            stiffness[l] = self.stiffness[k];
         }
         // (a templated batch broadcasts the template's: no per-lane reads, no transpose)
         let (bias, inv_weight_sum) = if templated {
@@ -663,13 +687,12 @@ impl SolverLayout {
         let r = Mat3x8::from_quat(q);
         // Σ w (R q + c − d) = R·bias + c·W − Σ w d = 0 exactly when c = (Σ w d − R·bias)/W.
         let centroid = (sum - r.mul_vec(bias)).scale(inv_weight_sum) + origin;
-        let s = f32x8::new(stiffness);
         for (j, ((at, row), position)) in rows.zip(fit_rows.iter()).enumerate() {
-            // members have a positive weight, padding rows weight 0: their stiffness is
-            // masked to 0, so their pull is exactly zero
-            let member_stiffness = row.weight.simd_gt(f32x8::ZERO) & s;
+            // members have a positive weight, padding rows weight 0: their pull is
+            // masked to exactly zero
+            let member = row.weight.simd_gt(f32x8::ZERO) & f32x8::ONE;
             let goal = r.mul_vec_add(row.offset, centroid);
-            let pull = (goal - *position).scale(member_stiffness);
+            let pull = (goal - *position).scale(member);
             apply(RowPulls {
                 at,
                 position,
@@ -684,6 +707,7 @@ impl SolverLayout {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::SolverMode;
     use crate::solver::ConstraintKinds;
     use crate::solver::unit_specs as specs;
     use glam::Vec3;
@@ -726,9 +750,10 @@ mod tests {
                         .filter(|k| **k != EMPTY_LANE)
                     {
                         lanes[k as usize] += 1;
-                        let unit = match l.mode {
-                            SolverMode::Jacobi => g,
-                            SolverMode::GaussSeidel => k as usize,
+                        let unit = if super::super::weighted_by_count(l.mode) {
+                            g
+                        } else {
+                            k as usize
                         };
                         for &m in l.cluster_members(k as usize) {
                             let o = std::mem::replace(&mut owner[m as usize], unit);
@@ -803,7 +828,7 @@ mod tests {
             for (i, p) in l.positions.iter_mut().enumerate() {
                 p.y += 0.02 * (i % 7) as f32 - 0.05 * (i % 3) as f32;
             }
-            l.solve(20, &mut ConstraintKinds::default());
+            l.solve(20, crate::solver::TEST_DT, &mut ConstraintKinds::default());
         }
         let [with, without] = &layouts;
         let moved: f32 = with.corrections.iter().map(|c| c.length()).sum();

@@ -1,35 +1,64 @@
 //! The coloured Gauss–Seidel scheme: colour after colour, every cluster of the colour is
-//! fitted to the current positions and moves its members by `sₖ (gᵢ − pᵢ)` at once.
+//! fitted to the current positions and moves its members toward their goals at once.
 //! Clusters of one colour share no particle (see [`super::colour_clusters`]), so they
 //! run in parallel and the result does not depend on their order or the thread count.
+//!
+//! A member's step is XPBD's (Macklin et al. 2016) for the constraint `pᵢ − gᵢ = 0`
+//! with compliance `α`: `Δdᵢ = ((gᵢ − pᵢ) − β dᵢ)/(1 + β)`, `β = α mᵢ/dt²`, where `dᵢ`
+//! is the correction this membership has made in the substep (`λ` over the particle's
+//! inverse mass). Iterated, it solves the same implicit step as Jacobi. Every member of
+//! a cluster has weight 1 and the same `β` (the cluster's compliance is scaled by its
+//! members' mean Jacobi weight, so that the energies agree), which keeps each cluster's
+//! step free of momentum.
 
 use super::SolverLayout;
 use super::batch::PARTICLE_BYTES;
 use super::sweep::Disjoint;
 use crate::lanes::LANES;
+use glam::Vec3A;
 
 impl SolverLayout {
     /// One sweep over all colours: every cluster (eight at a time) is fitted to the
-    /// current positions and moves its unpinned members by `s (g − p)`.
-    pub(super) fn sweep_colours(&mut self) {
+    /// current positions and moves its unpinned members by their XPBD step.
+    pub(super) fn sweep_colours(&mut self, dt: f32) {
+        // one accumulated correction per membership row and lane, zero after a change
+        // of clusters or time step
+        let rows = self.row_count() * LANES;
+        if self.membership_carry.len() != rows {
+            self.membership_carry.clear();
+            self.membership_carry.resize(rows, Vec3A::ZERO);
+        }
+        let inv_dt2 = 1.0 / (dt * dt);
         let positions = Disjoint::new(&mut self.positions);
-        let corrections = Disjoint::new(&mut self.corrections);
+        let carry = Disjoint::new(&mut self.carry);
+        let membership_carry = Disjoint::new(&mut self.membership_carry);
         let rotations = Disjoint::new(&mut self.rotations);
         let this = &*self;
-        // `self`'s other arrays are only read; positions, corrections and rotations go
+        // `self`'s other arrays are only read; positions, carries and rotations go
         // through the `Disjoint` pointers (no reference to them is alive in a colour).
         this.for_each_batch_by_colour(|b, fit_rows| {
-            // SAFETY (both blocks): this task owns the batch's clusters, their rotations
-            // and their members' positions and corrections for the colour (see
-            // `Disjoint`); member indices were bounds-checked when the layout was built.
+            // β per unit mass of each lane's cluster
+            let compliance = this
+                .lane_clusters(b)
+                .map(|k| k.map_or(0.0, |k| this.uniform_compliance[k] * inv_dt2));
+            let first_row = this.first_row(b);
+            // SAFETY (both blocks): this task owns the batch's clusters, their rotations,
+            // their membership rows and their members' positions and carries for the
+            // colour (see `Disjoint`); member indices were bounds-checked when the
+            // layout was built.
             unsafe {
                 this.fit_batch(b, fit_rows, positions.as_ptr(), rotations, |row| {
-                    for l in 0..LANES {
+                    for (l, &compliance) in compliance.iter().enumerate() {
                         let m = (row.at[l] / PARTICLE_BYTES) as usize;
-                        if row.row < row.size[l] as usize && this.inv_mass[m] != 0.0 {
-                            let step = row.pull[l];
+                        let inv_mass = this.inv_mass[m];
+                        if row.row < row.size[l] as usize && inv_mass != 0.0 {
+                            let at = (first_row + row.row) * LANES + l;
+                            let beta = compliance / inv_mass;
+                            let done = membership_carry.read(at);
+                            let step = (row.pull[l] - done * beta) / (1.0 + beta);
+                            membership_carry.write(at, done + step);
                             positions.write(m, row.position.lane(l) + step);
-                            corrections.write(m, corrections.read(m) + step);
+                            carry.write(m, carry.read(m) + step);
                         }
                     }
                 })

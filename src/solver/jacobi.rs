@@ -1,8 +1,8 @@
 //! The Jacobi scheme: every cluster is fitted to the same positions and adds its pull
-//! `sₖ (gᵢ − pᵢ)` to each member's accumulator (spatial groups of clusters, the groups
+//! `gᵢ − pᵢ` to each member's accumulator (spatial groups of clusters, the groups
 //! of one colour in parallel, so no two tasks write the same accumulator and each
 //! particle sums its pulls in a fixed order for any thread count); then every particle
-//! moves by the average pull.
+//! moves by its step (see [`step_coefficients`]).
 
 use super::sweep::Disjoint;
 use super::{PARTICLES_PER_TASK, SolverLayout};
@@ -53,68 +53,110 @@ impl SolverLayout {
         });
     }
 
-    /// Particle pass: `pᵢ += (1/nᵢ) Σₖ sₖ (gᵢₖ − pᵢ)` (pinned particles stay); clears
-    /// the accumulators.
+    /// Particle pass: `pᵢ += σᵢ Σₖ (gᵢₖ − pᵢ) + aᵢ (sᵢ − pᵢ)` with the coefficients of
+    /// [`step_coefficients`] (pinned particles stay); clears the accumulators.
     pub(super) fn move_particles_jacobi(&mut self) {
-        let (inv_count, inv_mass) = (&self.inv_count, &self.inv_mass);
+        let (scale, anchor, predicted) = (&self.step_scale, &self.anchor, &self.predicted);
         self.positions
             .par_chunks_mut(PARTICLES_PER_TASK)
-            .zip(self.corrections.par_chunks_mut(PARTICLES_PER_TASK))
+            .zip(self.carry.par_chunks_mut(PARTICLES_PER_TASK))
             .zip(self.pulls.par_chunks_mut(PARTICLES_PER_TASK))
             .enumerate()
-            .for_each(|(task, ((positions, corrections), pulls))| {
+            .for_each(|(task, ((positions, carry), pulls))| {
                 let range = task * PARTICLES_PER_TASK..task * PARTICLES_PER_TASK + positions.len();
                 move_block(
-                    positions,
-                    corrections,
-                    pulls,
-                    &inv_count[range.clone()],
-                    &inv_mass[range],
+                    Moving {
+                        positions,
+                        carry,
+                        pulls,
+                    },
+                    Coefficients {
+                        predicted: &predicted[range.clone()],
+                        scale: &scale[range.clone()],
+                        anchor: &anchor[range],
+                    },
                 );
             });
     }
 }
 
-/// The particle pass over one block: `p += step`, `correction += step` with
-/// `step = pull / n` (zero for a pinned particle), pulls cleared. With AVX, two
-/// particles at a time: a pair of `Vec3A`s fills one eight-lane vector (their fourth
-/// lanes ride along and are never read), so each operation moves two particles. Every
-/// lane computes exactly what the one-particle loop does.
-fn move_block(
-    positions: &mut [Vec3A],
-    corrections: &mut [Vec3A],
-    pulls: &mut [Vec3A],
-    inv_count: &[f32],
-    inv_mass: &[f32],
-) {
+/// A particle's step coefficients `(σ, a)`: its step is `σ Σₖ (gₖ − p) + a (s − p)`.
+///
+/// Setting the gradient of the substep's objective to zero for particle `i` alone,
+/// with its clusters' goals held, gives `(mᵢ/dt²)(pᵢ − sᵢ) + Σₖ κ wᵢ (pᵢ − gᵢₖ) = 0`
+/// (wᵢ = 1/nᵢ); with `γ = mᵢ/(dt² κ wᵢ)` = `nᵢ · compliance · mᵢ / dt²` (the argument
+/// `inertia_per_cluster` is `compliance · mᵢ / dt²`) the step is
+/// `σ = 1/(nᵢ + γ)`, `a = γ σ`. A rigid cluster (compliance 0) gives `σ = 1/nᵢ`,
+/// `a = 0`: the average of the goals. A pinned particle, or one in no cluster, does not
+/// move.
+#[inline]
+pub(super) fn step_coefficients(
+    inv_count: f32,
+    inertia_per_cluster: f32,
+    inv_mass: f32,
+) -> (f32, f32) {
+    if inv_mass == 0.0 || inv_count == 0.0 {
+        return (0.0, 0.0);
+    }
+    let count = 1.0 / inv_count;
+    let inertia = count * inertia_per_cluster;
+    if inertia == 0.0 {
+        (inv_count, 0.0)
+    } else {
+        let scale = 1.0 / (count + inertia);
+        (scale, inertia * scale)
+    }
+}
+
+/// The arrays a particle pass writes: positions, the clusters' share of the
+/// corrections, and the pull accumulators (cleared).
+struct Moving<'a> {
+    positions: &'a mut [Vec3A],
+    carry: &'a mut [Vec3A],
+    pulls: &'a mut [Vec3A],
+}
+
+/// The arrays a particle pass reads: predictions and step coefficients.
+#[derive(Clone, Copy)]
+struct Coefficients<'a> {
+    predicted: &'a [Vec3A],
+    scale: &'a [f32],
+    anchor: &'a [f32],
+}
+
+/// The particle pass over one block: `p += step`, `carry += step` with
+/// `step = σ·pull + a·(s − p)`, pulls cleared. With AVX, two particles at a time: a
+/// pair of `Vec3A`s fills one eight-lane vector (their fourth lanes ride along and are
+/// never read), so each operation moves two particles. Every lane computes exactly
+/// what the one-particle loop does.
+fn move_block(moving: Moving, c: Coefficients) {
+    let Moving {
+        positions,
+        carry,
+        pulls,
+    } = moving;
     #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
-    let first = pairs::move_pairs(positions, corrections, pulls, inv_count, inv_mass);
+    let first = pairs::move_pairs(positions, carry, pulls, c);
     #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
     let first = 0;
     let rest = positions[first..]
         .iter_mut()
-        .zip(&mut corrections[first..])
+        .zip(&mut carry[first..])
         .zip(&mut pulls[first..])
-        .zip(inv_count[first..].iter().zip(&inv_mass[first..]));
-    for (((p, correction), pull), (&count, &mass)) in rest {
-        let step = *pull * step_scale(mass, count);
+        .zip(c.predicted[first..].iter())
+        .zip(c.scale[first..].iter().zip(&c.anchor[first..]));
+    for ((((p, carry), pull), &s), (&scale, &anchor)) in rest {
+        let step = *pull * scale + (s - *p) * anchor;
         *pull = Vec3A::ZERO;
         *p += step;
-        *correction += step;
+        *carry += step;
     }
-}
-
-/// A particle's step per unit pull: `1/n`, or zero for a pinned particle (a select, not
-/// a branch).
-#[inline(always)]
-fn step_scale(inv_mass: f32, inv_count: f32) -> f32 {
-    if inv_mass == 0.0 { 0.0 } else { inv_count }
 }
 
 /// The particle pass two particles at a time (see [`move_block`]).
 #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
 mod pairs {
-    use super::step_scale;
+    use super::Coefficients;
     use glam::Vec3A;
     use std::arch::x86_64::*;
     use wide::f32x8;
@@ -124,31 +166,37 @@ mod pairs {
     #[inline(always)]
     pub(super) fn move_pairs(
         positions: &mut [Vec3A],
-        corrections: &mut [Vec3A],
+        carry: &mut [Vec3A],
         pulls: &mut [Vec3A],
-        inv_count: &[f32],
-        inv_mass: &[f32],
+        c: Coefficients,
     ) -> usize {
         let (position_pairs, _) = positions.as_chunks_mut::<2>();
-        let (correction_pairs, _) = corrections.as_chunks_mut::<2>();
+        let (carry_pairs, _) = carry.as_chunks_mut::<2>();
         let (pull_pairs, _) = pulls.as_chunks_mut::<2>();
-        let (count_pairs, _) = inv_count.as_chunks::<2>();
-        let (mass_pairs, _) = inv_mass.as_chunks::<2>();
+        let (predicted_pairs, _) = c.predicted.as_chunks::<2>();
+        let (scale_pairs, _) = c.scale.as_chunks::<2>();
+        let (anchor_pairs, _) = c.anchor.as_chunks::<2>();
         let done = 2 * position_pairs.len();
         let pairs = position_pairs
             .iter_mut()
-            .zip(correction_pairs.iter_mut())
+            .zip(carry_pairs.iter_mut())
             .zip(pull_pairs.iter_mut())
-            .zip(count_pairs.iter().zip(mass_pairs));
-        for (((p, correction), pull), (count, mass)) in pairs {
-            let (s0, s1) = (step_scale(mass[0], count[0]), step_scale(mass[1], count[1]));
-            let step = load(pull) * f32x8::new([s0, s0, s0, s0, s1, s1, s1, s1]);
+            .zip(predicted_pairs)
+            .zip(scale_pairs.iter().zip(anchor_pairs));
+        for ((((p, carry), pull), s), (scale, anchor)) in pairs {
+            let position = load(p);
+            let step = load(pull) * widen(scale) + (load(s) - position) * widen(anchor);
             *pull = [Vec3A::ZERO; 2];
-            let moved = load(p) + step;
-            store(p, moved);
-            store(correction, load(correction) + step);
+            store(p, position + step);
+            store(carry, load(carry) + step);
         }
         done
+    }
+
+    /// Two particles' scalars, each over its particle's four lanes.
+    #[inline(always)]
+    fn widen(x: &[f32; 2]) -> f32x8 {
+        f32x8::new([x[0], x[0], x[0], x[0], x[1], x[1], x[1], x[1]])
     }
 
     /// Two `Vec3A`s as one eight-lane vector.
@@ -177,23 +225,13 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     /// The one-particle rule the pass applies to every particle.
-    fn moved_one_by_one(
-        positions: &mut [Vec3A],
-        corrections: &mut [Vec3A],
-        pulls: &mut [Vec3A],
-        inv_count: &[f32],
-        inv_mass: &[f32],
-    ) {
-        for i in 0..positions.len() {
-            let scale = if inv_mass[i] == 0.0 {
-                0.0
-            } else {
-                inv_count[i]
-            };
-            let step = pulls[i] * scale;
-            pulls[i] = Vec3A::ZERO;
-            positions[i] += step;
-            corrections[i] += step;
+    fn moved_one_by_one(moving: Moving, c: Coefficients) {
+        for i in 0..moving.positions.len() {
+            let p = moving.positions[i];
+            let step = moving.pulls[i] * c.scale[i] + (c.predicted[i] - p) * c.anchor[i];
+            moving.pulls[i] = Vec3A::ZERO;
+            moving.positions[i] = p + step;
+            moving.carry[i] += step;
         }
     }
 
@@ -203,29 +241,57 @@ mod tests {
         let mut v = || Vec3A::new(rng.random_range(-50.0..50.0), rng.random(), rng.random());
         for n in [0usize, 1, 2, 7, 64] {
             let positions: Vec<Vec3A> = (0..n).map(|_| v()).collect();
-            let corrections: Vec<Vec3A> = (0..n).map(|_| v()).collect();
+            let carry: Vec<Vec3A> = (0..n).map(|_| v()).collect();
+            let predicted: Vec<Vec3A> = (0..n).map(|_| v()).collect();
             let mut pulls: Vec<Vec3A> = (0..n).map(|_| v()).collect();
-            let inv_count: Vec<f32> = (0..n).map(|i| 1.0 / (1 + i % 8) as f32).collect();
-            // every third particle pinned
-            let inv_mass: Vec<f32> = (0..n).map(|i| (i % 3 != 1) as u8 as f32).collect();
+            // every third particle pinned, every other one compliant
+            let (scale, anchor): (Vec<f32>, Vec<f32>) = (0..n)
+                .map(|i| {
+                    let inv_mass = (i % 3 != 1) as u8 as f32;
+                    let inertia = if i % 2 == 0 { 0.0 } else { 0.3 * i as f32 };
+                    step_coefficients(1.0 / (1 + i % 8) as f32, inertia, inv_mass)
+                })
+                .unzip();
+            let c = Coefficients {
+                predicted: &predicted,
+                scale: &scale,
+                anchor: &anchor,
+            };
             for poison in [false, true] {
                 if poison && n > 0 {
                     pulls[n - 1] = Vec3A::new(f32::NAN, 0.0, 0.0);
                     pulls[n / 2] = Vec3A::new(0.0, f32::INFINITY, 0.0);
                 }
-                let (mut p1, mut c1, mut u1) =
-                    (positions.clone(), corrections.clone(), pulls.clone());
-                let (mut p2, mut c2, mut u2) =
-                    (positions.clone(), corrections.clone(), pulls.clone());
-                move_block(&mut p1, &mut c1, &mut u1, &inv_count, &inv_mass);
-                moved_one_by_one(&mut p2, &mut c2, &mut u2, &inv_count, &inv_mass);
+                let (mut p1, mut c1, mut u1) = (positions.clone(), carry.clone(), pulls.clone());
+                let (mut p2, mut c2, mut u2) = (positions.clone(), carry.clone(), pulls.clone());
+                let moving = |positions, carry, pulls| Moving {
+                    positions,
+                    carry,
+                    pulls,
+                };
+                move_block(moving(&mut p1, &mut c1, &mut u1), c);
+                moved_one_by_one(moving(&mut p2, &mut c2, &mut u2), c);
                 let bits = |v: &[Vec3A]| -> Vec<[u32; 3]> {
                     v.iter().map(|x| x.to_array().map(f32::to_bits)).collect()
                 };
                 assert_eq!(bits(&p1), bits(&p2), "positions, n = {n}");
-                assert_eq!(bits(&c1), bits(&c2), "corrections, n = {n}");
+                assert_eq!(bits(&c1), bits(&c2), "carry, n = {n}");
                 assert_eq!(bits(&u1), bits(&u2), "pulls, n = {n}");
             }
         }
+    }
+
+    #[test]
+    fn step_coefficients_average_the_goals_when_rigid_and_weigh_inertia_when_compliant() {
+        assert_eq!(step_coefficients(0.25, 0.0, 1.0), (0.25, 0.0));
+        assert_eq!(step_coefficients(0.25, 1.0, 0.0), (0.0, 0.0), "pinned");
+        assert_eq!(
+            step_coefficients(0.0, 1.0, 1.0),
+            (0.0, 0.0),
+            "in no cluster"
+        );
+        // 4 clusters, inertia 2 per cluster: σ = 1/(4 + 8), a = 8/12
+        let (scale, anchor) = step_coefficients(0.25, 2.0, 1.0);
+        assert!((scale - 1.0 / 12.0).abs() < 1e-7 && (anchor - 8.0 / 12.0).abs() < 1e-7);
     }
 }

@@ -29,6 +29,7 @@ mod gauss_seidel;
 mod jacobi;
 mod kinds;
 mod patch;
+mod projective;
 mod repair;
 mod sweep;
 mod template;
@@ -71,13 +72,46 @@ const CLUSTERS_PER_TASK: usize = 128;
 /// Particles per parallel task.
 const PARTICLES_PER_TASK: usize = 2048;
 
+/// Whether `mode` weights a particle `1/nᵢ` in each of its `nᵢ` clusters (Jacobi and
+/// projective dynamics, whose particle steps sum over a particle's clusters) rather
+/// than 1 (Gauss–Seidel, whose cluster steps need uniform weights to keep momentum).
+fn weighted_by_count(mode: SolverMode) -> bool {
+    matches!(mode, SolverMode::Jacobi | SolverMode::Projective)
+}
+
+/// How much of the clusters' last correction a particle starts its substep with, for
+/// a particle whose step pulls it toward its prediction with share `anchor` (see
+/// `jacobi::step_coefficients`) in each of `iterations` iterations.
+///
+/// The warm start makes a static equilibrium exact, but it is also fed back: the carried
+/// correction enters the velocity too, and an iteration that removes only a fraction
+/// `1 − q` of a stale one (`q = (1 − anchor)^iterations` for the body's slow, bending
+/// modes, which the clusters themselves barely correct) turns that feedback into
+/// growth. A linear model of one mode (implicit step, iteration keeping `q` of its
+/// error, warm start weighted `ρ`) is stable exactly while `q ρ < ½`; the weight keeps
+/// [`WARM_START_LOOP_GAIN`] below that. Rigid clusters (`anchor` 0, `q` = 1) still get
+/// a little; projective dynamics' global step corrects every mode at once, so it takes
+/// the whole correction.
+fn warm_start_weight(anchor: f32, iterations: u32, global: bool) -> f32 {
+    if global {
+        return 1.0;
+    }
+    let kept = (1.0 - anchor).powi(iterations.min(i32::MAX as u32) as i32);
+    (WARM_START_LOOP_GAIN / kept).min(1.0)
+}
+
+/// Largest `q ρ` the warm start is given (see [`warm_start_weight`]): nine tenths of
+/// the stability bound ½.
+pub const WARM_START_LOOP_GAIN: f32 = 0.45;
+
 /// One cluster as given to [`SolverLayout::new`].
 #[derive(Clone, Copy, Debug)]
 pub struct ClusterSpec<'a> {
     /// Dense particle indices of the members.
     pub members: &'a [u32],
-    /// Stiffness in [0, 1].
-    pub stiffness: f32,
+    /// Compliance `1/κ` of the cluster's elastic energy in m/N; 0: rigid (see
+    /// [`crate::config::Material::compliance`]).
+    pub compliance: f32,
     /// Warm-start rotation.
     pub rotation: Quat,
 }
@@ -95,6 +129,31 @@ pub struct SolverLayout {
     pub inv_mass: Vec<f32>,
     /// Total position correction per particle during the last [`SolverLayout::solve`].
     pub corrections: Vec<Vec3A>,
+    /// The clusters' part of each particle's correction in the last solve; the next
+    /// solve starts from the prediction plus this (warm start, see [`Self::solve`]).
+    carry: Vec<Vec3A>,
+    /// The substep time step the carry was made with (a change drops it).
+    carry_dt: f32,
+    /// Gauss–Seidel: each membership's accumulated correction in this substep (XPBD's
+    /// `λ` over the particle's mass), by particle row of the batches × lane.
+    membership_carry: Vec<Vec3A>,
+    /// Per particle: the mean compliance of its clusters.
+    particle_compliance: Vec<f32>,
+    /// Per cluster slot: Gauss–Seidel's compliance `αₖ / w̄ₖ` (w̄ₖ: the mean Jacobi weight
+    /// of its members), so that its uniform-weight energy matches the weighted one.
+    uniform_compliance: Vec<f32>,
+    /// Jacobi: per particle, the scale of the summed pulls and the pull toward the
+    /// prediction in a particle's step (see `jacobi.rs`), for the current substep.
+    step_scale: Vec<f32>,
+    anchor: Vec<f32>,
+    /// Whether the clusters changed since the per-particle and per-cluster coefficients
+    /// above were computed.
+    coefficients_stale: bool,
+    /// Projective dynamics: the factored global matrix (built on first use).
+    global: Option<projective::GlobalSolve>,
+    /// Seconds spent building projective dynamics' global factor since the layout was
+    /// made (the engine reports its growth over a cut).
+    pub factor_seconds: f64,
     /// Warm-start rotation per cluster.
     pub rotations: Vec<Quat>,
     mode: SolverMode,
@@ -123,7 +182,8 @@ pub struct SolverLayout {
     rest_centroid: Vec<Vec3A>,
     offset_bias: Vec<Vec3A>,
     inv_weight_sum: Vec<f32>,
-    stiffness: Vec<f32>,
+    /// Per cluster slot: compliance (m/N).
+    compliance: Vec<f32>,
     /// The clusters in batches of eight, as the kernel reads them (see `batch.rs`).
     batches: batch::Batches,
 }
@@ -152,6 +212,8 @@ impl SolverLayout {
             positions: rest.clone(),
             previous: rest.clone(),
             corrections: vec![Vec3A::ZERO; n],
+            carry: vec![Vec3A::ZERO; n],
+            coefficients_stale: true,
             inv_mass: vec![1.0; n],
             pulls: vec![Vec3A::ZERO; n],
             member_count: vec![0; n],
@@ -167,7 +229,7 @@ impl SolverLayout {
         let count = clusters.len();
         layout.cluster_range.reserve_exact(count);
         layout.colour_of.reserve_exact(count);
-        layout.stiffness.reserve_exact(count);
+        layout.compliance.reserve_exact(count);
         layout.rotations.reserve_exact(count);
         layout.offset_bias.reserve_exact(count);
         layout.rest_centroid.reserve_exact(count);
@@ -211,21 +273,21 @@ impl SolverLayout {
             self.member_count[m as usize] += 1;
         }
         let range = [start, self.member_particle.len() as u32];
-        let stiffness = spec.stiffness;
+        let compliance = spec.compliance;
         // the batched fit expects unit warm starts
         let rotation = warm_start(spec.rotation);
         match slot {
             Some(k) => {
                 self.cluster_range[k] = range;
                 self.colour_of[k] = colour;
-                self.stiffness[k] = stiffness;
+                self.compliance[k] = compliance;
                 self.rotations[k] = rotation;
                 k
             }
             None => {
                 self.cluster_range.push(range);
                 self.colour_of.push(colour);
-                self.stiffness.push(stiffness);
+                self.compliance.push(compliance);
                 self.rotations.push(rotation);
                 self.offset_bias.push(Vec3A::ZERO);
                 self.rest_centroid.push(Vec3A::ZERO);
@@ -235,13 +297,14 @@ impl SolverLayout {
         }
     }
 
-    /// The matching weight of particle `m` in every cluster: `1/nᵢ` for Jacobi (with
-    /// the current membership counts), 1 for Gauss–Seidel.
+    /// The matching weight of particle `m` in every cluster: `1/nᵢ` for Jacobi and
+    /// projective dynamics (with the current membership counts), 1 for Gauss–Seidel.
     #[inline]
     fn weight(&self, m: u32) -> f32 {
-        match self.mode {
-            SolverMode::Jacobi => self.inv_count[m as usize],
-            SolverMode::GaussSeidel => 1.0,
+        if weighted_by_count(self.mode) {
+            self.inv_count[m as usize]
+        } else {
+            1.0
         }
     }
 
@@ -320,13 +383,21 @@ impl SolverLayout {
             + self.inv_weight_sum.capacity() * 4 * 2
     }
 
-    /// Runs `iterations` iterations: each runs the layout's cluster scheme, then every
-    /// other constraint kind in `kinds` in their registered order
+    /// One substep's solve: `iterations` iterations, each running the layout's cluster
+    /// scheme, then every other constraint kind in `kinds` in their registered order
     /// ([`ConstraintKinds::in_order`]); records the total correction per particle in
-    /// [`SolverLayout::corrections`].
-    pub fn solve(&mut self, iterations: u32, kinds: &mut ConstraintKinds) {
-        self.corrections.iter_mut().for_each(|c| *c = Vec3A::ZERO);
+    /// [`SolverLayout::corrections`]. `dt` is the substep's time step.
+    ///
+    /// The positions on entry are the inertial predictions `s`. The clusters solve one
+    /// implicit Euler step of their elastic energy, `min ½|x − s|²_M/dt² + E(x)`; a
+    /// compliance of 0 makes a cluster a hard constraint. The iteration starts from
+    /// `s` plus the clusters' correction of the previous substep (warm start): at a
+    /// static equilibrium that is already the solution, so a body at rest holds its
+    /// shape whatever the iteration count, instead of sagging until an unconverged
+    /// iteration happens to balance gravity.
+    pub fn solve(&mut self, iterations: u32, dt: f32, kinds: &mut ConstraintKinds) {
         self.predicted.clone_from(&self.positions);
+        self.begin_substep(dt, iterations);
         let (mut kinds, seconds) = kinds.in_order();
         // every kind that has something to do, timed into its entry of `seconds`
         let mut each_kind = |f: &mut dyn FnMut(&mut dyn ConstraintKind)| {
@@ -346,12 +417,117 @@ impl SolverLayout {
                     self.accumulate_pulls();
                     self.move_particles_jacobi();
                 }
-                SolverMode::GaussSeidel => self.sweep_colours(),
+                SolverMode::GaussSeidel => self.sweep_colours(dt),
+                SolverMode::Projective => {
+                    self.accumulate_pulls();
+                    self.global_step(dt);
+                }
             }
             let mut state = self.particle_state();
             each_kind(&mut |kind| kind.project(&mut state));
         }
+        for (c, carry) in self.corrections.iter_mut().zip(&self.carry) {
+            *c += *carry;
+        }
         self.drop_rounding_noise();
+    }
+
+    /// Brings the coefficients up to date after a change of clusters or time step and
+    /// applies the warm start: `p = s + carry` and the corrections cleared.
+    fn begin_substep(&mut self, dt: f32, iterations: u32) {
+        if self.coefficients_stale {
+            self.refresh_coefficients();
+        }
+        if self.carry_dt != dt {
+            self.carry_dt = dt;
+            self.forget_carry();
+        }
+        let inv_dt2 = 1.0 / (dt * dt);
+        let n = self.positions.len();
+        self.step_scale.resize(n, 0.0);
+        self.anchor.resize(n, 0.0);
+        let coefficients = self
+            .inv_count
+            .par_iter()
+            .zip(&self.particle_compliance)
+            .zip(&self.inv_mass)
+            .zip(self.step_scale.par_iter_mut().zip(&mut self.anchor))
+            .with_min_len(PARTICLES_PER_TASK);
+        coefficients.for_each(
+            |(((&inv_count, &compliance), &inv_mass), (scale, anchor))| {
+                (*scale, *anchor) = jacobi::step_coefficients(
+                    inv_count,
+                    compliance * inv_dt2 / inv_mass.max(f32::MIN_POSITIVE),
+                    inv_mass,
+                );
+            },
+        );
+        let global = self.mode == SolverMode::Projective;
+        let weight = |i: usize| {
+            let (inv_mass, carry) = (self.inv_mass[i], self.carry[i]);
+            // (a pinned particle, or a carry a repaired particle left, starts afresh)
+            if inv_mass == 0.0 || !carry.is_finite() {
+                0.0
+            } else {
+                warm_start_weight(self.anchor[i], iterations, global)
+            }
+        };
+        let weights: Vec<f32> = (0..n).into_par_iter().map(weight).collect();
+        // Gauss–Seidel's memberships hold the parts of the carry: scaled alike
+        if !self.membership_carry.is_empty() {
+            let particles = self.membership_particles();
+            for (carry, &m) in self.membership_carry.iter_mut().zip(&particles) {
+                *carry *= weights[m as usize];
+            }
+        }
+        self.positions
+            .par_iter_mut()
+            .zip(self.carry.par_iter_mut())
+            .zip(self.corrections.par_iter_mut())
+            .zip(weights.par_iter())
+            .with_min_len(PARTICLES_PER_TASK)
+            .for_each(|(((p, carry), correction), &weight)| {
+                *carry *= weight;
+                *p += *carry;
+                *correction = Vec3A::ZERO;
+            });
+    }
+
+    /// Recomputes each particle's mean cluster compliance and each cluster's uniform
+    /// compliance from the current clusters; drops the warm start, which belonged to
+    /// other clusters.
+    fn refresh_coefficients(&mut self) {
+        let n = self.positions.len();
+        let mut sum = vec![0.0f32; n];
+        self.uniform_compliance
+            .resize(self.cluster_range.len(), 0.0);
+        for (k, range) in self.cluster_range.iter().enumerate() {
+            let members = &self.member_particle[range[0] as usize..range[1] as usize];
+            let mut weights = 0.0f32;
+            for &m in members {
+                sum[m as usize] += self.compliance[k];
+                weights += self.inv_count[m as usize];
+            }
+            self.uniform_compliance[k] = if members.is_empty() {
+                0.0
+            } else {
+                self.compliance[k] * members.len() as f32 / weights
+            };
+        }
+        for (s, &inv_count) in sum.iter_mut().zip(&self.inv_count) {
+            *s *= inv_count;
+        }
+        self.particle_compliance = sum;
+        self.global = None;
+        self.coefficients_stale = false;
+        self.forget_carry();
+    }
+
+    /// Drops the warm start (after the clusters or the time step changed).
+    fn forget_carry(&mut self) {
+        self.carry.clear();
+        self.carry.resize(self.positions.len(), Vec3A::ZERO);
+        self.membership_carry.clear();
     }
 
     /// The particle arrays as the constraint kinds see them.
@@ -370,14 +546,19 @@ impl SolverLayout {
         let (predicted, rest) = (&self.predicted, &self.rest);
         self.positions
             .par_iter_mut()
-            .zip(self.corrections.par_iter_mut())
+            .zip(
+                self.corrections
+                    .par_iter_mut()
+                    .zip(self.carry.par_iter_mut()),
+            )
             .zip(predicted.par_iter().zip(rest))
             .with_min_len(PARTICLES_PER_TASK)
-            .for_each(|((p, correction), (start, rest))| {
+            .for_each(|((p, (correction, carry)), (start, rest))| {
                 let floor = ROUNDING_FLOOR * (start.abs().max_element() + rest.abs().max_element());
                 if correction.abs().max_element() <= floor {
                     *p = *start;
                     *correction = Vec3A::ZERO;
+                    *carry = Vec3A::ZERO;
                 }
             });
     }
@@ -398,14 +579,18 @@ impl SolverLayout {
     }
 }
 
-/// Test helper: specs of unit stiffness and no rotation for the given member lists.
+/// Test helper: a substep time step (120 Hz).
+#[cfg(test)]
+pub(crate) const TEST_DT: f32 = 1.0 / 120.0;
+
+/// Test helper: specs of rigid clusters without rotation for the given member lists.
 #[cfg(test)]
 fn unit_specs(clusters: &[Vec<u32>]) -> Vec<ClusterSpec<'_>> {
     clusters
         .iter()
         .map(|m| ClusterSpec {
             members: m,
-            stiffness: 1.0,
+            compliance: 0.0,
             rotation: Quat::IDENTITY,
         })
         .collect()
@@ -451,7 +636,7 @@ mod tests {
                 ),
                 ..Default::default()
             };
-            l.solve(5, &mut kinds);
+            l.solve(5, crate::solver::TEST_DT, &mut kinds);
             assert_eq!(l.positions[2], pinned, "{mode:?}");
             assert!(
                 l.positions[7].y > -0.5,
@@ -466,7 +651,7 @@ mod tests {
             let mut l = perturbed_bar(mode);
             let momentum = |l: &SolverLayout| l.positions.iter().copied().sum::<Vec3A>();
             let before = momentum(&l);
-            l.solve(200, &mut ConstraintKinds::default());
+            l.solve(200, crate::solver::TEST_DT, &mut ConstraintKinds::default());
             assert!((momentum(&l) - before).length() < 1e-4, "{mode:?}");
             // straight again (up to a rigid motion): the ends are 7 apart
             let d = (l.positions[7] - l.positions[0]).length();
@@ -512,7 +697,11 @@ mod tests {
     fn gauss_seidel_converges_faster_than_jacobi_on_a_twisted_block() {
         let error = |mode, iterations| {
             let (rest, mut l) = twisted_block(mode);
-            l.solve(iterations, &mut ConstraintKinds::default());
+            l.solve(
+                iterations,
+                crate::solver::TEST_DT,
+                &mut ConstraintKinds::default(),
+            );
             let current: Vec<Vec3> = l.positions.iter().map(|p| Vec3::from(*p)).collect();
             crate::stats::rigid_fit_error(&rest, &current)
         };

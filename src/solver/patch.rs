@@ -7,7 +7,6 @@
 //! finds them.
 
 use super::{ClusterSpec, FREE_SLOT, SolverLayout};
-use crate::config::SolverMode;
 use rayon::prelude::*;
 
 impl SolverLayout {
@@ -74,6 +73,7 @@ impl SolverLayout {
         if !self.can_patch() {
             return None;
         }
+        self.coefficients_stale = true;
         // Every particle of a removed or added cluster, once, with its cluster count
         // before the patch: only those whose count ends different get new weights.
         let mut changed = vec![false; self.rest.len()];
@@ -135,12 +135,12 @@ impl SolverLayout {
                 recounted.push(p);
             }
         }
-        // Jacobi weights are 1/nᵢ: every cluster holding a particle whose count changed
+        // Jacobi (and projective) weights are 1/nᵢ: every cluster holding a particle whose count changed
         // needs a new rest centroid; Gauss–Seidel weights are 1, so only the new clusters.
-        let refresh: Vec<usize> = match self.mode {
+        let refresh: Vec<usize> = if super::weighted_by_count(self.mode) {
             // the new clusters (their constants were computed before the last counts
             // were) and the kept clusters holding a recounted particle, in slot order
-            SolverMode::Jacobi => {
+            {
                 let holding = match neighbours {
                     Some(neighbours) => neighbours(&recounted),
                     None => self.slots_holding(&changed),
@@ -156,11 +156,12 @@ impl SolverLayout {
                 refresh.dedup();
                 refresh
             }
-            SolverMode::GaussSeidel => slots
+        } else {
+            slots
                 .iter()
                 .filter(|k| **k != u32::MAX)
                 .map(|k| *k as usize)
-                .collect(),
+                .collect()
         };
         for k in refresh {
             self.fill_constants(k);
@@ -212,6 +213,7 @@ impl SolverLayout {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::SolverMode;
     use crate::lanes::LANES;
     use crate::solver::colouring::order_by_colour;
     use crate::solver::{ConstraintKinds, unit_specs as specs};
@@ -329,7 +331,7 @@ mod tests {
                     for (i, p) in l.positions.iter_mut().enumerate() {
                         p.y -= 0.01 * i as f32;
                     }
-                    l.solve(20, &mut ConstraintKinds::default());
+                    l.solve(20, crate::solver::TEST_DT, &mut ConstraintKinds::default());
                 }
                 for (p, q) in patched.positions.iter().zip(&rebuilt.positions) {
                     assert!((*p - *q).length() < 1e-5, "{p} vs {q}");

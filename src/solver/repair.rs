@@ -78,7 +78,7 @@ mod tests {
         assert_eq!(repaired, vec![3, 7]);
         assert_eq!(l.positions[3], Vec3A::new(3.0, 0.0, 0.0));
         assert_eq!(l.positions[7], Vec3A::new(7.0, 0.0, 0.0));
-        l.solve(10, &mut ConstraintKinds::default());
+        l.solve(10, crate::solver::TEST_DT, &mut ConstraintKinds::default());
         assert!(l.positions.iter().all(|p| p.is_finite()));
         // a dead particle's slot is left alone
         l.positions[5] = Vec3A::NAN;

@@ -72,6 +72,15 @@ enum Command {
         /// No progress bar and no report table.
         #[arg(long)]
         quiet: bool,
+        /// Solver scheme, overriding the scene's: jacobi, gauss-seidel or projective.
+        #[arg(long)]
+        solver: Option<SolverMode>,
+        /// Substeps per frame, overriding the scene's (1–1000).
+        #[arg(long)]
+        substeps: Option<u32>,
+        /// Solver iterations per substep, overriding the scene's (1–10000).
+        #[arg(long)]
+        iterations: Option<u32>,
     },
     /// List the built-in scenes, or print one as a scene file.
     Scenes {
@@ -92,9 +101,9 @@ enum Command {
         /// Timed steps per size (median reported).
         #[arg(long, default_value_t = 30)]
         steps: usize,
-        /// Solver scheme.
-        #[arg(long, value_enum, default_value = "jacobi")]
-        solver: SolverArg,
+        /// Solver scheme: jacobi, gauss-seidel or projective.
+        #[arg(long, default_value = "jacobi")]
+        solver: SolverMode,
         /// Skip the convergence table.
         #[arg(long)]
         no_convergence: bool,
@@ -137,22 +146,6 @@ enum ColorArg {
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum ExportArg {
     Ply,
-}
-
-/// Solver scheme on the command line.
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum SolverArg {
-    Jacobi,
-    GaussSeidel,
-}
-
-impl From<SolverArg> for SolverMode {
-    fn from(s: SolverArg) -> Self {
-        match s {
-            SolverArg::Jacobi => SolverMode::Jacobi,
-            SolverArg::GaussSeidel => SolverMode::GaussSeidel,
-        }
-    }
 }
 
 /// Most worker threads `--threads` accepts: far more than any machine's cores, far
@@ -214,9 +207,17 @@ fn main() -> ExitCode {
             ply_every,
             profile,
             quiet,
+            solver,
+            substeps,
+            iterations,
         } => {
             let args = run::RunArgs {
                 scene,
+                overrides: run::SolverOverrides {
+                    solver,
+                    substeps,
+                    iterations,
+                },
                 frames,
                 out,
                 seed,
@@ -256,7 +257,7 @@ fn main() -> ExitCode {
             no_pile,
         } => with_threads(threads, |_| {
             let config = SimConfig {
-                solver: solver.into(),
+                solver,
                 substeps,
                 iterations,
                 ..SimConfig::default()

@@ -5,6 +5,7 @@ use crate::pictures::{PictureOptions, Pictures};
 use bevy_ecs::prelude::*;
 use cleave::bench::median;
 use cleave::components::{BodyLattice, InvMass, Position};
+use cleave::config::{SimConfig, SolverMode};
 use cleave::dump::dump_world;
 use cleave::profile::StageProfile;
 use cleave::resources::{CutTimings, ParticlesCut};
@@ -252,11 +253,54 @@ fn load_scene(name: &str, seed: Option<u64>) -> Result<Scene, String> {
     Ok(scene)
 }
 
+/// Solver settings given on the command line, overriding the scene's.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SolverOverrides {
+    /// Solver scheme.
+    pub solver: Option<SolverMode>,
+    /// Substeps per frame.
+    pub substeps: Option<u32>,
+    /// Iterations per substep.
+    pub iterations: Option<u32>,
+}
+
+impl SolverOverrides {
+    /// `config` with the overrides applied; an out-of-range value is an error naming
+    /// its flag.
+    fn apply(&self, config: &mut SimConfig) -> Result<(), String> {
+        if let Some(solver) = self.solver {
+            config.solver = solver;
+        }
+        for (flag, value, slot, max) in [
+            ("--substeps", self.substeps, &mut config.substeps, 1000),
+            (
+                "--iterations",
+                self.iterations,
+                &mut config.iterations,
+                10_000,
+            ),
+        ] {
+            if let Some(v) = value {
+                if !(1..=max).contains(&v) {
+                    return Err(format!(
+                        "{flag}: {v} is out of range (allowed 1 ≤ {} ≤ {max})",
+                        &flag[2..]
+                    ));
+                }
+                *slot = v;
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Arguments of `cleave run`.
 #[derive(Clone, Debug)]
 pub struct RunArgs {
     /// Built-in scene name.
     pub scene: String,
+    /// Solver settings overriding the scene's.
+    pub overrides: SolverOverrides,
     /// Frames (default: the scene's).
     pub frames: Option<u32>,
     /// Output directory.
@@ -285,7 +329,8 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     // The systems' spans are made when the schedule is built: profile from the start.
     let profile = StageProfile::default();
     let _profiling = args.profile.then(|| profile.install());
-    let scene = load_scene(scene_name, seed)?;
+    let mut scene = load_scene(scene_name, seed)?;
+    args.overrides.apply(&mut scene.config)?;
     let seed = scene.config.seed;
     let frames = frames.unwrap_or(scene.frames);
     let mut sim = Simulation::new(scene.config.clone()).map_err(|e| e.to_string())?;

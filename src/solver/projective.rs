@@ -1,0 +1,211 @@
+//! Projective dynamics' global step (Bouaziz et al. 2014, SPEC §6.5).
+//!
+//! The clusters' rotation fits are the local step (the Jacobi cluster pass, which adds
+//! each cluster's pull `gᵢₖ − pᵢ` to its members). The global step then solves the
+//! substep's objective `½|x − s|²_M/dt² + Σₖ (κₖ/2) Σᵢ wᵢ |xᵢ − cₖ(x) − Rₖ oᵢₖ|²` for
+//! all positions at once with the rotations held: its Hessian
+//! `A = M/dt² + Σₖ κₖ (Wₖ − wₖ wₖᵀ / Σwₖ)` (each cluster adds a weighted
+//! complete-graph Laplacian on its members) is constant while the clusters, masses and
+//! time step are, so it is factored once (sparse Cholesky, faer, with its fill-reducing
+//! ordering) and x, y and z share the factor. Written for the increment `Δ = x − p`,
+//! the right-hand side is the Jacobi particle step's numerator,
+//! `rᵢ = Σₖ κₖ wᵢ (gᵢₖ − pᵢ) + (mᵢ/dt²)(sᵢ − pᵢ)` — Jacobi is this solve with `A`
+//! replaced by a diagonal. Pinned particles are not unknowns (their increment is 0).
+//!
+//! Colliders and contacts, which are not in the constant matrix, are projected after
+//! each global step, like every other constraint kind (see [`super::ConstraintKinds`]).
+//!
+//! A rigid cluster (compliance 0) has no finite stiffness: the matrix takes it as
+//! [`RIGID_STIFFNESS`] times its members' mean `m/dt²`, rigid to a part in 10⁶ per
+//! substep. The factor is sequential (faer without threads), so the result is the same
+//! for any thread count.
+
+use super::{PARTICLES_PER_TASK, SolverLayout};
+use faer::linalg::solvers::SolveCore;
+use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Conj, Mat, Side};
+use glam::Vec3A;
+use rayon::prelude::*;
+
+/// Stiffness given to a rigid cluster (and the largest any cluster gets), relative to
+/// its members' mean `m/dt²`.
+pub const RIGID_STIFFNESS: f64 = 1e6;
+
+/// Marker: a particle that is not an unknown (pinned).
+const NOT_UNKNOWN: u32 = u32::MAX;
+
+/// The factored global matrix and what it was built for.
+#[derive(Clone, Debug)]
+pub(super) struct GlobalSolve {
+    /// Per particle: its row in the system, or [`NOT_UNKNOWN`].
+    row_of: Vec<u32>,
+    /// Per row: its particle.
+    particle_of: Vec<u32>,
+    /// Per row: `κᵢ wᵢ`, the weight of the particle's summed pulls in the right-hand
+    /// side (its clusters' mean stiffness times its Jacobi weight).
+    pull_weight: Vec<f64>,
+    /// Per row: `mᵢ/dt²`.
+    inertia: Vec<f64>,
+    /// The factor; `None` when it could not be computed (the step then falls back to
+    /// Jacobi's).
+    factor: Option<Llt<usize, f64>>,
+    /// The substep time step and the inverse masses the matrix was built with.
+    dt: f32,
+    inv_mass: Vec<f32>,
+    /// Right-hand sides (rows × 3), reused.
+    rhs: Mat<f64>,
+}
+
+impl SolverLayout {
+    /// The projective global step after a cluster pass: solves for every particle's
+    /// increment and moves it (pinned particles stay); clears the pull accumulators.
+    /// Builds or rebuilds the factor when the clusters, masses or time step changed.
+    pub(super) fn global_step(&mut self, dt: f32) {
+        let current = self
+            .global
+            .as_ref()
+            .is_some_and(|g| g.dt == dt && g.inv_mass == self.inv_mass);
+        if !current {
+            let start = std::time::Instant::now();
+            self.global = Some(self.build_global(dt));
+            self.factor_seconds += start.elapsed().as_secs_f64();
+        }
+        let Some(global) = self.global.as_mut() else {
+            return;
+        };
+        let Some(factor) = &global.factor else {
+            // no factor (see `GlobalSolve::factor`): Jacobi's particle step instead
+            self.move_particles_jacobi();
+            return;
+        };
+        for (row, &i) in global.particle_of.iter().enumerate() {
+            let i = i as usize;
+            let r = self.pulls[i].as_dvec3() * global.pull_weight[row]
+                + (self.predicted[i] - self.positions[i]).as_dvec3() * global.inertia[row];
+            for axis in 0..3 {
+                global.rhs[(row, axis)] = r[axis];
+            }
+        }
+        factor.solve_in_place_with_conj(Conj::No, global.rhs.as_mut());
+        let (rhs, row_of) = (&global.rhs, &global.row_of);
+        self.positions
+            .par_iter_mut()
+            .zip(self.carry.par_iter_mut())
+            .zip(self.pulls.par_iter_mut())
+            .zip(row_of.par_iter())
+            .with_min_len(PARTICLES_PER_TASK)
+            .for_each(|(((p, carry), pull), &row)| {
+                *pull = Vec3A::ZERO;
+                if row != NOT_UNKNOWN {
+                    let row = row as usize;
+                    let step = Vec3A::new(
+                        rhs[(row, 0)] as f32,
+                        rhs[(row, 1)] as f32,
+                        rhs[(row, 2)] as f32,
+                    );
+                    *p += step;
+                    *carry += step;
+                }
+            });
+    }
+
+    /// Assembles and factors the global matrix for the current clusters, masses and
+    /// time step.
+    fn build_global(&self, dt: f32) -> GlobalSolve {
+        let n = self.positions.len();
+        let inv_dt2 = 1.0 / (dt as f64 * dt as f64);
+        let mass = |i: usize| 1.0 / self.inv_mass[i] as f64;
+        let mut row_of = vec![NOT_UNKNOWN; n];
+        let mut particle_of = Vec::new();
+        for (i, &inv_mass) in self.inv_mass.iter().enumerate() {
+            if inv_mass > 0.0 {
+                row_of[i] = particle_of.len() as u32;
+                particle_of.push(i as u32);
+            }
+        }
+        let rows = particle_of.len();
+        let mut entries: Vec<Triplet<usize, usize, f64>> = particle_of
+            .iter()
+            .enumerate()
+            .map(|(row, &i)| Triplet::new(row, row, mass(i as usize) * inv_dt2))
+            .collect();
+        let mut stiffness_sum = vec![0.0f64; n];
+        for (k, range) in self.cluster_range.iter().enumerate() {
+            let members = &self.member_particle[range[0] as usize..range[1] as usize];
+            let free: Vec<u32> = members
+                .iter()
+                .copied()
+                .filter(|&m| row_of[m as usize] != NOT_UNKNOWN)
+                .collect();
+            if free.is_empty() {
+                continue;
+            }
+            let mean_mass = free.iter().map(|&m| mass(m as usize)).sum::<f64>() / free.len() as f64;
+            let rigid = RIGID_STIFFNESS * mean_mass * inv_dt2;
+            let compliance = self.compliance[k] as f64;
+            let kappa = if compliance > 0.0 {
+                (1.0 / compliance).min(rigid)
+            } else {
+                rigid
+            };
+            let total: f64 = members.iter().map(|&m| self.weight(m) as f64).sum();
+            for &m in members {
+                stiffness_sum[m as usize] += kappa;
+            }
+            // κ (W − w wᵀ/Σw) on the free members, lower triangle
+            for &a in &free {
+                let (wa, ra) = (self.weight(a) as f64, row_of[a as usize] as usize);
+                for &b in &free {
+                    let (wb, rb) = (self.weight(b) as f64, row_of[b as usize] as usize);
+                    if rb > ra {
+                        continue;
+                    }
+                    let diagonal = if a == b { wa } else { 0.0 };
+                    entries.push(Triplet::new(ra, rb, kappa * (diagonal - wa * wb / total)));
+                }
+            }
+        }
+        let pull_weight = particle_of
+            .iter()
+            .map(|&i| {
+                let w = self.inv_count[i as usize] as f64;
+                // mean stiffness over its clusters (n = 1/w of them), times w
+                stiffness_sum[i as usize] * w * w
+            })
+            .collect();
+        let inertia = particle_of
+            .iter()
+            .map(|&i| mass(i as usize) * inv_dt2)
+            .collect();
+        let factor = factor_lower(rows, &entries);
+        if factor.is_none() && rows > 0 {
+            tracing::warn!(
+                rows,
+                "projective dynamics: the global matrix could not be factored; \
+                 using Jacobi steps"
+            );
+        }
+        GlobalSolve {
+            row_of,
+            particle_of,
+            pull_weight,
+            inertia,
+            factor,
+            dt,
+            inv_mass: self.inv_mass.clone(),
+            rhs: Mat::zeros(rows, 3),
+        }
+    }
+}
+
+/// The Cholesky factor of the symmetric matrix whose lower triangle `entries` gives
+/// (duplicates summed); `None` for an empty matrix or one that is not positive definite.
+fn factor_lower(rows: usize, entries: &[Triplet<usize, usize, f64>]) -> Option<Llt<usize, f64>> {
+    if rows == 0 {
+        return None;
+    }
+    let matrix = SparseColMat::<usize, f64>::try_new_from_triplets(rows, rows, entries).ok()?;
+    let symbolic = SymbolicLlt::try_new(matrix.symbolic(), Side::Lower).ok()?;
+    Llt::try_new_with_symbolic(symbolic, matrix.as_ref(), Side::Lower).ok()
+}
