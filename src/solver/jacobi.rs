@@ -53,10 +53,14 @@ impl SolverLayout {
         });
     }
 
-    /// Particle pass: `pᵢ += σᵢ Σₖ (gᵢₖ − pᵢ) + aᵢ (sᵢ − pᵢ)` with the coefficients of
-    /// [`step_coefficients`] (pinned particles stay); clears the accumulators.
+    /// Particle pass: `pᵢ += σᵢ Σₖ (gᵢₖ − pᵢ) + aᵢ (sᵢ + kᵢ − pᵢ)` with the coefficients
+    /// of [`step_coefficients`] (pinned particles stay), where `kᵢ` is what the other
+    /// constraint kinds (contacts, colliders) have moved the particle so far this
+    /// substep: their pushes count as impulses that move the particle's inertial
+    /// target, so that the pull toward it does not undo them. Clears the accumulators.
     pub(super) fn move_particles_jacobi(&mut self) {
-        let (scale, anchor, predicted) = (&self.step_scale, &self.anchor, &self.predicted);
+        let (scale, anchor) = (&self.step_scale, &self.anchor);
+        let (predicted, corrections) = (&self.predicted, &self.corrections);
         self.positions
             .par_chunks_mut(PARTICLES_PER_TASK)
             .zip(self.carry.par_chunks_mut(PARTICLES_PER_TASK))
@@ -72,6 +76,7 @@ impl SolverLayout {
                     },
                     Coefficients {
                         predicted: &predicted[range.clone()],
+                        pushed: &corrections[range.clone()],
                         scale: &scale[range.clone()],
                         anchor: &anchor[range],
                     },
@@ -80,7 +85,8 @@ impl SolverLayout {
     }
 }
 
-/// A particle's step coefficients `(σ, a)`: its step is `σ Σₖ (gₖ − p) + a (s − p)`.
+/// A particle's step coefficients `(σ, a)`: its step is `σ Σₖ (gₖ − p) + a (s + k − p)`
+/// (see [`SolverLayout::move_particles_jacobi`]).
 ///
 /// Setting the gradient of the substep's objective to zero for particle `i` alone,
 /// with its clusters' goals held, gives `(mᵢ/dt²)(pᵢ − sᵢ) + Σₖ κ wᵢ (pᵢ − gᵢₖ) = 0`
@@ -116,16 +122,18 @@ struct Moving<'a> {
     pulls: &'a mut [Vec3A],
 }
 
-/// The arrays a particle pass reads: predictions and step coefficients.
+/// The arrays a particle pass reads: predictions, the other constraint kinds'
+/// corrections so far and step coefficients.
 #[derive(Clone, Copy)]
 struct Coefficients<'a> {
     predicted: &'a [Vec3A],
+    pushed: &'a [Vec3A],
     scale: &'a [f32],
     anchor: &'a [f32],
 }
 
 /// The particle pass over one block: `p += step`, `carry += step` with
-/// `step = σ·pull + a·(s − p)`, pulls cleared. With AVX, two particles at a time: a
+/// `step = σ·pull + a·(s + k − p)`, pulls cleared. With AVX, two particles at a time: a
 /// pair of `Vec3A`s fills one eight-lane vector (their fourth lanes ride along and are
 /// never read), so each operation moves two particles. Every lane computes exactly
 /// what the one-particle loop does.
@@ -143,10 +151,10 @@ fn move_block(moving: Moving, c: Coefficients) {
         .iter_mut()
         .zip(&mut carry[first..])
         .zip(&mut pulls[first..])
-        .zip(c.predicted[first..].iter())
+        .zip(c.predicted[first..].iter().zip(&c.pushed[first..]))
         .zip(c.scale[first..].iter().zip(&c.anchor[first..]));
-    for ((((p, carry), pull), &s), (&scale, &anchor)) in rest {
-        let step = *pull * scale + (s - *p) * anchor;
+    for ((((p, carry), pull), (&s, &pushed)), (&scale, &anchor)) in rest {
+        let step = *pull * scale + (s + pushed - *p) * anchor;
         *pull = Vec3A::ZERO;
         *p += step;
         *carry += step;
@@ -174,6 +182,7 @@ mod pairs {
         let (carry_pairs, _) = carry.as_chunks_mut::<2>();
         let (pull_pairs, _) = pulls.as_chunks_mut::<2>();
         let (predicted_pairs, _) = c.predicted.as_chunks::<2>();
+        let (pushed_pairs, _) = c.pushed.as_chunks::<2>();
         let (scale_pairs, _) = c.scale.as_chunks::<2>();
         let (anchor_pairs, _) = c.anchor.as_chunks::<2>();
         let done = 2 * position_pairs.len();
@@ -181,11 +190,12 @@ mod pairs {
             .iter_mut()
             .zip(carry_pairs.iter_mut())
             .zip(pull_pairs.iter_mut())
-            .zip(predicted_pairs)
+            .zip(predicted_pairs.iter().zip(pushed_pairs))
             .zip(scale_pairs.iter().zip(anchor_pairs));
-        for ((((p, carry), pull), s), (scale, anchor)) in pairs {
+        for ((((p, carry), pull), (s, pushed)), (scale, anchor)) in pairs {
             let position = load(p);
-            let step = load(pull) * widen(scale) + (load(s) - position) * widen(anchor);
+            let target = load(s) + load(pushed);
+            let step = load(pull) * widen(scale) + (target - position) * widen(anchor);
             *pull = [Vec3A::ZERO; 2];
             store(p, position + step);
             store(carry, load(carry) + step);
@@ -228,7 +238,8 @@ mod tests {
     fn moved_one_by_one(moving: Moving, c: Coefficients) {
         for i in 0..moving.positions.len() {
             let p = moving.positions[i];
-            let step = moving.pulls[i] * c.scale[i] + (c.predicted[i] - p) * c.anchor[i];
+            let target = c.predicted[i] + c.pushed[i];
+            let step = moving.pulls[i] * c.scale[i] + (target - p) * c.anchor[i];
             moving.pulls[i] = Vec3A::ZERO;
             moving.positions[i] = p + step;
             moving.carry[i] += step;
@@ -243,6 +254,7 @@ mod tests {
             let positions: Vec<Vec3A> = (0..n).map(|_| v()).collect();
             let carry: Vec<Vec3A> = (0..n).map(|_| v()).collect();
             let predicted: Vec<Vec3A> = (0..n).map(|_| v()).collect();
+            let pushed: Vec<Vec3A> = (0..n).map(|_| v()).collect();
             let mut pulls: Vec<Vec3A> = (0..n).map(|_| v()).collect();
             // every third particle pinned, every other one compliant
             let (scale, anchor): (Vec<f32>, Vec<f32>) = (0..n)
@@ -254,6 +266,7 @@ mod tests {
                 .unzip();
             let c = Coefficients {
                 predicted: &predicted,
+                pushed: &pushed,
                 scale: &scale,
                 anchor: &anchor,
             };

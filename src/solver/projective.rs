@@ -9,16 +9,21 @@
 //! time step are, so it is factored once (sparse Cholesky, faer, with its fill-reducing
 //! ordering) and x, y and z share the factor. Written for the increment `Δ = x − p`,
 //! the right-hand side is the Jacobi particle step's numerator,
-//! `rᵢ = Σₖ κₖ wᵢ (gᵢₖ − pᵢ) + (mᵢ/dt²)(sᵢ − pᵢ)` — Jacobi is this solve with `A`
+//! `rᵢ = Σₖ κₖ wᵢ (gᵢₖ − pᵢ) + (mᵢ/dt²)(sᵢ + kᵢ − pᵢ)` — Jacobi is this solve with `A`
 //! replaced by a diagonal. Pinned particles are not unknowns (their increment is 0).
 //!
 //! Colliders and contacts, which are not in the constant matrix, are projected after
 //! each global step, like every other constraint kind (see [`super::ConstraintKinds`]).
 //!
-//! A rigid cluster (compliance 0) has no finite stiffness: the matrix takes it as
-//! [`RIGID_STIFFNESS`] times its members' mean `m/dt²`, rigid to a part in 10⁶ per
-//! substep. The factor is sequential (faer without threads), so the result is the same
-//! for any thread count.
+//! A rigid cluster (compliance 0) has no finite stiffness: the matrix takes it, and
+//! any cluster stiffer than that, as [`STIFFEST`] times its members' mean `m/dt²` — so
+//! under this solver a rigid material is about as stiff as a rubber of ~10 MPa at the
+//! built-in scenes' spacing and time step. The factor is sequential (faer without
+//! threads), so the result is the same for any thread count.
+//!
+//! The other constraint kinds' corrections in this substep (`kᵢ`) move each particle's
+//! inertial target, `(mᵢ/dt²)(sᵢ + kᵢ − pᵢ)`: a contact's push is an impulse the
+//! elastic solve distributes, not a displacement it undoes.
 
 use super::{PARTICLES_PER_TASK, SolverLayout};
 use faer::linalg::solvers::SolveCore;
@@ -28,9 +33,14 @@ use faer::{Conj, Mat, Side};
 use glam::Vec3A;
 use rayon::prelude::*;
 
-/// Stiffness given to a rigid cluster (and the largest any cluster gets), relative to
-/// its members' mean `m/dt²`.
-pub const RIGID_STIFFNESS: f64 = 1e6;
+/// Stiffness given to a rigid cluster, and the largest any cluster gets, relative to
+/// its members' mean `m/dt²`. The global solve multiplies whatever net force and torque
+/// the fitted pulls carry (rounding, and a rotation fit one warm-started iteration from
+/// optimal) by about this ratio in the body's rigid motions, which the matrix holds
+/// only by inertia: at 10⁶ the `slice` halves flew off at kilometres per second, at
+/// 10³ pieces still jittered at metres per second; at 100 every built-in scene keeps
+/// Jacobi's outcome.
+pub const STIFFEST: f64 = 100.0;
 
 /// Marker: a particle that is not an unknown (pinned).
 const NOT_UNKNOWN: u32 = u32::MAX;
@@ -82,7 +92,8 @@ impl SolverLayout {
         for (row, &i) in global.particle_of.iter().enumerate() {
             let i = i as usize;
             let r = self.pulls[i].as_dvec3() * global.pull_weight[row]
-                + (self.predicted[i] - self.positions[i]).as_dvec3() * global.inertia[row];
+                + (self.predicted[i] + self.corrections[i] - self.positions[i]).as_dvec3()
+                    * global.inertia[row];
             for axis in 0..3 {
                 global.rhs[(row, axis)] = r[axis];
             }
@@ -142,7 +153,7 @@ impl SolverLayout {
                 continue;
             }
             let mean_mass = free.iter().map(|&m| mass(m as usize)).sum::<f64>() / free.len() as f64;
-            let rigid = RIGID_STIFFNESS * mean_mass * inv_dt2;
+            let rigid = STIFFEST * mean_mass * inv_dt2;
             let compliance = self.compliance[k] as f64;
             let kappa = if compliance > 0.0 {
                 (1.0 / compliance).min(rigid)
