@@ -10,7 +10,7 @@ use crate::error::Result;
 use crate::lattice::Shape;
 use crate::resources::{CutTimings, SimSettings, SolverCache};
 use crate::sim::{BodyDesc, Simulation, ToolDesc};
-use crate::solver::{ClusterSpec, Colliders, ConstraintKinds, SolverLayout};
+use crate::solver::{Colliders, ConstraintKinds, SolverLayout};
 use crate::stats::rigid_fit_error;
 use crate::systems::layout_sync::rebuild_cache;
 use crate::tool::{Path, Pose, ToolShape};
@@ -359,55 +359,246 @@ fn slice_event(sim: &mut Simulation, n: u32) -> Result<(f64, f64, f64)> {
     Ok((cut_event_ms, cut_frame_ms, recluster_ms))
 }
 
-/// Shape error (RMS distance to the best rigid fit, in h) of a twisted n³ box after each
-/// of `iteration_counts` solver iterations, for Jacobi and coloured Gauss–Seidel.
-/// Returns `(iterations, jacobi error, gauss–seidel error)` rows.
-pub fn convergence_table(n: u32, iteration_counts: &[u32]) -> Result<Vec<(u32, f64, f64)>> {
-    let lattice = Shape::cuboid(UVec3::splat(n), H).voxelise(H)?;
-    let table = initial_clusters(
-        &lattice,
-        &Material::default(),
-        &mut ChaCha8Rng::seed_from_u64(1),
-    );
-    let live: Vec<u32> = lattice.live_particles().collect();
-    let rest: Vec<Vec3> = live.iter().map(|i| lattice.rest_position(*i)).collect();
-    let centre = rest.iter().sum::<Vec3>() / rest.len() as f32;
-    // a quarter turn about Y from one end to the other
-    let twisted: Vec<Vec3A> = rest
+/// One solver's row of `cleave bench --convergence`.
+#[derive(Clone, Debug, Serialize)]
+pub struct ConvergenceRow {
+    /// `"jacobi"`, `"gauss-seidel"` or `"projective"`.
+    pub solver: String,
+    /// Milliseconds of iterations until the twisted box's shape error is below 0.1 h
+    /// (`None`: not within the budget).
+    pub twisted_box_ms: Option<f64>,
+    /// Iterations that took.
+    pub twisted_box_iterations: Option<u32>,
+    /// The twisted box's shape error (h) when the run stopped.
+    pub twisted_box_final_error_h: f64,
+    /// Milliseconds of iterations until the cantilever's tip sag is within 1 % of the
+    /// converged static sag (`None`: not within the budget).
+    pub cantilever_ms: Option<f64>,
+    /// Iterations that took.
+    pub cantilever_iterations: Option<u32>,
+    /// The tip sag (h) when the run stopped.
+    pub cantilever_final_sag_h: f64,
+    /// The converged static tip sag (h) every solver is measured against.
+    pub cantilever_static_sag_h: f64,
+}
+
+/// Settings of `cleave bench --convergence`.
+#[derive(Clone, Copy, Debug)]
+pub struct ConvergenceOptions {
+    /// Edge of the twisted box, in particles.
+    pub box_size: u32,
+    /// Wall-clock budget of each run, in seconds.
+    pub budget_seconds: f64,
+}
+
+/// A time step long enough that inertia weighs less than a part in 10⁶ against the
+/// `cantilever` material's clusters: one solve with it is a static solve.
+const STATIC_DT: f32 = 10.0;
+
+/// Iterations between two measurements of a static solve.
+const BLOCK: u32 = 5;
+
+/// How fast each solver converges on two static problems, with the `cantilever`
+/// material (compliant; projective dynamics cannot hold a rigid cluster): (a) an n³
+/// box twisted a quarter turn end to end, gravity off and nothing pinned, until its
+/// shape error is below 0.1 h; (b) the built-in `cantilever` (its pins and gravity),
+/// from straight to within 1 % of its static tip sag. Each is one solve with a time
+/// step of [`STATIC_DT`], iterated in blocks of [`BLOCK`] iterations; the times are of
+/// the iterations alone (factorization included) and stop after `budget_seconds`. The
+/// static sag is projective dynamics' converged one (checked against Jacobi's and
+/// Gauss–Seidel's where they converge).
+pub fn convergence(options: ConvergenceOptions) -> Result<Vec<ConvergenceRow>> {
+    let scene = crate::scene::builtin("cantilever", 0)
+        .ok_or_else(|| crate::error::CleaveError::InvalidEntity("no cantilever scene".into()))?;
+    let beam = &scene.bodies[0];
+    let material = beam.material.clone();
+    let n = options.box_size;
+    let cube = BodyDesc {
+        material: material.clone(),
+        ..BodyDesc::new(Shape::cuboid(UVec3::splat(n), H), H)
+    };
+    // the static sag: projective dynamics until the sag moves less than 1e-6 h a block
+    let reference = {
+        let mut problem =
+            StaticProblem::cantilever(beam, scene.config.gravity, SolverMode::Projective)?;
+        let mut sag = problem.sag();
+        for _ in 0..2000 {
+            problem.iterate();
+            let last = std::mem::replace(&mut sag, problem.sag());
+            if (sag - last).abs() < 1e-6 {
+                break;
+            }
+        }
+        sag
+    };
+    SolverMode::ALL
         .iter()
-        .map(|r| {
-            let t = (r.y - centre.y) / (n as f32 * H);
-            Vec3A::from(Quat::from_rotation_y(t * std::f32::consts::FRAC_PI_2) * (*r - centre))
+        .map(|&solver| {
+            let mut twisted = StaticProblem::twisted(&cube, n as f32 * H, solver)?;
+            let (twisted_ms, twisted_iterations, twisted_error) =
+                twisted.run(options.budget_seconds, |p| p.shape_error(), |e| e < 0.1);
+            let mut beam = StaticProblem::cantilever(beam, scene.config.gravity, solver)?;
+            let (ms, iterations, sag) = beam.run(
+                options.budget_seconds,
+                |p| p.sag(),
+                |sag| (sag - reference).abs() <= 0.01 * reference.abs(),
+            );
+            Ok(ConvergenceRow {
+                solver: solver.name().to_string(),
+                twisted_box_ms: twisted_ms,
+                twisted_box_iterations: twisted_iterations,
+                twisted_box_final_error_h: twisted_error,
+                cantilever_ms: ms,
+                cantilever_iterations: iterations,
+                cantilever_final_sag_h: sag,
+                cantilever_static_sag_h: reference,
+            })
         })
-        .collect();
-    let mut dense = vec![u32::MAX; lattice.len()];
-    for (d, i) in live.iter().enumerate() {
-        dense[*i as usize] = d as u32;
-    }
-    let members: Vec<Vec<u32>> = table
-        .iter()
-        .map(|(_, m)| m.iter().map(|i| dense[*i as usize]).collect())
-        .collect();
-    let error_after = |mode: SolverMode, iterations: u32| {
-        let specs = members.iter().map(|m| ClusterSpec {
+        .collect()
+}
+
+/// A static solve on a bare solver layout (see [`convergence`]).
+struct StaticProblem {
+    layout: SolverLayout,
+    rest: Vec<Vec3>,
+    /// Particles whose mean height is the tip's.
+    tip: Vec<usize>,
+    spacing: f32,
+}
+
+impl StaticProblem {
+    /// A body's layout with its clusters and material, particles at `start` (world
+    /// positions, by live particle), pins where `pinned`, and gravity `gravity`.
+    fn new(
+        desc: &BodyDesc,
+        solver: SolverMode,
+        gravity: Vec3,
+        start: impl Fn(Vec3) -> Vec3,
+    ) -> Result<(Self, crate::lattice::Lattice, Vec<u32>)> {
+        let lattice = desc.shape.voxelise(desc.spacing)?;
+        let table = initial_clusters(&lattice, &desc.material, &mut ChaCha8Rng::seed_from_u64(1));
+        let live: Vec<u32> = lattice.live_particles().collect();
+        let mut dense = vec![u32::MAX; lattice.len()];
+        for (d, i) in live.iter().enumerate() {
+            dense[*i as usize] = d as u32;
+        }
+        let members: Vec<Vec<u32>> = table
+            .iter()
+            .map(|(_, m)| m.iter().map(|i| dense[*i as usize]).collect())
+            .collect();
+        let rest: Vec<Vec3> = live
+            .iter()
+            .map(|&i| desc.position + lattice.rest_position(i))
+            .collect();
+        let compliance = desc.material.cluster_compliance(desc.spacing);
+        let specs = members.iter().map(|m| crate::solver::ClusterSpec {
             members: m,
-            compliance: 0.0,
+            compliance,
             rotation: Quat::IDENTITY,
         });
-        let mut layout = SolverLayout::new(&rest, specs, mode);
-        layout.positions.clone_from(&twisted);
-        layout.solve(iterations, 1.0 / 120.0, &mut ConstraintKinds::default());
-        let current: Vec<Vec3> = layout.positions.iter().map(|p| Vec3::from(*p)).collect();
-        (rigid_fit_error(&rest, &current) / H) as f64
-    };
-    Ok(iteration_counts
-        .iter()
-        .map(|&k| {
-            (
-                k,
-                error_after(SolverMode::Jacobi, k),
-                error_after(SolverMode::GaussSeidel, k),
-            )
-        })
-        .collect())
+        let mut layout = SolverLayout::new(&rest, specs, solver);
+        let inv_mass = 1.0 / desc.material.mass_at_spacing(desc.spacing);
+        for (w, x) in layout.inv_mass.iter_mut().zip(&rest) {
+            let pinned = desc
+                .pins
+                .iter()
+                .any(|r| x.cmpge(r.min).all() && x.cmple(r.max).all());
+            *w = if pinned { 0.0 } else { inv_mass };
+        }
+        // the predictions: where gravity would take each free particle in one step
+        let dt2 = STATIC_DT * STATIC_DT;
+        let start: Vec<Vec3A> = rest.iter().map(|r| Vec3A::from(start(*r))).collect();
+        for ((p, s), w) in layout
+            .positions
+            .iter_mut()
+            .zip(&start)
+            .zip(&layout.inv_mass)
+        {
+            *p = if *w == 0.0 {
+                *s
+            } else {
+                *s + Vec3A::from(gravity * dt2)
+            };
+        }
+        layout.solve(0, STATIC_DT, &mut ConstraintKinds::default());
+        layout.restart_from(&start);
+        let problem = StaticProblem {
+            layout,
+            rest,
+            tip: Vec::new(),
+            spacing: desc.spacing,
+        };
+        Ok((problem, lattice, live))
+    }
+
+    /// The cantilever beam `desc`, straight, under `gravity`.
+    fn cantilever(desc: &BodyDesc, gravity: Vec3, solver: SolverMode) -> Result<Self> {
+        let (mut problem, lattice, live) = Self::new(desc, solver, gravity, |r| r)?;
+        let end = live.iter().map(|&i| lattice.coord(i).x).max().unwrap_or(0);
+        problem.tip = (0..live.len())
+            .filter(|&d| lattice.coord(live[d]).x == end)
+            .collect();
+        Ok(problem)
+    }
+
+    /// The body `desc`, `length` tall, twisted a quarter turn about Y from its bottom to
+    /// its top.
+    fn twisted(desc: &BodyDesc, length: f32, solver: SolverMode) -> Result<Self> {
+        let centre = desc.position;
+        let twist = move |r: Vec3| {
+            let t = (r.y - centre.y) / length;
+            Quat::from_rotation_y(t * std::f32::consts::FRAC_PI_2) * (r - centre) + centre
+        };
+        Ok(Self::new(desc, solver, Vec3::ZERO, twist)?.0)
+    }
+
+    /// [`BLOCK`] more iterations.
+    fn iterate(&mut self) {
+        self.layout
+            .iterate(BLOCK, STATIC_DT, &mut ConstraintKinds::default());
+    }
+
+    /// Mean drop of the tip particles below their rest height, in spacings.
+    fn sag(&self) -> f64 {
+        let drop: f64 = self
+            .tip
+            .iter()
+            .map(|&d| (self.rest[d].y - self.layout.positions[d].y) as f64)
+            .sum();
+        drop / self.tip.len().max(1) as f64 / self.spacing as f64
+    }
+
+    /// Shape error (RMS distance to the best rigid fit of the rest shape), in spacings.
+    fn shape_error(&self) -> f64 {
+        let current: Vec<Vec3> = self
+            .layout
+            .positions
+            .iter()
+            .map(|p| Vec3::from(*p))
+            .collect();
+        (rigid_fit_error(&self.rest, &current) / self.spacing) as f64
+    }
+
+    /// Iterates block by block until `done(measure)` or the budget is spent; returns the
+    /// milliseconds and iterations it took (if done) and the last measure.
+    fn run(
+        &mut self,
+        budget_seconds: f64,
+        measure: impl Fn(&Self) -> f64,
+        done: impl Fn(f64) -> bool,
+    ) -> (Option<f64>, Option<u32>, f64) {
+        let (mut ms, mut iterations) = (0.0, 0);
+        let mut last = measure(self);
+        while !done(last) {
+            if ms > budget_seconds * 1e3 || !last.is_finite() {
+                return (None, None, last);
+            }
+            let start = Instant::now();
+            self.iterate();
+            ms += start.elapsed().as_secs_f64() * 1e3;
+            iterations += BLOCK;
+            last = measure(self);
+        }
+        (Some(ms), Some(iterations), last)
+    }
 }

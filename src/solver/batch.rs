@@ -25,7 +25,7 @@
 use super::colouring::order_by_colour;
 use super::sweep::Disjoint;
 use super::template::Template;
-use super::{CLUSTERS_PER_TASK, FREE_SLOT, PATCH_HEADROOM, ROTATION_ITERATIONS, SolverLayout};
+use super::{CLUSTERS_PER_TASK, FREE_SLOT, PATCH_HEADROOM, SolverLayout};
 use crate::lanes::{LANES, Mat3x8, Quatx8, Vec3x8};
 use crate::rotation::extract_rotation_x8;
 use glam::{Quat, Vec3A};
@@ -677,7 +677,7 @@ impl SolverLayout {
             a.y_axis = d.mul_add(row.offset.y, a.y_axis);
             a.z_axis = d.mul_add(row.offset.z, a.z_axis);
         }
-        let q = extract_rotation_x8(&a, Quatx8::from_lanes(warm), ROTATION_ITERATIONS);
+        let q = extract_rotation_x8(&a, Quatx8::from_lanes(warm), self.rotation_iterations());
         for (l, &k) in lanes.iter().enumerate() {
             if k != EMPTY_LANE {
                 // SAFETY: as above.

@@ -1,10 +1,7 @@
 //! `cleave bench`: the report of [`cleave::bench`] as a table or as JSON lines.
 
-use cleave::bench::{bench_pile, bench_size, convergence_table};
+use cleave::bench::{ConvergenceOptions, bench_pile, bench_size, convergence};
 use cleave::config::SimConfig;
-
-/// Iteration counts of the convergence table.
-const CONVERGENCE_ITERATIONS: [u32; 6] = [1, 2, 5, 10, 20, 50];
 
 /// The contact row: the `pile` scene at this spacing (or none).
 #[derive(Clone, Copy, Debug)]
@@ -22,7 +19,6 @@ pub fn bench(
     steps: usize,
     config: SimConfig,
     json: bool,
-    convergence: bool,
     pile: PileOptions,
 ) -> Result<(), String> {
     if let Some(h) = pile.spacing
@@ -45,7 +41,7 @@ pub fn bench(
     sizes.dedup();
     if !json {
         println!(
-            "cleave bench: {:?}, {} substeps × {} iterations, {} timed steps, {} thread(s)",
+            "cleave bench: {}, {} substeps × {} iterations, {} timed steps, {} thread(s)",
             config.solver,
             config.substeps,
             config.iterations,
@@ -120,26 +116,68 @@ pub fn bench(
             );
         }
     }
-    if convergence {
-        let table = convergence_table(32, &CONVERGENCE_ITERATIONS).map_err(|e| e.to_string())?;
-        let mut out = String::from(
-            "convergence on a twisted 32³ box (shape error in h after k iterations)\n",
-        );
-        out += &format!("{:>6} {:>12} {:>14}\n", "k", "jacobi", "gauss-seidel");
-        for (k, jacobi, gs) in table {
-            out += &format!("{k:>6} {jacobi:>12.4} {gs:>14.4}\n");
-        }
-        if json {
-            eprint!("{out}");
-        } else {
-            print!("{out}");
-        }
-    }
     Ok(())
 }
 
 /// Prints `row` as one line of JSON.
 fn print_json(row: &impl serde::Serialize) -> Result<(), String> {
     println!("{}", serde_json::to_string(row).map_err(|e| e.to_string())?);
+    Ok(())
+}
+
+/// `cleave bench --convergence`: one row per solver (see [`convergence`]).
+pub fn bench_convergence(options: ConvergenceOptions, json: bool) -> Result<(), String> {
+    if !(2..=64).contains(&options.box_size) {
+        return Err(format!(
+            "--convergence-size: {} is out of range (allowed 2 ≤ size ≤ 64)",
+            options.box_size
+        ));
+    }
+    if !(options.budget_seconds.is_finite() && (0.1..=3600.0).contains(&options.budget_seconds)) {
+        return Err(format!(
+            "--budget: {} is out of range (allowed 0.1 ≤ seconds ≤ 3600)",
+            options.budget_seconds
+        ));
+    }
+    let rows = convergence(options).map_err(|e| e.to_string())?;
+    if !json {
+        println!(
+            "convergence of static solves, material `cantilever`, {} thread(s): (a) twisted \
+             {n}³ box to below 0.1 h shape error; (b) `cantilever` to within 1 % of its static \
+             tip sag",
+            rayon::current_num_threads(),
+            n = options.box_size,
+        );
+        println!(
+            "{:>13} {:>10} {:>11} {:>10} {:>10} {:>11} {:>9} {:>9}",
+            "solver",
+            "(a) ms",
+            "iterations",
+            "error h",
+            "(b) ms",
+            "iterations",
+            "sag h",
+            "static h"
+        );
+    }
+    let cell = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.1}"));
+    let count = |v: Option<u32>| v.map_or("—".to_string(), |v| v.to_string());
+    for row in rows {
+        if json {
+            print_json(&row)?;
+        } else {
+            println!(
+                "{:>13} {:>10} {:>11} {:>10.4} {:>10} {:>11} {:>9.3} {:>9.3}",
+                row.solver,
+                cell(row.twisted_box_ms),
+                count(row.twisted_box_iterations),
+                row.twisted_box_final_error_h,
+                cell(row.cantilever_ms),
+                count(row.cantilever_iterations),
+                row.cantilever_final_sag_h,
+                row.cantilever_static_sag_h
+            );
+        }
+    }
     Ok(())
 }

@@ -89,7 +89,7 @@ enum Command {
     },
     /// Benchmark boxes of n³ particles: engine vs bare kernel, memory, cut event.
     Bench {
-        /// Print one JSON object per size (the convergence table goes to stderr).
+        /// Print one JSON object per row.
         #[arg(long)]
         json: bool,
         /// Box edge lengths in particles.
@@ -104,9 +104,16 @@ enum Command {
         /// Solver scheme: jacobi, gauss-seidel or projective.
         #[arg(long, default_value = "jacobi")]
         solver: SolverMode,
-        /// Skip the convergence table.
+        /// Instead of the sizes and the pile: how fast each solver converges on two static
+        /// solves (a twisted box, the `cantilever`), one row per solver.
         #[arg(long)]
-        no_convergence: bool,
+        convergence: bool,
+        /// With `--convergence`: edge of the twisted box in particles.
+        #[arg(long, default_value_t = 32)]
+        convergence_size: u32,
+        /// With `--convergence`: wall-clock budget of each run, in seconds.
+        #[arg(long, default_value_t = 120.0)]
+        budget: f64,
         /// Substeps per frame (step).
         #[arg(long, default_value_t = 2)]
         substeps: u32,
@@ -249,7 +256,9 @@ fn main() -> ExitCode {
             threads,
             steps,
             solver,
-            no_convergence,
+            convergence,
+            convergence_size,
+            budget,
             substeps,
             iterations,
             pile_spacing,
@@ -263,11 +272,18 @@ fn main() -> ExitCode {
                 ..SimConfig::default()
             };
             config.validate().map_err(|e| e.to_string())?;
+            if convergence {
+                let options = cleave::bench::ConvergenceOptions {
+                    box_size: convergence_size,
+                    budget_seconds: budget,
+                };
+                return bench::bench_convergence(options, json);
+            }
             let pile = bench::PileOptions {
                 spacing: (!no_pile).then_some(pile_spacing),
                 frames: pile_frames,
             };
-            bench::bench(&sizes, steps, config, json, !no_convergence, pile)
+            bench::bench(&sizes, steps, config, json, pile)
         }),
     };
     match result {

@@ -8,7 +8,7 @@ use cleave::components::{BodyLattice, InvMass, Position};
 use cleave::config::{SimConfig, SolverMode};
 use cleave::dump::dump_world;
 use cleave::profile::StageProfile;
-use cleave::resources::{CutTimings, ParticlesCut};
+use cleave::resources::{CutTimings, ParticlesCut, SolverCache};
 use cleave::scene::{BUILTIN_SCENES, Scene, builtin};
 use cleave::scene_file::load_scene_file;
 use cleave::sim::{Simulation, check_invariants};
@@ -49,6 +49,10 @@ struct Summary {
     cut_events: usize,
     cut_event_ms_median: f64,
     cut_event_ms_max: f64,
+    /// Projective dynamics: milliseconds of each factorization of the global matrix, in
+    /// order — the first for the bodies as spawned, each later one after a cut (or a
+    /// change of pins) changed it; empty under the other solvers.
+    factor_ms: Vec<f64>,
     invariant_violations: usize,
     /// Per body, in spawn order.
     bodies: Vec<BodySummary>,
@@ -374,11 +378,26 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     )?;
     pictures.frame(sim.world_mut(), 0)?;
     let progress = progress_bar(frames, args.quiet);
+    let mut factor_ms = Vec::new();
+    let mut factor_seconds = 0.0;
     for frame in 1..=frames {
         progress.inc(1);
         let t = Instant::now();
         sim.step();
         step_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        // (a layout built afresh starts its count at zero)
+        let seconds = sim.world().resource::<SolverCache>().layout.factor_seconds;
+        if seconds != factor_seconds {
+            factor_ms.push(
+                1e3 * (seconds
+                    - if seconds > factor_seconds {
+                        factor_seconds
+                    } else {
+                        0.0
+                    }),
+            );
+            factor_seconds = seconds;
+        }
         pictures.frame(sim.world_mut(), frame)?;
         cut_particles += cursor
             .read(sim.world().resource::<Messages<ParticlesCut>>())
@@ -439,6 +458,7 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         cut_events: events.len(),
         cut_event_ms_max: events.iter().copied().fold(0.0, f64::max),
         cut_event_ms_median: median(&mut events),
+        factor_ms,
         invariant_violations: violations.len(),
         bodies: per_body,
     };
