@@ -1,7 +1,7 @@
 //! Property tests: SPEC §1/§3 invariants, and the particle → cluster index, hold after
 //! every cut, for hundreds of random cuts on random shapes — through the pure
 //! reconstruction pipeline (arbitrary removed sets: single survivors, everything removed)
-//! and through the ECS with real tools.
+//! and through the ECS with real tools (under every solver).
 
 use cleave::cluster_store::{ClusterStore, ClusterTable};
 use cleave::clustering::{initial_clusters, uncovered_edges};
@@ -146,9 +146,11 @@ type ToolCase = (bool, [f32; 3], [f32; 3], f32);
 /// Whole ECS schedule with real tools (blades at random angles, spheres); the schedule's
 /// Verify stage checks the invariants every frame and panics on a violation.
 fn run_ecs_case(cells: (u32, u32, u32), tools: &[ToolCase], seed: u64) -> (usize, usize) {
+    // every solver, with rigid and compliant clusters, across the cases
     let config = SimConfig {
         seed,
         iterations: 3,
+        solver: SolverMode::ALL[(seed % 3) as usize],
         check_invariants_every_frame: true,
         ..SimConfig::default()
     };
@@ -157,6 +159,7 @@ fn run_ecs_case(cells: (u32, u32, u32), tools: &[ToolCase], seed: u64) -> (usize
     let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(cells.0, cells.1, cells.2), h), h);
     desc.position = Vec3::new(0.0, 0.5, 0.0);
     desc.material.max_cluster_size = 30;
+    desc.material.compliance = if seed & 4 == 0 { 0.0 } else { 1e-6 };
     let body = sim.spawn_body(&desc).unwrap();
     for (i, (blade, dir, offset, size)) in tools.iter().enumerate() {
         let rotation = Quat::from_rotation_arc(Vec3::Z, Vec3::from(*dir).normalize_or(Vec3::Y));

@@ -101,6 +101,11 @@ fn patched_layouts_match_full_rebuilds_jacobi() {
 }
 
 #[test]
+fn patched_layouts_match_full_rebuilds_projective() {
+    assert!(check_scene("random", SolverMode::Projective) > 0);
+}
+
+#[test]
 fn patched_layouts_match_full_rebuilds_gauss_seidel() {
     assert!(check_scene("random", SolverMode::GaussSeidel) > 0);
 }

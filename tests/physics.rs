@@ -1,6 +1,7 @@
-//! Solver behaviour: rest stays rest, rotated bodies return to a rotated rest shape,
-//! linear momentum is conserved, runs are bit-identical across thread counts, and bad
-//! input gives errors that name the field.
+//! Solver behaviour under every solver, with rigid and compliant clusters: rest stays
+//! rest, rotated bodies return to a rotated rest shape, linear momentum is conserved,
+//! runs are bit-identical across thread counts; and bad input gives errors that name
+//! the field.
 
 use bevy_ecs::prelude::*;
 use cleave::prelude::*;
@@ -29,59 +30,100 @@ fn momentum(sim: &mut Simulation) -> Vec3 {
     q.iter(sim.world()).map(|(v, m)| v.0 / m.0).sum()
 }
 
+/// Every solver, with rigid and with compliant clusters.
+fn solvers_and_materials() -> impl Iterator<Item = (SolverMode, f32)> {
+    SolverMode::ALL
+        .into_iter()
+        .flat_map(|solver| [0.0, 1e-6].map(|compliance| (solver, compliance)))
+}
+
+fn config_for(solver: SolverMode) -> SimConfig {
+    SimConfig {
+        solver,
+        ..free_config()
+    }
+}
+
 #[test]
 fn body_without_forces_stays_at_rest() {
-    let mut sim = Simulation::new(free_config()).unwrap();
-    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(8, 6, 5), 0.1), 0.1);
-    desc.position = Vec3::new(1.0, 2.0, 3.0);
-    let body = sim.spawn_body(&desc).unwrap();
-    let before = positions(&mut sim);
-    sim.run(200);
-    let after = positions(&mut sim);
-    // Exactly: the solver drops steps at the rounding level of the coordinates.
-    assert!(before == after, "a body without forces moved");
-    let shape_error = body_stats(sim.world_mut(), body).unwrap().shape_error_h;
-    assert!(shape_error < 1e-3, "shape error {shape_error} h");
+    for (solver, compliance) in solvers_and_materials() {
+        let mut sim = Simulation::new(config_for(solver)).unwrap();
+        let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(8, 6, 5), 0.1), 0.1);
+        desc.position = Vec3::new(1.0, 2.0, 3.0);
+        desc.material.compliance = compliance;
+        let body = sim.spawn_body(&desc).unwrap();
+        let before = positions(&mut sim);
+        sim.run(200);
+        let after = positions(&mut sim);
+        // Exactly: the solver drops steps at the rounding level of the coordinates.
+        assert!(
+            before == after,
+            "{solver} {compliance}: a body without forces moved"
+        );
+        let shape_error = body_stats(sim.world_mut(), body).unwrap().shape_error_h;
+        assert!(
+            shape_error < 1e-3,
+            "{solver} {compliance}: shape error {shape_error} h"
+        );
+    }
 }
 
 #[test]
 fn rotated_body_keeps_its_rotated_rest_shape() {
-    let mut sim = Simulation::new(free_config()).unwrap();
-    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(10, 4, 4), 0.1), 0.1);
-    desc.rotation = Quat::from_euler(glam::EulerRot::XYZ, 0.7, -1.1, 2.3);
-    let body = sim.spawn_body(&desc).unwrap();
-    // Perturb: squash every particle towards the centre along world Y.
-    let mut q = sim.world_mut().query::<&mut Position>();
-    for mut x in q.iter_mut(sim.world_mut()) {
-        x.0.y *= 0.6;
+    for (solver, compliance) in solvers_and_materials() {
+        let mut sim = Simulation::new(config_for(solver)).unwrap();
+        let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(10, 4, 4), 0.1), 0.1);
+        desc.rotation = Quat::from_euler(glam::EulerRot::XYZ, 0.7, -1.1, 2.3);
+        desc.material.compliance = compliance;
+        let body = sim.spawn_body(&desc).unwrap();
+        // Perturb: squash every particle towards the centre along world Y.
+        let mut q = sim.world_mut().query::<&mut Position>();
+        for mut x in q.iter_mut(sim.world_mut()) {
+            x.0.y *= 0.6;
+        }
+        let squashed = body_stats(sim.world_mut(), body).unwrap().shape_error_h;
+        sim.run(120);
+        let stats = body_stats(sim.world_mut(), body).unwrap();
+        assert!(squashed > 0.3, "perturbation too small: {squashed}");
+        assert!(
+            stats.shape_error_h < 0.05,
+            "{solver} {compliance}: shape error {}",
+            stats.shape_error_h
+        );
     }
-    let squashed = body_stats(sim.world_mut(), body).unwrap().shape_error_h;
-    sim.run(120);
-    let stats = body_stats(sim.world_mut(), body).unwrap();
-    assert!(squashed > 0.3, "perturbation too small: {squashed}");
-    assert!(
-        stats.shape_error_h < 0.05,
-        "shape error {}",
-        stats.shape_error_h
-    );
 }
 
 #[test]
 fn linear_momentum_is_conserved_without_gravity_and_ground() {
-    let mut sim = Simulation::new(free_config()).unwrap();
-    let mut desc = BodyDesc::new(Shape::Sphere { radius: 0.45 }, 0.1);
-    desc.velocity = Vec3::new(0.3, -0.2, 0.1);
-    sim.spawn_body(&desc).unwrap();
-    // Give it a spin and a dent so the constraints really work.
-    let mut q = sim.world_mut().query::<(&Position, &mut Velocity)>();
-    for (x, mut v) in q.iter_mut(sim.world_mut()) {
-        v.0 += Vec3::new(-x.0.z, 0.0, x.0.x) * 3.0 + Vec3::Y * x.0.x.signum() * 0.5;
+    for (solver, compliance) in solvers_and_materials() {
+        let mut sim = Simulation::new(config_for(solver)).unwrap();
+        let mut desc = BodyDesc::new(Shape::Sphere { radius: 0.45 }, 0.1);
+        desc.velocity = Vec3::new(0.3, -0.2, 0.1);
+        desc.material.compliance = compliance;
+        sim.spawn_body(&desc).unwrap();
+        // Give it a spin and a dent so the constraints really work.
+        let mut q = sim.world_mut().query::<(&Position, &mut Velocity)>();
+        for (x, mut v) in q.iter_mut(sim.world_mut()) {
+            v.0 += Vec3::new(-x.0.z, 0.0, x.0.x) * 3.0 + Vec3::Y * x.0.x.signum() * 0.5;
+        }
+        let p0 = momentum(&mut sim);
+        sim.run(60);
+        let p1 = momentum(&mut sim);
+        // Exact in exact arithmetic (each scheme's cluster steps carry no momentum, the
+        // global solve's matrix rows sum to the masses); f32 rounding leaves ≈ 1e-3.
+        // Gauss–Seidel drifts more, 0.5–1 % here, as it already did before compliance
+        // (same figures at 9982760), and projective dynamics with rigid clusters 0.3 %;
+        // neither is explained yet.
+        let tolerance = match solver {
+            SolverMode::GaussSeidel => 1.5e-2,
+            SolverMode::Projective => 5e-3,
+            SolverMode::Jacobi => 2e-3,
+        };
+        assert!(
+            (p1 - p0).length() < tolerance * p0.length(),
+            "{solver} {compliance}: {p0} -> {p1}"
+        );
     }
-    let p0 = momentum(&mut sim);
-    sim.run(60);
-    let p1 = momentum(&mut sim);
-    // Exact in exact arithmetic (FastLSM weights); f32 rounding leaves ≈ 1e-3 relative.
-    assert!((p1 - p0).length() < 2e-3 * p0.length(), "{p0} -> {p1}");
 }
 
 /// A component games might add to some particles: those move to another ECS table.
@@ -145,7 +187,7 @@ fn run_scene_bits_tagged(
 
 #[test]
 fn bit_identical_across_thread_counts_and_runs() {
-    for solver in [SolverMode::Jacobi, SolverMode::GaussSeidel] {
+    for solver in SolverMode::ALL {
         let one = run_scene_bits("slice", 40, 1, solver);
         let two = run_scene_bits("slice", 40, 2, solver);
         let again = run_scene_bits("slice", 40, 2, solver);

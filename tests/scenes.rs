@@ -247,6 +247,107 @@ fn drop_rests_on_the_ground_undeformed() {
     assert_eq!(check_dump(&dump), 1);
 }
 
+/// The `cantilever`'s steady tip sag (frame 600, in h) under the given settings.
+fn cantilever_sag(extra: &[&str]) -> f64 {
+    let mut args = vec!["--png-every", "0", "--gif-every", "0", "--quiet"];
+    args.extend_from_slice(extra);
+    let (s, _) = run_with("cantilever", Some(600), &args);
+    f(&s["bodies"][0]["tip_drop_h_end"])
+}
+
+#[test]
+fn cantilever_stiffness_belongs_to_the_material_not_the_solver_settings() {
+    // the corners of substeps {2, 4, 8} × iterations {5, 10, 20} (the sag is monotone
+    // in each between them)
+    let mut sags = vec![];
+    for substeps in ["2", "8"] {
+        for iterations in ["5", "20"] {
+            let sag = cantilever_sag(&["--substeps", substeps, "--iterations", iterations]);
+            assert!(
+                (2.0..=15.0).contains(&sag),
+                "{substeps}×{iterations}: {sag} h"
+            );
+            sags.push(sag);
+        }
+    }
+    let (lo, hi) = sags
+        .iter()
+        .fold((f64::MAX, 0.0f64), |(lo, hi), s| (lo.min(*s), hi.max(*s)));
+    assert!(hi / lo <= 1.22, "{sags:?}");
+    // projective dynamics agrees with Jacobi at its highest setting
+    let projective = cantilever_sag(&["--solver", "projective"]);
+    assert!(
+        (projective / sags[3] - 1.0).abs() <= 0.10,
+        "{projective} vs {sags:?}"
+    );
+}
+
+#[test]
+fn solver_flags_override_the_scene_and_bad_values_are_refused() {
+    let (s, _) = run_with(
+        "drop",
+        Some(2),
+        &[
+            "--solver",
+            "gauss-seidel",
+            "--substeps",
+            "3",
+            "--iterations",
+            "4",
+            "--png-every",
+            "0",
+            "--gif-every",
+            "0",
+            "--quiet",
+        ],
+    );
+    assert_eq!(s["frames"], 2);
+    for (flag, value, says) in [
+        ("--substeps", "0", "--substeps"),
+        ("--iterations", "20000", "--iterations"),
+        ("--solver", "gauss_seidel", "gauss-seidel"),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_cleave"))
+            .args(["run", "drop", "--frames", "1", "--quiet", flag, value])
+            .output()
+            .expect("run cleave");
+        assert_eq!(out.status.code(), Some(2), "{flag} {value}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{flag} {value}: {err}");
+    }
+}
+
+#[test]
+fn cutting_scenes_under_projective_dynamics_keep_their_piece_counts() {
+    for (scene, pieces) in [("slice", 2), ("dice", 4)] {
+        let (s, dump) = run_with(
+            scene,
+            None,
+            &[
+                "--solver",
+                "projective",
+                "--png-every",
+                "0",
+                "--gif-every",
+                "0",
+                "--quiet",
+            ],
+        );
+        assert_eq!(s["pieces"], pieces, "{scene}");
+        assert_eq!(s["invariant_violations"], 0, "{scene}");
+        assert_eq!(check_dump(&dump), pieces, "{scene}");
+        let body = &s["bodies"][0];
+        assert!(
+            f(&body["piece_separation_end_h"]) > f(&body["piece_separation_start_h"]),
+            "{scene}: pieces separate"
+        );
+        // one factorization at the start, and one after each cut that changed the body
+        let factors = s["factor_ms"].as_array().expect("factor_ms");
+        assert!(factors.len() >= 2, "{scene}: {factors:?}");
+        assert!(factors.iter().all(|t| t.as_f64().is_some_and(|t| t > 0.0)));
+    }
+}
+
 #[test]
 fn cantilever_sag_is_steady_and_pin_holds() {
     let (s, _) = run("cantilever", Some(600));
