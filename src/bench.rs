@@ -393,10 +393,10 @@ pub struct ConvergenceOptions {
 
 /// A time step long enough that inertia weighs less than a part in 10⁶ against the
 /// `cantilever` material's clusters: one solve with it is a static solve.
-const STATIC_DT: f32 = 10.0;
+pub const STATIC_DT: f32 = 10.0;
 
 /// Iterations between two measurements of a static solve.
-const BLOCK: u32 = 5;
+pub const BLOCK: u32 = 5;
 
 /// How fast each solver converges on two static problems, with the `cantilever`
 /// material (compliant; projective dynamics cannot hold a rigid cluster): (a) an n³

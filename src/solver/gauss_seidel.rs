@@ -21,9 +21,23 @@ impl SolverLayout {
     /// One sweep over all colours: every cluster (eight at a time) is fitted to the
     /// current positions and moves its unpinned members by their XPBD step.
     pub(super) fn sweep_colours(&mut self, dt: f32) {
+        if self.compliant {
+            self.sweep::<true>(dt);
+        } else {
+            self.sweep::<false>(dt);
+        }
+    }
+
+    /// [`Self::sweep_colours`]; `COMPLIANT`: whether any cluster is (else every `β` is
+    /// 0, the step is the pull, and the memberships' corrections are not kept).
+    fn sweep<const COMPLIANT: bool>(&mut self, dt: f32) {
         // one accumulated correction per membership row and lane, zero after a change
         // of clusters or time step
-        let rows = self.row_count() * LANES;
+        let rows = if COMPLIANT {
+            self.row_count() * LANES
+        } else {
+            0
+        };
         if self.membership_carry.len() != rows {
             self.membership_carry.clear();
             self.membership_carry.resize(rows, Vec3A::ZERO);
@@ -52,11 +66,16 @@ impl SolverLayout {
                         let m = (row.at[l] / PARTICLE_BYTES) as usize;
                         let inv_mass = this.inv_mass[m];
                         if row.row < row.size[l] as usize && inv_mass != 0.0 {
-                            let at = (first_row + row.row) * LANES + l;
-                            let beta = compliance / inv_mass;
-                            let done = membership_carry.read(at);
-                            let step = (row.pull[l] - done * beta) / (1.0 + beta);
-                            membership_carry.write(at, done + step);
+                            let step = if COMPLIANT {
+                                let at = (first_row + row.row) * LANES + l;
+                                let beta = compliance / inv_mass;
+                                let done = membership_carry.read(at);
+                                let step = (row.pull[l] - done * beta) / (1.0 + beta);
+                                membership_carry.write(at, done + step);
+                                step
+                            } else {
+                                row.pull[l]
+                            };
                             positions.write(m, row.position.lane(l) + step);
                             carry.write(m, carry.read(m) + step);
                         }

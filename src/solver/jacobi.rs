@@ -61,6 +61,7 @@ impl SolverLayout {
     pub(super) fn move_particles_jacobi(&mut self) {
         let (scale, anchor) = (&self.step_scale, &self.anchor);
         let (predicted, corrections) = (&self.predicted, &self.corrections);
+        let compliant = self.compliant;
         self.positions
             .par_chunks_mut(PARTICLES_PER_TASK)
             .zip(self.carry.par_chunks_mut(PARTICLES_PER_TASK))
@@ -68,19 +69,23 @@ impl SolverLayout {
             .enumerate()
             .for_each(|(task, ((positions, carry), pulls))| {
                 let range = task * PARTICLES_PER_TASK..task * PARTICLES_PER_TASK + positions.len();
-                move_block(
-                    Moving {
-                        positions,
-                        carry,
-                        pulls,
-                    },
-                    Coefficients {
-                        predicted: &predicted[range.clone()],
-                        pushed: &corrections[range.clone()],
-                        scale: &scale[range.clone()],
-                        anchor: &anchor[range],
-                    },
-                );
+                let moving = Moving {
+                    positions,
+                    carry,
+                    pulls,
+                };
+                let c = Coefficients {
+                    predicted: &predicted[range.clone()],
+                    pushed: &corrections[range.clone()],
+                    scale: &scale[range.clone()],
+                    anchor: &anchor[range],
+                };
+                // (rigid clusters only: every `a` is 0, and the pass skips its term)
+                if compliant {
+                    move_block::<true>(moving, c);
+                } else {
+                    move_block::<false>(moving, c);
+                }
             });
     }
 }
@@ -136,15 +141,16 @@ struct Coefficients<'a> {
 /// `step = σ·pull + a·(s + k − p)`, pulls cleared. With AVX, two particles at a time: a
 /// pair of `Vec3A`s fills one eight-lane vector (their fourth lanes ride along and are
 /// never read), so each operation moves two particles. Every lane computes exactly
-/// what the one-particle loop does.
-fn move_block(moving: Moving, c: Coefficients) {
+/// what the one-particle loop does. `ANCHORED`: whether the `a` term is computed (when
+/// every `a` is 0 it adds nothing).
+fn move_block<const ANCHORED: bool>(moving: Moving, c: Coefficients) {
     let Moving {
         positions,
         carry,
         pulls,
     } = moving;
     #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
-    let first = pairs::move_pairs(positions, carry, pulls, c);
+    let first = pairs::move_pairs::<ANCHORED>(positions, carry, pulls, c);
     #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
     let first = 0;
     let rest = positions[first..]
@@ -154,7 +160,10 @@ fn move_block(moving: Moving, c: Coefficients) {
         .zip(c.predicted[first..].iter().zip(&c.pushed[first..]))
         .zip(c.scale[first..].iter().zip(&c.anchor[first..]));
     for ((((p, carry), pull), (&s, &pushed)), (&scale, &anchor)) in rest {
-        let step = *pull * scale + (s + pushed - *p) * anchor;
+        let mut step = *pull * scale;
+        if ANCHORED {
+            step += (s + pushed - *p) * anchor;
+        }
         *pull = Vec3A::ZERO;
         *p += step;
         *carry += step;
@@ -172,7 +181,7 @@ mod pairs {
     /// Moves the particles of `positions` in pairs; returns the index of the first
     /// particle left (the last one of an odd count).
     #[inline(always)]
-    pub(super) fn move_pairs(
+    pub(super) fn move_pairs<const ANCHORED: bool>(
         positions: &mut [Vec3A],
         carry: &mut [Vec3A],
         pulls: &mut [Vec3A],
@@ -194,8 +203,11 @@ mod pairs {
             .zip(scale_pairs.iter().zip(anchor_pairs));
         for ((((p, carry), pull), (s, pushed)), (scale, anchor)) in pairs {
             let position = load(p);
-            let target = load(s) + load(pushed);
-            let step = load(pull) * widen(scale) + (target - position) * widen(anchor);
+            let mut step = load(pull) * widen(scale);
+            if ANCHORED {
+                let target = load(s) + load(pushed);
+                step += (target - position) * widen(anchor);
+            }
             *pull = [Vec3A::ZERO; 2];
             store(p, position + step);
             store(carry, load(carry) + step);
@@ -240,6 +252,7 @@ mod tests {
             let p = moving.positions[i];
             let target = c.predicted[i] + c.pushed[i];
             let step = moving.pulls[i] * c.scale[i] + (target - p) * c.anchor[i];
+            // (`+ 0·x` is exact: the unanchored pass may skip it)
             moving.pulls[i] = Vec3A::ZERO;
             moving.positions[i] = p + step;
             moving.carry[i] += step;
@@ -282,7 +295,7 @@ mod tests {
                     carry,
                     pulls,
                 };
-                move_block(moving(&mut p1, &mut c1, &mut u1), c);
+                move_block::<true>(moving(&mut p1, &mut c1, &mut u1), c);
                 moved_one_by_one(moving(&mut p2, &mut c2, &mut u2), c);
                 let bits = |v: &[Vec3A]| -> Vec<[u32; 3]> {
                     v.iter().map(|x| x.to_array().map(f32::to_bits)).collect()
@@ -292,6 +305,48 @@ mod tests {
                 assert_eq!(bits(&u1), bits(&u2), "pulls, n = {n}");
             }
         }
+    }
+
+    #[test]
+    fn the_unanchored_pass_equals_the_anchored_one_when_every_anchor_is_zero() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
+        let mut v = || Vec3A::new(rng.random_range(-50.0..50.0), rng.random(), rng.random());
+        let n = 33;
+        let (positions, carry, pulls, predicted, pushed): (Vec<_>, Vec<_>, Vec<_>, Vec<_>, Vec<_>) =
+            (0..n).map(|_| (v(), v(), v(), v(), v())).fold(
+                Default::default(),
+                |mut a: (Vec<_>, Vec<_>, Vec<_>, Vec<_>, Vec<_>), x| {
+                    a.0.push(x.0);
+                    a.1.push(x.1);
+                    a.2.push(x.2);
+                    a.3.push(x.3);
+                    a.4.push(x.4);
+                    a
+                },
+            );
+        let scale: Vec<f32> = (0..n).map(|i| 1.0 / (1 + i % 8) as f32).collect();
+        let anchor = vec![0.0; n];
+        let c = Coefficients {
+            predicted: &predicted,
+            pushed: &pushed,
+            scale: &scale,
+            anchor: &anchor,
+        };
+        let run = |anchored: bool| {
+            let (mut p, mut k, mut u) = (positions.clone(), carry.clone(), pulls.clone());
+            let moving = Moving {
+                positions: &mut p,
+                carry: &mut k,
+                pulls: &mut u,
+            };
+            if anchored {
+                move_block::<true>(moving, c);
+            } else {
+                move_block::<false>(moving, c);
+            }
+            (p, k)
+        };
+        assert_eq!(run(true), run(false));
     }
 
     #[test]

@@ -103,11 +103,14 @@ fn warm_start_weight(anchor: f32, iterations: u32, global: bool) -> f32 {
     if global {
         return 1.0;
     }
+    if anchor == 0.0 {
+        return WARM_START_LOOP_GAIN.min(1.0);
+    }
     let kept = (1.0 - anchor).powi(iterations.min(i32::MAX as u32) as i32);
     (WARM_START_LOOP_GAIN / kept).min(1.0)
 }
 
-/// Largest `q ρ` the warm start is given (see [`warm_start_weight`]): nine tenths of
+/// Largest `q ρ` the warm start is given (see `warm_start_weight`): nine tenths of
 /// the stability bound ½.
 pub const WARM_START_LOOP_GAIN: f32 = 0.45;
 
@@ -146,6 +149,9 @@ pub struct SolverLayout {
     membership_carry: Vec<Vec3A>,
     /// Per particle: the mean compliance of its clusters.
     particle_compliance: Vec<f32>,
+    /// Whether any cluster is compliant (else the particle pass has no pull toward the
+    /// prediction to add).
+    compliant: bool,
     /// Per cluster slot: Gauss–Seidel's compliance `αₖ / w̄ₖ` (w̄ₖ: the mean Jacobi weight
     /// of its members), so that its uniform-weight energy matches the weighted one.
     uniform_compliance: Vec<f32>,
@@ -567,6 +573,7 @@ impl SolverLayout {
         for (s, &inv_count) in sum.iter_mut().zip(&self.inv_count) {
             *s *= inv_count;
         }
+        self.compliant = sum.iter().any(|c| *c > 0.0);
         self.particle_compliance = sum;
         self.global = None;
         self.coefficients_stale = false;
