@@ -6,10 +6,12 @@
 //! A member's step is XPBD's (Macklin et al. 2016) for the constraint `pᵢ − gᵢ = 0`
 //! with compliance `α`: `Δdᵢ = ((gᵢ − pᵢ) − β dᵢ)/(1 + β)`, `β = α mᵢ/dt²`, where `dᵢ`
 //! is the correction this membership has made in the substep (`λ` over the particle's
-//! inverse mass). Iterated, it solves the same implicit step as Jacobi. Every member of
-//! a cluster has weight 1 and the same `β` (the cluster's compliance is scaled by its
-//! members' mean Jacobi weight, so that the energies agree), which keeps each cluster's
-//! step free of momentum.
+//! inverse mass), and `α/wᵢ` the membership's compliance under the clusters' energy
+//! `(κ/2) Σᵢ wᵢ |xᵢ − gᵢ|²`. Iterated, it solves the same implicit step as Jacobi. With
+//! compliant clusters the members are weighted `wᵢ = 1/nᵢ` as in Jacobi, so that the
+//! energies (and the static shapes) agree; a step then moves momentum, which the
+//! converged step gives back. Rigid clusters (`β` = 0) weigh every member 1, which
+//! keeps each cluster's step free of momentum.
 
 use super::SolverLayout;
 use super::batch::PARTICLE_BYTES;
@@ -51,10 +53,10 @@ impl SolverLayout {
         // `self`'s other arrays are only read; positions, carries and rotations go
         // through the `Disjoint` pointers (no reference to them is alive in a colour).
         this.for_each_batch_by_colour(|b, fit_rows| {
-            // β per unit mass of each lane's cluster
+            // each lane's cluster's compliance over dt²
             let compliance = this
                 .lane_clusters(b)
-                .map(|k| k.map_or(0.0, |k| this.uniform_compliance[k] * inv_dt2));
+                .map(|k| k.map_or(0.0, |k| this.compliance[k] * inv_dt2));
             let first_row = this.first_row(b);
             // SAFETY (both blocks): this task owns the batch's clusters, their rotations,
             // their membership rows and their members' positions and carries for the
@@ -68,7 +70,8 @@ impl SolverLayout {
                         if row.row < row.size[l] as usize && inv_mass != 0.0 {
                             let step = if COMPLIANT {
                                 let at = (first_row + row.row) * LANES + l;
-                                let beta = compliance / inv_mass;
+                                // β = α mᵢ / (dt² wᵢ)
+                                let beta = compliance / (inv_mass * this.inv_count[m]);
                                 let done = membership_carry.read(at);
                                 let step = (row.pull[l] - done * beta) / (1.0 + beta);
                                 membership_carry.write(at, done + step);

@@ -152,9 +152,9 @@ pub struct SolverLayout {
     /// Whether any cluster is compliant (else the particle pass has no pull toward the
     /// prediction to add).
     compliant: bool,
-    /// Per cluster slot: Gauss–Seidel's compliance `αₖ / w̄ₖ` (w̄ₖ: the mean Jacobi weight
-    /// of its members), so that its uniform-weight energy matches the weighted one.
-    uniform_compliance: Vec<f32>,
+    /// Whether members are weighted `1/nᵢ` (see [`weighted_by_count`]; also Gauss–Seidel
+    /// with a compliant cluster, whose energy must be Jacobi's).
+    count_weights: bool,
     /// Jacobi: per particle, the scale of the summed pulls and the pull toward the
     /// prediction in a particle's step (see `jacobi.rs`), for the current substep.
     step_scale: Vec<f32>,
@@ -221,7 +221,9 @@ impl SolverLayout {
         let clusters: Vec<ClusterSpec<'a>> = clusters.into_iter().collect();
         let n = rest.len();
         let rest: Vec<Vec3A> = rest.iter().map(|r| Vec3A::from(*r)).collect();
+        let compliant = clusters.iter().any(|c| c.compliance > 0.0);
         let mut layout = SolverLayout {
+            count_weights: weighted_by_count(mode) || compliant,
             positions: rest.clone(),
             previous: rest.clone(),
             corrections: vec![Vec3A::ZERO; n],
@@ -314,7 +316,7 @@ impl SolverLayout {
     /// projective dynamics (with the current membership counts), 1 for Gauss–Seidel.
     #[inline]
     fn weight(&self, m: u32) -> f32 {
-        if weighted_by_count(self.mode) {
+        if self.count_weights {
             self.inv_count[m as usize]
         } else {
             1.0
@@ -549,26 +551,17 @@ impl SolverLayout {
             });
     }
 
-    /// Recomputes each particle's mean cluster compliance and each cluster's uniform
-    /// compliance from the current clusters; drops the warm start, which belonged to
+    /// Recomputes each particle's mean cluster compliance from the current clusters;
+    /// drops the warm start, which belonged to
     /// other clusters.
     fn refresh_coefficients(&mut self) {
         let n = self.positions.len();
         let mut sum = vec![0.0f32; n];
-        self.uniform_compliance
-            .resize(self.cluster_range.len(), 0.0);
         for (k, range) in self.cluster_range.iter().enumerate() {
             let members = &self.member_particle[range[0] as usize..range[1] as usize];
-            let mut weights = 0.0f32;
             for &m in members {
                 sum[m as usize] += self.compliance[k];
-                weights += self.inv_count[m as usize];
             }
-            self.uniform_compliance[k] = if members.is_empty() {
-                0.0
-            } else {
-                self.compliance[k] * members.len() as f32 / weights
-            };
         }
         for (s, &inv_count) in sum.iter_mut().zip(&self.inv_count) {
             *s *= inv_count;

@@ -137,7 +137,7 @@ impl SolverLayout {
         }
         // Jacobi (and projective) weights are 1/nᵢ: every cluster holding a particle whose count changed
         // needs a new rest centroid; Gauss–Seidel weights are 1, so only the new clusters.
-        let refresh: Vec<usize> = if super::weighted_by_count(self.mode) {
+        let refresh: Vec<usize> = if self.count_weights {
             // the new clusters (their constants were computed before the last counts
             // were) and the kept clusters holding a recounted particle, in slot order
             {
