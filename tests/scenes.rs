@@ -280,6 +280,12 @@ fn cantilever_stiffness_belongs_to_the_material_not_the_solver_settings() {
         (projective / sags[3] - 1.0).abs() <= 0.10,
         "{projective} vs {sags:?}"
     );
+    // and Gauss–Seidel, solving the same energy, with the scene's own settings
+    let gauss_seidel = cantilever_sag(&["--solver", "gauss-seidel"]);
+    assert!(
+        (gauss_seidel / sags[3] - 1.0).abs() <= 0.10,
+        "{gauss_seidel} vs {sags:?}"
+    );
 }
 
 #[test]
