@@ -8,7 +8,7 @@ pub enum CleaveError {
     /// A numeric parameter is outside its allowed range (or not finite).
     #[error("invalid `{field}`: {value} (allowed: {allowed})")]
     OutOfRange {
-        /// Dotted path of the offending field, e.g. `material.stiffness`.
+        /// Dotted path of the offending field, e.g. `material.compliance`.
         field: String,
         /// The value that was given, formatted.
         value: String,

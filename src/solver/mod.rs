@@ -5,19 +5,25 @@
 //!
 //! A cluster fit computes, from the current positions, the optimal rotation `R` (Müller
 //! 2016, warm-started) and the weighted centroid `c`; member `i`'s goal is
-//! `R (x̄ᵢ − x̄_c) + c` with `x̄` rest positions. Two schemes share that fit:
-//! - **Jacobi**: every cluster is fitted to the same positions and adds its pulls to its
-//!   members' accumulators; each particle then moves by `(1/nᵢ) Σₖ sₖ (gᵢₖ − pᵢ)`
-//!   (nᵢ clusters). With matching weights `1/nᵢ` (FastLSM) every cluster's pull has zero
-//!   momentum, so the scheme conserves linear momentum. Clusters run colour by colour
-//!   (parallel inside a colour), then the particles in parallel.
-//! - **Coloured Gauss–Seidel**: clusters are coloured so that clusters of
-//!   one colour share no particle; colour after colour, each cluster is fitted and moves
-//!   its members by `sₖ (gᵢₖ − pᵢ)` at once (uniform weights, so again zero momentum).
+//! `R (x̄ᵢ − x̄_c) + c` with `x̄` rest positions. A cluster stores the elastic energy
+//! `(κ/2) Σᵢ wᵢ |xᵢ − gᵢ|²` (compliance `1/κ`, 0 for a rigid cluster), and every scheme
+//! solves the same substep problem, `min ½|x − s|²_M/dt² + E(x)` with `s` the
+//! predictions (see [`SolverLayout::solve`]); they share the fit and differ in how they
+//! move the particles:
+//! - **Jacobi** (`jacobi.rs`): every cluster is fitted to the same positions and adds its
+//!   pulls `gᵢₖ − pᵢ` to its members' accumulators; each particle then moves to the
+//!   inertia-weighted average of its goals and its prediction (the plain average of the
+//!   goals when rigid). With matching weights `1/nᵢ` (FastLSM) every cluster's pull has
+//!   zero momentum, so the scheme conserves linear momentum.
+//! - **Coloured Gauss–Seidel** (`gauss_seidel.rs`): colour after colour, each cluster is
+//!   fitted and moves its members at once by their XPBD step (uniform weights when rigid,
+//!   so again zero momentum).
+//! - **Projective dynamics** (`projective.rs`): Jacobi's cluster pass as the local step,
+//!   then one sparse linear solve for every particle as the global step.
 //!
 //! Clusters of one colour share no particle (see [`colour_clusters`]), which is what
-//! makes the parallel writes of both schemes race-free. Both are deterministic for any
-//! number of threads: every sum runs in a fixed order.
+//! makes the parallel writes race-free. Every scheme is deterministic for any number of
+//! threads: every sum runs in a fixed order.
 //! Per-cluster work is done relative to the cluster's first member so that goals keep
 //! full precision far from the origin.
 
@@ -52,8 +58,7 @@ pub const ROTATION_ITERATIONS: u32 = 1;
 
 /// Müller iterations per cluster per projective-dynamics iteration: its global step
 /// takes the rotations at their word, so a rotation that lags holds the whole body
-/// back (on the static `cantilever` of `cleave bench --convergence`, 3 instead of 1
-/// cut the iterations to 1 % of the sag from 615 to 430).
+/// back.
 pub const PROJECTIVE_ROTATION_ITERATIONS: u32 = 3;
 
 /// Relative size of rounding noise: if a particle's total correction over a solve is at
@@ -593,8 +598,8 @@ impl SolverLayout {
     /// Restores the predicted position of every particle whose total correction is below
     /// the rounding floor (see [`ROUNDING_FLOOR`]), and drops its warm start — except
     /// where Gauss–Seidel's memberships hold the warm start's parts: dropping it for one
-    /// particle alone would set the two apart (the `cantilever` at 16 substeps, where
-    /// gravity's step nears the floor, sagged 106 h instead of 12.6 h).
+    /// particle alone would set the two apart, and the memberships would then push the
+    /// particle toward a displacement it no longer has.
     fn drop_rounding_noise(&mut self) {
         let (predicted, rest) = (&self.predicted, &self.rest);
         let keep_carry = !self.membership_carry.is_empty();

@@ -35,14 +35,13 @@ use faer::{Conj, Mat, Side};
 use glam::Vec3A;
 use rayon::prelude::*;
 
-/// Stiffness given to a rigid cluster, relative to its members' mean `m/dt²`. Contacts and colliders are projected after the global
-/// step and push single particles; a body far stiffer than this answers such a push
-/// only through its inertia, the pair is still penetrating at the next iteration and is
-/// pushed again, and the pushes pile up into velocity. With the cap at 10⁴ the `stack`
-/// and `dice` bodies ended at 60–110 m/s, at 10⁶ the `slice` halves flew off; at 100
-/// every built-in scene keeps Jacobi's outcome and comes to rest. (Removing the
-/// fitted pulls' net force and torque per free piece did not help: the growth comes
-/// from the contacts, not from the clusters.)
+/// Stiffness given to a rigid cluster, relative to its members' mean `m/dt²`.
+///
+/// Contacts and colliders are projected after the global step and push single
+/// particles. A body far stiffer than `m/dt²` answers such a push only through its
+/// inertia: the pair is still penetrating at the next iteration, is pushed again, and
+/// the pushes pile up into velocity. This cap is the largest that keeps every built-in
+/// scene's outcome and lets its bodies come to rest.
 pub const STIFFEST: f64 = 100.0;
 
 /// Marker: a particle that is not an unknown (pinned).
