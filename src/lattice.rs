@@ -509,6 +509,7 @@ impl Shape {
                 (p - Vec3::new(x, 0.0, 0.0)).length() - radius
             }
             Shape::Sdf(s) => (s.sdf)(p),
+            // (voxelising a mesh tests whole rows instead, see `voxelise`)
             Shape::Mesh(m) => {
                 if m.contains(p) {
                     -1.0
@@ -571,19 +572,35 @@ impl Shape {
         }
         let (kmin, kmax) = (kmin.as_ivec3(), kmax.as_ivec3());
         let tolerance = 1e-4 * h;
-        let mut coords = Vec::new();
-        for z in kmin.z..=kmax.z {
-            for y in kmin.y..=kmax.y {
-                for x in kmin.x..=kmax.x {
-                    let k = IVec3::new(x, y, z);
-                    let p = (k.as_vec3() + Vec3::splat(0.5)) * h;
-                    let d = self.signed_distance(p);
-                    if d.is_finite() && d <= tolerance {
-                        coords.push(k);
+        let coords = match self {
+            // a whole grid at once: a winding number per point costs cells × triangles
+            Shape::Mesh(mesh) => {
+                let dims = (kmax - kmin + IVec3::ONE).as_uvec3();
+                let origin = (kmin.as_vec3() + Vec3::splat(0.5)) * h;
+                let (nx, ny) = (dims.x as usize, dims.y as usize);
+                let inside = mesh.inside_grid(origin, h, dims);
+                let cell = |i: usize| {
+                    kmin + IVec3::new((i % nx) as i32, (i / nx % ny) as i32, (i / nx / ny) as i32)
+                };
+                (0..inside.len()).filter(|&i| inside[i]).map(cell).collect()
+            }
+            _ => {
+                let mut coords = Vec::new();
+                for z in kmin.z..=kmax.z {
+                    for y in kmin.y..=kmax.y {
+                        for x in kmin.x..=kmax.x {
+                            let k = IVec3::new(x, y, z);
+                            let p = (k.as_vec3() + Vec3::splat(0.5)) * h;
+                            let d = self.signed_distance(p);
+                            if d.is_finite() && d <= tolerance {
+                                coords.push(k);
+                            }
+                        }
                     }
                 }
+                coords
             }
-        }
+        };
         if coords.is_empty() {
             return Err(CleaveError::EmptyShape {
                 field: "shape".into(),

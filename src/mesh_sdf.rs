@@ -183,38 +183,9 @@ impl MeshSdf {
         (self.dims.x * self.dims.y * self.dims.z) as usize
     }
 
-    /// Whether each sample is inside the mesh, by the parity of the crossings of its row.
+    /// Whether each sample is inside the mesh (see [`TriangleMesh::inside_grid`]).
     fn inside_cells(&self, mesh: &TriangleMesh) -> Vec<bool> {
-        let (ny, nz) = (self.dims.y as usize, self.dims.z as usize);
-        // rows are nudged off the samples by an odd fraction of a cell, so that a ray
-        // through a mesh vertex or edge (a common case on axis-aligned meshes) is rare
-        let nudge = Vec3A::new(0.0, 0.000_131, 0.000_173) * self.cell;
-        let mut crossings: Vec<Vec<f32>> = vec![Vec::new(); ny * nz];
-        for t in &mesh.triangles {
-            let [a, b, c] = t.map(|v| Vec3A::from(mesh.vertices[v as usize]) - self.origin - nudge);
-            let lo = (a.min(b).min(c) / self.cell).ceil().max(Vec3A::ZERO);
-            let hi = (a.max(b).max(c) / self.cell).floor();
-            for z in lo.z as usize..=(hi.z as usize).min(nz.saturating_sub(1)) {
-                for y in lo.y as usize..=(hi.y as usize).min(ny.saturating_sub(1)) {
-                    let (py, pz) = (y as f32 * self.cell, z as f32 * self.cell);
-                    if let Some(x) = row_crossing(a, b, c, py, pz) {
-                        crossings[y + ny * z].push(x);
-                    }
-                }
-            }
-        }
-        let mut inside = vec![false; self.values_len()];
-        for (row, xs) in crossings.iter_mut().enumerate() {
-            xs.sort_unstable_by(f32::total_cmp);
-            for pair in xs.chunks_exact(2) {
-                let first = (pair[0] / self.cell).ceil().max(0.0) as u32;
-                let last = ((pair[1] / self.cell).floor() as i64).min(self.dims.x as i64 - 1);
-                for x in first as i64..=last {
-                    inside[x as usize + row * self.dims.x as usize] = true;
-                }
-            }
-        }
-        inside
+        mesh.inside_grid(self.origin.into(), self.cell, self.dims)
     }
 
     /// The sampled value at integer sample coordinates, clamped into the grid.
@@ -280,22 +251,6 @@ impl MeshSdf {
         }
         None
     }
-}
-
-/// The x at which the ray `(·, py, pz)` crosses triangle `abc`, if it does (half-open
-/// edge rules so that a ray through a shared edge counts it once).
-fn row_crossing(a: Vec3A, b: Vec3A, c: Vec3A, py: f32, pz: f32) -> Option<f32> {
-    // barycentric coordinates of (py, pz) in the triangle's yz shadow
-    let (ya, za, yb, zb, yc, zc) = (a.y, a.z, b.y, b.z, c.y, c.z);
-    let area = (yb - ya) * (zc - za) - (yc - ya) * (zb - za);
-    if area == 0.0 {
-        return None;
-    }
-    let w0 = ((yb - py) * (zc - pz) - (yc - py) * (zb - pz)) / area;
-    let w1 = ((yc - py) * (za - pz) - (ya - py) * (zc - pz)) / area;
-    let w2 = 1.0 - w0 - w1;
-    (w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0 && (w0 > 0.0 || w1 > 0.0))
-        .then(|| w0 * a.x + w1 * b.x + w2 * c.x)
 }
 
 /// The point of triangle `abc` nearest to `p` (Ericson, Real-Time Collision Detection,
