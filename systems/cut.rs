@@ -1,25 +1,35 @@
 //! Stage cut (SPEC §2.4): removes the detected particles from their bodies and reports
 //! the removed particles and the cut clusters. Writes particle data only (it reads the
 //! particle → clusters index to name the cut clusters).
+//!
+//! A particle entity despawned from outside (by a game, say) is removed the same way,
+//! as if cut: its body's lattice and clusters are rebuilt around the hole, instead of
+//! listing a particle that no longer exists.
 
-use crate::components::{BodyLattice, ParticleClusters, cluster_entity};
-use crate::resources::{BodyCutReport, BodySplit, CutList, CutReport, ParticlesCut};
+use crate::components::{BodyLattice, Particle, ParticleClusters, cluster_entity};
+use crate::resources::{BodyCut, BodyCutReport, BodySplit, CutList, CutReport, ParticlesCut};
 use bevy_ecs::entity::Entities;
 use bevy_ecs::prelude::*;
+use std::borrow::Cow;
 
-/// Deletes the particles of the `CutList`.
+/// Deletes the particles of the `CutList`, and any particle despawned from outside.
+#[allow(clippy::too_many_arguments)]
 pub fn cut(
     mut commands: Commands,
     entities: &Entities,
     list: Res<CutList>,
     mut report: ResMut<CutReport>,
-    mut bodies: Query<(&mut BodyLattice, &ParticleClusters)>,
+    mut bodies: Query<(Entity, &mut BodyLattice, &ParticleClusters)>,
+    mut despawned: RemovedComponents<Particle>,
+    mut despawned_here: Local<Vec<Entity>>,
     mut particles_cut: MessageWriter<ParticlesCut>,
     mut body_split: MessageWriter<BodySplit>,
 ) {
     report.bodies.clear();
-    for cut in &list.cuts {
-        let Ok((mut body, index)) = bodies.get_mut(cut.body) else {
+    let cuts = with_despawned(&list, &mut despawned, &mut despawned_here, &bodies);
+    despawned_here.clear();
+    for cut in cuts.iter() {
+        let Ok((_, mut body, index)) = bodies.get_mut(cut.body) else {
             continue;
         };
         let mut removed = Vec::new();
@@ -27,7 +37,12 @@ pub fn cut(
         for &p in &cut.particles {
             if body.lattice.remove(p) {
                 removed.push(p);
-                commands.entity(body.particles[p as usize]).despawn();
+                let particle = body.particles[p as usize];
+                // (one despawned from outside is gone already)
+                if let Ok(mut e) = commands.get_entity(particle) {
+                    e.despawn();
+                    despawned_here.push(particle);
+                }
                 cut_clusters.extend_from_slice(index.0.clusters_of(p));
             }
         }
@@ -59,4 +74,51 @@ pub fn cut(
             cut_clusters,
         });
     }
+}
+
+/// The `CutList`'s cuts plus, per body, its live particles whose entities were despawned
+/// from outside (not by this stage last time, `despawned_here`), by body entity.
+fn with_despawned<'a>(
+    list: &'a CutList,
+    despawned: &mut RemovedComponents<Particle>,
+    despawned_here: &mut [Entity],
+    bodies: &Query<(Entity, &mut BodyLattice, &ParticleClusters)>,
+) -> Cow<'a, [BodyCut]> {
+    despawned_here.sort_unstable();
+    let mut outside: Vec<Entity> = despawned
+        .read()
+        .filter(|e| despawned_here.binary_search(e).is_err())
+        .collect();
+    if outside.is_empty() {
+        return Cow::Borrowed(&list.cuts);
+    }
+    outside.sort_unstable();
+    let mut cuts = list.cuts.clone();
+    for (body, lattice, _) in bodies.iter() {
+        let lost: Vec<u32> = lattice
+            .lattice
+            .live_particles()
+            .filter(|&p| {
+                outside
+                    .binary_search(&lattice.particles[p as usize])
+                    .is_ok()
+            })
+            .collect();
+        if lost.is_empty() {
+            continue;
+        }
+        match cuts.iter_mut().find(|c| c.body == body) {
+            Some(cut) => {
+                cut.particles.extend(lost);
+                cut.particles.sort_unstable();
+                cut.particles.dedup();
+            }
+            None => cuts.push(BodyCut {
+                body,
+                particles: lost,
+            }),
+        }
+    }
+    cuts.sort_by_key(|c| c.body);
+    Cow::Owned(cuts)
 }

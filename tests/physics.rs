@@ -392,6 +392,35 @@ fn closed_obj_mesh_voxelises() {
 }
 
 #[test]
+fn a_particle_despawned_from_outside_is_removed_as_if_cut() {
+    let mut config = builtin("drop", 0).unwrap().config;
+    config.check_invariants_every_frame = true;
+    let mut sim = Simulation::new(config).unwrap();
+    let body = sim
+        .spawn_body(&builtin("drop", 0).unwrap().bodies[0])
+        .unwrap();
+    sim.run(5);
+    let before = sim.positions(body).unwrap().len();
+    // a particle in the middle of the box, gone without a word to the engine
+    let victim = {
+        let lattice = sim.world().get::<BodyLattice>(body).unwrap();
+        lattice.particles[lattice.lattice.len() / 2]
+    };
+    sim.world_mut().despawn(victim);
+    // the frame after: the body has one particle fewer, every invariant holds (checked
+    // every frame), every position is finite, and the body still rests
+    sim.run(60);
+    let positions = sim.positions(body).unwrap();
+    assert_eq!(positions.len(), before - 1);
+    assert!(positions.iter().all(|(_, p)| p.is_finite()));
+    assert!(check_invariants(sim.world()).is_empty());
+    let stats = body_stats(sim.world_mut(), body).unwrap();
+    assert!(stats.shape_error_h < 0.2, "{}", stats.shape_error_h);
+    let dump = serde_json::to_string(&cleave::dump::dump_world(sim.world_mut())).unwrap();
+    assert!(!dump.contains("null"), "the dump lists no missing particle");
+}
+
+#[test]
 fn a_nan_written_into_one_particle_is_repaired_and_does_not_spread() {
     let mut sim = Simulation::new(SimConfig::default()).unwrap();
     let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(8, 4, 4), 0.1), 0.1);
