@@ -232,9 +232,9 @@ fn a_body_past_the_memory_budget_is_refused_before_anything_is_allocated() {
     let start = std::time::Instant::now();
     let (code, err) = run_file("huge.ron", &text);
     assert_eq!(code, Some(2), "{err}");
+    // the entry's line and column: line 3, just after `bodies: [`
     for e in [
-        "huge.ron",
-        "bodies[0]",
+        "huge.ron:3:14: bodies[0]",
         "shape.cells",
         "64000000 particles",
         "memory budget",

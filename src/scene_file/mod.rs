@@ -15,6 +15,9 @@ use std::path::Path;
 use std::sync::Arc;
 
 mod check;
+mod positions;
+
+pub use positions::entry_position;
 
 fn default_frames() -> u32 {
     300

@@ -10,7 +10,7 @@ use cleave::dump::dump_world;
 use cleave::profile::StageProfile;
 use cleave::resources::{CutTimings, ParticlesCut, SolverCache};
 use cleave::scene::{BUILTIN_SCENES, Scene, builtin};
-use cleave::scene_file::load_scene_file;
+use cleave::scene_file::{entry_position, load_scene_file};
 use cleave::sim::{Simulation, check_invariants};
 use cleave::stats::{BodyStats, body_stats, labelled_positions, min_distance_between_labels};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -339,9 +339,13 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     let frames = frames.unwrap_or(scene.frames);
     let mut sim = Simulation::new(scene.config.clone()).map_err(|e| e.to_string())?;
     let mut bodies = Vec::with_capacity(scene.bodies.len());
-    // errors name the scene and the list entry
+    // errors name the scene, the entry's line and column in a scene file, and the entry
     let fail = |what: &str, i: usize, e: cleave::error::CleaveError| {
-        format!("{scene_name}: {what}[{i}]: {e}")
+        let at = std::fs::read_to_string(scene_name)
+            .ok()
+            .and_then(|text| entry_position(&text, what, i))
+            .map_or(String::new(), |(line, column)| format!(":{line}:{column}"));
+        format!("{scene_name}{at}: {what}[{i}]: {e}")
     };
     for (i, b) in scene.bodies.iter().enumerate() {
         bodies.push(sim.spawn_body(b).map_err(|e| fail("bodies", i, e))?);
