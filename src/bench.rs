@@ -488,7 +488,7 @@ impl StaticProblem {
             .collect();
         let rest: Vec<Vec3> = live
             .iter()
-            .map(|&i| desc.position + lattice.rest_position(i))
+            .map(|&i| desc.position + desc.rotation.normalize() * lattice.rest_position(i))
             .collect();
         let compliance = desc.material.cluster_compliance(desc.spacing);
         let specs = members.iter().map(|m| crate::solver::ClusterSpec {
@@ -499,10 +499,7 @@ impl StaticProblem {
         let mut layout = SolverLayout::new(&rest, specs, solver);
         let inv_mass = 1.0 / desc.material.mass_at_spacing(desc.spacing);
         for (w, x) in layout.inv_mass.iter_mut().zip(&rest) {
-            let pinned = desc
-                .pins
-                .iter()
-                .any(|r| x.cmpge(r.min).all() && x.cmple(r.max).all());
+            let pinned = desc.pins.iter().any(|r| r.contains(*x));
             *w = if pinned { 0.0 } else { inv_mass };
         }
         // the predictions: where gravity would take each free particle in one step

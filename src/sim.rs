@@ -29,6 +29,13 @@ pub struct PinRegion {
     pub max: Vec3,
 }
 
+impl PinRegion {
+    /// Whether the world position `x` lies in the region (bounds included).
+    pub fn contains(&self, x: Vec3) -> bool {
+        x.cmpge(self.min).all() && x.cmple(self.max).all()
+    }
+}
+
 /// Everything needed to spawn a body.
 #[derive(Clone, Debug)]
 pub struct BodyDesc {
@@ -394,10 +401,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     let inv_mass = 1.0 / desc.material.mass_at_spacing(desc.spacing);
     let spawned = world.spawn_batch(order.iter().map(|&i| {
         let x = desc.position + rotation * lattice.rest_position(i);
-        let pinned = desc
-            .pins
-            .iter()
-            .any(|r| x.cmpge(r.min).all() && x.cmple(r.max).all());
+        let pinned = desc.pins.iter().any(|r| r.contains(x));
         (
             Particle { body, index: i },
             Position(x),

@@ -110,6 +110,14 @@ pub(super) struct Batches {
 }
 
 impl Batches {
+    /// The particle of every membership slot, row by row, lane by lane (a padding
+    /// slot names its lane's first member).
+    pub(super) fn membership_particles(&self) -> impl Iterator<Item = u32> + '_ {
+        self.particles
+            .iter()
+            .flat_map(|row| row.map(|at| at / PARTICLE_BYTES))
+    }
+
     /// Heap bytes held.
     pub(super) fn heap_bytes(&self) -> usize {
         self.particles.capacity() * size_of::<ParticleRow>()
@@ -551,16 +559,6 @@ impl SolverLayout {
     #[inline(always)]
     pub(super) fn first_row(&self, b: usize) -> usize {
         self.batches.start[b] as usize
-    }
-
-    /// The particle of every membership slot, row by row, lane by lane (a padding
-    /// slot names its lane's first member).
-    pub(super) fn membership_particles(&self) -> Vec<u32> {
-        self.batches
-            .particles
-            .iter()
-            .flat_map(|row| row.map(|at| at / PARTICLE_BYTES))
-            .collect()
     }
 
     /// Particle rows of all batches.

@@ -53,10 +53,13 @@ impl SolverLayout {
         // `self`'s other arrays are only read; positions, carries and rotations go
         // through the `Disjoint` pointers (no reference to them is alive in a colour).
         this.for_each_batch_by_colour(|b, fit_rows| {
-            // each lane's cluster's compliance over dt²
-            let compliance = this
-                .lane_clusters(b)
-                .map(|k| k.map_or(0.0, |k| this.compliance[k] * inv_dt2));
+            // each lane's cluster's compliance over dt² (unread when no cluster is)
+            let compliance = if COMPLIANT {
+                this.lane_clusters(b)
+                    .map(|k| k.map_or(0.0, |k| this.compliance[k] * inv_dt2))
+            } else {
+                [0.0; LANES]
+            };
             let first_row = this.first_row(b);
             // SAFETY (both blocks): this task owns the batch's clusters, their rotations,
             // their membership rows and their members' positions and carries for the

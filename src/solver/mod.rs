@@ -160,6 +160,8 @@ pub struct SolverLayout {
     /// Whether members are weighted `1/nᵢ` (see [`weighted_by_count`]; also Gauss–Seidel
     /// with a compliant cluster, whose energy must be Jacobi's).
     count_weights: bool,
+    /// Per particle: the warm-start weight of the current substep (scratch).
+    warm_weight: Vec<f32>,
     /// Jacobi: per particle, the scale of the summed pulls and the pull toward the
     /// prediction in a particle's step (see `jacobi.rs`), for the current substep.
     step_scale: Vec<f32>,
@@ -394,7 +396,8 @@ impl SolverLayout {
             .unwrap_or(0)
     }
 
-    /// Heap bytes held by the layout's arrays.
+    /// Heap bytes held by the layout's arrays (not projective dynamics' factor, which faer
+    /// holds).
     pub fn heap_bytes(&self) -> usize {
         use std::mem::size_of;
         let v3 = size_of::<Vec3A>();
@@ -411,6 +414,13 @@ impl SolverLayout {
                 * 4
             + (self.offset_bias.capacity() + self.rest_centroid.capacity()) * v3
             + self.inv_weight_sum.capacity() * 4 * 2
+            // the warm start and the per-particle step coefficients
+            + (self.carry.capacity() + self.membership_carry.capacity()) * v3
+            + (self.particle_compliance.capacity()
+                + self.step_scale.capacity()
+                + self.anchor.capacity()
+                + self.warm_weight.capacity())
+                * 4
     }
 
     /// One substep's solve: `iterations` iterations, each running the layout's cluster
@@ -474,14 +484,11 @@ impl SolverLayout {
         for ((carry, p), s) in self.carry.iter_mut().zip(start).zip(&self.predicted) {
             *carry = *p - *s;
         }
-        self.membership_carry.clear();
-        let rows = self.row_count() * crate::lanes::LANES;
-        let particles = self.membership_particles();
-        self.membership_carry = (0..rows)
-            .map(|at| {
-                let m = particles[at] as usize;
-                self.carry[m] * self.inv_count[m]
-            })
+        let (carry, inv_count) = (&self.carry, &self.inv_count);
+        self.membership_carry = self
+            .batches
+            .membership_particles()
+            .map(|m| carry[m as usize] * inv_count[m as usize])
             .collect();
         // (padding slots name a member too, but no step reads or writes theirs)
     }
@@ -535,13 +542,25 @@ impl SolverLayout {
                 warm_start_weight(self.anchor[i], iterations, global)
             }
         };
-        let weights: Vec<f32> = (0..n).into_par_iter().map(weight).collect();
+        let mut weights = std::mem::take(&mut self.warm_weight);
+        weights.resize(n, 0.0);
+        weights
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(PARTICLES_PER_TASK)
+            .for_each(|(i, w)| *w = weight(i));
         // Gauss–Seidel's memberships hold the parts of the carry: scaled alike
-        if !self.membership_carry.is_empty() {
-            let particles = self.membership_particles();
-            for (carry, &m) in self.membership_carry.iter_mut().zip(&particles) {
-                *carry *= weights[m as usize];
-            }
+        let particles = self.batches.membership_particles();
+        for (carry, m) in self.membership_carry.iter_mut().zip(particles) {
+            *carry *= weights[m as usize];
+        }
+        // projective dynamics: a factor built for other masses or another time step
+        if self
+            .global
+            .as_ref()
+            .is_some_and(|g| !g.built_for(dt, &self.inv_mass))
+        {
+            self.global = None;
         }
         self.positions
             .par_iter_mut()
@@ -554,6 +573,7 @@ impl SolverLayout {
                 *p += *carry;
                 *correction = Vec3A::ZERO;
             });
+        self.warm_weight = weights;
     }
 
     /// Recomputes each particle's mean cluster compliance from the current clusters;

@@ -72,13 +72,10 @@ pub(super) struct GlobalSolve {
 impl SolverLayout {
     /// The projective global step after a cluster pass: solves for every particle's
     /// increment and moves it (pinned particles stay); clears the pull accumulators.
-    /// Builds or rebuilds the factor when the clusters, masses or time step changed.
+    /// Builds the factor if there is none (the substep drops one built for other
+    /// clusters, masses or time step).
     pub(super) fn global_step(&mut self, dt: f32) {
-        let current = self
-            .global
-            .as_ref()
-            .is_some_and(|g| g.dt == dt && g.inv_mass == self.inv_mass);
-        if !current {
+        if self.global.is_none() {
             let start = std::time::Instant::now();
             self.global = Some(self.build_global(dt));
             self.factor_seconds += start.elapsed().as_secs_f64();
@@ -245,6 +242,13 @@ impl SolverLayout {
     fn global_entries(&self, dt: f32) -> (usize, Vec<Triplet<usize, usize, f64>>) {
         let a = self.assemble(dt);
         (a.particle_of.len(), a.entries)
+    }
+}
+
+impl GlobalSolve {
+    /// Whether this was built for time step `dt` and these inverse masses.
+    pub(super) fn built_for(&self, dt: f32, inv_mass: &[f32]) -> bool {
+        self.dt == dt && self.inv_mass == inv_mass
     }
 }
 
