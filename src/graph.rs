@@ -62,7 +62,7 @@ pub fn connected_components(members: &[u32], lattice: &Lattice) -> Vec<Vec<u32>>
             label[start as usize] = count;
             stack.push(start);
             while let Some(p) = stack.pop() {
-                for n in lattice.neighbour_cells(p) {
+                for n in lattice.links(p) {
                     if n != NO_PARTICLE && label[n as usize] == UNSEEN {
                         label[n as usize] = count;
                         stack.push(n);
@@ -132,7 +132,7 @@ pub fn adjacent_particles(members: &[u32], lattice: &Lattice) -> Vec<u32> {
         // (room for every neighbour cell: the list never grows by reallocation)
         let mut out = Vec::with_capacity(members.len() * 6);
         for &m in members {
-            for n in lattice.neighbour_cells(m) {
+            for n in lattice.links(m) {
                 if n != NO_PARTICLE && mark[n as usize] == u32::MAX {
                     mark[n as usize] = 1;
                     out.push(n);

@@ -62,8 +62,16 @@ pub struct Lattice {
     /// whole body in cache; a byte each would spread them over many lines).
     live: Vec<u64>,
     live_count: usize,
-    /// Grid cell of each particle.
-    cell_of: Vec<u32>,
+    /// The particle each particle is linked to in each of the six directions of
+    /// [`NEIGHBOUR_OFFSETS`], or [`NO_PARTICLE`]: the body's edges, as data. A new
+    /// lattice links every pair of live particles in neighbouring cells; removing a
+    /// particle unlinks it, and a cut may sever a link between two live particles
+    /// ([`Lattice::sever`]) or split a particle in two ([`Lattice::split`]).
+    links: Vec<[u32; 6]>,
+    /// Whether every pair of live particles in neighbouring cells is linked and every
+    /// live particle is the one its cell names (nothing severed, nothing split): then
+    /// the pieces can be counted from the occupancy grid alone.
+    intact: bool,
 }
 
 impl Lattice {
@@ -95,7 +103,8 @@ impl Lattice {
             grid: vec![NO_PARTICLE; cells as usize],
             live: live_bits(coords.len()),
             live_count: coords.len(),
-            cell_of: vec![0; coords.len()],
+            links: vec![[NO_PARTICLE; 6]; coords.len()],
+            intact: true,
             coords,
         };
         for i in 0..lattice.coords.len() {
@@ -109,7 +118,12 @@ impl Lattice {
                 )));
             }
             lattice.grid[cell] = i as u32;
-            lattice.cell_of[i] = cell as u32;
+        }
+        for i in 0..lattice.coords.len() {
+            let c = lattice.coords[i];
+            for (d, offset) in NEIGHBOUR_OFFSETS.iter().enumerate() {
+                lattice.links[i][d] = lattice.at(c + *offset).unwrap_or(NO_PARTICLE);
+            }
         }
         Ok(lattice)
     }
@@ -199,12 +213,13 @@ impl Lattice {
         keyed.into_iter().map(|(_, i)| i).collect()
     }
 
-    /// Live lattice neighbours of particle `i` (6-neighbourhood), in a fixed order.
+    /// The particles linked to particle `i` (its live edges), in the order of
+    /// [`NEIGHBOUR_OFFSETS`].
     #[inline(always)]
     pub fn neighbours(&self, i: u32) -> Neighbours {
-        let [a, b, c, d, e, f] = self.neighbour_cells(i);
+        let [a, b, c, d, e, f] = self.links[i as usize];
         let ids = [a, b, c, d, e, f, NO_PARTICLE, NO_PARTICLE];
-        // one 8-wide compare: bit k set for an occupied cell
+        // one 8-wide compare: bit k set for a missing link
         let empty = u32x8::new(ids)
             .simd_eq(u32x8::splat(NO_PARTICLE))
             .to_bitmask();
@@ -214,64 +229,80 @@ impl Lattice {
         }
     }
 
-    /// Whether live particle `i` lies on its piece's surface: fewer than six live lattice
-    /// neighbours.
+    /// Whether live particle `i` lies on its piece's surface: fewer than six links (a
+    /// removed neighbour, a severed edge or the body's outside).
     #[inline]
     pub fn is_surface(&self, i: u32) -> bool {
-        self.neighbour_cells(i).contains(&NO_PARTICLE)
+        self.links[i as usize].contains(&NO_PARTICLE)
     }
 
-    /// The particles in the six neighbour cells of particle `i`, in the order of
-    /// [`Lattice::neighbours`], with [`NO_PARTICLE`] for an empty cell. Loops that test
-    /// every neighbour anyway (marks, labels) run straight through these six.
+    /// The particle linked to particle `i` in each direction of [`NEIGHBOUR_OFFSETS`],
+    /// [`NO_PARTICLE`] where there is no edge. Loops that test every direction anyway
+    /// (marks, labels) run straight through these six. A removed particle has none.
     #[inline(always)]
-    pub fn neighbour_cells(&self, i: u32) -> [u32; 6] {
-        let cell = self.cell_of[i as usize] as usize;
-        let (dx, dy) = (
-            self.dims.x as usize,
-            self.dims.x as usize * self.dims.y as usize,
-        );
-        // same order as NEIGHBOUR_OFFSETS. Padding keeps every neighbour cell in the grid,
-        // so one range check of the window [cell − dy, cell + dy] covers all six reads
-        // (six index checks cost 2 % of a cut event's instructions).
-        let window = &self.grid[cell - dy..=cell + dy];
-        debug_assert!(1 <= dx && dx <= dy);
-        // SAFETY: `window` has 2·dy + 1 cells with the particle's at `dy`, and
-        // 1 ≤ dx ≤ dy (a lattice with a particle has at least 3 cells per axis), so every
-        // index below lies in 0..=2·dy.
-        unsafe {
-            [
-                *window.get_unchecked(dy - 1),
-                *window.get_unchecked(dy + 1),
-                *window.get_unchecked(dy - dx),
-                *window.get_unchecked(dy + dx),
-                *window.get_unchecked(0),
-                *window.get_unchecked(2 * dy),
-            ]
-        }
+    pub fn links(&self, i: u32) -> [u32; 6] {
+        self.links[i as usize]
     }
 
-    /// The particle in the neighbour cell of particle `i` in direction `d` (an index
-    /// into [`NEIGHBOUR_OFFSETS`]), or [`NO_PARTICLE`]: one cell of
-    /// [`Lattice::neighbour_cells`], read alone (the six cells lie on up to five cache
-    /// lines).
+    /// The particle linked to particle `i` in direction `d` (an index into
+    /// [`NEIGHBOUR_OFFSETS`]), or [`NO_PARTICLE`].
     ///
     /// # Panics
     /// If `d` is not below 6.
     #[inline]
-    pub fn neighbour_cell(&self, i: u32, d: usize) -> u32 {
-        let (dx, dy) = (
-            self.dims.x as usize,
-            self.dims.x as usize * self.dims.y as usize,
-        );
-        let step = [1, 1, dx, dx, dy, dy][d];
-        let cell = self.cell_of[i as usize] as usize;
-        // the padding keeps every neighbour cell inside the grid
-        if d.is_multiple_of(2) {
-            self.grid[cell - step]
-        } else {
-            self.grid[cell + step]
+    pub fn link(&self, i: u32, d: usize) -> u32 {
+        self.links[i as usize][d]
+    }
+
+    /// Whether nothing was ever severed or split: every pair of live particles in
+    /// neighbouring cells is linked.
+    pub fn is_intact(&self) -> bool {
+        self.intact
+    }
+
+    /// Severs the edge between particles `a` and `b`; returns false when they are not
+    /// linked. Both stay live.
+    pub fn sever(&mut self, a: u32, b: u32) -> bool {
+        let Some(d) = self
+            .links
+            .get(a as usize)
+            .and_then(|l| l.iter().position(|&n| n == b))
+        else {
+            return false;
+        };
+        self.links[a as usize][d] = NO_PARTICLE;
+        self.links[b as usize][d ^ 1] = NO_PARTICLE;
+        self.intact = false;
+        true
+    }
+
+    /// Splits live particle `i` in two: a new particle (returned) at the same lattice
+    /// coordinate takes the edges of the directions where `moves[d]` is set, particle
+    /// `i` keeps the others. The new particle is live and has the next index; `None`
+    /// when `i` is not live.
+    pub fn split(&mut self, i: u32, moves: [bool; 6]) -> Option<u32> {
+        if !self.is_live(i) {
+            return None;
         }
+        let j = self.coords.len() as u32;
+        self.coords.push(self.coords[i as usize]);
+        let mut links = [NO_PARTICLE; 6];
+        for (d, &moved) in moves.iter().enumerate() {
+            let n = self.links[i as usize][d];
+            if moved && n != NO_PARTICLE {
+                links[d] = n;
+                self.links[i as usize][d] = NO_PARTICLE;
+                self.links[n as usize][d ^ 1] = j;
+            }
+        }
+        self.links.push(links);
+        if self.live.len() * 64 <= j as usize {
+            self.live.push(0);
+        }
+        self.live[j as usize / 64] |= 1 << (j % 64);
+        self.live_count += 1;
+        self.intact = false;
+        Some(j)
     }
 
     /// Removes particle `i`; returns false if it was not live.
@@ -282,7 +313,18 @@ impl Lattice {
         let cell = self
             .cell(self.coords[i as usize])
             .expect("live particle inside bounds");
-        self.grid[cell] = NO_PARTICLE;
+        // (a split particle shares its cell with the particle it came from)
+        if self.grid[cell] == i {
+            self.grid[cell] = NO_PARTICLE;
+        }
+        for (d, n) in std::mem::replace(&mut self.links[i as usize], [NO_PARTICLE; 6])
+            .into_iter()
+            .enumerate()
+        {
+            if n != NO_PARTICLE {
+                self.links[n as usize][d ^ 1] = NO_PARTICLE;
+            }
+        }
         self.live[i as usize / 64] &= !(1 << (i % 64));
         self.live_count -= 1;
         true
@@ -294,7 +336,13 @@ impl Lattice {
     /// then a union–find over the runs, joining each run to the overlapping runs of the
     /// row below and of the slice below — a few operations per run instead of a search
     /// step per particle.
+    ///
+    /// Once edges were severed or particles split ([`Lattice::is_intact`] false), the
+    /// grid no longer tells the edges, and the pieces are labelled over the links.
     pub fn piece_count(&self) -> usize {
+        if !self.intact {
+            return crate::graph::body_pieces(self).1;
+        }
         let (nx, ny) = (self.dims.x as usize, self.dims.y as usize);
         if self.live_count == 0 || nx == 0 {
             return 0;
@@ -360,13 +408,14 @@ impl Lattice {
         pieces
     }
 
-    /// All live lattice edges `(a, b)` with `a < b`, in ascending order of `a`.
+    /// All edges `(a, b)` with `a < b`, in ascending order.
     pub fn edges(&self) -> Vec<(u32, u32)> {
         let mut out = Vec::new();
         for a in self.live_particles() {
-            let c = self.coord(a);
-            for o in [IVec3::X, IVec3::Y, IVec3::Z] {
-                if let Some(b) = self.at(c + o) {
+            // each edge once: from its end on the negative side, along +x, +y, +z
+            for d in [1, 3, 5] {
+                let b = self.links[a as usize][d];
+                if b != NO_PARTICLE {
                     out.push((a.min(b), a.max(b)));
                 }
             }
@@ -779,13 +828,13 @@ mod tests {
             assert_eq!(found, expected, "particle {i}");
             assert_eq!(l.neighbours(i).len(), expected.len());
             let cells: Vec<u32> = l
-                .neighbour_cells(i)
+                .links(i)
                 .into_iter()
                 .filter(|n| *n != NO_PARTICLE)
                 .collect();
             assert_eq!(cells, expected);
-            let one_by_one: Vec<u32> = (0..6).map(|d| l.neighbour_cell(i, d)).collect();
-            assert_eq!(one_by_one, l.neighbour_cells(i));
+            let one_by_one: Vec<u32> = (0..6).map(|d| l.link(i, d)).collect();
+            assert_eq!(one_by_one, l.links(i));
         }
     }
 
@@ -817,6 +866,64 @@ mod tests {
         assert!(!l.remove(left));
         assert_eq!(l.neighbours(mid).count(), 1);
         assert_eq!(l.live_count(), 2);
+    }
+
+    #[test]
+    fn severing_and_splitting_keep_the_links_symmetric_and_the_pieces_counted() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
+        let mut counts = std::collections::BTreeSet::new();
+        for case in 0..200 {
+            let mut l = Shape::cuboid(UVec3::new(5, 4, 3), 1.0)
+                .voxelise(1.0)
+                .unwrap();
+            for _ in 0..rng.random_range(1..30) {
+                let live: Vec<u32> = l.live_particles().collect();
+                let p = live[rng.random_range(0..live.len())];
+                match rng.random_range(0..3) {
+                    0 => {
+                        if let Some(n) = l.neighbours(p).next() {
+                            assert!(l.sever(p, n) && !l.sever(p, n));
+                        }
+                    }
+                    1 => {
+                        let moves = std::array::from_fn(|_| rng.random_bool(0.5));
+                        let before = l.links(p);
+                        let q = l.split(p, moves).unwrap();
+                        assert_eq!(l.coord(q), l.coord(p));
+                        for d in 0..6 {
+                            let kept = if moves[d] { l.link(q, d) } else { l.link(p, d) };
+                            assert_eq!(kept, before[d], "case {case}");
+                        }
+                    }
+                    _ => {
+                        if live.len() > 1 {
+                            l.remove(p);
+                        }
+                    }
+                }
+            }
+            // every link is live and answered by the opposite link
+            for a in l.live_particles() {
+                for (d, b) in l.links(a).into_iter().enumerate() {
+                    if b != NO_PARTICLE {
+                        assert!(l.is_live(b) && l.link(b, d ^ 1) == a, "case {case}");
+                        assert_eq!(l.coord(b) - l.coord(a), NEIGHBOUR_OFFSETS[d]);
+                    }
+                }
+            }
+            // pieces by an independent union–find over the edge list
+            let mut graph = petgraph::graph::UnGraph::<(), ()>::new_undirected();
+            let nodes: Vec<_> = (0..l.len()).map(|_| graph.add_node(())).collect();
+            for (a, b) in l.edges() {
+                graph.add_edge(nodes[a as usize], nodes[b as usize], ());
+            }
+            let dead = l.len() - l.live_count();
+            let pieces = petgraph::algo::connected_components(&graph) - dead;
+            assert_eq!(l.piece_count(), pieces, "case {case}");
+            counts.insert(pieces.min(3));
+        }
+        assert_eq!(counts.into_iter().collect::<Vec<_>>(), [1, 2, 3]);
     }
 
     #[test]

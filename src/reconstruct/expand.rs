@@ -93,7 +93,7 @@ fn draw_adjacent(
             break;
         }
         let pair = rng.random_range(0..pairs) as usize;
-        let n = lattice.neighbour_cell(members[pair / 6], pair % 6);
+        let n = lattice.link(members[pair / 6], pair % 6);
         if n != NO_PARTICLE && position_in(members, n).is_none() && !drawn.contains(&n) {
             drawn.push(n);
         }

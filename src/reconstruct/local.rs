@@ -88,7 +88,7 @@ impl LocalGraph {
                 local[m as usize] = i as u32;
             }
             for &m in members {
-                let cells = lattice.neighbour_cells(m);
+                let cells = lattice.links(m);
                 // a cell without a member reads `u32::MAX`, which becomes the sentinel
                 self.rows
                     .push(cells.map(|c| local[(c as usize).min(unset)].min(n)));

@@ -150,7 +150,7 @@ impl PieceScratch {
                     let row = graph.row(v as usize);
                     (0..6)
                         .filter(move |d| row[*d] as usize == n)
-                        .map(move |d| lattice.neighbour_cell(m, d))
+                        .map(move |d| lattice.link(m, d))
                 })
                 .find(|a| *a != NO_PARTICLE && view.in_intact_cluster(*a))
                 .unwrap_or(NONE);
@@ -445,7 +445,7 @@ fn choose_merges(
             candidates.clear();
             'search: for &m in members {
                 for d in 0..6 {
-                    let a = lattice.neighbour_cell(m, d);
+                    let a = lattice.link(m, d);
                     if a == NO_PARTICLE || members.binary_search(&a).is_ok() {
                         continue;
                     }
