@@ -28,67 +28,11 @@ pub enum SolverMode {
     Projective,
 }
 
-impl SolverMode {
-    /// Every scheme, in the order the documentation lists them.
-    pub const ALL: [SolverMode; 3] = [
-        SolverMode::Jacobi,
-        SolverMode::GaussSeidel,
-        SolverMode::Projective,
-    ];
-
-    /// The scheme's name in files, on the command line and in JSON.
-    pub fn name(self) -> &'static str {
-        match self {
-            SolverMode::Jacobi => "jacobi",
-            SolverMode::GaussSeidel => "gauss-seidel",
-            SolverMode::Projective => "projective",
-        }
-    }
-}
-
-impl std::fmt::Display for SolverMode {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl std::str::FromStr for SolverMode {
-    type Err = String;
-
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        SolverMode::ALL
-            .into_iter()
-            .find(|m| m.name() == s)
-            .ok_or_else(|| format!("unknown solver `{s}` (allowed: {SOLVER_NAMES})"))
-    }
-}
-
-/// The solver names, as error messages list them.
-const SOLVER_NAMES: &str = "\"jacobi\", \"gauss-seidel\", \"projective\"";
-
-impl Serialize for SolverMode {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
-        s.serialize_str(self.name())
-    }
-}
-
-impl<'de> Deserialize<'de> for SolverMode {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        struct Name;
-        impl serde::de::Visitor<'_> for Name {
-            type Value = SolverMode;
-            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-                write!(f, "one of the strings {SOLVER_NAMES}")
-            }
-            fn visit_str<E: serde::de::Error>(self, v: &str) -> std::result::Result<SolverMode, E> {
-                v.parse().map_err(E::custom)
-            }
-        }
-        // (`any`: a bare RON identifier such as `GaussSeidel` then fails with the list
-        // of quoted names instead of a bare "expected string")
-        d.deserialize_any(Name)
-    }
-}
+crate::named_enum::named_enum!(SolverMode, "solver", [
+    Jacobi => "jacobi",
+    GaussSeidel => "gauss-seidel",
+    Projective => "projective",
+]);
 
 /// A horizontal ground plane `y = height` with Coulomb friction.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

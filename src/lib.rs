@@ -30,6 +30,7 @@ pub mod lanes;
 pub mod lattice;
 pub mod mesh;
 pub mod mesh_sdf;
+mod named_enum;
 #[cfg(feature = "bevy_app")]
 pub mod plugin;
 pub mod prefetch;
