@@ -13,7 +13,7 @@ use crate::sim::{BodyDesc, Simulation, ToolDesc};
 use crate::solver::{Colliders, ConstraintKinds, SolverLayout};
 use crate::stats::rigid_fit_error;
 use crate::systems::layout_sync::rebuild_cache;
-use crate::tool::{Path, Pose, ToolShape};
+use crate::tool::{CutMode, Path, Pose, ToolShape};
 use bevy_ecs::prelude::Entity;
 use glam::{Quat, UVec3, Vec3, Vec3A};
 use rand::SeedableRng;
@@ -324,6 +324,7 @@ fn slice_event(sim: &mut Simulation, n: u32) -> Result<(f64, f64, f64)> {
             half_height: 0.05,
         },
         cut_width: 2.0 * H,
+        cut_mode: CutMode::Remove,
         path: Path {
             keys: vec![
                 (now as f32, at(2.0 * half + 1.0)),

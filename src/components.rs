@@ -9,7 +9,7 @@ use crate::cluster_index::ClusterIndex;
 use crate::collider::ColliderShape;
 use crate::config::Material;
 use crate::lattice::Lattice;
-use crate::tool::{Path, Pose, ToolShape};
+use crate::tool::{CutMode, Path, Pose, ToolShape};
 use bevy_ecs::entity::{Entities, EntityIndex};
 use bevy_ecs::prelude::*;
 use glam::Vec3;
@@ -115,6 +115,8 @@ pub struct Tool {
     pub shape: ToolShape,
     /// Width of the cut zone (> 0).
     pub cut_width: f32,
+    /// What the tool does where it passes.
+    pub mode: CutMode,
 }
 
 /// The tool's pose now and at the previous frame (for the swept test).

@@ -9,7 +9,8 @@
 //! `r` around `c` is nearer to the tool than `d(c) − r`.
 
 use crate::components::Tool;
-use crate::tool::{Pose, Sweep, ToolShape};
+use crate::convex::Convex;
+use crate::tool::{CutMode, Pose, Sweep};
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 use smallvec::SmallVec;
@@ -17,17 +18,20 @@ use smallvec::SmallVec;
 /// Particles culled together by one bounding ball.
 pub const BLOCK: usize = 64;
 
-/// A tool ready for point tests: its sampled sweep, its reach (half the cut width), and
-/// the bounding box of everything it can touch.
+/// A tool ready for point and edge tests: its motion since the last frame as
+/// translations, its convex core and radius, its reach (half the cut width), and the
+/// bounding box of everything it can touch.
 #[derive(Clone, Debug)]
 pub struct ToolSweep {
-    shape: ToolShape,
+    core: Convex,
+    radius: f32,
     reach: f32,
+    mode: CutMode,
     sweep: Sweep,
     min: Vec3,
     max: Vec3,
-    /// Largest coordinate magnitude of the sweep's poses plus the tool's size: the scale
-    /// of the rounding in a distance computed against this tool.
+    /// Largest coordinate magnitude of the sweep's positions plus the tool's size: the
+    /// scale of the rounding in a distance computed against this tool.
     scale: f32,
 }
 
@@ -44,50 +48,69 @@ impl ToolSweep {
             return None;
         }
         let reach = tool.cut_width * 0.5;
-        let radius = tool.shape.bounding_radius();
-        let sweep = Sweep::new(last, current, radius, reach);
-        let extent = Vec3::splat(radius + reach);
-        let (min, max, far) = sweep.samples.iter().fold(
-            (Vec3::MAX, Vec3::MIN, 0.0f32),
-            |(lo, hi, far), (pose, _)| {
-                let p = pose.position;
-                (
-                    lo.min(p - extent),
-                    hi.max(p + extent),
-                    far.max(p.abs().max_element()),
-                )
-            },
+        let bounding = tool.shape.bounding_radius();
+        let sweep = Sweep::new(last, current, bounding, reach);
+        let extent = Vec3::splat(bounding + reach + sweep.slack);
+        let (lo, hi) = (
+            last.position.min(current.position),
+            last.position.max(current.position),
         );
+        let far = lo.abs().max(hi.abs()).max_element();
+        let (core, radius) = tool.shape.core();
         Some(Self {
-            shape: tool.shape,
+            core,
+            radius,
             reach,
+            mode: tool.mode,
+            min: lo - extent,
+            max: hi + extent,
+            scale: far + bounding + reach,
             sweep,
-            min,
-            max,
-            scale: far + radius + reach,
         })
     }
 
-    /// Whether the point `x` is within reach of the tool at some sample.
+    /// The tool's cut mode.
+    pub fn mode(&self) -> CutMode {
+        self.mode
+    }
+
+    /// Whether the point `x` comes within reach of the tool at some time of its motion.
     pub fn hits(&self, x: Vec3) -> bool {
         x.cmpge(self.min).all()
             && x.cmple(self.max).all()
-            && self.sweep.hits(&self.shape, x, self.reach)
+            && self.sweep.point_distance(&self.core, x) - self.radius <= self.reach
     }
 
-    /// Whether some point of the ball `(centre, radius)` may be within reach of the tool
-    /// at some sample; false only when none is. The ball is grown by a margin well above
-    /// the rounding of the distances, so that a point [`Self::hits`] accepts is never
+    /// Whether the tool separates the ends of the segment `a`–`b`: one end comes within
+    /// reach and the other does not, or neither does and the segment passes within reach
+    /// at some time (a thin blade slicing between two particles). A segment with both
+    /// ends within reach lies inside the cut and is kept: a tool sweeping a volume
+    /// (a sphere's scoop) severs the volume's boundary, not every edge inside it.
+    pub fn separates(&self, a: Vec3, b: Vec3) -> bool {
+        let (in_a, in_b) = (self.hits(a), self.hits(b));
+        if in_a != in_b {
+            return true;
+        }
+        !in_a
+            && self.touches_box(a.min(b), a.max(b))
+            && self.sweep.segment_distance(&self.core, a, b) - self.radius <= self.reach
+    }
+
+    fn touches_box(&self, lo: Vec3, hi: Vec3) -> bool {
+        hi.cmpge(self.min).all() && lo.cmple(self.max).all()
+    }
+
+    /// Whether some point of the ball `(centre, radius)` may come within reach of the
+    /// tool; false only when none does. The ball is grown by a margin well above the
+    /// rounding of the distances, so that a point [`Self::hits`] accepts is never
     /// culled.
     fn may_hit_ball(&self, centre: Vec3, radius: f32) -> bool {
         let margin = 1e-4 * (radius + self.reach)
             + 64.0 * f32::EPSILON * (centre.abs().max_element() + self.scale);
         let r = Vec3::splat(radius + margin);
-        (centre + r).cmpge(self.min).all()
-            && (centre - r).cmple(self.max).all()
-            && self
-                .sweep
-                .hits(&self.shape, centre, self.reach + radius + margin)
+        self.touches_box(centre - r, centre + r)
+            && self.sweep.point_distance(&self.core, centre) - self.radius
+                <= self.reach + radius + margin
     }
 }
 
@@ -143,6 +166,7 @@ fn bounding_ball(positions: &[Vec3A], live: &[bool]) -> (Vec3, Option<f32>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::tool::ToolShape;
     use glam::Quat;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -208,6 +232,7 @@ mod tests {
             let tool = Tool {
                 shape,
                 cut_width: rng.random_range(0.01..0.3),
+                mode: CutMode::Remove,
             };
             let (last, current) = (random_pose(&mut rng), random_pose(&mut rng));
             let tools: Vec<ToolSweep> =
@@ -235,12 +260,14 @@ mod tests {
             let tool = Tool {
                 shape: sphere,
                 cut_width,
+                mode: CutMode::Remove,
             };
             assert!(ToolSweep::new(&tool, &pose, &pose).is_none());
         }
         let tool = Tool {
             shape: sphere,
             cut_width: 0.1,
+            mode: CutMode::Remove,
         };
         let nan = Pose::at(Vec3::new(f32::NAN, 0.0, 0.0));
         assert!(ToolSweep::new(&tool, &nan, &pose).is_none());

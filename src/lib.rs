@@ -19,6 +19,7 @@ pub mod clustering;
 pub mod collider;
 pub mod components;
 pub mod config;
+pub mod convex;
 pub mod detection;
 pub mod dump;
 pub mod error;
@@ -69,7 +70,7 @@ pub mod prelude {
         BodyDesc, ColliderDesc, PinRegion, Simulation, ToolDesc, check_invariants,
     };
     pub use crate::systems::{CleaveSchedule, SimStage, SubstepSchedule, install};
-    pub use crate::tool::{Path, Pose, ToolShape};
+    pub use crate::tool::{CutMode, Path, Pose, ToolShape};
     pub use bevy_ecs::message::MessageReader;
     pub use glam::{Quat, UVec3, Vec3};
 }

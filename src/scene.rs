@@ -4,7 +4,7 @@ use crate::collider::ColliderShape;
 use crate::config::{Material, SimConfig, StaticBox};
 use crate::lattice::Shape;
 use crate::sim::{BodyDesc, ColliderDesc, PinRegion, ToolDesc};
-use crate::tool::{Path, Pose, ToolShape};
+use crate::tool::{CutMode, Path, Pose, ToolShape};
 use glam::{Quat, UVec3, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -85,6 +85,7 @@ fn blade_vertical_cut(
             half_height: 0.3,
         },
         cut_width: width,
+        cut_mode: CutMode::Remove,
         path: Path {
             keys: vec![(t0, at(from_y)), (t1, at(to_y)), (t1 + 0.05, at(-5.0))],
         },
@@ -200,6 +201,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
             let tool = ToolDesc {
                 shape: ToolShape::Sphere { radius: 0.3 },
                 cut_width: 0.5 * H,
+                cut_mode: CutMode::Remove,
                 path: Path {
                     keys: vec![(0.2, at(-1.6)), (1.2, at(1.6))],
                 },
@@ -288,6 +290,7 @@ fn random_scene(seed: u64) -> Scene {
         tools.push(ToolDesc {
             shape,
             cut_width: width,
+            cut_mode: CutMode::Remove,
             path,
             pose: Pose {
                 position: start,
@@ -417,6 +420,7 @@ fn press_scene(config: SimConfig) -> Scene {
             half_height: 0.6,
         },
         cut_width: 1.01 * H,
+        cut_mode: CutMode::Remove,
         path: Path {
             keys: vec![
                 (1.2, blade_at(1.5)),

@@ -15,7 +15,7 @@ use crate::lattice::Shape;
 use crate::resources::*;
 use crate::solver::MAX_SOLVER_PARTICLES;
 use crate::systems::{CleaveSchedule, install};
-use crate::tool::{Path, Pose, ToolShape};
+use crate::tool::{CutMode, Path, Pose, ToolShape};
 use bevy_ecs::message::message_update_system;
 use bevy_ecs::prelude::*;
 use glam::{Quat, Vec3};
@@ -78,6 +78,8 @@ pub struct ToolDesc {
     pub shape: ToolShape,
     /// Width of the cut zone (> 0).
     pub cut_width: f32,
+    /// What the tool does where it passes.
+    pub cut_mode: CutMode,
     /// Keyframed path; if empty the tool stays at `pose` until game code moves it.
     pub path: Path,
     /// Initial pose.
@@ -251,6 +253,7 @@ pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
     let tool = Tool {
         shape: desc.shape,
         cut_width: desc.cut_width,
+        mode: desc.cut_mode,
     };
     let at = ToolPose {
         current: pose,

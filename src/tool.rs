@@ -1,6 +1,8 @@
 //! Cutting tools: shapes with a signed distance in their local frame, poses, keyframed
-//! paths, and the swept test that detection uses so a fast tool cannot skip particles.
+//! paths, and the swept test that detection uses: exact for a translating tool, so a fast
+//! tool cannot skip particles and cuts what a slow one cuts along the same path.
 
+use crate::convex::{self, Convex};
 use crate::error::{Result, check_finite_vec, check_positive, out_of_range};
 use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
@@ -53,6 +55,34 @@ impl ToolShape {
         }
     }
 
+    /// The tool as a convex core and a radius: the tool is every point within the
+    /// radius of the core (a sphere: its centre; a capsule: its axis; a blade: its
+    /// rectangle, radius 0).
+    pub fn core(&self) -> (Convex, f32) {
+        match *self {
+            ToolShape::Sphere { radius } => (Convex::point(Vec3::ZERO), radius),
+            ToolShape::Capsule {
+                radius,
+                half_length,
+            } => (
+                Convex::segment(Vec3::X * -half_length, Vec3::X * half_length),
+                radius,
+            ),
+            ToolShape::Blade {
+                half_width: w,
+                half_height: h,
+            } => (
+                Convex::quad(
+                    Vec3::new(-w, -h, 0.0),
+                    Vec3::new(w, -h, 0.0),
+                    Vec3::new(w, h, 0.0),
+                    Vec3::new(-w, h, 0.0),
+                ),
+                0.0,
+            ),
+        }
+    }
+
     /// Radius of a ball around the tool origin that contains the tool.
     pub fn bounding_radius(&self) -> f32 {
         match *self {
@@ -89,6 +119,29 @@ impl ToolShape {
         }
     }
 }
+
+/// What a tool does to the body where it passes. In files, on the command line and in
+/// JSON: `"remove"`, `"sever"`, `"split"`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum CutMode {
+    /// Particles that come within reach of the tool are removed (their mass is lost).
+    #[default]
+    Remove,
+    /// Every edge the tool separates is severed (see
+    /// [`crate::detection::ToolSweep::separates`]); no particle is removed, no mass is
+    /// lost.
+    Sever,
+    /// A particle a blade passes through is split in two, one on each side of the blade,
+    /// each with half the mass; its edges go to the half on their side, and every other
+    /// edge the blade separates is severed. A sphere or capsule severs, as in `Sever`.
+    Split,
+}
+
+crate::named_enum::named_enum!(CutMode, "cut mode", [
+    Remove => "remove",
+    Sever => "sever",
+    Split => "split",
+]);
 
 /// A rigid pose.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -180,76 +233,107 @@ impl Path {
     }
 }
 
-/// Poses sampled along the motion from `from` to `to`, close enough (≤ `step` apart at
-/// any point of a tool of bounding radius `radius`) that the union of the samples'
-/// cut zones covers the swept volume. At most 256 samples.
-pub fn sweep_samples(from: &Pose, to: &Pose, radius: f32, step: f32) -> Vec<Pose> {
-    let travel =
-        from.position.distance(to.position) + from.rotation.angle_between(to.rotation) * radius;
-    let n = if travel.is_finite() && step > 0.0 {
-        (travel / step).ceil().clamp(1.0, 255.0) as usize
-    } else {
-        1
-    };
-    (0..=n)
-        .map(|i| from.lerp(to, i as f32 / n as f32))
-        .collect()
+/// Most pieces a rotating sweep is cut into; past it the pieces' slack grows instead
+/// (the test stays conservative: it may cut more, never less).
+pub const MAX_SWEEP_PIECES: usize = 4096;
+
+/// One piece of a tool's motion: a translation from `from` to `to` with the rotation
+/// held fixed (`inverse` is the inverse of that rotation).
+#[derive(Clone, Copy, Debug)]
+pub struct SweepPiece {
+    /// Inverse of the piece's rotation.
+    pub inverse: Quat,
+    /// Position at the start of the piece.
+    pub from: Vec3,
+    /// Position at the end of the piece.
+    pub to: Vec3,
 }
 
-/// Poses sampled along a tool's motion, ready for point tests: each with the inverse
-/// of its rotation, plus a bound on how far any tool point moves between neighbours.
+impl SweepPiece {
+    /// What the world point `x` traces in the tool's frame during the piece: a segment.
+    pub fn trace_point(&self, x: Vec3) -> Convex {
+        Convex::segment(self.inverse * (x - self.from), self.inverse * (x - self.to))
+    }
+
+    /// What the world segment `a`–`b` traces in the tool's frame: a parallelogram.
+    pub fn trace_segment(&self, a: Vec3, b: Vec3) -> Convex {
+        let (start, end) = (self.inverse * (-self.from), self.inverse * (-self.to));
+        let (a, b) = (self.inverse * a, self.inverse * b);
+        Convex::quad(a + start, b + start, b + end, a + end)
+    }
+}
+
+/// A tool's motion from one pose to the next as translations: one piece when the
+/// rotation does not change (then the test is exact), else pieces short enough that
+/// holding each one's middle rotation moves no point of interest by more than `slack`.
 #[derive(Clone, Debug)]
 pub struct Sweep {
-    /// `(pose, inverse rotation)` per sample, in order along the motion.
-    pub samples: Vec<(Pose, Quat)>,
-    /// Upper bound on the distance any point of the tool moves from one sample to the
-    /// next (0 for a tool at rest).
-    pub step: f32,
+    /// The pieces, in order along the motion.
+    pub pieces: Vec<SweepPiece>,
+    /// How far holding a piece's rotation may misplace a point within `reach` of a tool
+    /// of bounding radius `radius` (0 without rotation); the tests add it to the reach.
+    pub slack: f32,
 }
 
 impl Sweep {
-    /// Samples the motion `from → to` of a tool of bounding radius `radius` so that no
-    /// point moves more than `step` between samples (see [`sweep_samples`]).
-    pub fn new(from: &Pose, to: &Pose, radius: f32, step: f32) -> Self {
-        let poses = sweep_samples(from, to, radius, step);
-        let travel =
-            from.position.distance(to.position) + from.rotation.angle_between(to.rotation) * radius;
-        let gaps = poses.len().saturating_sub(1).max(1) as f32;
+    /// The motion `from → to` (position lerp, rotation slerp, one parameter) of a tool
+    /// of bounding radius `radius`, cut into pieces whose slack stays under a quarter of
+    /// `reach` (up to [`MAX_SWEEP_PIECES`]).
+    pub fn new(from: &Pose, to: &Pose, radius: f32, reach: f32) -> Self {
+        let (r0, r1) = (from.rotation.normalize(), to.rotation.normalize());
+        let angle = r0.angle_between(r1);
+        let lever = radius + reach;
+        if !(angle > 0.0 && angle.is_finite()) {
+            return Self {
+                pieces: vec![SweepPiece {
+                    inverse: r0.inverse(),
+                    from: from.position,
+                    to: to.position,
+                }],
+                slack: 0.0,
+            };
+        }
+        let wanted = (angle * lever / (0.25 * reach)).ceil();
+        let count = if wanted.is_finite() {
+            (wanted as usize).clamp(1, MAX_SWEEP_PIECES)
+        } else {
+            MAX_SWEEP_PIECES
+        };
+        let at = |i: usize| i as f32 / count as f32;
         Self {
-            step: if travel.is_finite() {
-                travel / gaps
-            } else {
-                0.0
-            },
-            samples: poses
-                .into_iter()
-                .map(|p| (p, p.rotation.normalize().inverse()))
+            pieces: (0..count)
+                .map(|i| SweepPiece {
+                    inverse: r0
+                        .slerp(r1, (at(i) + at(i + 1)) * 0.5)
+                        .normalize()
+                        .inverse(),
+                    from: from.position.lerp(to.position, at(i)),
+                    to: from.position.lerp(to.position, at(i + 1)),
+                })
                 .collect(),
+            // half a piece's turn, at the lever of a point within reach of the tool
+            slack: angle / (2 * count) as f32 * lever,
         }
     }
 
-    /// Whether `x` comes within `reach` of `shape`'s surface (or inside it) at some
-    /// sample. A sample's signed distance changes by at most `step` from one sample to the
-    /// next, so from a distance `d` the next `⌈(d − reach)/step⌉ − 1` samples cannot hit
-    /// and are skipped: far particles cost a few tests instead of one per sample.
-    pub fn hits(&self, shape: &ToolShape, x: Vec3, reach: f32) -> bool {
-        let mut j = 0;
-        while let Some((pose, inverse)) = self.samples.get(j) {
-            let d = shape.signed_distance(*inverse * (x - pose.position));
-            if d <= reach {
-                return true;
-            }
-            if self.step <= 0.0 {
-                return false;
-            }
-            let skip = ((d - reach) / self.step).ceil();
-            j += if skip.is_finite() && skip > 1.0 {
-                skip.min(self.samples.len() as f32) as usize
-            } else {
-                1
-            };
-        }
-        false
+    /// The least distance from the world point `x` to the convex `core` (in the tool's
+    /// frame) over the motion, less the slack.
+    pub fn point_distance(&self, core: &Convex, x: Vec3) -> f32 {
+        self.pieces
+            .iter()
+            .map(|p| convex::distance(&p.trace_point(x), core))
+            .fold(f32::INFINITY, f32::min)
+            - self.slack
+    }
+
+    /// The least distance from the world segment `a`–`b` to the convex `core` over the
+    /// motion, less the slack.
+    pub fn segment_distance(&self, core: &Convex, a: Vec3, b: Vec3) -> f32 {
+        self.pieces
+            .iter()
+            .map(|p| convex::distance(&p.trace_segment(a, b), core))
+            .fold(f32::INFINITY, f32::min)
+            - self.slack
     }
 }
 
@@ -257,41 +341,80 @@ impl Sweep {
 mod tests {
     use super::*;
 
+    /// `n + 1` poses evenly spaced along the motion, as (position, inverse rotation):
+    /// a brute-force reference for the swept test.
+    fn sampled_poses(from: &Pose, to: &Pose, n: usize) -> Vec<(Vec3, Quat)> {
+        (0..=n)
+            .map(|i| {
+                let pose = from.lerp(to, i as f32 / n as f32);
+                (pose.position, pose.rotation.normalize().inverse())
+            })
+            .collect()
+    }
+
+    fn sampled_hit(shape: &ToolShape, poses: &[(Vec3, Quat)], x: Vec3, reach: f32) -> bool {
+        poses
+            .iter()
+            .any(|(c, inverse)| shape.signed_distance(*inverse * (x - *c)) <= reach)
+    }
+
     #[test]
-    fn skipping_sweep_test_agrees_with_testing_every_sample() {
+    fn the_swept_test_agrees_with_dense_sampling() {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        let blade = ToolShape::Blade {
-            half_width: 1.0,
-            half_height: 0.2,
-        };
-        let from = Pose {
-            position: Vec3::new(0.0, 3.0, 0.0),
-            rotation: Quat::from_rotation_y(0.3),
-        };
-        let to = Pose {
-            position: Vec3::new(0.5, -2.0, 0.2),
-            rotation: Quat::from_rotation_y(1.1),
-        };
-        let reach = 0.05;
-        let sweep = Sweep::new(&from, &to, blade.bounding_radius(), reach);
-        let mut hits = 0;
-        for _ in 0..20_000 {
-            let x = Vec3::new(
-                rng.random_range(-2.0..2.0),
-                rng.random_range(-3.0..4.0),
-                rng.random_range(-2.0..2.0),
-            );
-            let brute = sweep
-                .samples
-                .iter()
-                .any(|(p, inv)| blade.signed_distance(*inv * (x - p.position)) <= reach);
-            assert_eq!(sweep.hits(&blade, x, reach), brute, "{x}");
-            hits += usize::from(brute);
+        let shapes = [
+            ToolShape::Blade {
+                half_width: 1.0,
+                half_height: 0.2,
+            },
+            ToolShape::Sphere { radius: 0.3 },
+            ToolShape::Capsule {
+                radius: 0.1,
+                half_length: 0.6,
+            },
+        ];
+        let (mut hits, mut doubtful) = (0, 0);
+        for (k, shape) in shapes.iter().enumerate() {
+            let from = Pose {
+                position: Vec3::new(0.0, 3.0, 0.0),
+                rotation: Quat::from_rotation_y(0.3),
+            };
+            for turn in [0.0, 0.8] {
+                let to = Pose {
+                    position: Vec3::new(0.5, -2.0, 0.2),
+                    rotation: Quat::from_rotation_y(0.3 + turn),
+                };
+                let reach = 0.05;
+                let sweep = Sweep::new(&from, &to, shape.bounding_radius(), reach);
+                let (core, radius) = shape.core();
+                let n = 3000;
+                let poses = sampled_poses(&from, &to, n);
+                for _ in 0..1000 {
+                    let x = Vec3::new(
+                        rng.random_range(-2.0..2.0),
+                        rng.random_range(-3.0..4.0),
+                        rng.random_range(-2.0..2.0),
+                    );
+                    let exact = sweep.point_distance(&core, x) - radius <= reach;
+                    // samples ~2e-3 apart: a point the sweep reaches is within reach of a
+                    // sample grown by that spacing (and the slack); one within reach of a
+                    // sample is reached by the sweep
+                    let near = reach + 0.5 * 6.0 / n as f32 + 2.0 * sweep.slack;
+                    if sampled_hit(shape, &poses, x, reach) {
+                        assert!(exact, "shape {k}, turn {turn}: {x} missed");
+                    }
+                    if exact {
+                        hits += 1;
+                        if !sampled_hit(shape, &poses, x, near) {
+                            doubtful += 1;
+                        }
+                    }
+                }
+            }
         }
         assert!(
-            hits > 100,
-            "only {hits} hits: the test would not see a difference"
+            hits > 100 && doubtful == 0,
+            "{hits} hits, {doubtful} unexplained"
         );
     }
 
@@ -323,11 +446,5 @@ mod tests {
                 .contains("tool.path[0].position")
         );
         assert!(ToolShape::Sphere { radius: 0.0 }.validate().is_err());
-    }
-
-    #[test]
-    fn sweep_samples_are_dense_enough() {
-        let s = sweep_samples(&Pose::at(Vec3::ZERO), &Pose::at(Vec3::X * 10.0), 1.0, 0.5);
-        assert_eq!(s.len(), 21);
     }
 }

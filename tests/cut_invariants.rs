@@ -196,6 +196,7 @@ fn run_ecs_case(cells: (u32, u32, u32), tools: &[ToolCase], seed: u64) -> (usize
         sim.spawn_tool(&ToolDesc {
             shape,
             cut_width: width,
+            cut_mode: CutMode::Remove,
             path,
             pose: away,
         })
@@ -261,6 +262,7 @@ fn a_cut_that_removes_everything_leaves_a_legal_empty_body() {
     sim.spawn_tool(&ToolDesc {
         shape: ToolShape::Sphere { radius: 2.0 },
         cut_width: 0.1,
+        cut_mode: CutMode::Remove,
         path: Path::default(),
         pose,
     })

@@ -334,6 +334,7 @@ fn bad_input_is_an_error_naming_the_field() {
     let tool = |shape, width| ToolDesc {
         shape,
         cut_width: width,
+        cut_mode: CutMode::Remove,
         path: Path::default(),
         pose: Pose::at(Vec3::ZERO),
     };

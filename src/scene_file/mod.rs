@@ -8,7 +8,7 @@ use crate::lattice::Shape;
 use crate::mesh::TriangleMesh;
 use crate::scene::Scene;
 use crate::sim::{BodyDesc, ColliderDesc, PinRegion, ToolDesc};
-use crate::tool::{Path as ToolPath, Pose, ToolShape};
+use crate::tool::{CutMode, Path as ToolPath, Pose, ToolShape};
 use glam::{Quat, UVec3, Vec3};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -203,6 +203,10 @@ pub struct ToolFile {
     /// Width of the cut zone.
     #[serde(deserialize_with = "check::positive")]
     pub cut_width: f32,
+    /// What the tool does where it passes: `"remove"` (the default), `"sever"` or
+    /// `"split"`.
+    #[serde(default)]
+    pub cut_mode: CutMode,
     /// Keyframes `(time in seconds, pose)`, ascending; empty: the tool stays at `pose`.
     #[serde(default, deserialize_with = "check::keys")]
     pub path: Vec<(f32, PoseFile)>,
@@ -456,6 +460,7 @@ impl SceneFile {
             .map(|t| ToolFile {
                 shape: t.shape,
                 cut_width: t.cut_width,
+                cut_mode: t.cut_mode,
                 path: t.path.keys.iter().map(|(k, p)| (*k, (*p).into())).collect(),
                 pose: Some(t.pose.into()),
             })
@@ -528,6 +533,7 @@ impl SceneFile {
                 ToolDesc {
                     shape: t.shape,
                     cut_width: t.cut_width,
+                    cut_mode: t.cut_mode,
                     path,
                     pose,
                 }
