@@ -5,7 +5,7 @@
 use cleave::components::Tool;
 use cleave::detection::{ToolSweep, particles_hit};
 use cleave::lattice::Shape;
-use cleave::tool::{Pose, ToolShape};
+use cleave::tool::{CutMode, Pose, ToolShape};
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{Quat, UVec3, Vec3, Vec3A};
 use rayon::prelude::*;
@@ -33,10 +33,12 @@ fn detect(c: &mut Criterion) {
             half_height: 0.05,
         },
         cut_width: 2.0 * H,
+        mode: CutMode::Remove,
     };
     let sphere = Tool {
         shape: ToolShape::Sphere { radius: 4.0 * H },
         cut_width: 2.0 * H,
+        mode: CutMode::Remove,
     };
     let cases = [
         (
