@@ -81,19 +81,29 @@ impl ToolSweep {
             && self.sweep.point_distance(&self.core, x) - self.radius <= self.reach
     }
 
-    /// Whether the tool separates the ends of the segment `a`–`b`: one end comes within
-    /// reach and the other does not, or neither does and the segment passes within reach
-    /// at some time (a thin blade slicing between two particles). A segment with both
-    /// ends within reach lies inside the cut and is kept: a tool sweeping a volume
-    /// (a sphere's scoop) severs the volume's boundary, not every edge inside it.
+    /// Whether the tool separates the ends of the segment `a`–`b` along its surface:
+    /// one end inside the tool at some time of its motion and the other never, or
+    /// neither inside and the segment crossing the tool's surface at some time (a blade,
+    /// which has no inside, slicing between two particles). A segment with both ends
+    /// inside is kept: a sphere sweeping through a body severs the boundary of what it
+    /// swept, not every edge in it. The cut width plays no part: severing removes no
+    /// material.
     pub fn separates(&self, a: Vec3, b: Vec3) -> bool {
-        let (in_a, in_b) = (self.hits(a), self.hits(b));
+        let (in_a, in_b) = (self.inside(a), self.inside(b));
         if in_a != in_b {
             return true;
         }
         !in_a
             && self.touches_box(a.min(b), a.max(b))
-            && self.sweep.segment_distance(&self.core, a, b) - self.radius <= self.reach
+            && self.sweep.segment_distance(&self.core, a, b) <= self.radius
+    }
+
+    /// Whether `x` lies strictly inside the tool at some time of its motion (never for a
+    /// blade).
+    fn inside(&self, x: Vec3) -> bool {
+        self.radius > 0.0
+            && self.touches_box(x, x)
+            && self.sweep.point_distance(&self.core, x) < self.radius
     }
 
     fn touches_box(&self, lo: Vec3, hi: Vec3) -> bool {
@@ -142,6 +152,72 @@ pub fn particles_hit(positions: &[Vec3A], live: &[bool], tools: &[ToolSweep]) ->
                     **live && near.iter().any(|t| t.hits(Vec3::from(**x)))
                 })
                 .map(move |(i, _)| block * BLOCK + i)
+        })
+        .collect()
+}
+
+/// The edges some tool separates ([`ToolSweep::separates`]), among the edges from the
+/// particles `range` of `positions` (dense indices) to their `partners` (the dense
+/// indices of the particles linked along +x, +y and +z, `u32::MAX` where none, so that
+/// each edge is tested once). Returns `(particle, partner)` pairs in ascending order.
+/// Blocks of [`BLOCK`] particles are culled by a ball around their particles and
+/// partners, and run in parallel; the result does not depend on the thread count.
+pub fn edges_separated(
+    positions: &[Vec3A],
+    live: &[bool],
+    range: std::ops::Range<usize>,
+    partners: impl Fn(usize) -> [u32; 3] + Sync,
+    tools: &[&ToolSweep],
+) -> Vec<(usize, usize)> {
+    if tools.is_empty() || range.is_empty() {
+        return Vec::new();
+    }
+    let first = range.start;
+    let blocks = range.len().div_ceil(BLOCK);
+    (0..blocks)
+        .into_par_iter()
+        .with_min_len(16)
+        .flat_map_iter(|block| {
+            let start = first + block * BLOCK;
+            let end = (start + BLOCK).min(range.end);
+            // every edge of the block: its particles' and their partners' positions
+            let mut edges: SmallVec<[(usize, usize); 3 * BLOCK]> = SmallVec::new();
+            for i in (start..end).filter(|&i| live[i]) {
+                for j in partners(i) {
+                    if j != u32::MAX && live[j as usize] {
+                        edges.push((i, j as usize));
+                    }
+                }
+            }
+            let (lo, hi) = edges.iter().flat_map(|&(i, j)| [i, j]).fold(
+                (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)),
+                |(lo, hi), k| {
+                    let x = positions[k];
+                    if x.is_finite() {
+                        (lo.min(x), hi.max(x))
+                    } else {
+                        (lo, hi)
+                    }
+                },
+            );
+            let near: SmallVec<[&ToolSweep; 4]> = if lo.cmple(hi).all() {
+                let centre = (lo + hi) * 0.5;
+                let radius = (hi - centre).length();
+                tools
+                    .iter()
+                    .copied()
+                    .filter(|t| t.may_hit_ball(Vec3::from(centre), radius))
+                    .collect()
+            } else {
+                SmallVec::new()
+            };
+            if near.is_empty() {
+                edges.clear();
+            }
+            edges.into_iter().filter(move |&(i, j)| {
+                let (a, b) = (Vec3::from(positions[i]), Vec3::from(positions[j]));
+                near.iter().any(|t| t.separates(a, b))
+            })
         })
         .collect()
 }

@@ -65,7 +65,9 @@ pub mod prelude {
     pub use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
     pub use crate::error::{CleaveError, Result};
     pub use crate::lattice::{SdfShape, Shape};
-    pub use crate::resources::{BodySplit, ClustersRebuilt, ParticlesCut, ParticlesRepaired};
+    pub use crate::resources::{
+        BodySplit, ClustersRebuilt, EdgesSevered, ParticlesCut, ParticlesRepaired,
+    };
     pub use crate::sim::{
         BodyDesc, ColliderDesc, PinRegion, Simulation, ToolDesc, check_invariants,
     };

@@ -33,13 +33,17 @@ pub struct SubstepClock {
     pub count: u32,
 }
 
-/// Particles to cut in one body.
+/// What to cut in one body.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct BodyCut {
     /// The body.
     pub body: Entity,
-    /// Body-local particle indices, ascending.
+    /// Particles to remove (tools in [`crate::tool::CutMode::Remove`]): body-local
+    /// indices, ascending.
     pub particles: Vec<u32>,
+    /// Edges to sever (tools in `Sever` or `Split` mode): body-local `(a, b)` with
+    /// `a < b`, ascending.
+    pub edges: Vec<(u32, u32)>,
 }
 
 /// Output of detect (its only output), input of cut.
@@ -56,14 +60,17 @@ pub struct BodyCutReport {
     pub body: Entity,
     /// Removed particle indices.
     pub removed: Vec<u32>,
-    /// Clusters that contained a removed particle, by ascending entity index.
+    /// Severed edges `(a, b)`, `a < b`.
+    pub severed: Vec<(u32, u32)>,
+    /// Clusters that contained a removed particle or both ends of a severed edge, by
+    /// ascending entity index.
     pub cut_clusters: Vec<Entity>,
 }
 
 /// Output of cut, input of regroup.
 #[derive(Resource, Clone, Debug, Default)]
 pub struct CutReport {
-    /// One entry per body that lost particles this frame.
+    /// One entry per body that lost particles or edges this frame.
     pub bodies: Vec<BodyCutReport>,
 }
 
@@ -219,6 +226,15 @@ pub struct ParticlesCut {
     pub body: Entity,
     /// Removed body-local indices.
     pub particles: Vec<u32>,
+}
+
+/// Sent by cut: edges severed in a body (by a `sever` or `split` tool, or torn).
+#[derive(Message, Clone, Debug)]
+pub struct EdgesSevered {
+    /// The body.
+    pub body: Entity,
+    /// The severed edges `(a, b)` of body-local indices, `a < b`, ascending.
+    pub edges: Vec<(u32, u32)>,
 }
 
 /// Sent by shape-match: particles whose position had become non-finite (a NaN written

@@ -1,18 +1,21 @@
-//! Stage cut (SPEC §2.4): removes the detected particles from their bodies and reports
-//! the removed particles and the cut clusters. Writes particle data only (it reads the
-//! particle → clusters index to name the cut clusters).
+//! Stage cut (SPEC §2.4): removes the detected particles from their bodies, severs the
+//! detected edges, and reports both and the cut clusters. Writes particle data only (it
+//! reads the particle → clusters index to name the cut clusters).
 //!
 //! A particle entity despawned from outside (by a game, say) is removed the same way,
 //! as if cut: its body's lattice and clusters are rebuilt around the hole, instead of
 //! listing a particle that no longer exists.
 
 use crate::components::{BodyLattice, Particle, ParticleClusters, cluster_entity};
-use crate::resources::{BodyCut, BodyCutReport, BodySplit, CutList, CutReport, ParticlesCut};
+use crate::resources::{
+    BodyCut, BodyCutReport, BodySplit, CutList, CutReport, EdgesSevered, ParticlesCut,
+};
 use bevy_ecs::entity::Entities;
 use bevy_ecs::prelude::*;
 use std::borrow::Cow;
 
-/// Deletes the particles of the `CutList`, and any particle despawned from outside.
+/// Deletes the particles of the `CutList` and any particle despawned from outside, and
+/// severs the `CutList`'s edges.
 #[allow(clippy::too_many_arguments)]
 pub fn cut(
     mut commands: Commands,
@@ -23,6 +26,7 @@ pub fn cut(
     mut despawned: RemovedComponents<Particle>,
     mut despawned_here: Local<Vec<Entity>>,
     mut particles_cut: MessageWriter<ParticlesCut>,
+    mut edges_severed: MessageWriter<EdgesSevered>,
     mut body_split: MessageWriter<BodySplit>,
 ) {
     report.bodies.clear();
@@ -46,7 +50,16 @@ pub fn cut(
                 cut_clusters.extend_from_slice(index.0.clusters_of(p));
             }
         }
-        if removed.is_empty() {
+        let mut severed = Vec::new();
+        for &(a, b) in &cut.edges {
+            if body.lattice.sever(a, b) {
+                severed.push((a, b));
+                // only a cluster holding both ends may fall apart
+                let of_b = index.0.clusters_of(b);
+                cut_clusters.extend(index.0.clusters_of(a).iter().filter(|k| of_b.contains(k)));
+            }
+        }
+        if removed.is_empty() && severed.is_empty() {
             continue;
         }
         cut_clusters.sort_unstable();
@@ -64,13 +77,22 @@ pub fn cut(
                 pieces_after: body.pieces,
             });
         }
-        particles_cut.write(ParticlesCut {
-            body: cut.body,
-            particles: removed.clone(),
-        });
+        if !removed.is_empty() {
+            particles_cut.write(ParticlesCut {
+                body: cut.body,
+                particles: removed.clone(),
+            });
+        }
+        if !severed.is_empty() {
+            edges_severed.write(EdgesSevered {
+                body: cut.body,
+                edges: severed.clone(),
+            });
+        }
         report.bodies.push(BodyCutReport {
             body: cut.body,
             removed,
+            severed,
             cut_clusters,
         });
     }
@@ -116,6 +138,7 @@ fn with_despawned<'a>(
             None => cuts.push(BodyCut {
                 body,
                 particles: lost,
+                edges: Vec::new(),
             }),
         }
     }

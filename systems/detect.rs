@@ -1,15 +1,24 @@
-//! Stage detect (SPEC §2.3): READ-ONLY. Selects particles within half the cut width of a
-//! tool's surface (or inside it), over the whole volume swept since the last frame.
-//! Its only output is the `CutList`. The test itself is [`crate::detection::particles_hit`]
-//! (parallel, culled by blocks, deterministic order).
+//! Stage detect (SPEC §2.3): READ-ONLY. Selects, over the whole volume each tool swept
+//! since the last frame, the particles a `remove` tool comes within half its cut width
+//! of, and the edges a `sever` or `split` tool separates. Its only output is the
+//! `CutList`. The tests themselves are [`crate::detection::particles_hit`] and
+//! [`crate::detection::edges_separated`] (parallel, culled by blocks, deterministic
+//! order).
 
-use crate::components::{Tool, ToolPose};
-use crate::detection::{ToolSweep, particles_hit};
+use crate::components::{BodyLattice, Tool, ToolPose};
+use crate::detection::{ToolSweep, edges_separated, particles_hit};
+use crate::lattice::NO_PARTICLE;
 use crate::resources::{BodyCut, CutList, SolverCache};
+use crate::tool::CutMode;
 use bevy_ecs::prelude::*;
 
 /// Fills the cut list from the solver cache's dense positions.
-pub fn detect(cache: Res<SolverCache>, tools: Query<(&Tool, &ToolPose)>, mut out: ResMut<CutList>) {
+pub fn detect(
+    cache: Res<SolverCache>,
+    tools: Query<(&Tool, &ToolPose)>,
+    bodies: Query<&BodyLattice>,
+    mut out: ResMut<CutList>,
+) {
     out.cuts.clear();
     let sweeps: Vec<ToolSweep> = tools
         .iter()
@@ -18,19 +27,61 @@ pub fn detect(cache: Res<SolverCache>, tools: Query<(&Tool, &ToolPose)>, mut out
     if sweeps.is_empty() || cache.particles.is_empty() {
         return;
     }
-    for i in particles_hit(&cache.layout.positions, &cache.live, &sweeps) {
-        let Some((body, local)) = cache.owner(i) else {
-            continue;
-        };
-        match out.cuts.last_mut() {
-            Some(c) if c.body == body => c.particles.push(local),
-            _ => out.cuts.push(BodyCut {
-                body,
-                particles: vec![local],
-            }),
+    let (removers, severers): (Vec<ToolSweep>, Vec<ToolSweep>) = sweeps
+        .into_iter()
+        .partition(|t| t.mode() == CutMode::Remove);
+    let positions = &cache.layout.positions;
+    for i in particles_hit(positions, &cache.live, &removers) {
+        if let Some((body, local)) = cache.owner(i) {
+            cut_of(&mut out.cuts, body).particles.push(local);
         }
     }
+    if !severers.is_empty() {
+        let severers: Vec<&ToolSweep> = severers.iter().collect();
+        for b in &cache.body_dense {
+            let Ok(lattice) = bodies.get(b.body) else {
+                continue;
+            };
+            let first = b.first as usize;
+            let range = first..first + b.dense.len().min(positions.len() - first);
+            let partners = |i: usize| {
+                let local = cache.locals[i];
+                [1, 3, 5].map(|d| match lattice.lattice.link(local, d) {
+                    NO_PARTICLE => u32::MAX,
+                    n => b.dense.get(n as usize).copied().unwrap_or(u32::MAX),
+                })
+            };
+            let edges = edges_separated(positions, &cache.live, range, partners, &severers);
+            if edges.is_empty() {
+                continue;
+            }
+            let cut = cut_of(&mut out.cuts, b.body);
+            cut.edges.extend(edges.into_iter().map(|(i, j)| {
+                let (a, b) = (cache.locals[i], cache.locals[j]);
+                (a.min(b), a.max(b))
+            }));
+        }
+    }
+    out.cuts.sort_by_key(|c| c.body);
     for c in &mut out.cuts {
         c.particles.sort_unstable();
+        c.edges.sort_unstable();
     }
+}
+
+/// The cut list's entry for `body`, added when missing (found at once when the last
+/// entry is the body's, as it is for particles listed in body order).
+fn cut_of(cuts: &mut Vec<BodyCut>, body: Entity) -> &mut BodyCut {
+    let k = match cuts.iter().rposition(|c| c.body == body) {
+        Some(k) => k,
+        None => {
+            cuts.push(BodyCut {
+                body,
+                particles: Vec::new(),
+                edges: Vec::new(),
+            });
+            cuts.len() - 1
+        }
+    };
+    &mut cuts[k]
 }

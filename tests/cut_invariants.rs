@@ -113,22 +113,38 @@ fn violations(table: &ClusterTable, lattice: &Lattice, max: u32) -> Vec<String> 
 proptest! {
     #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
 
-    /// Pure pipeline: regroup → split → expand → cover after each of several cuts.
+    /// Pure pipeline: regroup → split → expand → cover after each of several cuts, each
+    /// removing the selected particles or severing the edges around them.
     #[test]
-    fn invariants_hold_after_every_cut(shape in shape_strategy(), material in material_strategy(), cuts in prop::collection::vec(cut_strategy(), 1..5), seed in any::<u64>()) {
+    fn invariants_hold_after_every_cut(shape in shape_strategy(), material in material_strategy(), cuts in prop::collection::vec((cut_strategy(), any::<bool>()), 1..5), seed in any::<u64>()) {
         let mut lattice = shape.voxelise(1.0).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut table = initial_clusters(&lattice, &material, &mut rng);
         let max = material.max_cluster_size;
         prop_assert_eq!(violations(&table, &lattice, max), Vec::<String>::new());
-        for cut in &cuts {
-            let removed = selected(cut, &lattice);
-            let mut cut_clusters: Vec<u32> = removed.iter().flat_map(|p| table.clusters_of(*p).to_vec()).collect();
+        for (cut, sever) in &cuts {
+            let chosen = selected(cut, &lattice);
+            let mut cut_clusters: Vec<u32> = Vec::new();
+            if *sever {
+                // the edges with one end chosen and the other not
+                let edges: Vec<(u32, u32)> = lattice
+                    .edges()
+                    .into_iter()
+                    .filter(|(a, b)| chosen.binary_search(a).is_ok() != chosen.binary_search(b).is_ok())
+                    .collect();
+                for &(a, b) in &edges {
+                    let of_b = table.clusters_of(b).to_vec();
+                    cut_clusters.extend(table.clusters_of(a).iter().filter(|k| of_b.contains(k)));
+                    prop_assert!(lattice.sever(a, b));
+                }
+            } else {
+                cut_clusters.extend(chosen.iter().flat_map(|p| table.clusters_of(*p).to_vec()));
+                for p in &chosen {
+                    lattice.remove(*p);
+                }
+            }
             cut_clusters.sort_unstable();
             cut_clusters.dedup();
-            for p in &removed {
-                lattice.remove(*p);
-            }
             rebuild_after_cut(&mut table, &lattice, &cut_clusters, &material, &mut rng);
             let v = violations(&table, &lattice, max);
             prop_assert!(v.is_empty(), "after {:?}: {:?}", cut, v);
@@ -143,9 +159,15 @@ proptest! {
 
 type ToolCase = (bool, [f32; 3], [f32; 3], f32);
 
-/// Whole ECS schedule with real tools (blades at random angles, spheres); the schedule's
-/// Verify stage checks the invariants every frame and panics on a violation.
-fn run_ecs_case(cells: (u32, u32, u32), tools: &[ToolCase], seed: u64) -> (usize, usize) {
+/// Whole ECS schedule with real tools (blades at random angles, spheres) in cut mode
+/// `mode`; the schedule's Verify stage checks the invariants every frame and panics on a
+/// violation. Returns the body's edge count before and after.
+fn run_ecs_case(
+    cells: (u32, u32, u32),
+    tools: &[ToolCase],
+    seed: u64,
+    mode: CutMode,
+) -> (usize, usize) {
     // every solver, with rigid and compliant clusters, across the cases
     let config = SimConfig {
         seed,
@@ -196,27 +218,34 @@ fn run_ecs_case(cells: (u32, u32, u32), tools: &[ToolCase], seed: u64) -> (usize
         sim.spawn_tool(&ToolDesc {
             shape,
             cut_width: width,
-            cut_mode: CutMode::Remove,
+            cut_mode: mode,
             path,
             pose: away,
         })
         .unwrap();
     }
-    let before = cleave::stats::body_stats(sim.world_mut(), body)
-        .unwrap()
-        .particles;
+    let edges = |sim: &mut Simulation| {
+        sim.world_mut()
+            .get::<BodyLattice>(body)
+            .map_or(0, |l| l.lattice.edges().len())
+    };
+    let before = edges(&mut sim);
     sim.run(60);
     assert!(check_invariants(sim.world()).is_empty());
-    (
-        before,
-        cleave::stats::body_stats(sim.world_mut(), body)
-            .unwrap()
-            .particles,
-    )
+    (before, edges(&mut sim))
 }
 
 #[test]
 fn ecs_cuts_keep_invariants() {
+    ecs_cuts_keep_invariants_in(CutMode::Remove);
+}
+
+#[test]
+fn ecs_severing_cuts_keep_invariants() {
+    ecs_cuts_keep_invariants_in(CutMode::Sever);
+}
+
+fn ecs_cuts_keep_invariants_in(mode: CutMode) {
     use proptest::test_runner::{Config, TestRunner};
     let tool = (
         any::<bool>(),
@@ -236,14 +265,14 @@ fn ecs_cuts_keep_invariants() {
     let cut_cases = std::cell::Cell::new(0);
     runner
         .run(&strategy, |(cells, tools, seed)| {
-            let (before, after) = run_ecs_case(cells, &tools, seed);
+            let (before, after) = run_ecs_case(cells, &tools, seed, mode);
             cut_cases.set(cut_cases.get() + usize::from(after < before));
             Ok(())
         })
         .unwrap();
     assert!(
         cut_cases.get() >= 45,
-        "only {} of 60 cases cut anything",
+        "{mode}: only {} of 60 cases cut anything",
         cut_cases.get()
     );
 }

@@ -46,7 +46,9 @@ impl LocalGraph {
         }
         let size = (hi - lo + IVec3::splat(3)).as_uvec3();
         let (dx, dy) = (size.x as usize, size.x as usize * size.y as usize);
-        if (dy as u64) * size.z as u64 > BOX_CELLS as u64 {
+        // (once edges are severed or particles split, coordinates no longer tell the
+        // edges: only the links do)
+        if (dy as u64) * size.z as u64 > BOX_CELLS as u64 || !lattice.is_intact() {
             return self.build_sprawling(members, lattice);
         }
         let cells = &mut self.cells;
@@ -75,8 +77,9 @@ impl LocalGraph {
         }));
     }
 
-    /// [`Self::build`] for members spread over too big a box: numbered in the
-    /// per-thread particle slots, neighbours read from the lattice's grid.
+    /// [`Self::build`] for members spread over too big a box, or in a lattice that is
+    /// no longer intact: numbered in the per-thread particle slots, neighbours read from
+    /// the lattice's links.
     fn build_sprawling(&mut self, members: &[u32], lattice: &Lattice) {
         let n = members.len() as u32;
         self.rows.reserve(members.len());

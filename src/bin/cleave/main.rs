@@ -9,6 +9,7 @@ use cleave::config::{SimConfig, SolverMode};
 use cleave::render::ColorMode;
 use cleave::scene::BUILTIN_SCENES;
 use cleave::scene_file::SceneFile;
+use cleave::tool::CutMode;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -81,6 +82,10 @@ enum Command {
         /// Solver iterations per substep, overriding the scene's (1–10000).
         #[arg(long)]
         iterations: Option<u32>,
+        /// What every tool of the scene does where it passes: remove (particles), sever
+        /// (edges; no mass is lost) or split (particles in two, by the blade's side).
+        #[arg(long)]
+        cut_mode: Option<CutMode>,
     },
     /// List the built-in scenes, or print one as a scene file.
     Scenes {
@@ -217,13 +222,15 @@ fn main() -> ExitCode {
             solver,
             substeps,
             iterations,
+            cut_mode,
         } => {
             let args = run::RunArgs {
                 scene,
-                overrides: run::SolverOverrides {
+                overrides: run::SceneOverrides {
                     solver,
                     substeps,
                     iterations,
+                    cut_mode,
                 },
                 frames,
                 out,

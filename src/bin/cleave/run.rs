@@ -13,6 +13,7 @@ use cleave::scene::{BUILTIN_SCENES, Scene, builtin};
 use cleave::scene_file::{entry_position, load_scene_file};
 use cleave::sim::{Simulation, check_invariants};
 use cleave::stats::{BodyStats, body_stats, labelled_positions, min_distance_between_labels};
+use cleave::tool::CutMode;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::io::IsTerminal;
@@ -257,18 +258,20 @@ fn load_scene(name: &str, seed: Option<u64>) -> Result<Scene, String> {
     Ok(scene)
 }
 
-/// Solver settings given on the command line, overriding the scene's.
+/// Settings given on the command line, overriding the scene's.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct SolverOverrides {
+pub struct SceneOverrides {
     /// Solver scheme.
     pub solver: Option<SolverMode>,
     /// Substeps per frame.
     pub substeps: Option<u32>,
     /// Iterations per substep.
     pub iterations: Option<u32>,
+    /// Cut mode of every tool.
+    pub cut_mode: Option<CutMode>,
 }
 
-impl SolverOverrides {
+impl SceneOverrides {
     /// `config` with the overrides applied; an out-of-range value is an error naming
     /// its flag.
     fn apply(&self, config: &mut SimConfig) -> Result<(), String> {
@@ -304,7 +307,7 @@ pub struct RunArgs {
     /// Built-in scene name.
     pub scene: String,
     /// Solver settings overriding the scene's.
-    pub overrides: SolverOverrides,
+    pub overrides: SceneOverrides,
     /// Frames (default: the scene's).
     pub frames: Option<u32>,
     /// Output directory.
@@ -335,6 +338,11 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     let _profiling = args.profile.then(|| profile.install());
     let mut scene = load_scene(scene_name, seed)?;
     args.overrides.apply(&mut scene.config)?;
+    if let Some(mode) = args.overrides.cut_mode {
+        for tool in &mut scene.tools {
+            tool.cut_mode = mode;
+        }
+    }
     let seed = scene.config.seed;
     let frames = frames.unwrap_or(scene.frames);
     let mut sim = Simulation::new(scene.config.clone()).map_err(|e| e.to_string())?;
