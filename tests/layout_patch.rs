@@ -132,6 +132,7 @@ fn particles_lost_outside_a_cut_report_are_still_frozen() {
             vec![cleave::resources::BodyCutReport {
                 body,
                 removed: vec![a],
+                severed: Vec::new(),
                 cut_clusters: Vec::new(),
             }]
         } else {
