@@ -136,6 +136,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
             body.pins = vec![PinRegion {
                 min: Vec3::new(-1.3, 0.0, -1.0),
                 max: Vec3::new(-1.2 + 2.0 * H, 2.0, 1.0),
+                ..PinRegion::default()
             }];
             // rubber-like: E ≈ 0.83 MPa (Euler–Bernoulli tip sag ≈ 11.5 h)
             body.material = Material {

@@ -20,13 +20,18 @@ use bevy_ecs::message::message_update_system;
 use bevy_ecs::prelude::*;
 use glam::{Quat, Vec3};
 
-/// An axis-aligned world-space region whose particles are pinned (inverse mass 0).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+/// An axis-aligned world-space region whose particles are pinned (inverse mass 0): they
+/// move at the region's constant velocity whatever acts on them (zero: they stay), so
+/// pins can hold a body or pull it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PinRegion {
     /// Minimum corner.
     pub min: Vec3,
     /// Maximum corner.
     pub max: Vec3,
+    /// Velocity of the pinned particles (m/s).
+    #[serde(default)]
+    pub velocity: Vec3,
 }
 
 impl PinRegion {
@@ -377,6 +382,12 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     for (i, pin) in desc.pins.iter().enumerate() {
         check_finite_vec(&format!("body.pins[{i}].min"), pin.min)?;
         check_finite_vec(&format!("body.pins[{i}].max"), pin.max)?;
+        check_vec_within(
+            &format!("body.pins[{i}].velocity"),
+            pin.velocity,
+            1e4,
+            "|vx|, |vy|, |vz| ≤ 1e4 (m/s)",
+        )?;
     }
     check_range(
         "material.particle_mass",
@@ -404,13 +415,13 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     let inv_mass = 1.0 / desc.material.mass_at_spacing(desc.spacing);
     let spawned = world.spawn_batch(order.iter().map(|&i| {
         let x = desc.position + rotation * lattice.rest_position(i);
-        let pinned = desc.pins.iter().any(|r| r.contains(x));
+        let pin = desc.pins.iter().find(|r| r.contains(x));
         (
             Particle { body, index: i },
             Position(x),
             PrevPosition(x),
-            Velocity(desc.velocity),
-            InvMass(if pinned { 0.0 } else { inv_mass }),
+            Velocity(pin.map_or(desc.velocity, |r| r.velocity)),
+            InvMass(if pin.is_some() { 0.0 } else { inv_mass }),
         )
     }));
     let mut particles = vec![Entity::PLACEHOLDER; lattice.len()];

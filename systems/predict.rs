@@ -6,13 +6,13 @@
 use crate::components::{InvMass, Position, PrevPosition, Velocity};
 use crate::resources::SimSettings;
 use bevy_ecs::prelude::*;
-use glam::Vec3;
 use rayon::prelude::*;
 
 /// Particles per parallel task.
 const CHUNK: usize = 4096;
 
-/// `v ← (v + g·dt)·e^(−damping·dt)`, `x_prev ← x`, `x ← x + v·dt`; pinned particles stay.
+/// `v ← (v + g·dt)·e^(−damping·dt)`, `x_prev ← x`, `x ← x + v·dt`; pinned particles keep
+/// their velocity (a pin region's, zero for pins that hold still).
 pub fn predict(
     settings: Res<SimSettings>,
     mut particles: Query<(&mut Position, &mut PrevPosition, &mut Velocity, &InvMass)>,
@@ -30,11 +30,9 @@ pub fn predict(
             .with_min_len(CHUNK)
             .for_each(|(x, prev, v, inv_mass)| {
                 prev.0 = x.0;
-                v.0 = if inv_mass.0 == 0.0 {
-                    Vec3::ZERO
-                } else {
-                    (v.0 + dv) * keep
-                };
+                if inv_mass.0 != 0.0 {
+                    v.0 = (v.0 + dv) * keep;
+                }
                 x.0 += v.0 * dt;
             });
     }

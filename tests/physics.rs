@@ -271,6 +271,7 @@ fn bad_input_is_an_error_naming_the_field() {
     pinned.pins = vec![PinRegion {
         min: Vec3::new(f32::NAN, 0.0, 0.0),
         max: Vec3::ONE,
+        ..PinRegion::default()
     }];
     assert!(err(sim.spawn_body(&pinned)).contains("body.pins[0].min"));
     // density and spacing each in range, their particle mass (1e-15 kg) not
