@@ -276,6 +276,28 @@ impl Lattice {
         true
     }
 
+    /// Links live particles `a` and `b` again after [`Lattice::sever`]: they must lie in
+    /// neighbouring cells with both of the facing slots free. Returns whether it linked
+    /// them.
+    pub fn relink(&mut self, a: u32, b: u32) -> bool {
+        if !(self.is_live(a) && self.is_live(b)) {
+            return false;
+        }
+        let Some(d) = NEIGHBOUR_OFFSETS
+            .iter()
+            .position(|o| self.coord(a) + *o == self.coord(b))
+        else {
+            return false;
+        };
+        if self.links[a as usize][d] != NO_PARTICLE || self.links[b as usize][d ^ 1] != NO_PARTICLE
+        {
+            return false;
+        }
+        self.links[a as usize][d] = b;
+        self.links[b as usize][d ^ 1] = a;
+        true
+    }
+
     /// Splits live particle `i` in two: a new particle (returned) at the same lattice
     /// coordinate takes the edges of the directions where `moves[d]` is set, particle
     /// `i` keeps the others. The new particle is live and has the next index; `None`

@@ -49,6 +49,7 @@ pub mod stats;
 #[path = "../systems/mod.rs"]
 pub mod systems;
 pub mod table_rows;
+pub mod tear;
 pub mod tool;
 
 /// The glam version cleave's types use (vectors, quaternions), so that users need not
