@@ -150,7 +150,7 @@ pub fn find_tears(
             }
             let x = corners.map(&position);
             let (stretch, direction) = largest_stretch(deformation_gradient(&x, h));
-            if !(stretch > tear_stretch) {
+            if stretch.is_nan() || stretch <= tear_stretch {
                 return None;
             }
             let axis = direction.abs().max_position();

@@ -192,7 +192,7 @@ pub fn pins<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<PinRegion>, D::Error>
                 p.min, p.max
             )));
         }
-        if !(p.velocity.abs().max_element() <= 1e4) {
+        if p.velocity.is_nan() || p.velocity.abs().max_element() > 1e4 {
             return Err(D::Error::custom(format!(
                 "pin {i}: velocity {} is out of range (allowed: |vx|, |vy|, |vz| ≤ 1e4 m/s)",
                 p.velocity
