@@ -214,6 +214,16 @@ pub struct Material {
     /// Whether particles of one piece collide when the piece folds onto itself
     /// (particles more than two lattice cells apart).
     pub self_contact: bool,
+    /// The largest principal stretch a voxel (the 8 particles around one lattice cell)
+    /// bears before it tears; `None`: the body never tears (see [`crate::tear`]).
+    pub tear_stretch: Option<f32>,
+    /// Most voxels of one body that tear in one frame (≥ 1): the strongest stretches
+    /// go first, the rest wait for the next frame, so a crack grows over frames instead
+    /// of shattering the body at once.
+    pub tear_budget: u32,
+    /// Smallest piece, in particles, that tearing may cut off (≥ 1): a tear that would
+    /// leave a smaller piece is taken back.
+    pub tear_min_piece: u32,
 }
 
 impl Default for Material {
@@ -230,6 +240,9 @@ impl Default for Material {
             static_friction: 0.6,
             dynamic_friction: 0.4,
             self_contact: true,
+            tear_stretch: None,
+            tear_budget: 64,
+            tear_min_piece: 8,
         }
     }
 }
@@ -330,6 +343,23 @@ impl Material {
             100.0,
             "0 ≤ dynamic_friction ≤ 100",
         )?;
+        if let Some(stretch) = self.tear_stretch
+            && !(stretch > 1.0 && stretch <= 1000.0)
+        {
+            return Err(out_of_range(
+                "material.tear_stretch",
+                stretch,
+                "1 < tear_stretch ≤ 1000",
+            ));
+        }
+        for (field, value) in [
+            ("material.tear_budget", self.tear_budget),
+            ("material.tear_min_piece", self.tear_min_piece),
+        ] {
+            if !(1..=10_000_000).contains(&value) {
+                return Err(out_of_range(field, value, "1 ≤ value ≤ 10000000"));
+            }
+        }
         Ok(())
     }
 }

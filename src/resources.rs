@@ -44,6 +44,8 @@ pub struct BodyCut {
     /// Edges to sever (tools in `Sever` or `Split` mode): body-local `(a, b)` with
     /// `a < b`, ascending.
     pub edges: Vec<(u32, u32)>,
+    /// Edges of voxels stretched past the material's `tear_stretch`, strongest first.
+    pub torn: Vec<(u32, u32)>,
 }
 
 /// Output of detect (its only output), input of cut.
@@ -60,7 +62,7 @@ pub struct BodyCutReport {
     pub body: Entity,
     /// Removed particle indices.
     pub removed: Vec<u32>,
-    /// Severed edges `(a, b)`, `a < b`.
+    /// Severed edges `(a, b)`, `a < b` (by a tool or torn).
     pub severed: Vec<(u32, u32)>,
     /// Clusters that contained a removed particle or both ends of a severed edge, by
     /// ascending entity index.
@@ -228,13 +230,15 @@ pub struct ParticlesCut {
     pub particles: Vec<u32>,
 }
 
-/// Sent by cut: edges severed in a body (by a `sever` or `split` tool, or torn).
+/// Sent by cut: edges severed in a body by a `sever` or `split` tool, or torn.
 #[derive(Message, Clone, Debug)]
 pub struct EdgesSevered {
     /// The body.
     pub body: Entity,
-    /// The severed edges `(a, b)` of body-local indices, `a < b`, ascending.
+    /// The edges a tool severed, `(a, b)` of body-local indices, `a < b`, ascending.
     pub edges: Vec<(u32, u32)>,
+    /// The edges torn by strain, in the order they tore.
+    pub torn: Vec<(u32, u32)>,
 }
 
 /// Sent by shape-match: particles whose position had become non-finite (a NaN written

@@ -117,19 +117,27 @@ pub struct Tear {
     pub stretch: f32,
     /// The voxel's lowest corner.
     pub voxel: u32,
+    /// The crack plane it opens: the axis and the lowest corner's coordinate on it.
+    pub plane: (usize, i32),
     /// Its edges along the axis nearest the stretch direction that are still linked,
     /// `(a, b)` with `a < b`.
     pub edges: Vec<(u32, u32)>,
 }
 
 /// The tears of a body this frame: the voxels whose largest principal stretch exceeds
-/// `tear_stretch`, strongest first (ties by voxel), at most `budget` of them. A voxel
-/// already torn open along some axis (all 4 edges of that axis severed) is not a
-/// candidate: its corners have parted, its stretch no longer measures the material.
-/// `position` gives a live particle's current position.
+/// `tear_stretch`, strongest first (ties by voxel), at most `budget` of them.
+///
+/// Not candidates: a voxel already torn open along some axis (all 4 edges of that axis
+/// severed: its corners have parted, its stretch no longer measures the material), and
+/// a voxel with a `held` corner (a pinned particle: a grip holds the material it grips).
+/// And a voxel that shares a corner with a stronger one torn this frame across another
+/// plane waits: the stronger tear relieves it, or it tears later, so one frame opens
+/// one crack where two parallel layers are both over the limit, not a slab of loose
+/// particles between them. `position` gives a live particle's current position.
 pub fn find_tears(
     lattice: &Lattice,
     position: impl Fn(u32) -> Vec3 + Sync,
+    held: impl Fn(u32) -> bool + Sync,
     tear_stretch: f32,
     budget: usize,
 ) -> Vec<Tear> {
@@ -140,6 +148,9 @@ pub fn find_tears(
         .with_min_len(1024)
         .filter_map(|&p| {
             let corners = voxel_corners(lattice, p)?;
+            if corners.iter().any(|&c| held(c)) {
+                return None;
+            }
             let open = (0..3).any(|axis| {
                 edges_along(axis)
                     .iter()
@@ -162,13 +173,32 @@ pub fn find_tears(
             (!edges.is_empty()).then_some(Tear {
                 stretch,
                 voxel: p,
+                plane: (axis, lattice.coord(p)[axis]),
                 edges,
             })
         })
         .collect();
     tears.sort_by(|a, b| b.stretch.total_cmp(&a.stretch).then(a.voxel.cmp(&b.voxel)));
-    tears.truncate(budget);
-    tears
+    // the crack plane of the torn voxel each corner belongs to
+    let mut plane_at: rustc_hash::FxHashMap<u32, (usize, i32)> = Default::default();
+    let mut chosen = Vec::new();
+    for tear in tears {
+        if chosen.len() == budget {
+            break;
+        }
+        let corners = voxel_corners(lattice, tear.voxel).expect("a candidate's corners");
+        let clash = corners
+            .iter()
+            .any(|c| plane_at.get(c).is_some_and(|plane| *plane != tear.plane));
+        if clash {
+            continue;
+        }
+        for c in corners {
+            plane_at.insert(c, tear.plane);
+        }
+        chosen.push(tear);
+    }
+    chosen
 }
 
 /// Severs `edges` (torn this frame), then links back those that cut off a piece of
@@ -255,7 +285,7 @@ mod tests {
             let r = lattice.rest_position(p);
             r + Vec3::X * if lattice.coord(p).x >= 0 { 0.8 } else { 0.0 }
         };
-        let tears = find_tears(&lattice, at, 1.5, 100);
+        let tears = find_tears(&lattice, at, |_| false, 1.5, 100);
         assert_eq!(tears.len(), 4, "{tears:?}");
         for t in &tears {
             assert!((t.stretch - 1.8).abs() < 0.05, "{}", t.stretch);
@@ -265,7 +295,9 @@ mod tests {
         }
         let edges: Vec<(u32, u32)> = tears.iter().flat_map(|t| t.edges.clone()).collect();
         // a budget of one takes the strongest alone
-        assert_eq!(find_tears(&lattice, at, 1.5, 1).len(), 1);
+        assert_eq!(find_tears(&lattice, at, |_| false, 1.5, 1).len(), 1);
+        // held corners do not tear
+        assert!(find_tears(&lattice, at, |p| lattice.coord(p).x == 0, 1.5, 100).is_empty());
         // 36 particles per half: a smallest piece of 37 takes the tear back
         let mut kept = lattice.clone();
         assert!(sever_keeping_pieces(&mut kept, &edges, 37).is_empty());

@@ -6,10 +6,11 @@
 //! as if cut: its body's lattice and clusters are rebuilt around the hole, instead of
 //! listing a particle that no longer exists.
 
-use crate::components::{BodyLattice, Particle, ParticleClusters, cluster_entity};
+use crate::components::{Body, BodyLattice, Particle, ParticleClusters, cluster_entity};
 use crate::resources::{
     BodyCut, BodyCutReport, BodySplit, CutList, CutReport, EdgesSevered, ParticlesCut,
 };
+use crate::tear::sever_keeping_pieces;
 use bevy_ecs::entity::Entities;
 use bevy_ecs::prelude::*;
 use std::borrow::Cow;
@@ -22,7 +23,7 @@ pub fn cut(
     entities: &Entities,
     list: Res<CutList>,
     mut report: ResMut<CutReport>,
-    mut bodies: Query<(Entity, &mut BodyLattice, &ParticleClusters)>,
+    mut bodies: Query<(Entity, &Body, &mut BodyLattice, &ParticleClusters)>,
     mut despawned: RemovedComponents<Particle>,
     mut despawned_here: Local<Vec<Entity>>,
     mut particles_cut: MessageWriter<ParticlesCut>,
@@ -33,7 +34,7 @@ pub fn cut(
     let cuts = with_despawned(&list, &mut despawned, &mut despawned_here, &bodies);
     despawned_here.clear();
     for cut in cuts.iter() {
-        let Ok((_, mut body, index)) = bodies.get_mut(cut.body) else {
+        let Ok((_, material, mut body, index)) = bodies.get_mut(cut.body) else {
             continue;
         };
         let mut removed = Vec::new();
@@ -50,16 +51,20 @@ pub fn cut(
                 cut_clusters.extend_from_slice(index.0.clusters_of(p));
             }
         }
-        let mut severed = Vec::new();
-        for &(a, b) in &cut.edges {
-            if body.lattice.sever(a, b) {
-                severed.push((a, b));
-                // only a cluster holding both ends may fall apart
-                let of_b = index.0.clusters_of(b);
-                cut_clusters.extend(index.0.clusters_of(a).iter().filter(|k| of_b.contains(k)));
-            }
+        let severed: Vec<(u32, u32)> = cut
+            .edges
+            .iter()
+            .copied()
+            .filter(|&(a, b)| body.lattice.sever(a, b))
+            .collect();
+        let min_piece = material.material.tear_min_piece as usize;
+        let torn = sever_keeping_pieces(&mut body.lattice, &cut.torn, min_piece);
+        for &(a, b) in severed.iter().chain(&torn) {
+            // only a cluster holding both ends may fall apart
+            let of_b = index.0.clusters_of(b);
+            cut_clusters.extend(index.0.clusters_of(a).iter().filter(|k| of_b.contains(k)));
         }
-        if removed.is_empty() && severed.is_empty() {
+        if removed.is_empty() && severed.is_empty() && torn.is_empty() {
             continue;
         }
         cut_clusters.sort_unstable();
@@ -83,16 +88,17 @@ pub fn cut(
                 particles: removed.clone(),
             });
         }
-        if !severed.is_empty() {
+        if !(severed.is_empty() && torn.is_empty()) {
             edges_severed.write(EdgesSevered {
                 body: cut.body,
                 edges: severed.clone(),
+                torn: torn.clone(),
             });
         }
         report.bodies.push(BodyCutReport {
             body: cut.body,
             removed,
-            severed,
+            severed: [severed, torn].concat(),
             cut_clusters,
         });
     }
@@ -104,7 +110,7 @@ fn with_despawned<'a>(
     list: &'a CutList,
     despawned: &mut RemovedComponents<Particle>,
     despawned_here: &mut [Entity],
-    bodies: &Query<(Entity, &mut BodyLattice, &ParticleClusters)>,
+    bodies: &Query<(Entity, &Body, &mut BodyLattice, &ParticleClusters)>,
 ) -> Cow<'a, [BodyCut]> {
     despawned_here.sort_unstable();
     let mut outside: Vec<Entity> = despawned
@@ -116,7 +122,7 @@ fn with_despawned<'a>(
     }
     outside.sort_unstable();
     let mut cuts = list.cuts.clone();
-    for (body, lattice, _) in bodies.iter() {
+    for (body, _, lattice, _) in bodies.iter() {
         let lost: Vec<u32> = lattice
             .lattice
             .live_particles()
@@ -139,6 +145,7 @@ fn with_despawned<'a>(
                 body,
                 particles: lost,
                 edges: Vec::new(),
+                torn: Vec::new(),
             }),
         }
     }

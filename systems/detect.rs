@@ -1,32 +1,36 @@
 //! Stage detect (SPEC §2.3): READ-ONLY. Selects, over the whole volume each tool swept
 //! since the last frame, the particles a `remove` tool comes within half its cut width
-//! of, and the edges a `sever` or `split` tool separates. Its only output is the
-//! `CutList`. The tests themselves are [`crate::detection::particles_hit`] and
-//! [`crate::detection::edges_separated`] (parallel, culled by blocks, deterministic
-//! order).
+//! of, and the edges a `sever` or `split` tool separates; and, in bodies whose material
+//! tears, the edges of voxels stretched past the limit. Its only output is the
+//! `CutList`. The tests themselves are [`crate::detection::particles_hit`],
+//! [`crate::detection::edges_separated`] and [`crate::tear::find_tears`] (parallel,
+//! deterministic order).
 
-use crate::components::{BodyLattice, Tool, ToolPose};
+use crate::components::{Body, BodyLattice, Tool, ToolPose};
 use crate::detection::{ToolSweep, edges_separated, particles_hit};
 use crate::lattice::NO_PARTICLE;
 use crate::resources::{BodyCut, CutList, SolverCache};
+use crate::tear::find_tears;
 use crate::tool::CutMode;
 use bevy_ecs::prelude::*;
+use glam::Vec3;
 
 /// Fills the cut list from the solver cache's dense positions.
 pub fn detect(
     cache: Res<SolverCache>,
     tools: Query<(&Tool, &ToolPose)>,
-    bodies: Query<&BodyLattice>,
+    bodies: Query<(&Body, &BodyLattice)>,
     mut out: ResMut<CutList>,
 ) {
     out.cuts.clear();
+    if cache.particles.is_empty() {
+        return;
+    }
+    detect_tears(&cache, &bodies, &mut out.cuts);
     let sweeps: Vec<ToolSweep> = tools
         .iter()
         .filter_map(|(tool, pose)| ToolSweep::new(tool, &pose.last, &pose.current))
         .collect();
-    if sweeps.is_empty() || cache.particles.is_empty() {
-        return;
-    }
     let (removers, severers): (Vec<ToolSweep>, Vec<ToolSweep>) = sweeps
         .into_iter()
         .partition(|t| t.mode() == CutMode::Remove);
@@ -39,7 +43,7 @@ pub fn detect(
     if !severers.is_empty() {
         let severers: Vec<&ToolSweep> = severers.iter().collect();
         for b in &cache.body_dense {
-            let Ok(lattice) = bodies.get(b.body) else {
+            let Ok((_, lattice)) = bodies.get(b.body) else {
                 continue;
             };
             let first = b.first as usize;
@@ -69,6 +73,42 @@ pub fn detect(
     }
 }
 
+/// Lists the torn edges of every body whose material tears.
+fn detect_tears(
+    cache: &SolverCache,
+    bodies: &Query<(&Body, &BodyLattice)>,
+    cuts: &mut Vec<BodyCut>,
+) {
+    let positions = &cache.layout.positions;
+    for b in &cache.body_dense {
+        let Ok((body, lattice)) = bodies.get(b.body) else {
+            continue;
+        };
+        let Some(limit) = body.material.tear_stretch else {
+            continue;
+        };
+        let position = |p: u32| {
+            b.dense
+                .get(p as usize)
+                .and_then(|&d| positions.get(d as usize))
+                .map_or(Vec3::NAN, |x| Vec3::from(*x))
+        };
+        let held = |p: u32| {
+            b.dense
+                .get(p as usize)
+                .and_then(|&d| cache.layout.inv_mass.get(d as usize))
+                .is_some_and(|w| *w == 0.0)
+        };
+        let budget = body.material.tear_budget as usize;
+        let tears = find_tears(&lattice.lattice, position, held, limit, budget);
+        if !tears.is_empty() {
+            cut_of(cuts, b.body)
+                .torn
+                .extend(tears.into_iter().flat_map(|t| t.edges));
+        }
+    }
+}
+
 /// The cut list's entry for `body`, added when missing (found at once when the last
 /// entry is the body's, as it is for particles listed in body order).
 fn cut_of(cuts: &mut Vec<BodyCut>, body: Entity) -> &mut BodyCut {
@@ -79,6 +119,7 @@ fn cut_of(cuts: &mut Vec<BodyCut>, body: Entity) -> &mut BodyCut {
                 body,
                 particles: Vec::new(),
                 edges: Vec::new(),
+                torn: Vec::new(),
             });
             cuts.len() - 1
         }

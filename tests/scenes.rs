@@ -404,6 +404,56 @@ fn dice_makes_four_pieces_and_scoop_one() {
     assert_eq!(check_dump(&dump), 1);
 }
 
+/// The pieces of the first body of a checked dump, each as its particles' lattice x.
+fn piece_columns(dump: &Value) -> Vec<Vec<i64>> {
+    let lattice_x: HashMap<u64, i64> = dump["bodies"][0]["particles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| (p["id"].as_u64().unwrap(), p["lattice"][0].as_i64().unwrap()))
+        .collect();
+    pieces_of(dump)
+        .into_iter()
+        .map(|(_, ids)| ids.iter().map(|i| lattice_x[i]).collect())
+        .collect()
+}
+
+#[test]
+fn a_pulled_bar_tears_in_two_near_the_middle_or_at_its_notch() {
+    let (s, dump) = run("tear", None);
+    assert_eq!(s["invariant_violations"], 0);
+    let pieces = piece_columns(&dump);
+    assert_eq!(
+        pieces.len(),
+        2,
+        "{:?}",
+        pieces.iter().map(Vec::len).collect::<Vec<_>>()
+    );
+    let total: usize = pieces.iter().map(Vec::len).sum();
+    assert_eq!(total, 32 * 6 * 6, "tearing keeps every particle");
+    let smaller = pieces.iter().map(Vec::len).min().unwrap();
+    assert!(smaller * 100 >= 35 * total, "{smaller} of {total}");
+    // the notched bar: the crack plane between the two pieces' facing columns lies
+    // within 2 h of the notch
+    let (s, dump) = run("notch", None);
+    assert_eq!(s["invariant_violations"], 0);
+    let mut pieces = piece_columns(&dump);
+    assert_eq!(pieces.len(), 2);
+    pieces.sort_by_key(|p| p.iter().min().copied());
+    let (left_end, right_start) = (
+        *pieces[0].iter().max().unwrap(),
+        *pieces[1].iter().min().unwrap(),
+    );
+    let h = f(&dump["bodies"][0]["spacing"]);
+    // (cell c's rest centre is (c + ½) h: the crack lies between the two columns)
+    let crack = (left_end + right_start + 1) as f64 * 0.5 * h;
+    let notch = cleave::scene::NOTCH_X as f64;
+    assert!(
+        (crack - notch).abs() <= 2.0 * h,
+        "crack at {crack}, notch at {notch}"
+    );
+}
+
 #[test]
 fn random_cuts_keep_invariants() {
     let (s, dump) = run("random", None);

@@ -184,6 +184,12 @@ pub struct MaterialFile {
     pub dynamic_friction: f32,
     /// Whether a piece folded onto itself collides with itself.
     pub self_contact: bool,
+    /// Largest principal stretch of a voxel before it tears; `None`: never tears.
+    pub tear_stretch: Option<f32>,
+    /// Most voxels of the body that tear in one frame.
+    pub tear_budget: u32,
+    /// Smallest piece (particles) tearing may cut off.
+    pub tear_min_piece: u32,
 }
 
 impl Default for MaterialFile {
@@ -400,6 +406,9 @@ impl MaterialFile {
             static_friction: m.static_friction,
             dynamic_friction: m.dynamic_friction,
             self_contact: m.self_contact,
+            tear_stretch: m.tear_stretch,
+            tear_budget: m.tear_budget,
+            tear_min_piece: m.tear_min_piece,
         }
     }
 
@@ -416,6 +425,9 @@ impl MaterialFile {
             static_friction: self.static_friction,
             dynamic_friction: self.dynamic_friction,
             self_contact: self.self_contact,
+            tear_stretch: self.tear_stretch,
+            tear_budget: self.tear_budget,
+            tear_min_piece: self.tear_min_piece,
         }
     }
 }
