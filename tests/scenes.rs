@@ -391,6 +391,26 @@ fn slice_makes_two_pieces_that_move_apart() {
 }
 
 #[test]
+fn slice_in_sever_mode_makes_two_pieces_and_keeps_every_particle_and_its_mass() {
+    let (s, dump) = run_with("slice", None, &["--cut-mode", "sever"]);
+    assert_eq!(s["pieces"], 2);
+    assert_eq!(check_dump(&dump), 2);
+    assert_eq!(s["invariant_violations"], 0);
+    assert_eq!(s["cut_particles"], 0);
+    let start = &s["bodies"][0]["before"];
+    let particles = dump["bodies"][0]["particles"].as_array().unwrap();
+    assert_eq!(particles.len() as u64, start["particles"].as_u64().unwrap());
+    // the mass at the start: the same particles, each of the material's mass
+    let mass: f64 = particles.iter().map(|p| f(&p["mass"])).sum();
+    let h = f(&dump["bodies"][0]["spacing"]);
+    let expected = start["particles"].as_f64().unwrap() * 1000.0 * h.powi(3);
+    assert!(
+        (mass / expected - 1.0).abs() <= 1e-6,
+        "{mass} vs {expected}"
+    );
+}
+
+#[test]
 fn dice_makes_four_pieces_and_scoop_one() {
     let (s, dump) = run("dice", None);
     assert_eq!(s["pieces"], 4);
