@@ -61,6 +61,11 @@ pub struct BenchRow {
     pub cut_frame_ms: f64,
     /// Initial clustering of the cut body from scratch, ms.
     pub recluster_ms: f64,
+    /// The same slice severing instead of removing (a fresh box): the cut event and
+    /// the cut frame, ms.
+    pub sever_event_ms: f64,
+    /// See [`BenchRow::sever_event_ms`].
+    pub sever_frame_ms: f64,
     /// Bringing the solver layout up to date in the step after the cut, ms.
     pub relayout_ms: f64,
     /// Whether that update patched the layout (false: a full rebuild).
@@ -266,7 +271,7 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
     }
     drop((layout, velocities));
     let (ms_per_step, bare_ms_per_step) = (median(&mut engine), median(&mut bare));
-    let (cut_event_ms, cut_frame_ms, recluster_ms) = slice_event(&mut sim, n)?;
+    let (cut_event_ms, cut_frame_ms, recluster_ms) = slice_event(&mut sim, n, CutMode::Remove)?;
     sim.world_mut().resource_mut::<SolverCache>().last_update = None;
     sim.step();
     let update = sim.world().resource::<SolverCache>().last_update;
@@ -282,6 +287,10 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
             config.solver,
         );
     });
+    drop(sim);
+    let mut sim = box_simulation(n, config)?;
+    sim.step();
+    let (sever_event_ms, sever_frame_ms, _) = slice_event(&mut sim, n, CutMode::Sever)?;
     let iterations = config.substeps * config.iterations;
     let per_step = (memberships as f64) * iterations as f64;
     Ok(BenchRow {
@@ -301,16 +310,18 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
         cut_event_ms,
         cut_frame_ms,
         recluster_ms,
+        sever_event_ms,
+        sever_frame_ms,
         relayout_ms: update.map_or(f64::NAN, |u| u.ms),
         relayout_patched: update.is_some_and(|u| u.patched),
         rebuild_ms,
     })
 }
 
-/// Drops a blade through the middle of the box in one frame (a full slice), then times
-/// re-clustering the cut body from scratch. Returns `(cut event ms, cut frame ms,
-/// recluster ms)`.
-fn slice_event(sim: &mut Simulation, n: u32) -> Result<(f64, f64, f64)> {
+/// Drops a blade in cut mode `mode` through the middle of the box in one frame (a full
+/// slice), then times re-clustering the cut body from scratch. Returns `(cut event ms,
+/// cut frame ms, recluster ms)`.
+fn slice_event(sim: &mut Simulation, n: u32, mode: CutMode) -> Result<(f64, f64, f64)> {
     let now = sim.world().resource::<crate::resources::SimClock>().time;
     let dt = sim.world().resource::<SimSettings>().0.dt;
     let half = n as f32 * H;
@@ -324,7 +335,7 @@ fn slice_event(sim: &mut Simulation, n: u32) -> Result<(f64, f64, f64)> {
             half_height: 0.05,
         },
         cut_width: 2.0 * H,
-        cut_mode: CutMode::Remove,
+        cut_mode: mode,
         path: Path {
             keys: vec![
                 (now as f32, at(2.0 * half + 1.0)),
