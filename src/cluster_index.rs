@@ -114,6 +114,13 @@ impl ClusterIndex {
         }
     }
 
+    /// Makes room for `particles` particles (new ones in no cluster); never shrinks.
+    pub fn grow(&mut self, particles: usize) {
+        if self.slots.len() < particles {
+            self.slots.resize(particles, Slots::NONE);
+        }
+    }
+
     /// Number of particles.
     pub fn len(&self) -> usize {
         self.slots.len()

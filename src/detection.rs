@@ -10,7 +10,7 @@
 
 use crate::components::Tool;
 use crate::convex::Convex;
-use crate::tool::{CutMode, Pose, Sweep};
+use crate::tool::{BladePlane, CutMode, Pose, Sweep, ToolShape};
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 use smallvec::SmallVec;
@@ -33,6 +33,8 @@ pub struct ToolSweep {
     /// Largest coordinate magnitude of the sweep's positions plus the tool's size: the
     /// scale of the rounding in a distance computed against this tool.
     scale: f32,
+    /// A blade's plane at the end of the motion.
+    plane: Option<BladePlane>,
 }
 
 impl ToolSweep {
@@ -57,7 +59,15 @@ impl ToolSweep {
         );
         let far = lo.abs().max(hi.abs()).max_element();
         let (core, radius) = tool.shape.core();
+        let plane = matches!(tool.shape, ToolShape::Blade { .. }).then(|| {
+            let normal = current.rotation.normalize() * Vec3::Z;
+            BladePlane {
+                normal,
+                offset: normal.dot(current.position),
+            }
+        });
         Some(Self {
+            plane,
             core,
             radius,
             reach,
@@ -72,6 +82,12 @@ impl ToolSweep {
     /// The tool's cut mode.
     pub fn mode(&self) -> CutMode {
         self.mode
+    }
+
+    /// A blade's plane where the motion ends (`None` for a sphere or a capsule): a
+    /// particle it splits is split by side of this plane.
+    pub fn blade_plane(&self) -> Option<BladePlane> {
+        self.plane
     }
 
     /// Whether the point `x` comes within reach of the tool at some time of its motion.
@@ -90,6 +106,13 @@ impl ToolSweep {
     /// material.
     pub fn separates(&self, a: Vec3, b: Vec3) -> bool {
         self.separates_at((a, self.surface_distance(a)), (b, self.surface_distance(b)))
+    }
+
+    /// Whether the segment `a`–`b` comes within reach of the tool at some time of its
+    /// motion.
+    pub fn reaches_segment(&self, a: Vec3, b: Vec3) -> bool {
+        self.touches_box(a.min(b), a.max(b))
+            && self.sweep.segment_distance(&self.core, a, b) - self.radius <= self.reach
     }
 
     /// [`Self::separates`] for ends whose [`Self::surface_distance`]s are known.
@@ -278,7 +301,6 @@ fn bounding_ball(positions: &[Vec3A], live: &[bool]) -> (Vec3, Option<f32>) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tool::ToolShape;
     use glam::Quat;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;

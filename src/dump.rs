@@ -107,7 +107,12 @@ pub fn dump_body(world: &mut World, body: Entity) -> Option<DumpBody> {
             position: world
                 .get::<Position>(lattice.particles[i as usize])
                 .map_or([f32::NAN; 3], |p| p.0.to_array()),
-            mass: material.mass_at_spacing(l.spacing()),
+            // (a split particle's half has half the mass; a pinned one, whose inverse
+            // mass is 0, the material's)
+            mass: match world.get::<InvMass>(lattice.particles[i as usize]) {
+                Some(w) if w.0 > 0.0 => 1.0 / w.0,
+                _ => material.mass_at_spacing(l.spacing()),
+            },
         })
         .collect();
     let edges = l.edges().into_iter().map(|(a, b)| [id(a), id(b)]).collect();

@@ -68,6 +68,9 @@ pub struct Lattice {
     /// particle unlinks it, and a cut may sever a link between two live particles
     /// ([`Lattice::sever`]) or split a particle in two ([`Lattice::split`]).
     links: Vec<[u32; 6]>,
+    /// Per particle, how far its rest position lies from its cell's centre, in cells:
+    /// zero except for the new halves of split particles (empty until the first split).
+    rest_shift: Vec<Vec3>,
     /// Whether every pair of live particles in neighbouring cells is linked and every
     /// live particle is the one its cell names (nothing severed, nothing split): then
     /// the pieces can be counted from the occupancy grid alone.
@@ -104,6 +107,7 @@ impl Lattice {
             live: live_bits(coords.len()),
             live_count: coords.len(),
             links: vec![[NO_PARTICLE; 6]; coords.len()],
+            rest_shift: Vec::new(),
             intact: true,
             coords,
         };
@@ -158,9 +162,15 @@ impl Lattice {
         &self.coords
     }
 
-    /// Rest position of particle `i` in the body frame: `(coord + ½) × h`.
+    /// Rest position of particle `i` in the body frame: `(coord + ½) × h`, shifted for
+    /// the new half of a split particle (see [`Lattice::split`]).
     pub fn rest_position(&self, i: u32) -> Vec3 {
-        (self.coords[i as usize].as_vec3() + Vec3::splat(0.5)) * self.spacing
+        let shift = self
+            .rest_shift
+            .get(i as usize)
+            .copied()
+            .unwrap_or(Vec3::ZERO);
+        (self.coords[i as usize].as_vec3() + Vec3::splat(0.5) + shift) * self.spacing
     }
 
     /// Whether particle `i` exists and has not been removed.
@@ -300,8 +310,12 @@ impl Lattice {
 
     /// Splits live particle `i` in two: a new particle (returned) at the same lattice
     /// coordinate takes the edges of the directions where `moves[d]` is set, particle
-    /// `i` keeps the others. The new particle is live and has the next index; `None`
-    /// when `i` is not live.
+    /// `i` keeps the others. Like the two halves of a cell cut through its middle, the
+    /// new particle rests a quarter cell from the cell's centre toward the edges it took
+    /// (their mean direction) and particle `i` a quarter cell the other way, so that
+    /// shape matching holds each on its own side of the cut instead of pulling it into
+    /// its twin's place. The new particle is live and has the next index; `None` when `i`
+    /// is not live.
     pub fn split(&mut self, i: u32, moves: [bool; 6]) -> Option<u32> {
         if !self.is_live(i) {
             return None;
@@ -318,6 +332,18 @@ impl Lattice {
             }
         }
         self.links.push(links);
+        let taken: Vec<Vec3> = (0..6)
+            .filter(|&d| links[d] != NO_PARTICLE)
+            .map(|d| NEIGHBOUR_OFFSETS[d].as_vec3())
+            .collect();
+        let shift = if taken.is_empty() {
+            Vec3::ZERO
+        } else {
+            0.25 * taken.iter().sum::<Vec3>() / taken.len() as f32
+        };
+        self.rest_shift.resize(j as usize, Vec3::ZERO);
+        self.rest_shift[i as usize] -= shift;
+        self.rest_shift.push(shift);
         if self.live.len() * 64 <= j as usize {
             self.live.push(0);
         }

@@ -32,6 +32,7 @@ pub mod lattice;
 pub mod mesh;
 pub mod mesh_sdf;
 mod named_enum;
+pub mod particle_split;
 #[cfg(feature = "bevy_app")]
 pub mod plugin;
 pub mod prefetch;

@@ -34,7 +34,7 @@ pub struct SubstepClock {
 }
 
 /// What to cut in one body.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct BodyCut {
     /// The body.
     pub body: Entity,
@@ -46,6 +46,9 @@ pub struct BodyCut {
     pub edges: Vec<(u32, u32)>,
     /// Edges of voxels stretched past the material's `tear_stretch`, strongest first.
     pub torn: Vec<(u32, u32)>,
+    /// What `split` blades do: the particles they split and the edges between split
+    /// particles they sever.
+    pub splits: crate::particle_split::SplitPlan,
 }
 
 /// Output of detect (its only output), input of cut.
@@ -64,6 +67,8 @@ pub struct BodyCutReport {
     pub removed: Vec<u32>,
     /// Severed edges `(a, b)`, `a < b` (by a tool or torn).
     pub severed: Vec<(u32, u32)>,
+    /// Split particles: `(particle, its new half)`.
+    pub splits: Vec<(u32, u32)>,
     /// Clusters that contained a removed particle or both ends of a severed edge, by
     /// ascending entity index.
     pub cut_clusters: Vec<Entity>,
@@ -239,6 +244,15 @@ pub struct EdgesSevered {
     pub edges: Vec<(u32, u32)>,
     /// The edges torn by strain, in the order they tore.
     pub torn: Vec<(u32, u32)>,
+}
+
+/// Sent by cut: particles a `split` blade split in two.
+#[derive(Message, Clone, Debug)]
+pub struct ParticlesSplit {
+    /// The body.
+    pub body: Entity,
+    /// `(particle, its new half)` by body-local index.
+    pub pairs: Vec<(u32, u32)>,
 }
 
 /// Sent by shape-match: particles whose position had become non-finite (a NaN written

@@ -143,6 +143,28 @@ crate::named_enum::named_enum!(CutMode, "cut mode", [
     Split => "split",
 ]);
 
+/// The plane of a blade, `normal · x = offset`; its two sides are where that is ≥ 0 and
+/// where it is < 0.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BladePlane {
+    /// Unit normal.
+    pub normal: Vec3,
+    /// `normal · x` on the plane.
+    pub offset: f32,
+}
+
+impl BladePlane {
+    /// Whether `x` lies on the positive side (or on the plane).
+    pub fn positive(&self, x: Vec3) -> bool {
+        self.normal.dot(x) >= self.offset
+    }
+
+    /// The signed distance of `x` from the plane.
+    pub fn distance(&self, x: Vec3) -> f32 {
+        self.normal.dot(x) - self.offset
+    }
+}
+
 /// A rigid pose.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Pose {

@@ -1,22 +1,37 @@
-//! Stage cut (SPEC §2.4): removes the detected particles from their bodies, severs the
-//! detected edges, and reports both and the cut clusters. Writes particle data only (it
-//! reads the particle → clusters index to name the cut clusters).
+//! Stage cut (SPEC §2.4): removes the detected particles from their bodies, splits the
+//! particles a `split` blade passes through (spawning their new halves, halving the
+//! masses), severs the detected and torn edges, and reports it all with the cut
+//! clusters. Writes particle data only (it reads the particle → clusters index to name
+//! the cut clusters).
 //!
 //! A particle entity despawned from outside (by a game, say) is removed the same way,
 //! as if cut: its body's lattice and clusters are rebuilt around the hole, instead of
 //! listing a particle that no longer exists.
 
-use crate::components::{Body, BodyLattice, Particle, ParticleClusters, cluster_entity};
+use crate::components::{
+    Body, BodyLattice, InvMass, Particle, ParticleClusters, Position, PrevPosition, Velocity,
+    cluster_entity,
+};
+use crate::particle_split::{Pairs, apply_splits, far_position};
 use crate::resources::{
     BodyCut, BodyCutReport, BodySplit, CutList, CutReport, EdgesSevered, ParticlesCut,
+    ParticlesSplit,
 };
 use crate::tear::sever_keeping_pieces;
 use bevy_ecs::entity::Entities;
 use bevy_ecs::prelude::*;
 use std::borrow::Cow;
 
-/// Deletes the particles of the `CutList` and any particle despawned from outside, and
-/// severs the `CutList`'s edges.
+/// Particle data the stage reads, and the masses it halves.
+type ParticleState = (
+    &'static Position,
+    &'static PrevPosition,
+    &'static Velocity,
+    &'static mut InvMass,
+);
+
+/// Deletes the particles of the `CutList` and any particle despawned from outside,
+/// splits the `CutList`'s split particles, and severs its edges.
 #[allow(clippy::too_many_arguments)]
 pub fn cut(
     mut commands: Commands,
@@ -28,7 +43,9 @@ pub fn cut(
     mut despawned_here: Local<Vec<Entity>>,
     mut particles_cut: MessageWriter<ParticlesCut>,
     mut edges_severed: MessageWriter<EdgesSevered>,
+    mut particles_split: MessageWriter<ParticlesSplit>,
     mut body_split: MessageWriter<BodySplit>,
+    mut particles: Query<ParticleState>,
 ) {
     report.bodies.clear();
     let cuts = with_despawned(&list, &mut despawned, &mut despawned_here, &bodies);
@@ -51,12 +68,16 @@ pub fn cut(
                 cut_clusters.extend_from_slice(index.0.clusters_of(p));
             }
         }
-        let severed: Vec<(u32, u32)> = cut
-            .edges
-            .iter()
-            .copied()
-            .filter(|&(a, b)| body.lattice.sever(a, b))
-            .collect();
+        let (splits, mut severed) = split(&mut commands, &mut body, cut, &mut particles);
+        for &(p, _) in &splits {
+            cut_clusters.extend_from_slice(index.0.clusters_of(p));
+        }
+        severed.extend(
+            cut.edges
+                .iter()
+                .copied()
+                .filter(|&(a, b)| body.lattice.sever(a, b)),
+        );
         let min_piece = material.material.tear_min_piece as usize;
         let torn = sever_keeping_pieces(&mut body.lattice, &cut.torn, min_piece);
         for &(a, b) in severed.iter().chain(&torn) {
@@ -64,7 +85,7 @@ pub fn cut(
             let of_b = index.0.clusters_of(b);
             cut_clusters.extend(index.0.clusters_of(a).iter().filter(|k| of_b.contains(k)));
         }
-        if removed.is_empty() && severed.is_empty() && torn.is_empty() {
+        if removed.is_empty() && severed.is_empty() && torn.is_empty() && splits.is_empty() {
             continue;
         }
         cut_clusters.sort_unstable();
@@ -95,13 +116,66 @@ pub fn cut(
                 torn: torn.clone(),
             });
         }
+        if !splits.is_empty() {
+            particles_split.write(ParticlesSplit {
+                body: cut.body,
+                pairs: splits.clone(),
+            });
+        }
         report.bodies.push(BodyCutReport {
             body: cut.body,
             removed,
+            splits,
             severed: [severed, torn].concat(),
             cut_clusters,
         });
     }
+}
+
+/// Splits the cut's split particles of `body` ([`split_particles`]): spawns each new
+/// half at the mirror image of its particle across the blade (at least a tenth of a
+/// cell beyond it), with the same velocity, and halves both masses. Returns the
+/// `(particle, new half)` pairs and the edges severed between split particles.
+fn split(
+    commands: &mut Commands,
+    body: &mut BodyLattice,
+    cut: &BodyCut,
+    particles: &mut Query<ParticleState>,
+) -> (Pairs, Pairs) {
+    if cut.splits.splits.is_empty() && cut.splits.sever.is_empty() {
+        return (Vec::new(), Vec::new());
+    }
+    let (pairs, severed) = apply_splits(&mut body.lattice, &cut.splits);
+    let gap = 0.1 * body.lattice.spacing();
+    let owner = cut.body;
+    for &(old, new) in &pairs {
+        let plane = cut
+            .splits
+            .splits
+            .binary_search_by_key(&old, |(p, ..)| *p)
+            .map(|k| cut.splits.splits[k].2)
+            .expect("a split particle has its plane");
+        let Ok((x, prev, v, mut inv_mass)) = particles.get_mut(body.particles[old as usize]) else {
+            continue;
+        };
+        inv_mass.0 *= 2.0;
+        let far = far_position(x.0, &plane, gap);
+        let entity = commands
+            .spawn((
+                Particle {
+                    body: owner,
+                    index: new,
+                },
+                Position(far),
+                PrevPosition(far - (x.0 - prev.0)),
+                Velocity(v.0),
+                InvMass(inv_mass.0),
+            ))
+            .id();
+        debug_assert_eq!(body.particles.len(), new as usize);
+        body.particles.push(entity);
+    }
+    (pairs, severed)
 }
 
 /// The `CutList`'s cuts plus, per body, its live particles whose entities were despawned
@@ -146,6 +220,7 @@ fn with_despawned<'a>(
                 particles: lost,
                 edges: Vec::new(),
                 torn: Vec::new(),
+                splits: Default::default(),
             }),
         }
     }

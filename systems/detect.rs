@@ -9,9 +9,10 @@
 use crate::components::{Body, BodyLattice, Tool, ToolPose};
 use crate::detection::{ToolSweep, edges_separated, particles_hit};
 use crate::lattice::NO_PARTICLE;
+use crate::particle_split::plan_splits;
 use crate::resources::{BodyCut, CutList, SolverCache};
 use crate::tear::find_tears;
-use crate::tool::CutMode;
+use crate::tool::{BladePlane, CutMode};
 use bevy_ecs::prelude::*;
 use glam::Vec3;
 
@@ -38,6 +39,40 @@ pub fn detect(
     for i in particles_hit(positions, &cache.live, &removers) {
         if let Some((body, local)) = cache.owner(i) {
             cut_of(&mut out.cuts, body).particles.push(local);
+        }
+    }
+    // a split blade splits the particles it passes through, by its plane's sides
+    for tool in severers.iter().filter(|t| t.mode() == CutMode::Split) {
+        let Some(plane) = tool.blade_plane() else {
+            continue;
+        };
+        let mut candidates: Vec<(Entity, u32)> =
+            particles_hit(positions, &cache.live, std::slice::from_ref(tool))
+                .into_iter()
+                .filter_map(|i| cache.owner(i))
+                .collect();
+        candidates.sort_unstable();
+        for run in candidates.chunk_by(|a, b| a.0 == b.0) {
+            let body = run[0].0;
+            let (Ok((_, lattice)), Some(b)) = (
+                bodies.get(body),
+                cache.body_dense.iter().find(|b| b.body == body),
+            ) else {
+                continue;
+            };
+            let position = |p: u32| {
+                b.dense
+                    .get(p as usize)
+                    .and_then(|&d| positions.get(d as usize))
+                    .map_or(Vec3::NAN, |x| Vec3::from(*x))
+            };
+            let on_plane: Vec<(u32, BladePlane)> = run.iter().map(|&(_, p)| (p, plane)).collect();
+            let plan = plan_splits(&lattice.lattice, &on_plane, position, |p, q| {
+                tool.reaches_segment(position(p), position(q))
+            });
+            let cut = cut_of(&mut out.cuts, body);
+            cut.splits.splits.extend(plan.splits);
+            cut.splits.sever.extend(plan.sever);
         }
     }
     if !severers.is_empty() {
@@ -70,6 +105,11 @@ pub fn detect(
     for c in &mut out.cuts {
         c.particles.sort_unstable();
         c.edges.sort_unstable();
+        // (one plan per particle: the first split tool's)
+        c.splits.splits.sort_by_key(|(p, ..)| *p);
+        c.splits.splits.dedup_by_key(|(p, ..)| *p);
+        c.splits.sever.sort_unstable();
+        c.splits.sever.dedup();
     }
 }
 
@@ -120,6 +160,7 @@ fn cut_of(cuts: &mut Vec<BodyCut>, body: Entity) -> &mut BodyCut {
                 particles: Vec::new(),
                 edges: Vec::new(),
                 torn: Vec::new(),
+                splits: Default::default(),
             });
             cuts.len() - 1
         }

@@ -44,10 +44,13 @@ impl<'w, 's> BodyClusters<'w, 's> {
         body: Entity,
     ) -> Option<(EcsClusterStore<'_, 'w, 's>, &Material, &Lattice)> {
         let (b, lattice, index) = self.bodies.get_mut(body).ok()?;
+        let index = &mut index.into_inner().0;
+        // (particles split by the cut have their slots from here on)
+        index.grow(lattice.lattice.len());
         let store = EcsClusterStore {
             body,
             compliance: b.material.cluster_compliance(lattice.lattice.spacing()),
-            index: &mut index.into_inner().0,
+            index,
             entities: self.entities,
             clusters: &mut self.clusters,
             commands: &mut self.commands,

@@ -1,7 +1,8 @@
-//! Stage regroup (SPEC §3.1–3.2): cut clusters → pieces → merged into neighbours.
-//! Writes cluster data only.
+//! Stage regroup (SPEC §3.1–3.2): cut clusters → pieces → merged into neighbours (after
+//! giving the new halves of split particles their clusters). Writes cluster data only.
 
 use super::ecs_store::{BodyClusters, keys_of};
+use crate::cluster_store::ClusterStore;
 use crate::reconstruct;
 use crate::resources::{CutReport, CutTimings, RebuiltBody, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
@@ -24,6 +25,13 @@ pub fn regroup(
         let Some((mut store, _, lattice)) = clusters.open(cut.body) else {
             continue;
         };
+        // a split particle's new half joins each of its clusters; the pieces below part
+        // the halves by their edges
+        for &(old, new) in &cut.splits {
+            for k in store.clusters_of(old).to_vec() {
+                store.add_members(k, &[new]);
+            }
+        }
         let cut_clusters = keys_of(&cut.cut_clusters);
         let produced = reconstruct::regroup(&mut store, lattice, &cut_clusters, &mut rng.0);
         let produced = store.entities_of(produced);

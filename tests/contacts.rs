@@ -325,7 +325,8 @@ fn collider_shape() -> impl Strategy<Value = ColliderShape> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
+    // (a fixed seed: CI runs the same cases every time; change it to explore others)
+    #![proptest_config(ProptestConfig { cases: 12, rng_seed: proptest::test_runner::RngSeed::Fixed(12), ..ProptestConfig::default() })]
 
     /// Two random bodies dropped onto a random turned collider on the ground, one above
     /// the other: they never end overlapping, nor inside the collider.

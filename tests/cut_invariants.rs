@@ -111,7 +111,8 @@ fn violations(table: &ClusterTable, lattice: &Lattice, max: u32) -> Vec<String> 
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+    // (a fixed seed: CI runs the same cases every time; change it to explore others)
+    #![proptest_config(ProptestConfig { cases: 300, rng_seed: proptest::test_runner::RngSeed::Fixed(300), ..ProptestConfig::default() })]
 
     /// Pure pipeline: regroup → split → expand → cover after each of several cuts, each
     /// removing the selected particles or severing the edges around them.
@@ -245,6 +246,11 @@ fn ecs_severing_cuts_keep_invariants() {
     ecs_cuts_keep_invariants_in(CutMode::Sever);
 }
 
+#[test]
+fn ecs_splitting_cuts_keep_invariants() {
+    ecs_cuts_keep_invariants_in(CutMode::Split);
+}
+
 fn ecs_cuts_keep_invariants_in(mode: CutMode) {
     use proptest::test_runner::{Config, TestRunner};
     let tool = (
@@ -260,6 +266,7 @@ fn ecs_cuts_keep_invariants_in(mode: CutMode) {
     );
     let mut runner = TestRunner::new(Config {
         cases: 60,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(60),
         ..Config::default()
     });
     let cut_cases = std::cell::Cell::new(0);

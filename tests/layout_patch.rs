@@ -133,6 +133,7 @@ fn particles_lost_outside_a_cut_report_are_still_frozen() {
                 body,
                 removed: vec![a],
                 severed: Vec::new(),
+                splits: Vec::new(),
                 cut_clusters: Vec::new(),
             }]
         } else {

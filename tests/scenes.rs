@@ -391,15 +391,26 @@ fn slice_makes_two_pieces_that_move_apart() {
 }
 
 #[test]
-fn slice_in_sever_mode_makes_two_pieces_and_keeps_every_particle_and_its_mass() {
-    let (s, dump) = run_with("slice", None, &["--cut-mode", "sever"]);
+fn slice_in_sever_and_split_modes_makes_two_pieces_and_keeps_the_mass() {
+    for mode in ["sever", "split"] {
+        slice_keeps_the_mass(mode);
+    }
+}
+
+fn slice_keeps_the_mass(mode: &str) {
+    let (s, dump) = run_with("slice", None, &["--cut-mode", mode]);
     assert_eq!(s["pieces"], 2);
     assert_eq!(check_dump(&dump), 2);
     assert_eq!(s["invariant_violations"], 0);
     assert_eq!(s["cut_particles"], 0);
     let start = &s["bodies"][0]["before"];
     let particles = dump["bodies"][0]["particles"].as_array().unwrap();
-    assert_eq!(particles.len() as u64, start["particles"].as_u64().unwrap());
+    // (split particles add their new halves)
+    let kept = start["particles"].as_u64().unwrap();
+    match mode {
+        "sever" => assert_eq!(particles.len() as u64, kept),
+        _ => assert!(particles.len() as u64 >= kept),
+    }
     // the mass at the start: the same particles, each of the material's mass
     let mass: f64 = particles.iter().map(|p| f(&p["mass"])).sum();
     let h = f(&dump["bodies"][0]["spacing"]);

@@ -196,7 +196,8 @@ fn gaps(sim: &mut Simulation, h: f32) -> (Option<f64>, Option<f64>) {
 }
 
 /// Mean pairwise distance between the centroids of the final pieces, in units of h,
-/// with the centroids taken over the same particles at the start and at the end.
+/// with the centroids taken over the same particles at the start and at the end (the
+/// particles there at the start: not the new halves of split particles).
 fn piece_separation(
     lattice: &cleave::lattice::Lattice,
     start: &[glam::Vec3],
@@ -209,13 +210,16 @@ fn piece_separation(
     }
     let centroids = |pos: &[glam::Vec3]| {
         let mut sum = vec![(glam::Vec3::ZERO, 0usize); pieces];
-        for i in lattice.live_particles() {
+        for i in lattice
+            .live_particles()
+            .filter(|i| (*i as usize) < start.len())
+        {
             let s = &mut sum[labels[i as usize] as usize];
             s.0 += pos[i as usize];
             s.1 += 1;
         }
         sum.into_iter()
-            .map(|(v, n)| v / n as f32)
+            .map(|(v, n)| v / n.max(1) as f32)
             .collect::<Vec<_>>()
     };
     let mean_distance = |c: &[glam::Vec3]| {
