@@ -308,3 +308,29 @@ fn a_cut_that_removes_everything_leaves_a_legal_empty_body() {
     assert_eq!((stats.particles, stats.clusters, stats.pieces), (0, 0, 0));
     assert!(check_invariants(sim.world()).is_empty());
 }
+
+#[test]
+fn severing_every_edge_twice_leaves_legal_single_particle_pieces() {
+    let mut lattice = Shape::cuboid(UVec3::new(4, 3, 3), 1.0)
+        .voxelise(1.0)
+        .unwrap();
+    let material = Material::default();
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut table = initial_clusters(&lattice, &material, &mut rng);
+    for _ in 0..2 {
+        let mut cut: Vec<u32> = Vec::new();
+        for (a, b) in lattice.edges() {
+            cut.extend(table.clusters_of(a));
+            cut.extend(table.clusters_of(b));
+            assert!(lattice.sever(a, b));
+        }
+        cut.sort_unstable();
+        cut.dedup();
+        rebuild_after_cut(&mut table, &lattice, &cut, &material, &mut rng);
+        assert_eq!(
+            violations(&table, &lattice, material.max_cluster_size),
+            Vec::<String>::new()
+        );
+        assert_eq!(lattice.piece_count(), 36);
+    }
+}

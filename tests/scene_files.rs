@@ -112,6 +112,66 @@ fn a_file_with_many_bodies_and_colliders_runs() {
 }
 
 #[test]
+fn cut_modes_tearing_and_moving_pins_are_read_from_files_and_checked() {
+    let text = GOOD
+        .replace("cut_width: 0.05,", r#"cut_width: 0.05, cut_mode: "sever","#)
+        .replace(
+            "spacing: 0.1,",
+            "spacing: 0.1, material: (tear_stretch: 1.3, tear_budget: 5, tear_min_piece: 2), \
+             pins: [(min: (-1.0, 0.0, -1.0), max: (-0.1, 2.0, 1.0), velocity: (-0.5, 0.0, 0.0))],",
+        );
+    let scene = SceneFile::parse(&text)
+        .unwrap()
+        .to_scene(Path::new("."))
+        .unwrap();
+    assert_eq!(scene.tools[0].cut_mode, CutMode::Sever);
+    let body = &scene.bodies[0];
+    assert_eq!(body.material.tear_stretch, Some(1.3));
+    assert_eq!(
+        (body.material.tear_budget, body.material.tear_min_piece),
+        (5, 2)
+    );
+    assert_eq!(body.pins[0].velocity, Vec3::new(-0.5, 0.0, 0.0));
+    let (code, err) = run_file("modes.ron", &text);
+    assert_eq!(code, Some(0), "{err}");
+    for (name, good, bad, expected) in [
+        (
+            "stretch.ron",
+            "tear_stretch: 1.3",
+            "tear_stretch: 1.0",
+            "material.tear_stretch",
+        ),
+        (
+            "stretchnan.ron",
+            "tear_stretch: 1.3",
+            "tear_stretch: NaN",
+            "material.tear_stretch",
+        ),
+        (
+            "budget.ron",
+            "tear_budget: 5",
+            "tear_budget: 0",
+            "material.tear_budget",
+        ),
+        (
+            "mode.ron",
+            r#""sever""#,
+            r#""slice""#,
+            "unknown cut mode `slice`",
+        ),
+        ("pin.ron", "velocity: (-0.5", "velocity: (1e9", "velocity"),
+    ] {
+        let text = text.replace(good, bad);
+        let (code, err) = run_file(name, &text);
+        assert_eq!(code, Some(2), "{name}: {err}");
+        assert!(
+            err.contains(expected) && err.contains(name),
+            "{name}: {err}"
+        );
+    }
+}
+
+#[test]
 fn bad_files_give_one_line_naming_file_position_and_field() {
     let collider = |shape: &str| {
         GOOD.replace(
