@@ -66,6 +66,11 @@ pub struct BenchRow {
     pub sever_event_ms: f64,
     /// See [`BenchRow::sever_event_ms`].
     pub sever_frame_ms: f64,
+    /// The same slice in split mode (a fresh box; the blade lies on the faces between
+    /// two layers of cells, so it severs there rather than splits): event and frame, ms.
+    pub split_event_ms: f64,
+    /// See [`BenchRow::split_event_ms`].
+    pub split_frame_ms: f64,
     /// Bringing the solver layout up to date in the step after the cut, ms.
     pub relayout_ms: f64,
     /// Whether that update patched the layout (false: a full rebuild).
@@ -288,9 +293,20 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
         );
     });
     drop(sim);
-    let mut sim = box_simulation(n, config)?;
-    sim.step();
-    let (sever_event_ms, sever_frame_ms, _) = slice_event(&mut sim, n, CutMode::Sever)?;
+    let mut by_mode = Vec::new();
+    for mode in [CutMode::Sever, CutMode::Split] {
+        let mut sim = box_simulation(n, config)?;
+        sim.step();
+        let (event, frame, _) = slice_event(&mut sim, n, mode)?;
+        by_mode.push((event, frame));
+    }
+    let [
+        (sever_event_ms, sever_frame_ms),
+        (split_event_ms, split_frame_ms),
+    ] = by_mode[..]
+    else {
+        unreachable!("two modes")
+    };
     let iterations = config.substeps * config.iterations;
     let per_step = (memberships as f64) * iterations as f64;
     Ok(BenchRow {
@@ -312,6 +328,8 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
         recluster_ms,
         sever_event_ms,
         sever_frame_ms,
+        split_event_ms,
+        split_frame_ms,
         relayout_ms: update.map_or(f64::NAN, |u| u.ms),
         relayout_patched: update.is_some_and(|u| u.patched),
         rebuild_ms,

@@ -81,6 +81,10 @@ fn bench_json_has_one_consistent_line_per_size() {
             "bytes_per_particle",
             "cut_event_ms",
             "cut_frame_ms",
+            "sever_event_ms",
+            "sever_frame_ms",
+            "split_event_ms",
+            "split_frame_ms",
             "recluster_ms",
             "relayout_ms",
             "rebuild_ms",
@@ -88,7 +92,13 @@ fn bench_json_has_one_consistent_line_per_size() {
             assert!(number(key) > 0.0, "{key} in {row}");
         }
         // the cut frame contains the cut event
-        assert!(number("cut_frame_ms") >= number("cut_event_ms"), "{row}");
+        for mode in ["cut", "sever", "split"] {
+            let (frame, event) = (
+                number(&format!("{mode}_frame_ms")),
+                number(&format!("{mode}_event_ms")),
+            );
+            assert!(frame >= event, "{mode}: {row}");
+        }
         // the cut is patched into the solver layout, not rebuilt
         assert_eq!(
             row["relayout_patched"],

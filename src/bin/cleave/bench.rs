@@ -49,7 +49,7 @@ pub fn bench(
             rayon::current_num_threads()
         );
         println!(
-            "{:>5} {:>9} {:>8} {:>11} {:>10} {:>9} {:>10} {:>9} {:>7} {:>8} {:>9} {:>9} {:>9} {:>9} {:>11} {:>10} {:>9}",
+            "{:>5} {:>9} {:>8} {:>11} {:>10} {:>9} {:>10} {:>9} {:>7} {:>8} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>11} {:>10} {:>9}",
             "size",
             "particles",
             "clusters",
@@ -64,6 +64,8 @@ pub fn bench(
             "cut frame",
             "sever ms",
             "sev frame",
+            "split ms",
+            "spl frame",
             "recluster",
             "relayout",
             "rebuild"
@@ -75,7 +77,7 @@ pub fn bench(
             print_json(&row)?;
         } else {
             println!(
-                "{:>5} {:>9} {:>8} {:>11} {:>10.3} {:>9.3} {:>10.3} {:>9.3} {:>7.3} {:>8.0} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>11.3} {:>9.3}{} {:>9.3}",
+                "{:>5} {:>9} {:>8} {:>11} {:>10.3} {:>9.3} {:>10.3} {:>9.3} {:>7.3} {:>8.0} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>11.3} {:>9.3}{} {:>9.3}",
                 row.size,
                 row.particles,
                 row.clusters,
@@ -90,6 +92,8 @@ pub fn bench(
                 row.cut_frame_ms,
                 row.sever_event_ms,
                 row.sever_frame_ms,
+                row.split_event_ms,
+                row.split_frame_ms,
                 row.recluster_ms,
                 row.relayout_ms,
                 if row.relayout_patched { "p" } else { "r" },
