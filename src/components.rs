@@ -107,8 +107,8 @@ pub struct ClusterOf(pub Entity);
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct Compliance(pub f32);
 
-/// A cutting tool: shape and cut width (particles within half the width of the surface,
-/// or inside it, are cut).
+/// A cutting tool: shape, cut width (how far from its surface `remove` and `split` reach)
+/// and cut mode.
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct Tool {
     /// Shape in the local frame.

@@ -1,12 +1,14 @@
-//! The particle test of the detect stage (SPEC §2.3) as a plain function: which
-//! particles come within reach of a tool anywhere along its sweep since the last frame.
+//! The tests of the detect stage (SPEC §2.3) as plain functions: which particles come
+//! within reach of a tool anywhere along its motion since the last frame
+//! ([`particles_hit`]), and which edges a tool separates ([`edges_separated`]). Both are
+//! exact for a translating tool (see [`crate::tool::Sweep`]), whatever its speed.
 //!
 //! Particles are tested in blocks of [`BLOCK`] consecutive ones (the solver layout's
 //! Morton order keeps a block compact): a block whose bounding ball cannot come within
-//! reach of the tool at any sample is skipped whole, so a tool costs a few tests per
+//! reach of the tool during the motion is skipped whole, so a tool costs one test per
 //! block away from its path and the full per-particle test only near it. The skip is
-//! exact: a tool's distance function is 1-Lipschitz, so no particle of a ball of radius
-//! `r` around `c` is nearer to the tool than `d(c) − r`.
+//! exact: the distance to what a tool sweeps is 1-Lipschitz, so no particle of a ball of
+//! radius `r` around `c` is nearer to it than `d(c) − r`.
 
 use crate::components::Tool;
 use crate::convex::Convex;

@@ -2,9 +2,10 @@
 //!
 //! Lattice shape-matching soft bodies with real-time cutting, as ordered bevy_ecs
 //! systems. A body is a voxel lattice of particles; overlapping clusters of particles
-//! are shape-matching constraints (SPEC §2). Cutting tools remove particles; the cut
-//! clusters are rebuilt locally by graph algorithms (SPEC §3–4) so pieces separate while
-//! the body keeps its stiffness.
+//! are shape-matching constraints (SPEC §2). Cutting tools remove particles, sever the
+//! lattice's edges or split particles in two, and materials may tear; the cut clusters
+//! are rebuilt locally by graph algorithms (SPEC §3–4) so pieces separate while the body
+//! keeps its stiffness.
 //!
 //! Pure algorithms live in plain modules ([`lattice`], [`clustering`], [`reconstruct`],
 //! [`solver`], [`rotation`]); [`systems`] holds the thin ECS stages; [`sim::Simulation`]

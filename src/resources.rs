@@ -208,6 +208,24 @@ pub struct BodyDense {
     pub live: usize,
 }
 
+impl BodyDense {
+    /// The dense slot of body-local particle `p`, if it has one.
+    pub fn slot(&self, p: u32) -> Option<usize> {
+        self.dense
+            .get(p as usize)
+            .filter(|d| **d != u32::MAX)
+            .map(|d| *d as usize)
+    }
+
+    /// The position of body-local particle `p` in the layout's `positions` (NaN when it
+    /// has no slot).
+    pub fn position(&self, positions: &[glam::Vec3A], p: u32) -> glam::Vec3 {
+        self.slot(p)
+            .and_then(|d| positions.get(d))
+            .map_or(glam::Vec3::NAN, |x| glam::Vec3::from(*x))
+    }
+}
+
 /// One update of the solver layout after a topology change.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LayoutUpdate {

@@ -28,9 +28,9 @@ const CORNERS: [IVec3; 8] = [
     IVec3::new(1, 1, 1),
 ];
 
-/// The deformation gradient of a voxel of spacing `h` whose corners (in the order of
-/// [`CORNERS`]) are now at `x`: the least-squares F with `x_k − x̄ ≈ F (X_k − X̄)`. The
-/// rest offsets are `(h/2)·s_k` with `s_k ∈ {±1}³`, whose moment matrix is `2h²·I`, so
+/// The deformation gradient of a voxel of spacing `h` whose corners (corner k at cell
+/// offset `(k & 1, k >> 1 & 1, k >> 2 & 1)`) are now at `x`: the least-squares F with
+/// `x_k − x̄ ≈ F (X_k − X̄)`. The rest offsets are `(h/2)·s_k` with `s_k ∈ {±1}³`, whose moment matrix is `2h²·I`, so
 /// `F = Σ_k (x_k − x̄) s_kᵀ / (4h)`.
 pub fn deformation_gradient(x: &[Vec3; 8], h: f32) -> Mat3 {
     let mean = x.iter().copied().sum::<Vec3>() / 8.0;

@@ -14,7 +14,6 @@ use crate::resources::{BodyCut, CutList, SolverCache};
 use crate::tear::find_tears;
 use crate::tool::{BladePlane, CutMode};
 use bevy_ecs::prelude::*;
-use glam::Vec3;
 
 /// Fills the cut list from the solver cache's dense positions.
 pub fn detect(
@@ -60,12 +59,7 @@ pub fn detect(
             ) else {
                 continue;
             };
-            let position = |p: u32| {
-                b.dense
-                    .get(p as usize)
-                    .and_then(|&d| positions.get(d as usize))
-                    .map_or(Vec3::NAN, |x| Vec3::from(*x))
-            };
+            let position = |p: u32| b.position(positions, p);
             let on_plane: Vec<(u32, BladePlane)> = run.iter().map(|&(_, p)| (p, plane)).collect();
             let plan = plan_splits(&lattice.lattice, &on_plane, position, |p, q| {
                 tool.reaches_segment(position(p), position(q))
@@ -87,7 +81,7 @@ pub fn detect(
                 let local = cache.locals[i];
                 [1, 3, 5].map(|d| match lattice.lattice.link(local, d) {
                     NO_PARTICLE => u32::MAX,
-                    n => b.dense.get(n as usize).copied().unwrap_or(u32::MAX),
+                    n => b.slot(n).map_or(u32::MAX, |s| s as u32),
                 })
             };
             let edges = edges_separated(positions, &cache.live, range, partners, &severers);
@@ -127,16 +121,10 @@ fn detect_tears(
         let Some(limit) = body.material.tear_stretch else {
             continue;
         };
-        let position = |p: u32| {
-            b.dense
-                .get(p as usize)
-                .and_then(|&d| positions.get(d as usize))
-                .map_or(Vec3::NAN, |x| Vec3::from(*x))
-        };
+        let position = |p: u32| b.position(positions, p);
         let held = |p: u32| {
-            b.dense
-                .get(p as usize)
-                .and_then(|&d| cache.layout.inv_mass.get(d as usize))
+            b.slot(p)
+                .and_then(|d| cache.layout.inv_mass.get(d))
                 .is_some_and(|w| *w == 0.0)
         };
         let budget = body.material.tear_budget as usize;
