@@ -99,13 +99,11 @@ impl ToolSweep {
             && self.sweep.point_distance(&self.core, x) - self.radius <= self.reach
     }
 
-    /// Whether the tool separates the ends of the segment `a`–`b` along its surface:
-    /// one end inside the tool at some time of its motion and the other never, or
-    /// neither inside and the segment crossing the tool's surface at some time (a blade,
-    /// which has no inside, slicing between two particles). A segment with both ends
-    /// inside is kept: a sphere sweeping through a body severs the boundary of what it
-    /// swept, not every edge in it. The cut width plays no part: severing removes no
-    /// material.
+    /// Whether the tool's surface crosses the segment `a`–`b` with neither end inside
+    /// the tool at any time of its motion: a blade (which has no inside) slicing between
+    /// two particles, or a sphere grazing an edge past both its ends. The edges from a
+    /// particle inside the tool to one outside are the carving's (see [`crate::carve`]).
+    /// The cut width plays no part: severing removes no material.
     pub fn separates(&self, a: Vec3, b: Vec3) -> bool {
         self.separates_at((a, self.surface_distance(a)), (b, self.surface_distance(b)))
     }
@@ -119,9 +117,8 @@ impl ToolSweep {
 
     /// [`Self::separates`] for ends whose [`Self::surface_distance`]s are known.
     pub fn separates_at(&self, (a, da): (Vec3, f32), (b, db): (Vec3, f32)) -> bool {
-        let (in_a, in_b) = (da < 0.0, db < 0.0);
-        if in_a != in_b {
-            return true;
+        if da < 0.0 || db < 0.0 {
+            return false;
         }
         // every point of the segment lies within half its length of an end: when both
         // ends are farther than that, the segment cannot touch the tool (and the point
@@ -130,9 +127,18 @@ impl ToolSweep {
         // both ends at exactly half its length.
         let margin = 1e-3 * a.distance(b)
             + 64.0 * f32::EPSILON * (a.abs().max(b.abs()).max_element() + self.scale);
-        !in_a
-            && da.min(db) <= 0.5 * a.distance(b) + margin
+        da.min(db) <= 0.5 * a.distance(b) + margin
             && self.sweep.segment_distance(&self.core, a, b) <= self.radius
+    }
+
+    /// Whether `x` is inside the tool at some time of its motion (never for a blade).
+    pub fn contains(&self, x: Vec3) -> bool {
+        self.radius > 0.0 && self.surface_distance(x) < 0.0
+    }
+
+    /// Whether the tool has an inside (a sphere or a capsule: it carves when it severs).
+    pub fn carves(&self) -> bool {
+        self.radius > 0.0
     }
 
     /// The least distance from `x` to the tool's surface over the motion, negative when
@@ -164,6 +170,23 @@ impl ToolSweep {
 /// of [`BLOCK`] particles run in parallel; the result does not depend on the thread
 /// count. `live` has one flag per position.
 pub fn particles_hit(positions: &[Vec3A], live: &[bool], tools: &[ToolSweep]) -> Vec<usize> {
+    particles_where(positions, live, tools, ToolSweep::hits)
+}
+
+/// The live particles (ascending) inside some tool at some time of its motion
+/// ([`ToolSweep::contains`]): what a carving tool carves.
+pub fn particles_inside(positions: &[Vec3A], live: &[bool], tools: &[ToolSweep]) -> Vec<usize> {
+    particles_where(positions, live, tools, ToolSweep::contains)
+}
+
+/// The live particles for which `test` holds with some tool, culled by blocks (`test`
+/// must hold only within reach of the tool).
+fn particles_where(
+    positions: &[Vec3A],
+    live: &[bool],
+    tools: &[ToolSweep],
+    test: impl Fn(&ToolSweep, Vec3) -> bool + Sync,
+) -> Vec<usize> {
     if tools.is_empty() {
         return Vec::new();
     }
@@ -180,14 +203,14 @@ pub fn particles_hit(positions: &[Vec3A], live: &[bool], tools: &[ToolSweep]) ->
             };
             // a culled block's particles are not visited at all
             let tested = if near.is_empty() { 0 } else { positions.len() };
-            positions[..tested]
+            let found: Vec<usize> = positions[..tested]
                 .iter()
                 .zip(live)
                 .enumerate()
-                .filter(move |(_, (x, live))| {
-                    **live && near.iter().any(|t| t.hits(Vec3::from(**x)))
-                })
-                .map(move |(i, _)| block * BLOCK + i)
+                .filter(|(_, (x, live))| **live && near.iter().any(|t| test(t, Vec3::from(**x))))
+                .map(|(i, _)| block * BLOCK + i)
+                .collect();
+            found
         })
         .collect()
 }

@@ -71,6 +71,9 @@ pub struct Lattice {
     /// Per particle, how far its rest position lies from its cell's centre, in cells:
     /// zero except for the new halves of split particles (empty until the first split).
     rest_shift: Vec<Vec3>,
+    /// Bit `i` set once particle `i` has been inside a cutting sphere or capsule in
+    /// `sever` mode (empty until the first carve; see [`crate::carve`]).
+    carved: Vec<u64>,
     /// Whether every pair of live particles in neighbouring cells is linked and every
     /// live particle is the one its cell names (nothing severed, nothing split): then
     /// the pieces can be counted from the occupancy grid alone.
@@ -108,6 +111,7 @@ impl Lattice {
             live_count: coords.len(),
             links: vec![[NO_PARTICLE; 6]; coords.len()],
             rest_shift: Vec::new(),
+            carved: Vec::new(),
             intact: true,
             coords,
         };
@@ -284,6 +288,24 @@ impl Lattice {
         self.links[b as usize][d ^ 1] = NO_PARTICLE;
         self.intact = false;
         true
+    }
+
+    /// Marks particle `i` carved; returns whether it was not before.
+    pub fn carve(&mut self, i: u32) -> bool {
+        let (word, bit) = (i as usize / 64, 1u64 << (i % 64));
+        if self.carved.len() <= word {
+            self.carved.resize(word + 1, 0);
+        }
+        let new = self.carved[word] & bit == 0;
+        self.carved[word] |= bit;
+        new
+    }
+
+    /// Whether particle `i` has been carved ([`Lattice::carve`]).
+    pub fn is_carved(&self, i: u32) -> bool {
+        self.carved
+            .get(i as usize / 64)
+            .is_some_and(|w| w >> (i % 64) & 1 != 0)
     }
 
     /// Links live particles `a` and `b` again after [`Lattice::sever`]: they must lie in

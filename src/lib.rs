@@ -13,6 +13,7 @@
 #![warn(missing_docs)]
 
 pub mod bench;
+pub mod carve;
 pub mod cluster_edits;
 pub mod cluster_index;
 pub mod cluster_store;

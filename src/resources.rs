@@ -41,7 +41,7 @@ pub struct BodyCut {
     /// Particles to remove (tools in [`crate::tool::CutMode::Remove`]): body-local
     /// indices, ascending.
     pub particles: Vec<u32>,
-    /// Edges to sever (tools in `Sever` or `Split` mode): body-local `(a, b)` with
+    /// Edges blades in `Sever` or `Split` mode cross, to sever: body-local `(a, b)` with
     /// `a < b`, ascending.
     pub edges: Vec<(u32, u32)>,
     /// Edges of voxels stretched past the material's `tear_stretch`, strongest first.
@@ -49,6 +49,12 @@ pub struct BodyCut {
     /// What `split` blades do: the particles they split and the edges between split
     /// particles they sever.
     pub splits: crate::particle_split::SplitPlan,
+    /// Particles inside a sphere or capsule in `sever` or `split` mode this frame, to
+    /// carve ([`crate::carve`]), ascending.
+    pub carved: Vec<u32>,
+    /// Edges such a tool's surface crosses with neither end inside it this frame, to
+    /// sever unless both ends are carved: `(a, b)` with `a < b`, ascending.
+    pub grazed: Vec<(u32, u32)>,
 }
 
 /// Output of detect (its only output), input of cut.
@@ -69,6 +75,9 @@ pub struct BodyCutReport {
     pub severed: Vec<(u32, u32)>,
     /// Split particles: `(particle, its new half)`.
     pub splits: Vec<(u32, u32)>,
+    /// Edges linked again between carved particles, `(a, b)` with `a < b`: no cluster
+    /// covers them yet.
+    pub relinked: Vec<(u32, u32)>,
     /// Clusters that contained a removed particle or both ends of a severed edge, by
     /// ascending entity index.
     pub cut_clusters: Vec<Entity>,

@@ -8,6 +8,7 @@
 //! as if cut: its body's lattice and clusters are rebuilt around the hole, instead of
 //! listing a particle that no longer exists.
 
+use crate::carve::carve;
 use crate::components::{
     Body, BodyLattice, InvMass, Particle, ParticleClusters, Position, PrevPosition, Velocity,
     cluster_entity,
@@ -78,6 +79,13 @@ pub fn cut(
                 .copied()
                 .filter(|&(a, b)| body.lattice.sever(a, b)),
         );
+        let (carved, relinked) = carve(&mut body.lattice, &cut.carved);
+        severed.extend(carved);
+        // (an edge between two carved particles lies inside what the tool swept)
+        let lattice = &mut body.lattice;
+        severed.extend(cut.grazed.iter().copied().filter(|&(a, b)| {
+            !(lattice.is_carved(a) && lattice.is_carved(b)) && lattice.sever(a, b)
+        }));
         let min_piece = material.material.tear_min_piece as usize;
         let torn = sever_keeping_pieces(&mut body.lattice, &cut.torn, min_piece);
         for &(a, b) in severed.iter().chain(&torn) {
@@ -85,7 +93,12 @@ pub fn cut(
             let of_b = index.0.clusters_of(b);
             cut_clusters.extend(index.0.clusters_of(a).iter().filter(|k| of_b.contains(k)));
         }
-        if removed.is_empty() && severed.is_empty() && torn.is_empty() && splits.is_empty() {
+        if removed.is_empty()
+            && severed.is_empty()
+            && torn.is_empty()
+            && splits.is_empty()
+            && relinked.is_empty()
+        {
             continue;
         }
         cut_clusters.sort_unstable();
@@ -126,6 +139,7 @@ pub fn cut(
             body: cut.body,
             removed,
             splits,
+            relinked,
             severed: [severed, torn].concat(),
             cut_clusters,
         });
@@ -221,6 +235,8 @@ fn with_despawned<'a>(
                 edges: Vec::new(),
                 torn: Vec::new(),
                 splits: Default::default(),
+                carved: Vec::new(),
+                grazed: Vec::new(),
             }),
         }
     }

@@ -7,7 +7,7 @@
 //! deterministic order).
 
 use crate::components::{Body, BodyLattice, Tool, ToolPose};
-use crate::detection::{ToolSweep, edges_separated, particles_hit};
+use crate::detection::{ToolSweep, edges_separated, particles_hit, particles_inside};
 use crate::lattice::NO_PARTICLE;
 use crate::particle_split::plan_splits;
 use crate::resources::{BodyCut, CutList, SolverCache};
@@ -40,6 +40,13 @@ pub fn detect(
             cut_of(&mut out.cuts, body).particles.push(local);
         }
     }
+    // a sphere or capsule that severs carves what it has ever been inside
+    let carvers: Vec<ToolSweep> = severers.iter().filter(|t| t.carves()).cloned().collect();
+    for i in particles_inside(positions, &cache.live, &carvers) {
+        if let Some((body, local)) = cache.owner(i) {
+            cut_of(&mut out.cuts, body).carved.push(local);
+        }
+    }
     // a split blade splits the particles it passes through, by its plane's sides
     for tool in severers.iter().filter(|t| t.mode() == CutMode::Split) {
         let Some(plane) = tool.blade_plane() else {
@@ -69,8 +76,14 @@ pub fn detect(
             cut.splits.sever.extend(plan.sever);
         }
     }
-    if !severers.is_empty() {
-        let severers: Vec<&ToolSweep> = severers.iter().collect();
+    // blades sever what they cross; spheres and capsules what they graze (the carving
+    // does the rest)
+    let (carving, slicing): (Vec<&ToolSweep>, Vec<&ToolSweep>) =
+        severers.iter().partition(|t| t.carves());
+    for (tools, grazed) in [(slicing, false), (carving, true)] {
+        if tools.is_empty() {
+            continue;
+        }
         for b in &cache.body_dense {
             let Ok((_, lattice)) = bodies.get(b.body) else {
                 continue;
@@ -84,12 +97,17 @@ pub fn detect(
                     n => b.slot(n).map_or(u32::MAX, |s| s as u32),
                 })
             };
-            let edges = edges_separated(positions, &cache.live, range, partners, &severers);
+            let edges = edges_separated(positions, &cache.live, range, partners, &tools);
             if edges.is_empty() {
                 continue;
             }
             let cut = cut_of(&mut out.cuts, b.body);
-            cut.edges.extend(edges.into_iter().map(|(i, j)| {
+            let list = if grazed {
+                &mut cut.grazed
+            } else {
+                &mut cut.edges
+            };
+            list.extend(edges.into_iter().map(|(i, j)| {
                 let (a, b) = (cache.locals[i], cache.locals[j]);
                 (a.min(b), a.max(b))
             }));
@@ -99,6 +117,8 @@ pub fn detect(
     for c in &mut out.cuts {
         c.particles.sort_unstable();
         c.edges.sort_unstable();
+        c.grazed.sort_unstable();
+        c.carved.sort_unstable();
         // (one plan per particle: the first split tool's)
         c.splits.splits.sort_by_key(|(p, ..)| *p);
         c.splits.splits.dedup_by_key(|(p, ..)| *p);
@@ -149,6 +169,8 @@ fn cut_of(cuts: &mut Vec<BodyCut>, body: Entity) -> &mut BodyCut {
                 edges: Vec::new(),
                 torn: Vec::new(),
                 splits: Default::default(),
+                carved: Vec::new(),
+                grazed: Vec::new(),
             });
             cuts.len() - 1
         }

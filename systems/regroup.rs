@@ -39,7 +39,7 @@ pub fn regroup(
         rebuilt.bodies.push(RebuiltBody {
             body: cut.body,
             clusters: produced,
-            cut_edges: Vec::new(),
+            cut_edges: cut.relinked.clone(),
         });
     }
     timings.current_ms = start.elapsed().as_secs_f64() * 1e3;

@@ -26,7 +26,8 @@ pub fn split(
         let keys = keys_of(&rebuilt.clusters);
         let outcome = reconstruct::split_oversized(&mut store, lattice, &keys, max, &mut rng.0);
         rebuilt.clusters = store.entities_of(outcome.clusters);
-        rebuilt.cut_edges = outcome.cut_edges;
+        // (after the edges a carve linked again, which regroup listed)
+        rebuilt.cut_edges.extend(outcome.cut_edges);
         store.finish();
     }
     timings.current_ms += start.elapsed().as_secs_f64() * 1e3;

@@ -244,14 +244,7 @@ fn a_tool_cuts_the_same_at_any_speed() {
         },
     ];
     for shape in shapes {
-        // (a sphere or capsule severs the boundary of what it swept in one frame, so a
-        // slow one leaves a chain of plugs where a fast one leaves one: only the blade,
-        // which has no inside, severs the same at any speed)
-        let modes: &[CutMode] = match shape {
-            ToolShape::Blade { .. } => &[CutMode::Remove, CutMode::Sever],
-            _ => &[CutMode::Remove],
-        };
-        for &mode in modes {
+        for mode in [CutMode::Remove, CutMode::Sever] {
             // 40 m in 1 s (60 frames), in 10 ms and in one frame: 2,400 m/s, over a
             // thousand cut widths per frame (sampled detection stopped at 255)
             let slow = cut_result(shape, mode, 1.0);

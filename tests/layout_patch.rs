@@ -134,6 +134,7 @@ fn particles_lost_outside_a_cut_report_are_still_frozen() {
                 removed: vec![a],
                 severed: Vec::new(),
                 splits: Vec::new(),
+                relinked: Vec::new(),
                 cut_clusters: Vec::new(),
             }]
         } else {

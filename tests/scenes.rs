@@ -397,6 +397,16 @@ fn slice_in_sever_and_split_modes_makes_two_pieces_and_keeps_the_mass() {
     }
 }
 
+#[test]
+fn a_severing_scoop_leaves_one_plug_at_any_speed() {
+    // the sphere carves over 60 frames; what it was ever inside is one piece
+    let (s, dump) = run_with("scoop", None, &["--cut-mode", "sever"]);
+    assert_eq!(s["pieces"], 2);
+    assert_eq!(check_dump(&dump), 2);
+    assert_eq!(s["cut_particles"], 0);
+    assert_eq!(s["invariant_violations"], 0);
+}
+
 fn slice_keeps_the_mass(mode: &str) {
     let (s, dump) = run_with("slice", None, &["--cut-mode", mode]);
     assert_eq!(s["pieces"], 2);
