@@ -143,8 +143,8 @@ crate::named_enum::named_enum!(CutMode, "cut mode", [
     Split => "split",
 ]);
 
-/// The plane of a blade, `normal · x = offset`; its two sides are where that is ≥ 0 and
-/// where it is < 0.
+/// The plane of a blade, `normal · x = offset`; its two sides are where
+/// [`BladePlane::distance`] is ≥ 0 and where it is < 0.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BladePlane {
     /// Unit normal.
@@ -154,11 +154,6 @@ pub struct BladePlane {
 }
 
 impl BladePlane {
-    /// Whether `x` lies on the positive side (or on the plane).
-    pub fn positive(&self, x: Vec3) -> bool {
-        self.normal.dot(x) >= self.offset
-    }
-
     /// The signed distance of `x` from the plane.
     pub fn distance(&self, x: Vec3) -> f32 {
         self.normal.dot(x) - self.offset
