@@ -125,10 +125,15 @@ impl ToolSweep {
         // tests spare most edges the parallelogram test). The margin covers the
         // rounding of the distances: a segment crossing the blade at its middle has
         // both ends at exactly half its length.
-        let margin = 1e-3 * a.distance(b)
-            + 64.0 * f32::EPSILON * (a.abs().max(b.abs()).max_element() + self.scale);
+        let margin = 1e-3 * a.distance(b) + self.rounding(a.abs().max(b.abs()).max_element());
         da.min(db) <= 0.5 * a.distance(b) + margin
             && self.sweep.segment_distance(&self.core, a, b) <= self.radius
+    }
+
+    /// A bound, with room to spare, on the rounding of a distance from this tool to a
+    /// point whose largest coordinate magnitude is `magnitude`.
+    fn rounding(&self, magnitude: f32) -> f32 {
+        64.0 * f32::EPSILON * (magnitude + self.scale)
     }
 
     /// Whether `x` is inside the tool at some time of its motion (never for a blade).
@@ -157,8 +162,7 @@ impl ToolSweep {
     /// rounding of the distances, so that a point [`Self::hits`] accepts is never
     /// culled.
     fn may_hit_ball(&self, centre: Vec3, radius: f32) -> bool {
-        let margin = 1e-4 * (radius + self.reach)
-            + 64.0 * f32::EPSILON * (centre.abs().max_element() + self.scale);
+        let margin = 1e-4 * (radius + self.reach) + self.rounding(centre.abs().max_element());
         let r = Vec3::splat(radius + margin);
         self.touches_box(centre - r, centre + r)
             && self.sweep.point_distance(&self.core, centre) - self.radius

@@ -57,6 +57,29 @@ pub struct BodyCut {
     pub grazed: Vec<(u32, u32)>,
 }
 
+impl BodyCut {
+    /// The entry of `cuts` for `body`, added empty when missing (found at once when the
+    /// last entry is the body's, as it is for particles listed in body order).
+    pub fn entry(cuts: &mut Vec<BodyCut>, body: Entity) -> &mut BodyCut {
+        let k = match cuts.iter().rposition(|c| c.body == body) {
+            Some(k) => k,
+            None => {
+                cuts.push(BodyCut {
+                    body,
+                    particles: Vec::new(),
+                    edges: Vec::new(),
+                    torn: Vec::new(),
+                    splits: Default::default(),
+                    carved: Vec::new(),
+                    grazed: Vec::new(),
+                });
+                cuts.len() - 1
+            }
+        };
+        &mut cuts[k]
+    }
+}
+
 /// Output of detect (its only output), input of cut.
 #[derive(Resource, Clone, Debug, Default)]
 pub struct CutList {

@@ -117,6 +117,8 @@ pub struct Tear {
     pub stretch: f32,
     /// The voxel's lowest corner.
     pub voxel: u32,
+    /// Its 8 corners (corner k at cell offset `(k & 1, k >> 1 & 1, k >> 2 & 1)`).
+    pub corners: [u32; 8],
     /// The crack plane it opens: the axis and the lowest corner's coordinate on it.
     pub plane: (usize, i32),
     /// Its edges along the axis nearest the stretch direction that are still linked,
@@ -173,6 +175,7 @@ pub fn find_tears(
             (!edges.is_empty()).then_some(Tear {
                 stretch,
                 voxel: p,
+                corners,
                 plane: (axis, lattice.coord(p)[axis]),
                 edges,
             })
@@ -186,14 +189,14 @@ pub fn find_tears(
         if chosen.len() == budget {
             break;
         }
-        let corners = voxel_corners(lattice, tear.voxel).expect("a candidate's corners");
-        let clash = corners
+        let clash = tear
+            .corners
             .iter()
             .any(|c| plane_at.get(c).is_some_and(|plane| *plane != tear.plane));
         if clash {
             continue;
         }
-        for c in corners {
+        for c in tear.corners {
             plane_at.insert(c, tear.plane);
         }
         chosen.push(tear);

@@ -223,22 +223,10 @@ fn with_despawned<'a>(
         if lost.is_empty() {
             continue;
         }
-        match cuts.iter_mut().find(|c| c.body == body) {
-            Some(cut) => {
-                cut.particles.extend(lost);
-                cut.particles.sort_unstable();
-                cut.particles.dedup();
-            }
-            None => cuts.push(BodyCut {
-                body,
-                particles: lost,
-                edges: Vec::new(),
-                torn: Vec::new(),
-                splits: Default::default(),
-                carved: Vec::new(),
-                grazed: Vec::new(),
-            }),
-        }
+        let cut = BodyCut::entry(&mut cuts, body);
+        cut.particles.extend(lost);
+        cut.particles.sort_unstable();
+        cut.particles.dedup();
     }
     cuts.sort_by_key(|c| c.body);
     Cow::Owned(cuts)

@@ -34,21 +34,23 @@ pub fn detect(
     let (removers, severers): (Vec<ToolSweep>, Vec<ToolSweep>) = sweeps
         .into_iter()
         .partition(|t| t.mode() == CutMode::Remove);
+    // blades sever what they cross; spheres and capsules carve what they have ever been
+    // inside and sever what they graze
+    let (carving, slicing): (Vec<ToolSweep>, Vec<ToolSweep>) =
+        severers.into_iter().partition(|t| t.carves());
     let positions = &cache.layout.positions;
     for i in particles_hit(positions, &cache.live, &removers) {
         if let Some((body, local)) = cache.owner(i) {
-            cut_of(&mut out.cuts, body).particles.push(local);
+            BodyCut::entry(&mut out.cuts, body).particles.push(local);
         }
     }
-    // a sphere or capsule that severs carves what it has ever been inside
-    let carvers: Vec<ToolSweep> = severers.iter().filter(|t| t.carves()).cloned().collect();
-    for i in particles_inside(positions, &cache.live, &carvers) {
+    for i in particles_inside(positions, &cache.live, &carving) {
         if let Some((body, local)) = cache.owner(i) {
-            cut_of(&mut out.cuts, body).carved.push(local);
+            BodyCut::entry(&mut out.cuts, body).carved.push(local);
         }
     }
     // a split blade splits the particles it passes through, by its plane's sides
-    for tool in severers.iter().filter(|t| t.mode() == CutMode::Split) {
+    for tool in slicing.iter().filter(|t| t.mode() == CutMode::Split) {
         let Some(plane) = tool.blade_plane() else {
             continue;
         };
@@ -71,16 +73,13 @@ pub fn detect(
             let plan = plan_splits(&lattice.lattice, &on_plane, position, |p, q| {
                 tool.reaches_segment(position(p), position(q))
             });
-            let cut = cut_of(&mut out.cuts, body);
+            let cut = BodyCut::entry(&mut out.cuts, body);
             cut.splits.splits.extend(plan.splits);
             cut.splits.sever.extend(plan.sever);
         }
     }
-    // blades sever what they cross; spheres and capsules what they graze (the carving
-    // does the rest)
-    let (carving, slicing): (Vec<&ToolSweep>, Vec<&ToolSweep>) =
-        severers.iter().partition(|t| t.carves());
-    for (tools, grazed) in [(slicing, false), (carving, true)] {
+    for (tools, grazed) in [(&slicing, false), (&carving, true)] {
+        let tools: Vec<&ToolSweep> = tools.iter().collect();
         if tools.is_empty() {
             continue;
         }
@@ -101,7 +100,7 @@ pub fn detect(
             if edges.is_empty() {
                 continue;
             }
-            let cut = cut_of(&mut out.cuts, b.body);
+            let cut = BodyCut::entry(&mut out.cuts, b.body);
             let list = if grazed {
                 &mut cut.grazed
             } else {
@@ -150,30 +149,9 @@ fn detect_tears(
         let budget = body.material.tear_budget as usize;
         let tears = find_tears(&lattice.lattice, position, held, limit, budget);
         if !tears.is_empty() {
-            cut_of(cuts, b.body)
+            BodyCut::entry(cuts, b.body)
                 .torn
                 .extend(tears.into_iter().flat_map(|t| t.edges));
         }
     }
-}
-
-/// The cut list's entry for `body`, added when missing (found at once when the last
-/// entry is the body's, as it is for particles listed in body order).
-fn cut_of(cuts: &mut Vec<BodyCut>, body: Entity) -> &mut BodyCut {
-    let k = match cuts.iter().rposition(|c| c.body == body) {
-        Some(k) => k,
-        None => {
-            cuts.push(BodyCut {
-                body,
-                particles: Vec::new(),
-                edges: Vec::new(),
-                torn: Vec::new(),
-                splits: Default::default(),
-                carved: Vec::new(),
-                grazed: Vec::new(),
-            });
-            cuts.len() - 1
-        }
-    };
-    &mut cuts[k]
 }
