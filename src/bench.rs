@@ -11,7 +11,7 @@ use crate::lattice::Shape;
 use crate::resources::{CutTimings, SimSettings, SolverCache};
 use crate::sim::{BodyDesc, Simulation, ToolDesc};
 use crate::solver::{Colliders, ConstraintKinds, SolverLayout};
-use crate::stats::rigid_fit_error;
+use crate::static_solve::StaticProblem;
 use crate::systems::layout_sync::rebuild_cache;
 use crate::tool::{CutMode, Path, Pose, ToolShape};
 use bevy_ecs::prelude::Entity;
@@ -421,19 +421,13 @@ pub struct ConvergenceOptions {
     pub budget_seconds: f64,
 }
 
-/// A time step long enough that inertia weighs less than a part in 10⁶ against the
-/// `cantilever` material's clusters: one solve with it is a static solve.
-pub const STATIC_DT: f32 = 10.0;
-
-/// Iterations between two measurements of a static solve.
-pub const BLOCK: u32 = 5;
-
 /// How fast each solver converges on two static problems, with the `cantilever`
 /// material (compliant; projective dynamics cannot hold a rigid cluster): (a) an n³
 /// box twisted a quarter turn end to end, gravity off and nothing pinned, until its
 /// shape error is below 0.1 h; (b) the built-in `cantilever` (its pins and gravity),
 /// from straight to within 1 % of its static tip sag. Each is one solve with a time
-/// step of [`STATIC_DT`], iterated in blocks of [`BLOCK`] iterations; the times are of
+/// step of [`crate::static_solve::STATIC_DT`], iterated in blocks of
+/// [`crate::static_solve::BLOCK`] iterations; the times are of
 /// the iterations alone (factorization included) and stop after `budget_seconds`. The
 /// static sag is projective dynamics' converged one (checked against Jacobi's and
 /// Gauss–Seidel's where they converge).
@@ -448,26 +442,15 @@ pub fn convergence(options: ConvergenceOptions) -> Result<Vec<ConvergenceRow>> {
         ..BodyDesc::new(Shape::cuboid(UVec3::splat(n), H), H)
     };
     // the static sag: projective dynamics until the sag moves less than 1e-6 h a block
-    let reference = {
-        let mut problem =
-            StaticProblem::cantilever(beam, scene.config.gravity, SolverMode::Projective)?;
-        let mut sag = problem.sag();
-        for _ in 0..2000 {
-            problem.iterate();
-            let last = std::mem::replace(&mut sag, problem.sag());
-            if (sag - last).abs() < 1e-6 {
-                break;
-            }
-        }
-        sag
-    };
+    let reference = StaticProblem::fresh(beam, SolverMode::Projective, scene.config.gravity)?
+        .settled_sag(2000, 1e-6);
     SolverMode::ALL
         .iter()
         .map(|&solver| {
             let mut twisted = StaticProblem::twisted(&cube, n as f32 * H, solver)?;
             let (twisted_ms, twisted_iterations, twisted_error) =
                 twisted.run(options.budget_seconds, |p| p.shape_error(), |e| e < 0.1);
-            let mut beam = StaticProblem::cantilever(beam, scene.config.gravity, solver)?;
+            let mut beam = StaticProblem::fresh(beam, solver, scene.config.gravity)?;
             let (ms, iterations, sag) = beam.run(
                 options.budget_seconds,
                 |p| p.sag(),
@@ -485,147 +468,4 @@ pub fn convergence(options: ConvergenceOptions) -> Result<Vec<ConvergenceRow>> {
             })
         })
         .collect()
-}
-
-/// A static solve on a bare solver layout (see [`convergence`]).
-struct StaticProblem {
-    layout: SolverLayout,
-    rest: Vec<Vec3>,
-    /// Particles whose mean height is the tip's.
-    tip: Vec<usize>,
-    spacing: f32,
-}
-
-impl StaticProblem {
-    /// A body's layout with its clusters and material, particles at `start` (world
-    /// positions, by live particle), pins where `pinned`, and gravity `gravity`.
-    fn new(
-        desc: &BodyDesc,
-        solver: SolverMode,
-        gravity: Vec3,
-        start: impl Fn(Vec3) -> Vec3,
-    ) -> Result<(Self, crate::lattice::Lattice, Vec<u32>)> {
-        let lattice = desc.shape.voxelise(desc.spacing)?;
-        let table = initial_clusters(&lattice, &desc.material, &mut ChaCha8Rng::seed_from_u64(1));
-        let live: Vec<u32> = lattice.live_particles().collect();
-        let mut dense = vec![u32::MAX; lattice.len()];
-        for (d, i) in live.iter().enumerate() {
-            dense[*i as usize] = d as u32;
-        }
-        let members: Vec<Vec<u32>> = table
-            .iter()
-            .map(|(_, m)| m.iter().map(|i| dense[*i as usize]).collect())
-            .collect();
-        let rest: Vec<Vec3> = live
-            .iter()
-            .map(|&i| desc.position + desc.rotation.normalize() * lattice.rest_position(i))
-            .collect();
-        let compliance = desc.material.cluster_compliance(desc.spacing);
-        let specs = members.iter().map(|m| crate::solver::ClusterSpec {
-            members: m,
-            compliance,
-            rotation: Quat::IDENTITY,
-        });
-        let mut layout = SolverLayout::new(&rest, specs, solver);
-        let inv_mass = 1.0 / desc.material.mass_at_spacing(desc.spacing);
-        for (w, x) in layout.inv_mass.iter_mut().zip(&rest) {
-            let pinned = desc.pins.iter().any(|r| r.contains(*x));
-            *w = if pinned { 0.0 } else { inv_mass };
-        }
-        // the predictions: where gravity would take each free particle in one step
-        let dt2 = STATIC_DT * STATIC_DT;
-        let start: Vec<Vec3A> = rest.iter().map(|r| Vec3A::from(start(*r))).collect();
-        for ((p, s), w) in layout
-            .positions
-            .iter_mut()
-            .zip(&start)
-            .zip(&layout.inv_mass)
-        {
-            *p = if *w == 0.0 {
-                *s
-            } else {
-                *s + Vec3A::from(gravity * dt2)
-            };
-        }
-        layout.solve(0, STATIC_DT, &mut ConstraintKinds::default());
-        layout.restart_from(&start);
-        let problem = StaticProblem {
-            layout,
-            rest,
-            tip: Vec::new(),
-            spacing: desc.spacing,
-        };
-        Ok((problem, lattice, live))
-    }
-
-    /// The cantilever beam `desc`, straight, under `gravity`.
-    fn cantilever(desc: &BodyDesc, gravity: Vec3, solver: SolverMode) -> Result<Self> {
-        let (mut problem, lattice, live) = Self::new(desc, solver, gravity, |r| r)?;
-        let end = live.iter().map(|&i| lattice.coord(i).x).max().unwrap_or(0);
-        problem.tip = (0..live.len())
-            .filter(|&d| lattice.coord(live[d]).x == end)
-            .collect();
-        Ok(problem)
-    }
-
-    /// The body `desc`, `length` tall, twisted a quarter turn about Y from its bottom to
-    /// its top.
-    fn twisted(desc: &BodyDesc, length: f32, solver: SolverMode) -> Result<Self> {
-        let centre = desc.position;
-        let twist = move |r: Vec3| {
-            let t = (r.y - centre.y) / length;
-            Quat::from_rotation_y(t * std::f32::consts::FRAC_PI_2) * (r - centre) + centre
-        };
-        Ok(Self::new(desc, solver, Vec3::ZERO, twist)?.0)
-    }
-
-    /// [`BLOCK`] more iterations.
-    fn iterate(&mut self) {
-        self.layout
-            .iterate(BLOCK, STATIC_DT, &mut ConstraintKinds::default());
-    }
-
-    /// Mean drop of the tip particles below their rest height, in spacings.
-    fn sag(&self) -> f64 {
-        let drop: f64 = self
-            .tip
-            .iter()
-            .map(|&d| (self.rest[d].y - self.layout.positions[d].y) as f64)
-            .sum();
-        drop / self.tip.len().max(1) as f64 / self.spacing as f64
-    }
-
-    /// Shape error (RMS distance to the best rigid fit of the rest shape), in spacings.
-    fn shape_error(&self) -> f64 {
-        let current: Vec<Vec3> = self
-            .layout
-            .positions
-            .iter()
-            .map(|p| Vec3::from(*p))
-            .collect();
-        (rigid_fit_error(&self.rest, &current) / self.spacing) as f64
-    }
-
-    /// Iterates block by block until `done(measure)` or the budget is spent; returns the
-    /// milliseconds and iterations it took (if done) and the last measure.
-    fn run(
-        &mut self,
-        budget_seconds: f64,
-        measure: impl Fn(&Self) -> f64,
-        done: impl Fn(f64) -> bool,
-    ) -> (Option<f64>, Option<u32>, f64) {
-        let (mut ms, mut iterations) = (0.0, 0);
-        let mut last = measure(self);
-        while !done(last) {
-            if ms > budget_seconds * 1e3 || !last.is_finite() {
-                return (None, None, last);
-            }
-            let start = Instant::now();
-            self.iterate();
-            ms += start.elapsed().as_secs_f64() * 1e3;
-            iterations += BLOCK;
-            last = measure(self);
-        }
-        (Some(ms), Some(iterations), last)
-    }
 }

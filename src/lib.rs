@@ -48,6 +48,7 @@ pub mod scene;
 pub mod scene_file;
 pub mod sim;
 pub mod solver;
+pub mod static_solve;
 pub mod stats;
 #[path = "../systems/mod.rs"]
 pub mod systems;
