@@ -4,12 +4,14 @@
 //! Clusters are Chebyshev balls of radius `r` around seeds on a sub-lattice of stride
 //! `2r + 1 − overlap`, grown by BFS inside the ball so each is connected, truncated at
 //! `max_cluster_size`. Particles left uncovered (concave shapes) seed clusters of their
-//! own. Finally [`cover_edges`] makes every lattice edge lie inside some cluster.
+//! own. Then [`cover_edges`] makes every lattice edge lie inside some cluster, and the
+//! clusters that lie inside others are removed.
 
 use crate::cluster_store::{ClusterStore, ClusterTable};
 use crate::config::Material;
 use crate::graph::with_slots;
 use crate::lattice::Lattice;
+use crate::reconstruct::remove_contained;
 use glam::IVec3;
 use rand::Rng;
 use std::collections::VecDeque;
@@ -39,19 +41,32 @@ pub fn ball_cluster(lattice: &Lattice, seed: u32, radius: u32, max: usize) -> Ve
     members
 }
 
-/// Builds the initial clusters of a body. Deterministic for a given `rng` state.
+/// Builds the initial clusters of a body, on a seed grid placed at random. Deterministic
+/// for a given `rng` state.
 pub fn initial_clusters(
     lattice: &Lattice,
     material: &Material,
     rng: &mut impl Rng,
 ) -> ClusterTable {
+    clusters_on_grid(lattice, material, seed_grid_offset(material, rng))
+}
+
+/// A random placement of the seed grid: where its first seed lies within one stride.
+pub fn seed_grid_offset(material: &Material, rng: &mut impl Rng) -> IVec3 {
+    let stride = material.cluster_stride() as i32;
+    IVec3::new(
+        rng.random_range(0..stride),
+        rng.random_range(0..stride),
+        rng.random_range(0..stride),
+    )
+}
+
+/// The initial clustering of `lattice` with its seed grid at `offset` (see
+/// [`seed_grid_offset`]): the clusters a body of this geometry gets when it is spawned,
+/// and the fresh-clustering reference for a body that was cut to this geometry.
+pub fn clusters_on_grid(lattice: &Lattice, material: &Material, offset: IVec3) -> ClusterTable {
     let stride = material.cluster_stride() as i32;
     let max = material.max_cluster_size as usize;
-    let offset = IVec3::new(
-        rng.random_range(0..stride),
-        rng.random_range(0..stride),
-        rng.random_range(0..stride),
-    );
     let mut table = ClusterTable::new(lattice.len());
     let mut covered = vec![false; lattice.len()];
     let on_grid = |c: IVec3| (c - offset).rem_euclid(IVec3::splat(stride)) == IVec3::ZERO;
@@ -80,6 +95,9 @@ pub fn initial_clusters(
         lattice.live_particles().collect::<Vec<_>>(),
         max,
     );
+    // (truncated balls in thin or concave places may lie inside their neighbours)
+    let all: Vec<u32> = table.iter().map(|(k, _)| k).collect();
+    remove_contained(&mut table, lattice.len(), &all);
     table
 }
 
@@ -123,7 +141,7 @@ pub fn cover_edges<S: ClusterStore>(
             for b in lattice.neighbours(a) {
                 // an edge between two listed particles is looked at once, from its lower end
                 if !(listed[b as usize] == 0 && b < a) {
-                    bridges += usize::from(cover_edge(store, a, b, max));
+                    bridges += usize::from(cover_edge(store, a, b, max).is_some());
                 }
             }
         }
@@ -135,7 +153,7 @@ pub fn cover_edges<S: ClusterStore>(
 }
 
 /// Makes each of the given live lattice edges covered (see [`cover_edges`]); returns
-/// the number that needed a bridge.
+/// the clusters that grew or were created for it, ascending.
 ///
 /// After a cut these are the edges [`crate::reconstruct::split_oversized`] reports: the
 /// pieces of a cut cluster keep every live edge among their members (an edge joins its
@@ -146,21 +164,24 @@ pub fn cover_edge_list<S: ClusterStore>(
     lattice: &Lattice,
     edges: &[(u32, u32)],
     max: usize,
-) -> usize {
-    edges
+) -> Vec<u32> {
+    let mut changed: Vec<u32> = edges
         .iter()
         .filter(|(a, b)| lattice.is_live(*a) && lattice.is_live(*b))
-        .map(|&(a, b)| usize::from(cover_edge(store, a, b, max)))
-        .sum()
+        .filter_map(|&(a, b)| cover_edge(store, a, b, max))
+        .collect();
+    changed.sort_unstable();
+    changed.dedup();
+    changed
 }
 
 /// Covers the edge `(a, b)` if no cluster holds both ends: adds the other end to the
 /// smallest cluster of `a` or `b` that has room (it stays connected through the edge),
-/// or, when all are full, creates the two-particle cluster `{a, b}`. Returns whether a
-/// bridge was needed.
-fn cover_edge<S: ClusterStore>(store: &mut S, a: u32, b: u32, max: usize) -> bool {
+/// or, when all are full, creates the two-particle cluster `{a, b}`. Returns the cluster
+/// it grew or created, if a bridge was needed.
+fn cover_edge<S: ClusterStore>(store: &mut S, a: u32, b: u32, max: usize) -> Option<u32> {
     if share_a_cluster(store.clusters_of(a), store.clusters_of(b)) {
-        return false;
+        return None;
     }
     let size = |k: &u32| store.members(*k).len();
     let roomy = |p: u32, other: u32| {
@@ -171,13 +192,13 @@ fn cover_edge<S: ClusterStore>(store: &mut S, a: u32, b: u32, max: usize) -> boo
             .map(|k| (size(k), *k, other))
             .min()
     };
-    match roomy(a, b).into_iter().chain(roomy(b, a)).min() {
-        Some((_, k, other)) => store.add_members(k, &[other]),
-        None => {
-            store.create(vec![a.min(b), a.max(b)]);
+    Some(match roomy(a, b).into_iter().chain(roomy(b, a)).min() {
+        Some((_, k, other)) => {
+            store.add_members(k, &[other]);
+            k
         }
-    }
-    true
+        None => store.create(vec![a.min(b), a.max(b)]),
+    })
 }
 
 /// The live lattice edges that no cluster covers, ascending (empty when the edge-cover

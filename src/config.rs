@@ -200,9 +200,10 @@ pub struct Material {
     pub cluster_radius: u32,
     /// Layers shared by neighbouring clusters; cluster centres are `2r+1-overlap` cells apart.
     pub cluster_overlap: u32,
-    /// Largest allowed cluster (≥ 2); regroup splits clusters above it.
+    /// Largest allowed cluster (≥ 2): the initial clustering truncates its balls here,
+    /// and no cut makes a cluster larger (see [`Material::split_size`]).
     pub max_cluster_size: u32,
-    /// Particles added to each rebuilt cluster by the expand stage (SPEC §3.4).
+    /// Particles added to each part of a split cluster by the expand stage (SPEC §3.4).
     pub expand_count: u32,
     /// Radius of each particle's contact ball; `None`: half the lattice spacing, so
     /// that neighbouring balls touch.
@@ -260,6 +261,16 @@ impl Material {
     pub fn cluster_compliance(&self, spacing: f32) -> f32 {
         let r = self.cluster_radius as f32;
         self.compliance * r * (r + 1.0) / (3.0 * spacing)
+    }
+
+    /// Members of the largest cluster the initial clustering builds: a full `(2r+1)³`
+    /// ball, or [`Material::max_cluster_size`] if that is smaller. After a cut, a
+    /// cluster larger than this is too big and is split (SPEC §3.3), so the rebuilt
+    /// clusters stay the size a fresh clustering would make.
+    pub fn split_size(&self) -> u32 {
+        (2 * self.cluster_radius + 1)
+            .saturating_pow(3)
+            .min(self.max_cluster_size)
     }
 
     /// Distance between neighbouring cluster centres, in lattice cells.

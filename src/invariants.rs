@@ -1,9 +1,11 @@
 //! The invariants of SPEC §1 and §3 on plain data: every cluster connected, no dead
-//! member, every live particle covered, no isolated cluster, no oversized cluster; and
-//! the particle → clusters index in step with the member lists.
+//! member, every live particle covered, no isolated cluster, no oversized cluster, no
+//! cluster inside (or equal to) another; and the particle → clusters index in step with
+//! the member lists.
 
 use crate::graph::{body_pieces, is_connected};
 use crate::lattice::Lattice;
+use crate::reconstruct::contained::subset;
 use petgraph::unionfind::UnionFind;
 use std::fmt;
 
@@ -49,6 +51,14 @@ pub enum Violation {
         /// The particle.
         particle: u32,
     },
+    /// A cluster's members all belong to another cluster as well (reported once, for
+    /// the smaller cluster, or the later of two equal ones).
+    Contained {
+        /// Cluster id.
+        cluster: u64,
+        /// A cluster that holds all of its members.
+        container: u64,
+    },
     /// A live particle's position is not finite (NaN or infinite), or its entity has
     /// lost its position.
     NonFinite {
@@ -79,6 +89,9 @@ impl fmt::Display for Violation {
                 f,
                 "the cluster index entry of particle {particle} disagrees with the members"
             ),
+            Violation::Contained { cluster, container } => {
+                write!(f, "cluster {cluster} lies inside cluster {container}")
+            }
             Violation::NonFinite { particle } => {
                 write!(f, "particle {particle} has no finite position")
             }
@@ -92,10 +105,11 @@ pub fn check_body<'a>(
     clusters: impl IntoIterator<Item = (u64, &'a [u32])>,
     max_cluster_size: usize,
 ) -> Vec<Violation> {
-    let mut out = Vec::new();
+    let clusters: Vec<(u64, &[u32])> = clusters.into_iter().collect();
+    let mut out = contained_clusters(&clusters, lattice.len());
     let mut covered = vec![false; lattice.len()];
     let mut sets = UnionFind::<u32>::new(lattice.len());
-    for (id, members) in clusters {
+    for &(id, members) in &clusters {
         if members.len() > max_cluster_size {
             out.push(Violation::Oversized {
                 cluster: id,
@@ -138,6 +152,39 @@ pub fn check_body<'a>(
             out.push(Violation::Isolated {
                 piece_particle,
                 components: r.len(),
+            });
+        }
+    }
+    out
+}
+
+/// [`Violation::Contained`] for each cluster (sorted members) whose members another
+/// cluster holds too. Every container of a cluster holds its first member, so only the
+/// clusters holding that particle are compared.
+fn contained_clusters(clusters: &[(u64, &[u32])], particles: usize) -> Vec<Violation> {
+    let mut holding: Vec<Vec<usize>> = vec![Vec::new(); particles];
+    for (i, (_, members)) in clusters.iter().enumerate() {
+        for &m in *members {
+            if let Some(list) = holding.get_mut(m as usize) {
+                list.push(i);
+            }
+        }
+    }
+    let mut out = Vec::new();
+    for (i, &(cluster, members)) in clusters.iter().enumerate() {
+        let Some(head) = members.first().and_then(|h| holding.get(*h as usize)) else {
+            continue;
+        };
+        let container = head.iter().find(|&&j| {
+            let other = clusters[j].1;
+            j != i
+                && (other.len() > members.len() || (other.len() == members.len() && j < i))
+                && subset(members, other)
+        });
+        if let Some(&j) = container {
+            out.push(Violation::Contained {
+                cluster,
+                container: clusters[j].0,
             });
         }
     }
@@ -211,6 +258,33 @@ mod tests {
             max: 2
         }));
         assert!(v.contains(&Violation::Uncovered { particle: 1 }));
+        // inside another, and a duplicate
+        let v = check_body(
+            &l,
+            [(0, &[0u32, 1, 2, 3][..]), (1, &[1, 2]), (2, &[1, 2])],
+            4,
+        );
+        assert_eq!(
+            v,
+            vec![
+                Violation::Contained {
+                    cluster: 1,
+                    container: 0
+                },
+                Violation::Contained {
+                    cluster: 2,
+                    container: 0
+                }
+            ]
+        );
+        let v = check_body(&l, [(0, &[0u32, 1, 2][..]), (1, &[2, 3]), (2, &[2, 3])], 3);
+        assert_eq!(
+            v,
+            vec![Violation::Contained {
+                cluster: 2,
+                container: 1
+            }]
+        );
         l.remove(3);
         let v = check_body(&l, [(0, &[0u32, 1, 2, 3][..])], 4);
         assert_eq!(

@@ -129,6 +129,8 @@ pub struct RebuiltBody {
     pub clusters: Vec<Entity>,
     /// Edges the splits separated (see [`crate::reconstruct::SplitOutcome`]).
     pub cut_edges: Vec<(u32, u32)>,
+    /// The parts of the clusters split, which the expand stage grows.
+    pub split_parts: Vec<Entity>,
 }
 
 /// Dense solver state kept between steps; rebuilt only when topology changes.

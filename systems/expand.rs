@@ -1,7 +1,7 @@
-//! Stage expand (SPEC §3.4): rebuilt clusters grow by random adjacent particles; then
-//! every lattice edge a split separated is covered by a cluster again, which guarantees
-//! what §3.4 aims at (no isolated cluster).
-//! Writes cluster data only.
+//! Stage expand (SPEC §3.4): the parts of split clusters grow by random adjacent
+//! particles; then every lattice edge a split separated is covered by a cluster again,
+//! which guarantees what §3.4 aims at (no isolated cluster), and the clusters that lie
+//! inside others are removed. Writes cluster data only.
 
 use super::ecs_store::{BodyClusters, keys_of};
 use crate::clustering::cover_edge_list;
@@ -10,8 +10,9 @@ use crate::resources::{ClustersRebuilt, CutTimings, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
 use std::time::Instant;
 
-/// Runs [`reconstruct::expand_clusters`], then [`cover_edge_list`] on the edges the
-/// splits separated.
+/// Runs [`reconstruct::expand_clusters`] on the split parts, [`cover_edge_list`] on the
+/// edges the splits separated, and [`reconstruct::remove_contained`] on every cluster
+/// the cut event touched.
 pub fn expand(
     mut rng: ResMut<SimRng>,
     rebuilt: Res<RebuiltClusters>,
@@ -27,21 +28,31 @@ pub fn expand(
         let Some((mut store, m, lattice)) = clusters.open(rebuilt.body) else {
             continue;
         };
-        let keys = keys_of(&rebuilt.clusters);
         let max = m.max_cluster_size as usize;
         reconstruct::expand_clusters(
             &mut store,
             lattice,
-            &keys,
+            &keys_of(&rebuilt.split_parts),
             m.expand_count as usize,
             max,
             &mut rng.0,
         );
-        cover_edge_list(&mut store, lattice, &rebuilt.cut_edges, max);
+        let mut keys = keys_of(&rebuilt.clusters);
+        keys.extend(cover_edge_list(
+            &mut store,
+            lattice,
+            &rebuilt.cut_edges,
+            max,
+        ));
+        let removed = reconstruct::remove_contained(&mut store, lattice.len(), &keys);
+        keys.retain(|k| removed.binary_search(k).is_err());
+        keys.sort_unstable();
+        keys.dedup();
+        let clusters = store.entities_of(keys);
         store.finish();
         messages.write(ClustersRebuilt {
             body: rebuilt.body,
-            clusters: rebuilt.clusters.clone(),
+            clusters,
         });
     }
     let total = timings.current_ms + start.elapsed().as_secs_f64() * 1e3;

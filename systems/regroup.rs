@@ -1,5 +1,6 @@
-//! Stage regroup (SPEC §3.1–3.2): cut clusters → pieces → merged into neighbours (after
-//! giving the new halves of split particles their clusters). Writes cluster data only.
+//! Stage regroup (SPEC §3.1–3.2): cut clusters → pieces; redundant pieces dropped,
+//! fragments merged into neighbours (after giving the new halves of split particles
+//! their clusters). Writes cluster data only.
 
 use super::ecs_store::{BodyClusters, keys_of};
 use crate::cluster_store::ClusterStore;
@@ -40,6 +41,7 @@ pub fn regroup(
             body: cut.body,
             clusters: produced,
             cut_edges: cut.relinked.clone(),
+            split_parts: Vec::new(),
         });
     }
     timings.current_ms = start.elapsed().as_secs_f64() * 1e3;

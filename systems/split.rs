@@ -1,5 +1,5 @@
-//! Stage split (SPEC §3.3, §4): splits rebuilt clusters above `max_cluster_size`.
-//! Writes cluster data only.
+//! Stage split (SPEC §3.3, §4): splits rebuilt clusters larger than the material's
+//! [`crate::config::Material::split_size`]. Writes cluster data only.
 
 use super::ecs_store::{BodyClusters, keys_of};
 use crate::reconstruct;
@@ -22,10 +22,11 @@ pub fn split(
         let Some((mut store, material, lattice)) = clusters.open(rebuilt.body) else {
             continue;
         };
-        let max = material.max_cluster_size as usize;
+        let too_big = material.split_size() as usize;
         let keys = keys_of(&rebuilt.clusters);
-        let outcome = reconstruct::split_oversized(&mut store, lattice, &keys, max, &mut rng.0);
+        let outcome = reconstruct::split_oversized(&mut store, lattice, &keys, too_big, &mut rng.0);
         rebuilt.clusters = store.entities_of(outcome.clusters);
+        rebuilt.split_parts = store.entities_of(outcome.parts);
         // (after the edges a carve linked again, which regroup listed)
         rebuilt.cut_edges.extend(outcome.cut_edges);
         store.finish();

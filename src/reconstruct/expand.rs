@@ -1,5 +1,10 @@
-//! SPEC §3.4: every rebuilt cluster grows by a few randomly chosen adjacent particles
-//! (one BFS layer), so it overlaps its neighbours again.
+//! SPEC §3.4: the parts of a split cluster grow by a few randomly chosen adjacent
+//! particles (one BFS layer), so that they overlap each other and their neighbours again.
+//!
+//! The notes grow "the small clusters the split produced" (小簇); growing every rebuilt
+//! cluster instead, on every cut that touches it, added 4 members to each of them per cut
+//! and left 1.7–1.95 times the memberships per particle of a fresh clustering once the
+//! pieces of cut clusters were kept (see [`super::regroup()`]).
 //!
 //! The adjacent particles are drawn, not listed: a random member and a random lattice
 //! direction are tried until enough of them land on distinct live non-members. A

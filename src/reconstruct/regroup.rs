@@ -1,22 +1,48 @@
 //! SPEC §3.1–3.2: cut clusters fall into pieces (connected components of their live
-//! members); each piece merges into a random cluster of one of its adjacent particles,
-//! or stays as an independent cluster when it has been cut off the body.
+//! members); the pieces that add nothing are dropped, the fragments merge into the
+//! neighbour cluster that shares most of their particles, and the other pieces stay as
+//! clusters.
+//!
+//! Two departures from the notes' letter, both measured against a fresh clustering of
+//! the same cut geometry (`cleave fidelity`), which is what the reconstruction aims at
+//! (SPEC §3, end: the body's clusters, and so its stiffness, stay what they were):
+//!
+//! - **Not every piece merges.** Merging every piece grows the neighbours by a whole
+//!   piece, and the split that follows cuts the union along a new plane: clusters came out
+//!   40–65 % larger and 70–85 % longer than a fresh clustering's, and a cantilever with
+//!   20 scoops sagged 7–12 % less. A piece of a cut cluster is what a fresh clustering
+//!   builds there anyway (the distance-based clusters truncated by the cut), so a piece
+//!   stays a cluster unless its rest shape is a point or a line: such a *fragment* cannot
+//!   fix a rotation, and it merges (§3.2).
+//! - **The neighbour shares the most particles with the fragment** (ties: the smaller
+//!   cluster, then at random). §3.2 picks a random cluster of a random adjacent particle;
+//!   the cluster that already holds most of the fragment grows least and stays compact.
+//!   A fragment that shares no particle with another cluster merges through its first
+//!   adjacent particle, as before.
+//!
+//! And one addition: a piece is **redundant** when each of its particles and each
+//! lattice edge between them also lies in another cluster (not itself dropped): it
+//! constrains nothing the others do not, and is dropped, smallest first. A fresh
+//! clustering has no such leftovers; keeping them gave 10–13 % more memberships per
+//! particle than a fresh clustering (and duplicate clusters: the same lone particle
+//! once per cut cluster).
 //!
 //! The work is split by what it reads. The pieces and their neighbours only read the
 //! clusters as the cut left them and the lattice, so they are found in parallel; the
-//! merge choices draw from the one random stream, piece by piece in order; the merged
-//! member lists are unions, computed in parallel; and the store applies every edit at
-//! once. A piece that merges away is never written as a cluster of its own.
+//! drops and merge choices depend on the ones before, and draw from the one random
+//! stream, piece by piece in order; the merged member lists are unions, computed in
+//! parallel; and the store applies every edit at once. A piece that merges away is never
+//! written as a cluster of its own.
 
 use super::local::LocalGraph;
 use crate::cluster_edits::ClusterEdits;
 use crate::cluster_index::ClusterIndex;
 use crate::cluster_store::ClusterStore;
 use crate::lattice::{Lattice, NO_PARTICLE};
+use glam::IVec3;
 use rand::Rng;
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
-use smallvec::SmallVec;
 
 /// "None" among piece numbers, particles and labels.
 const NONE: u32 = u32::MAX;
@@ -215,6 +241,8 @@ enum Candidate {
 /// becomes a node when first chosen (it never merges on, so it stays a root).
 struct MergeForest {
     parent: Vec<u32>,
+    /// Per piece, whether it was dropped as redundant (it stays a root nobody joins).
+    dropped: Vec<bool>,
     pieces: usize,
     intact: Vec<u32>,
     node_of_intact: FxHashMap<u32, u32>,
@@ -224,6 +252,7 @@ impl MergeForest {
     fn new(pieces: usize) -> Self {
         Self {
             parent: (0..pieces as u32).collect(),
+            dropped: vec![false; pieces],
             pieces,
             intact: Vec::new(),
             node_of_intact: FxHashMap::default(),
@@ -257,23 +286,30 @@ impl MergeForest {
         self.parent[own as usize] = node;
     }
 
+    /// Drops piece `p` (a root nobody has joined).
+    fn drop(&mut self, p: u32) {
+        self.dropped[p as usize] = true;
+    }
+
+    /// Whether `node` is a dropped piece.
+    fn is_dropped(&self, node: u32) -> bool {
+        self.dropped.get(node as usize).copied().unwrap_or(false)
+    }
+
     /// The intact cluster of a root node, or `None` for a piece.
     fn intact_key(&self, root: u32) -> Option<u32> {
         (root as usize >= self.pieces).then(|| self.intact[root as usize - self.pieces])
     }
 }
 
-/// Replaces every cut cluster by its pieces, then merges each piece into a neighbour
-/// cluster (SPEC §3.2). Returns the clusters this produced — the neighbour clusters that
-/// received a merge and the pieces that remain clusters — ascending, without duplicates.
+/// Replaces every cut cluster by its pieces, drops the redundant ones and merges the
+/// fragments into neighbour clusters (SPEC §3.2; see the module docs for the rules).
+/// Returns the clusters this produced — the neighbour clusters that received a merge and
+/// the pieces that remain clusters — ascending, without duplicates.
 ///
-/// The adjacent particle a piece merges through is its first one in a cluster the cut
-/// left intact, else the first one with a cluster outside the piece's merge set (§3.2
-/// leaves the choice open; preferring intact neighbours keeps chains of merges between
-/// pieces, and the giant clusters they make, rare). The candidate clusters are the
-/// clusters of that particle as the cut left them, a cut cluster standing for its piece
-/// that holds the particle, minus the piece's own merge set. Everything that draws from
-/// `rng` runs in piece order, so the result does not depend on the thread count.
+/// A cut cluster stands, as a candidate neighbour, for its piece that holds the
+/// particle in question. Everything that draws from `rng` runs in piece order, so the
+/// result does not depend on the thread count.
 pub fn regroup<S: ClusterStore>(
     store: &mut S,
     lattice: &Lattice,
@@ -314,7 +350,13 @@ pub fn regroup<S: ClusterStore>(
         first.push(first.last().copied().unwrap_or(0) + c);
     }
     // 3.2: every merge, chosen in piece order over the merge forest.
-    let mut forest = choose_merges(&view, &pieces, &first, rng);
+    let chooser = MergeChooser {
+        view: &view,
+        pieces: &pieces,
+        first: &first,
+        size_of: &|k| store.members(k).len(),
+    };
+    let mut forest = chooser.choose(rng);
     // The merged member lists, group by group, then one batch of edits.
     let mut groups: Vec<(u32, u32)> = (0..pieces.pieces.len() as u32)
         .map(|p| (forest.find(p), p))
@@ -352,6 +394,9 @@ pub fn regroup<S: ClusterStore>(
     });
     for (group, members) in groups.iter().zip(lists) {
         let root = group[0].0;
+        if forest.is_dropped(root) {
+            continue;
+        }
         match forest.intact_key(root) {
             Some(k) => {
                 edits.extend(k, members);
@@ -399,69 +444,168 @@ fn sort_dedup(list: &mut [u32]) -> usize {
     len
 }
 
-/// §3.2's choices, in piece order: each piece's adjacent particle, its candidate
-/// clusters, and a random one of them to merge into.
-fn choose_merges(
-    view: &CutView,
-    pieces: &Pieces,
-    first: &[u32],
-    rng: &mut impl Rng,
-) -> MergeForest {
-    let CutView { lattice, index, .. } = *view;
-    // the piece of cut cluster `c` that holds live particle `a`
-    let piece_holding = |c: usize, a: u32| {
-        let (start, end) = (first[c], first[c + 1]);
+/// Whether the members' lattice coordinates lie on one line (a point included): such a
+/// cluster's shape matching cannot fix a rotation.
+fn collinear(members: &[u32], lattice: &Lattice) -> bool {
+    let Some(&first) = members.first() else {
+        return true;
+    };
+    let origin = lattice.coord(first);
+    let mut axis = IVec3::ZERO;
+    for &m in members {
+        let d = lattice.coord(m) - origin;
+        if axis == IVec3::ZERO {
+            axis = d;
+        } else if axis.cross(d) != IVec3::ZERO {
+            return false;
+        }
+    }
+    true
+}
+
+/// §3.2's choices over the pieces of a cut event.
+struct MergeChooser<'a> {
+    view: &'a CutView<'a>,
+    pieces: &'a Pieces,
+    /// First piece of each cut cluster (and one past the last).
+    first: &'a [u32],
+    /// Members of a cluster the cut left intact.
+    size_of: &'a dyn Fn(u32) -> usize,
+}
+
+impl MergeChooser<'_> {
+    /// The piece of cut cluster `c` that holds live particle `a`.
+    fn piece_holding(&self, c: usize, a: u32) -> u32 {
+        let (start, end) = (self.first[c], self.first[c + 1]);
         if end - start == 1 {
             return start;
         }
         (start..end)
-            .find(|p| pieces.members(*p as usize).binary_search(&a).is_ok())
+            .find(|p| self.pieces.members(*p as usize).binary_search(&a).is_ok())
             .unwrap_or(start)
-    };
-    let mut forest = MergeForest::new(pieces.pieces.len());
-    let mut candidates: SmallVec<[Candidate; 8]> = SmallVec::new();
-    let candidates_at = |a: u32, own: u32, forest: &mut MergeForest, out: &mut SmallVec<_>| {
-        out.clear();
-        for &k in index.clusters_of(a) {
-            match view.cut_position(k) {
+    }
+
+    /// Appends to `out` the clusters besides those of `own`'s merge set that hold
+    /// particle `a` and are not dropped (a cut cluster as its piece holding `a`).
+    fn clusters_at(&self, a: u32, own: u32, forest: &mut MergeForest, out: &mut Vec<Candidate>) {
+        for &k in self.view.index.clusters_of(a) {
+            match self.view.cut_position(k) {
                 Some(c) => {
-                    let q = piece_holding(c, a);
-                    if forest.find(q) != own {
+                    let q = self.piece_holding(c, a);
+                    if !forest.is_dropped(q) && forest.find(q) != own {
                         out.push(Candidate::Piece(q));
                     }
                 }
                 None => out.push(Candidate::Intact(k)),
             }
         }
-    };
-    for (p, piece) in pieces.pieces.iter().enumerate() {
-        // a piece has not merged on yet, so it is its own root
-        let own = p as u32;
-        if piece.intact_neighbour != NONE {
-            candidates_at(piece.intact_neighbour, own, &mut forest, &mut candidates);
-        } else {
-            // the first adjacent particle with a cluster outside the merge set
-            let members = pieces.members(p);
-            candidates.clear();
-            'search: for &m in members {
-                for d in 0..6 {
-                    let a = lattice.link(m, d);
-                    if a == NO_PARTICLE || members.binary_search(&a).is_ok() {
-                        continue;
-                    }
-                    candidates_at(a, own, &mut forest, &mut candidates);
-                    if !candidates.is_empty() {
-                        break 'search;
+    }
+
+    /// Members of a candidate as the cut left it.
+    fn size(&self, candidate: Candidate) -> usize {
+        match candidate {
+            Candidate::Piece(q) => self.pieces.members(q as usize).len(),
+            Candidate::Intact(k) => (self.size_of)(k),
+        }
+    }
+
+    /// Every choice, in piece order: the redundant pieces, then each fragment's
+    /// neighbour cluster.
+    fn choose(&self, rng: &mut impl Rng) -> MergeForest {
+        let mut forest = MergeForest::new(self.pieces.pieces.len());
+        self.drop_redundant(&mut forest);
+        let lattice = self.view.lattice;
+        let mut candidates = Vec::new();
+        let mut scores: Vec<(Candidate, usize)> = Vec::new();
+        for (p, piece) in self.pieces.pieces.iter().enumerate() {
+            let members = self.pieces.members(p);
+            if forest.is_dropped(p as u32) || !collinear(members, lattice) {
+                continue;
+            }
+            // a piece has not merged on yet, so it is its own root
+            let own = p as u32;
+            // the clusters holding its particles, by how many they hold
+            scores.clear();
+            for &m in members {
+                candidates.clear();
+                self.clusters_at(m, own, &mut forest, &mut candidates);
+                for &c in &candidates {
+                    match scores.iter_mut().find(|(s, _)| *s == c) {
+                        Some((_, n)) => *n += 1,
+                        None => scores.push((c, 1)),
                     }
                 }
             }
+            candidates.clear();
+            let key = |(c, n): (Candidate, usize)| (n, std::cmp::Reverse(self.size(c)));
+            if let Some(best) = scores.iter().map(|s| key(*s)).max() {
+                candidates.extend(scores.iter().filter(|s| key(**s) == best).map(|s| s.0));
+            } else {
+                // shares no particle: through its first adjacent particle with a cluster
+                // outside the merge set, preferring one in an intact cluster
+                let adjacent = std::iter::once(piece.intact_neighbour)
+                    .filter(|a| *a != NONE)
+                    .chain(members.iter().flat_map(|&m| lattice.links(m)))
+                    .filter(|a| *a != NO_PARTICLE && members.binary_search(a).is_err());
+                for a in adjacent {
+                    self.clusters_at(a, own, &mut forest, &mut candidates);
+                    if !candidates.is_empty() {
+                        break;
+                    }
+                }
+            }
+            if !candidates.is_empty() {
+                let target = candidates[rng.random_range(0..candidates.len())];
+                forest.merge(own, target);
+            }
         }
-        if !candidates.is_empty() {
-            let target = candidates[rng.random_range(0..candidates.len())];
-            forest.merge(own, target);
+        forest
+    }
+
+    /// Drops the redundant pieces, smallest first (ties in piece order): those whose
+    /// every member and every lattice edge between members lies in another cluster that
+    /// is not dropped. Each drop leaves what it relied on in place, so at the end every
+    /// particle and edge of a dropped piece is still in some cluster.
+    fn drop_redundant(&self, forest: &mut MergeForest) {
+        let lattice = self.view.lattice;
+        let mut order: Vec<u32> = (0..self.pieces.pieces.len() as u32).collect();
+        order.sort_by_key(|p| (self.pieces.members(*p as usize).len(), *p));
+        // per member, the other clusters holding it: `held[start[i]..start[i + 1]]`
+        let (mut held, mut start) = (Vec::new(), Vec::new());
+        for p in order {
+            let members = self.pieces.members(p as usize);
+            held.clear();
+            start.clear();
+            let mut redundant = true;
+            for &m in members {
+                start.push(held.len());
+                let before = held.len();
+                // (its own cut cluster stands for this piece, which is not another)
+                self.clusters_at(m, p, forest, &mut held);
+                if held.len() == before {
+                    redundant = false;
+                    break;
+                }
+            }
+            if !redundant {
+                continue;
+            }
+            start.push(held.len());
+            let of = |i: usize| &held[start[i]..start[i + 1]];
+            let edges_covered = members.iter().enumerate().all(|(i, &a)| {
+                lattice.links(a).iter().all(|b| {
+                    match members.binary_search(b) {
+                        // each edge once, from its lower end
+                        Ok(j) if *b > a => of(i).iter().any(|c| of(j).contains(c)),
+                        _ => true,
+                    }
+                })
+            });
+            if edges_covered {
+                forest.drop(p);
+            }
         }
     }
-    forest
 }
 
 #[cfg(test)]
@@ -474,25 +618,74 @@ mod tests {
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 
+    fn clusters(t: &ClusterTable) -> Vec<Vec<u32>> {
+        t.iter().map(|(_, m)| m.to_vec()).collect()
+    }
+
     #[test]
-    fn pieces_merge_into_neighbours_or_stay_independent() {
-        // A 6×1×1 bar, clusters {0,1,2}, {2,3,4}, {4,5}; cut particle at x = 1 (index 1)
+    fn fragments_merge_redundant_pieces_go_and_the_rest_stay() {
+        // A 6×1×1 bar, clusters {0,1,2,3} and {3,4,5}; cut particle 1
         let mut l = Shape::cuboid(UVec3::new(6, 1, 1), 1.0)
             .voxelise(1.0)
             .unwrap();
-        let idx = |x: i32| l.at(IVec3::new(x - 3, 0, 0)).unwrap();
-        let (p0, p1, p2, p3, p4, p5) = (idx(0), idx(1), idx(2), idx(3), idx(4), idx(5));
-        let mut t =
-            ClusterTable::from_clusters(6, vec![vec![p0, p1, p2], vec![p2, p3, p4], vec![p4, p5]]);
-        l.remove(p1);
+        let p: Vec<u32> = (0..6)
+            .map(|x| l.at(IVec3::new(x - 3, 0, 0)).unwrap())
+            .collect();
+        let mut t = ClusterTable::from_clusters(
+            6,
+            vec![vec![p[0], p[1], p[2], p[3]], vec![p[3], p[4], p[5]]],
+        );
+        l.remove(p[1]);
         let out = regroup(&mut t, &l, &[0], &mut ChaCha8Rng::seed_from_u64(0));
-        // piece {p0} has no adjacent particle → independent; piece {p2} merges into {p2,p3,p4}
-        let clusters: Vec<Vec<u32>> = t.iter().map(|(_, m)| m.to_vec()).collect();
-        assert!(clusters.contains(&vec![p0]));
-        assert!(clusters.contains(&vec![p2, p3, p4]));
-        assert_eq!(out.len(), 2);
+        // {p0} has no adjacent particle: it stays on its own; the fragment {p2, p3} merges
+        // into {p3, p4, p5}, which holds one of its particles
+        assert_eq!(clusters(&t), vec![vec![p[0]], vec![p[2], p[3], p[4], p[5]]]);
+        assert_eq!(out, vec![0, 1]);
+
+        // the same bar, clusters {0,1,2}, {2,3,4}, {4,5}: the piece {p2} lies in
+        // {p2, p3, p4} (redundant) and goes
+        let mut l = Shape::cuboid(UVec3::new(6, 1, 1), 1.0)
+            .voxelise(1.0)
+            .unwrap();
+        let mut t = ClusterTable::from_clusters(
+            6,
+            vec![
+                vec![p[0], p[1], p[2]],
+                vec![p[2], p[3], p[4]],
+                vec![p[4], p[5]],
+            ],
+        );
+        l.remove(p[1]);
+        let out = regroup(&mut t, &l, &[0], &mut ChaCha8Rng::seed_from_u64(0));
+        assert_eq!(
+            clusters(&t),
+            vec![vec![p[0]], vec![p[2], p[3], p[4]], vec![p[4], p[5]]]
+        );
+        assert_eq!(out, vec![0]);
         for (_, m) in t.iter() {
             assert!(is_connected(m, &l));
         }
+    }
+
+    #[test]
+    fn a_piece_that_spans_a_plane_stays_a_cluster() {
+        // a 4×3 plate: a 3×3 cluster on the left overlapping a 2×3 one on the right;
+        // cutting the left cluster's corner leaves it 8 particles that stay together
+        let mut l = Shape::cuboid(UVec3::new(4, 3, 1), 1.0)
+            .voxelise(1.0)
+            .unwrap();
+        let column =
+            |x: i32| -> Vec<u32> { l.live_particles().filter(|q| l.coord(*q).x == x).collect() };
+        let x0 = l.live_particles().map(|q| l.coord(q).x).min().unwrap();
+        let mut left: Vec<u32> = (x0..x0 + 3).flat_map(column).collect();
+        let mut right: Vec<u32> = (x0 + 2..x0 + 4).flat_map(column).collect();
+        left.sort_unstable();
+        right.sort_unstable();
+        let mut t = ClusterTable::from_clusters(l.len(), vec![left.clone(), right.clone()]);
+        let corner = left[0];
+        l.remove(corner);
+        let out = regroup(&mut t, &l, &[0], &mut ChaCha8Rng::seed_from_u64(0));
+        assert_eq!(out, vec![0]);
+        assert_eq!(clusters(&t), vec![left[1..].to_vec(), right]);
     }
 }

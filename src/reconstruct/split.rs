@@ -299,10 +299,13 @@ pub struct SplitOutcome {
     /// Lattice edges whose ends ended in different parts of a split; they may need a
     /// bridge (see [`crate::clustering::cover_edge_list`]).
     pub cut_edges: Vec<(u32, u32)>,
+    /// The parts of the clusters that were split (the expansion of SPEC §3.4 grows
+    /// these).
+    pub parts: Vec<u32>,
 }
 
 /// SPEC §3.3: splits every cluster in `keys` above `max` members, and the halves again,
-/// until all are at most `max`.
+/// until all are at most `max` (after a cut, `max` is [`crate::config::Material::split_size`]).
 ///
 /// The splits only read their cluster and the lattice, so they run in parallel, each with
 /// its own generator seeded from `rng` in key order: the result does not depend on the
@@ -339,11 +342,15 @@ pub fn split_oversized<S: ClusterStore>(
         }
         cut_edges.extend_from_slice(edges);
     }
+    let created = store.apply(&edits);
+    let mut parts: Vec<u32> = splits.iter().map(|(k, _)| *k).collect();
+    parts.extend_from_slice(&created);
     let mut clusters = keys.to_vec();
-    clusters.extend(store.apply(&edits));
+    clusters.extend(created);
     SplitOutcome {
         clusters,
         cut_edges,
+        parts,
     }
 }
 
