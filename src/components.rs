@@ -12,7 +12,7 @@ use crate::lattice::Lattice;
 use crate::tool::{CutMode, Path, Pose, ToolShape};
 use bevy_ecs::entity::{Entities, EntityIndex};
 use bevy_ecs::prelude::*;
-use glam::Vec3;
+use glam::{IVec3, Vec3};
 
 /// A particle: its body and its body-local index (stable for the body's life).
 ///
@@ -43,11 +43,16 @@ pub struct Velocity(pub Vec3);
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct InvMass(pub f32);
 
-/// A body: its material.
+/// A body: its material, and where its clustering's seed grid lies.
 #[derive(Component, Clone, Debug)]
 pub struct Body {
     /// Material and clustering parameters.
     pub material: Material,
+    /// Where the initial clustering placed its seed grid
+    /// ([`crate::clustering::seed_grid_offset`]). A fresh clustering of the body's
+    /// current geometry ([`crate::sim::recluster`]) places it there too, so that it
+    /// differs from the spawned clusters only where the body was cut.
+    pub seed_grid: IVec3,
 }
 
 /// Particle data of a body: the lattice (coordinate ↔ index, live flags), the entity of

@@ -16,6 +16,7 @@ pub mod bench;
 pub mod carve;
 pub mod cluster_edits;
 pub mod cluster_index;
+pub mod cluster_shape;
 pub mod cluster_store;
 pub mod clustering;
 pub mod collider;
@@ -27,6 +28,7 @@ pub mod dump;
 pub mod error;
 #[cfg(feature = "render")]
 pub mod export;
+pub mod fidelity;
 pub mod graph;
 pub mod invariants;
 pub mod lanes;

@@ -25,7 +25,7 @@ pub struct Scene {
 }
 
 /// Names and one-line descriptions of the built-in scenes.
-pub const BUILTIN_SCENES: [(&str, &str); 11] = [
+pub const BUILTIN_SCENES: [(&str, &str); 13] = [
     ("drop", "a 16×8×8 box falls on the ground and settles"),
     (
         "cantilever",
@@ -66,6 +66,14 @@ pub const BUILTIN_SCENES: [(&str, &str); 11] = [
     (
         "notch",
         "the tear bar with a notch at 30 % of its length tears at the notch",
+    ),
+    (
+        "cuts",
+        "a 32×16×16 block, gravity off, cut 50 times by random blades and sphere scoops",
+    ),
+    (
+        "scooped",
+        "the cantilever with 20 sphere scoops near the middle of its top and sides",
     ),
 ];
 
@@ -298,6 +306,8 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
             }
         }
         "random" => random_scene(seed),
+        "cuts" => crate::fidelity::cut_block_scene(seed, 50),
+        "scooped" => crate::fidelity::scooped_cantilever_scene(seed, 20),
         "stack" => stack_scene(config),
         "pile" => pile_scene(config, H),
         "press" => press_scene(config),

@@ -2,7 +2,8 @@
 //! descriptions; `check_invariants` over a World.
 
 use crate::cluster_index::ClusterIndex;
-use crate::clustering::initial_clusters;
+use crate::cluster_store::ClusterTable;
+use crate::clustering::{clusters_on_grid, seed_grid_offset};
 use crate::collider::ColliderShape;
 use crate::components::*;
 use crate::config::{Material, SimConfig};
@@ -160,6 +161,12 @@ impl Simulation {
         for _ in 0..frames {
             self.step();
         }
+    }
+
+    /// Replaces the clusters of `body` by a fresh clustering of its current geometry
+    /// (see [`recluster`]); returns the new cluster entities.
+    pub fn recluster(&mut self, body: Entity) -> Result<Vec<Entity>> {
+        recluster(&mut self.world, body)
     }
 
     /// Every body entity, in entity order.
@@ -398,14 +405,13 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     )?;
     let lattice = desc.shape.voxelise(desc.spacing)?;
     check_particle_budget(existing_particles(world), lattice.len() as u64)?;
-    let table = {
-        let mut rng = world.resource_mut::<SimRng>();
-        initial_clusters(&lattice, &desc.material, &mut rng.0)
-    };
+    let seed_grid = seed_grid_offset(&desc.material, &mut world.resource_mut::<SimRng>().0);
+    let table = clusters_on_grid(&lattice, &desc.material, seed_grid);
     let rotation = desc.rotation.normalize();
     let body = world
         .spawn(Body {
             material: desc.material.clone(),
+            seed_grid,
         })
         .id();
     // In the solver layout's (Morton) order, so that the particle table's rows and the
@@ -428,17 +434,8 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     for (&i, e) in order.iter().zip(spawned) {
         particles[i as usize] = e;
     }
-    let mut index = ClusterIndex::new(lattice.len());
-    for (_, members) in table.iter() {
-        let e = world
-            .spawn((
-                ClusterMembers(members.to_vec()),
-                ClusterOf(body),
-                Compliance(desc.material.cluster_compliance(desc.spacing)),
-            ))
-            .id();
-        index.add_cluster(e.index_u32(), members);
-    }
+    let compliance = desc.material.cluster_compliance(desc.spacing);
+    let (index, _) = spawn_clusters(world, body, &table, lattice.len(), compliance);
     let pieces = lattice.piece_count();
     world.entity_mut(body).insert((
         BodyLattice {
@@ -449,6 +446,66 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         ParticleClusters(index),
     ));
     Ok(body)
+}
+
+/// Spawns the clusters of `table` as entities of `body`; returns their particle index
+/// and the entities, in order.
+fn spawn_clusters(
+    world: &mut World,
+    body: Entity,
+    table: &ClusterTable,
+    particles: usize,
+    compliance: f32,
+) -> (ClusterIndex, Vec<Entity>) {
+    let mut index = ClusterIndex::new(particles);
+    let mut entities = Vec::with_capacity(table.len());
+    for (_, members) in table.iter() {
+        let e = world
+            .spawn((
+                ClusterMembers(members.to_vec()),
+                ClusterOf(body),
+                Compliance(compliance),
+            ))
+            .id();
+        index.add_cluster(e.index_u32(), members);
+        entities.push(e);
+    }
+    (index, entities)
+}
+
+/// Replaces the clusters of `body` by a fresh clustering of its current geometry: the
+/// initial clustering, with the body's seed grid, of the particles and lattice edges
+/// that are live now — the clusters the body would have if it had been spawned with
+/// this shape. This is the reference a cut body's rebuilt clusters are measured
+/// against (`cleave fidelity`). Particles keep their positions and velocities; the
+/// solver layout is rebuilt at the next step. Returns the new cluster entities.
+pub fn recluster(world: &mut World, body: Entity) -> Result<Vec<Entity>> {
+    let not_a_body = || CleaveError::InvalidEntity(format!("{body} is not a body"));
+    let (table, particles, compliance) = {
+        let b = world.get::<Body>(body).ok_or_else(not_a_body)?;
+        let lattice = &world
+            .get::<BodyLattice>(body)
+            .ok_or_else(not_a_body)?
+            .lattice;
+        (
+            clusters_on_grid(lattice, &b.material, b.seed_grid),
+            lattice.len(),
+            b.material.cluster_compliance(lattice.spacing()),
+        )
+    };
+    let old: Vec<Entity> = world
+        .query::<(Entity, &ClusterOf)>()
+        .iter(world)
+        .filter(|(_, of)| of.0 == body)
+        .map(|(e, _)| e)
+        .collect();
+    for e in old {
+        world.despawn(e);
+    }
+    let (index, clusters) = spawn_clusters(world, body, &table, particles, compliance);
+    world.entity_mut(body).insert(ParticleClusters(index));
+    world.resource_mut::<SolverCache>().valid = false;
+    Ok(clusters)
 }
 
 /// Checks SPEC §1/§3 invariants of every body in `world`, that each body's particle →

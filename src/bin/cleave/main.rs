@@ -1,6 +1,7 @@
 //! The `cleave` command-line program: run scenes, list them, benchmark the engine.
 
 mod bench;
+mod fidelity;
 mod pictures;
 mod run;
 
@@ -86,6 +87,31 @@ enum Command {
         /// (edges; no mass is lost) or split (particles in two, by the blade's side).
         #[arg(long)]
         cut_mode: Option<CutMode>,
+        /// After this frame (0: before the first), replace every body's clusters by a
+        /// fresh clustering of its geometry, to compare a cut body with the same shape
+        /// built fresh.
+        #[arg(long)]
+        recluster_at: Option<u32>,
+    },
+    /// Compare cut bodies' rebuilt clusters with fresh clusterings of the same geometry:
+    /// a block cut N times (cluster counts, sizes, memberships, extents) and the
+    /// cantilever with 20 scoops (static tip sag).
+    Fidelity {
+        /// Random cuts of the block (1–1000).
+        #[arg(long, default_value_t = 50)]
+        cuts: u32,
+        /// Seed of the cuts and scoops.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// What the tools do: remove, sever or split.
+        #[arg(long, default_value = "remove")]
+        cut_mode: CutMode,
+        /// Print the report as one JSON object.
+        #[arg(long)]
+        json: bool,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
     },
     /// List the built-in scenes, or print one as a scene file.
     Scenes {
@@ -223,9 +249,11 @@ fn main() -> ExitCode {
             substeps,
             iterations,
             cut_mode,
+            recluster_at,
         } => {
             let args = run::RunArgs {
                 scene,
+                recluster_at,
                 overrides: run::SceneOverrides {
                     solver,
                     substeps,
@@ -257,6 +285,21 @@ fn main() -> ExitCode {
             };
             with_threads(threads, |threads| run::run(&args, threads))
         }
+        Command::Fidelity {
+            cuts,
+            seed,
+            cut_mode,
+            json,
+            threads,
+        } => with_threads(threads, |_| {
+            let options = cleave::fidelity::FidelityOptions {
+                cuts,
+                seed,
+                cut_mode,
+                ..Default::default()
+            };
+            fidelity::fidelity(options, json)
+        }),
         Command::Bench {
             json,
             sizes,

@@ -25,6 +25,8 @@ struct Summary {
     scene: String,
     frames: u32,
     seed: u64,
+    /// The frame after which every body was clustered afresh (`--recluster-at`).
+    reclustered_at: Option<u32>,
     threads: usize,
     /// Totals over every body at the end.
     particles: usize,
@@ -310,6 +312,8 @@ impl SceneOverrides {
 pub struct RunArgs {
     /// Built-in scene name.
     pub scene: String,
+    /// Frame after which every body is clustered afresh.
+    pub recluster_at: Option<u32>,
     /// Solver settings overriding the scene's.
     pub overrides: SceneOverrides,
     /// Frames (default: the scene's).
@@ -349,6 +353,13 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     }
     let seed = scene.config.seed;
     let frames = frames.unwrap_or(scene.frames);
+    if let Some(at) = args.recluster_at
+        && at > frames
+    {
+        return Err(format!(
+            "--recluster-at: {at} is past the last frame (allowed 0 ≤ recluster-at ≤ {frames})"
+        ));
+    }
     let mut sim = Simulation::new(scene.config.clone()).map_err(|e| e.to_string())?;
     let mut bodies = Vec::with_capacity(scene.bodies.len());
     // errors name the scene, the entry's line and column in a scene file, and the entry
@@ -393,6 +404,15 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         },
     )?;
     pictures.frame(sim.world_mut(), 0)?;
+    let recluster = |sim: &mut Simulation, frame: u32| -> Result<(), String> {
+        if args.recluster_at == Some(frame) {
+            for &body in &bodies {
+                sim.recluster(body).map_err(|e| e.to_string())?;
+            }
+        }
+        Ok(())
+    };
+    recluster(&mut sim, 0)?;
     let progress = progress_bar(frames, args.quiet);
     let mut factor_ms = Vec::new();
     let mut factor_seconds = 0.0;
@@ -414,6 +434,7 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
             );
             factor_seconds = seconds;
         }
+        recluster(&mut sim, frame)?;
         pictures.frame(sim.world_mut(), frame)?;
         cut_particles += cursor
             .read(sim.world().resource::<Messages<ParticlesCut>>())
@@ -449,6 +470,7 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         scene: scene_name.into(),
         frames,
         seed,
+        reclustered_at: args.recluster_at,
         threads,
         particles: total(|s| s.particles),
         clusters: total(|s| s.clusters),
