@@ -1,6 +1,6 @@
-//! Property tests: SPEC §1/§3 invariants, and the particle → cluster index, hold after
-//! every cut, for hundreds of random cuts on random shapes — through the pure
-//! reconstruction pipeline (arbitrary removed sets: single survivors, everything removed)
+//! Property tests: SPEC §1/§3 invariants (no cluster inside or equal to another among
+//! them), and the particle → cluster index, hold after every cut, for hundreds of
+//! random cuts on random shapes — through the pure reconstruction pipeline (arbitrary removed sets: single survivors, everything removed)
 //! and through the ECS with real tools (under every solver).
 
 use cleave::cluster_store::{ClusterStore, ClusterTable};
@@ -99,6 +99,33 @@ fn selected(cut: &Cut, lattice: &Lattice) -> Vec<u32> {
         .collect()
 }
 
+/// Removes the `chosen` particles, or with `sever` severs the edges between chosen and
+/// unchosen ones; returns the cut clusters (those that lost a member, or held both ends
+/// of a severed edge).
+fn apply_cut(table: &ClusterTable, lattice: &mut Lattice, chosen: &[u32], sever: bool) -> Vec<u32> {
+    let mut cut_clusters: Vec<u32> = Vec::new();
+    if sever {
+        let edges: Vec<(u32, u32)> = lattice
+            .edges()
+            .into_iter()
+            .filter(|(a, b)| chosen.binary_search(a).is_ok() != chosen.binary_search(b).is_ok())
+            .collect();
+        for &(a, b) in &edges {
+            let of_b = table.clusters_of(b);
+            cut_clusters.extend(table.clusters_of(a).iter().filter(|k| of_b.contains(k)));
+            assert!(lattice.sever(a, b));
+        }
+    } else {
+        cut_clusters.extend(chosen.iter().flat_map(|p| table.clusters_of(*p).to_vec()));
+        for p in chosen {
+            lattice.remove(*p);
+        }
+    }
+    cut_clusters.sort_unstable();
+    cut_clusters.dedup();
+    cut_clusters
+}
+
 fn violations(table: &ClusterTable, lattice: &Lattice, max: u32) -> Vec<String> {
     check_body(
         lattice,
@@ -125,27 +152,7 @@ proptest! {
         prop_assert_eq!(violations(&table, &lattice, max), Vec::<String>::new());
         for (cut, sever) in &cuts {
             let chosen = selected(cut, &lattice);
-            let mut cut_clusters: Vec<u32> = Vec::new();
-            if *sever {
-                // the edges with one end chosen and the other not
-                let edges: Vec<(u32, u32)> = lattice
-                    .edges()
-                    .into_iter()
-                    .filter(|(a, b)| chosen.binary_search(a).is_ok() != chosen.binary_search(b).is_ok())
-                    .collect();
-                for &(a, b) in &edges {
-                    let of_b = table.clusters_of(b).to_vec();
-                    cut_clusters.extend(table.clusters_of(a).iter().filter(|k| of_b.contains(k)));
-                    prop_assert!(lattice.sever(a, b));
-                }
-            } else {
-                cut_clusters.extend(chosen.iter().flat_map(|p| table.clusters_of(*p).to_vec()));
-                for p in &chosen {
-                    lattice.remove(*p);
-                }
-            }
-            cut_clusters.sort_unstable();
-            cut_clusters.dedup();
+            let cut_clusters = apply_cut(&table, &mut lattice, &chosen, *sever);
             rebuild_after_cut(&mut table, &lattice, &cut_clusters, &material, &mut rng);
             let v = violations(&table, &lattice, max);
             prop_assert!(v.is_empty(), "after {:?}: {:?}", cut, v);
@@ -281,6 +288,58 @@ fn ecs_cuts_keep_invariants_in(mode: CutMode) {
         cut_cases.get() >= 45,
         "{mode}: only {} of 60 cases cut anything",
         cut_cases.get()
+    );
+}
+
+/// One body through 300 cuts in a row — small balls removed, small balls carved out
+/// (the edges around them severed), and every fiftieth a slab's edges severed: after every
+/// one, every invariant holds, among them no cluster inside (or equal to) another.
+#[test]
+fn a_block_stays_legal_through_three_hundred_cuts() {
+    use rand::Rng as _;
+    let mut lattice = Shape::cuboid(UVec3::new(24, 12, 12), 1.0)
+        .voxelise(1.0)
+        .unwrap();
+    let material = Material::default();
+    let mut rng = ChaCha8Rng::seed_from_u64(300);
+    let mut table = initial_clusters(&lattice, &material, &mut rng);
+    let mut rebuilt = 0;
+    for i in 0..300 {
+        let centre = Vec3::new(
+            rng.random_range(-12.0..12.0),
+            rng.random_range(-6.0..6.0),
+            rng.random_range(-6.0..6.0),
+        );
+        let cut = if i % 50 == 49 {
+            Cut::Slab {
+                normal: Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                )
+                .normalize_or(Vec3::X),
+                offset: rng.random_range(-5.0..5.0),
+                width: rng.random_range(1.0..2.5),
+            }
+        } else {
+            Cut::Ball {
+                centre,
+                radius: rng.random_range(0.6..1.8),
+            }
+        };
+        let sever = i % 2 == 1;
+        let chosen = selected(&cut, &lattice);
+        let cut_clusters = apply_cut(&table, &mut lattice, &chosen, sever);
+        rebuilt += cut_clusters.len();
+        rebuild_after_cut(&mut table, &lattice, &cut_clusters, &material, &mut rng);
+        let v = violations(&table, &lattice, material.max_cluster_size);
+        assert!(v.is_empty(), "after cut {i} ({cut:?}): {v:?}");
+    }
+    assert!(rebuilt > 2000, "the cuts rebuilt only {rebuilt} clusters");
+    let (live, pieces) = (lattice.live_count(), lattice.piece_count());
+    assert!(
+        live > 2000 && pieces > 20 && pieces < live / 4,
+        "{live} particles in {pieces} pieces"
     );
 }
 

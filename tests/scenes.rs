@@ -194,6 +194,24 @@ fn check_body(dump: &Value) -> Vec<HashSet<u64>> {
         covered.extend(c.iter().copied());
     }
     assert_eq!(covered, ids, "uncovered particles");
+    // No cluster inside (or equal to) another: a container holds the smallest member.
+    let mut holding: HashMap<u64, Vec<usize>> = HashMap::new();
+    for (i, c) in clusters.iter().enumerate() {
+        for m in c {
+            holding.entry(*m).or_default().push(i);
+        }
+    }
+    for (i, c) in clusters.iter().enumerate() {
+        let smallest = c.iter().min().unwrap();
+        for &j in &holding[smallest] {
+            assert!(
+                j == i || !c.is_subset(&clusters[j]),
+                "a cluster of {} lies inside one of {}",
+                c.len(),
+                clusters[j].len()
+            );
+        }
+    }
     let pieces = components(&ids);
     // No isolated cluster: inside each piece, clusters linked by shared particles.
     for piece in &pieces {
@@ -501,6 +519,82 @@ fn random_cuts_keep_invariants() {
     assert!(s["cut_particles"].as_u64().unwrap() > 0);
     assert_eq!(s["invariant_violations"], 0);
     assert_eq!(check_dump(&dump), s["pieces"].as_u64().unwrap() as usize);
+}
+
+#[test]
+fn fifty_cuts_keep_the_dump_legal_and_a_scooped_beam_sags_as_if_built_with_its_holes() {
+    let (s, dump) = run("cuts", None);
+    assert_eq!(s["invariant_violations"], 0);
+    assert!(f(&s["particles"]) < 0.8 * 8192.0, "{}", s["particles"]);
+    assert!(check_dump(&dump) > 1);
+    // the scooped cantilever's steady sag, with its rebuilt clusters and with a fresh
+    // clustering of the same holes after the scoops
+    let quiet = ["--png-every", "0", "--gif-every", "0", "--quiet"];
+    let (rebuilt, dump) = run_with("scooped", None, &quiet);
+    check_dump(&dump);
+    let fresh = run_with(
+        "scooped",
+        None,
+        &[&quiet[..], &["--recluster-at", "8"]].concat(),
+    )
+    .0;
+    assert_eq!(fresh["reclustered_at"], 8);
+    assert_eq!(rebuilt["reclustered_at"], Value::Null);
+    assert_eq!(fresh["particles"], rebuilt["particles"]);
+    let sag = |s: &Value| f(&s["bodies"][0]["tip_drop_h_end"]);
+    assert!(
+        (sag(&rebuilt) / sag(&fresh) - 1.0).abs() <= 0.10,
+        "{} vs {}",
+        sag(&rebuilt),
+        sag(&fresh)
+    );
+    // the holes soften the beam
+    assert!(sag(&rebuilt) > cantilever_sag(&[]), "{}", sag(&rebuilt));
+}
+
+#[test]
+fn fidelity_reports_and_refuses_bad_counts() {
+    let cleave = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_cleave"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let out = cleave(&["fidelity", "--cuts", "6", "--seed", "3", "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["seed"], 3);
+    assert_eq!(report["cut_mode"], "remove");
+    assert_eq!(report["block"]["cuts"], 6);
+    assert_eq!(report["block"]["violations"], 0);
+    let fresh = f(&report["block"]["fresh"]["mean_size"]);
+    let ratio = f(&report["block"]["ratio"]["mean_size"]);
+    assert!((f(&report["block"]["rebuilt"]["mean_size"]) - ratio * fresh).abs() < 1e-9);
+    assert!(f(&report["cantilever"]["fresh_sag_h"]) > 0.0);
+    for (args, needle) in [
+        (
+            &["fidelity", "--cuts", "0"][..],
+            "--cuts: 0 is out of range",
+        ),
+        (
+            &["fidelity", "--cuts", "1001"],
+            "--cuts: 1001 is out of range",
+        ),
+        (&["fidelity", "--cut-mode", "chop"], "chop"),
+        (
+            &["run", "scooped", "--recluster-at", "601", "--quiet"],
+            "--recluster-at: 601 is past the last frame",
+        ),
+    ] {
+        let out = cleave(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
 }
 
 #[test]
