@@ -81,6 +81,10 @@ pub struct SimConfig {
     pub seed: u64,
     /// Run `check_invariants` after every frame and panic on a violation (tests, debugging).
     pub check_invariants_every_frame: bool,
+    /// Memory one body may take, in GB (0.001–1024): a body whose lattice could hold
+    /// more particles than this allows, at [`crate::lattice::BYTES_PER_PARTICLE`] each, is
+    /// refused before anything is allocated.
+    pub memory_budget_gb: f32,
 }
 
 impl Default for SimConfig {
@@ -100,6 +104,7 @@ impl Default for SimConfig {
             contacts: true,
             seed: 0,
             check_invariants_every_frame: false,
+            memory_budget_gb: crate::lattice::DEFAULT_MEMORY_BUDGET_GB,
         }
     }
 }
@@ -108,6 +113,13 @@ impl SimConfig {
     /// Checks every field; the error names the field and its allowed range.
     pub fn validate(&self) -> Result<()> {
         check_range("config.dt", self.dt, 1e-6, 1.0, "1e-6 ≤ dt ≤ 1 (seconds)")?;
+        check_range(
+            "config.memory_budget_gb",
+            self.memory_budget_gb,
+            1e-3,
+            1024.0,
+            "0.001 ≤ memory_budget_gb ≤ 1024",
+        )?;
         if self.substeps == 0 || self.substeps > 1000 {
             return Err(out_of_range(
                 "config.substeps",

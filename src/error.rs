@@ -43,7 +43,8 @@ pub enum CleaveError {
     },
     /// A shape would need more memory than the budget allows.
     #[error(
-        "shape too large: `{field}` would make up to {particles} particles, about {gigabytes:.1} GB at ~{bytes_per_particle} B each (the memory budget of {budget_gigabytes} GB allows {max} particles per body)"
+        "shape too large: `{field}` would make up to {particles} particles, about {} GB at ~{bytes_per_particle} B each (the memory budget of {budget_gigabytes} GB allows {max} particles per body)",
+        significant(*gigabytes)
     )]
     OverBudget {
         /// Which field described the shape.
@@ -55,7 +56,7 @@ pub enum CleaveError {
         /// Estimated memory per particle, bytes.
         bytes_per_particle: u64,
         /// The budget, GB.
-        budget_gigabytes: u64,
+        budget_gigabytes: f32,
         /// Most particles the budget allows.
         max: u64,
     },
@@ -130,5 +131,47 @@ pub fn out_of_range(
         field: field.to_string(),
         value: format!("{value:?}"),
         allowed,
+    }
+}
+
+/// `x` to three significant digits, without trailing zeros (0.0048, 4.9, 38).
+fn significant(x: f64) -> String {
+    if !(x.is_finite() && x > 0.0) {
+        return format!("{x}");
+    }
+    let decimals = (2 - x.log10().floor() as i32).max(0) as usize;
+    let text = format!("{x:.decimals$}");
+    if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        text
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_print_to_three_significant_digits() {
+        for (x, text) in [
+            (0.0048, "0.0048"),
+            (4.9452, "4.95"),
+            (38.4, "38.4"),
+            (1234.6, "1235"),
+            (2.0, "2"),
+        ] {
+            assert_eq!(significant(x), text);
+        }
+        let e = CleaveError::OverBudget {
+            field: "shape".into(),
+            particles: 8000,
+            gigabytes: 0.0048,
+            bytes_per_particle: 600,
+            budget_gigabytes: 0.001,
+            max: 1666,
+        };
+        assert!(e.to_string().contains("about 0.0048 GB"), "{e}");
+        assert!(e.to_string().contains("memory budget of 0.001 GB"), "{e}");
     }
 }

@@ -27,20 +27,21 @@ pub const MAX_LATTICE_CELLS: u64 = 1 << 27;
 /// cluster index; measured with `cleave bench` as peak resident memory per particle).
 pub const BYTES_PER_PARTICLE: u64 = 600;
 
-/// Memory one body may take, in GB; with [`BYTES_PER_PARTICLE`] it bounds the particles
-/// of a body before anything is allocated.
-pub const MEMORY_BUDGET_GB: u64 = 8;
+/// Memory one body may take by default, in GB ([`crate::config::SimConfig::memory_budget_gb`]);
+/// with [`BYTES_PER_PARTICLE`] it bounds the particles of a body before anything is
+/// allocated.
+pub const DEFAULT_MEMORY_BUDGET_GB: f32 = 2.0;
 
-/// Refuses a shape whose lattice could hold more particles than the memory budget.
-fn check_budget(field: &str, particles: u64) -> Result<()> {
-    let max = MEMORY_BUDGET_GB * 1_000_000_000 / BYTES_PER_PARTICLE;
+/// Refuses a shape whose lattice could hold more particles than `budget_gb` allows.
+fn check_budget(field: &str, particles: u64, budget_gb: f32) -> Result<()> {
+    let max = (budget_gb as f64 * 1e9 / BYTES_PER_PARTICLE as f64) as u64;
     if particles > max {
         return Err(CleaveError::OverBudget {
             field: field.into(),
             particles,
             gigabytes: (particles as f64) * BYTES_PER_PARTICLE as f64 / 1e9,
             bytes_per_particle: BYTES_PER_PARTICLE,
-            budget_gigabytes: MEMORY_BUDGET_GB,
+            budget_gigabytes: budget_gb,
             max,
         });
     }
@@ -640,8 +641,15 @@ impl Shape {
     }
 
     /// Voxelises the shape at spacing `h`: lattice point `k` sits at `(k + ½)·h` in the
-    /// shape's frame and is kept when it lies inside (signed distance ≤ 10⁻⁴·h).
+    /// shape's frame and is kept when it lies inside (signed distance ≤ 10⁻⁴·h). A shape
+    /// whose bounding box holds more cells than [`DEFAULT_MEMORY_BUDGET_GB`] allows is
+    /// refused before anything is allocated.
     pub fn voxelise(&self, h: f32) -> Result<Lattice> {
+        self.voxelise_within(h, DEFAULT_MEMORY_BUDGET_GB)
+    }
+
+    /// [`Shape::voxelise`] within a memory budget of `budget_gb` gigabytes.
+    pub fn voxelise_within(&self, h: f32, budget_gb: f32) -> Result<Lattice> {
         check_positive("spacing", h)?;
         if let Shape::Cells { cells } = self {
             let total = cells.x as u64 * cells.y as u64 * cells.z as u64;
@@ -651,7 +659,7 @@ impl Shape {
                     spacing: h,
                 });
             }
-            check_budget("shape.cells", total)?;
+            check_budget("shape.cells", total, budget_gb)?;
             if total > MAX_LATTICE_CELLS {
                 return Err(CleaveError::TooLarge {
                     field: "shape.cells".into(),
@@ -676,7 +684,7 @@ impl Shape {
         let extent = (kmax - kmin + Vec3::ONE).max(Vec3::ZERO);
         let cells = extent.x as f64 * extent.y as f64 * extent.z as f64;
         if cells.is_finite() {
-            check_budget("shape", cells as u64)?;
+            check_budget("shape", cells as u64, budget_gb)?;
         }
         if !cells.is_finite() || cells > MAX_LATTICE_CELLS as f64 {
             return Err(CleaveError::TooLarge {

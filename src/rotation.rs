@@ -7,6 +7,21 @@ use crate::lanes::{Mat3x8, Quatx8, Vec3x8};
 use glam::{Mat3A, Quat, Vec3A};
 use wide::f32x8;
 
+/// The unit quaternion in the direction of `q`, whatever its length; `None` when `q` is
+/// not finite or is zero. Scaling by the largest component first keeps the length from
+/// overflowing (`(0, 0, 0, 1e30)` is the identity) or vanishing.
+pub fn unit_quaternion(q: Quat) -> Option<Quat> {
+    let largest = q
+        .to_array()
+        .into_iter()
+        .map(f32::abs)
+        .fold(0.0f32, f32::max);
+    if !(q.is_finite() && largest > 0.0) {
+        return None;
+    }
+    Some((q / largest).normalize())
+}
+
 /// Extracts the rotation of `a`, starting from `warm` (the previous result), with at
 /// most `max_iterations` iterations. Zero, rank-deficient, inverted or non-finite
 /// matrices give a proper rotation (for a zero or non-finite `a`, the warm start).
@@ -132,6 +147,31 @@ fn exp_map(omega: Vec3A, w2: f32) -> Quat {
 mod tests {
     use super::*;
     use glam::{Mat3, Vec3};
+
+    #[test]
+    fn a_quaternion_of_any_finite_length_gives_its_direction() {
+        let cases = [
+            (Quat::from_xyzw(0.0, 0.0, 0.0, 1e30), Some(Quat::IDENTITY)),
+            (
+                Quat::from_xyzw(0.0, 3e-30, 0.0, 0.0),
+                Some(Quat::from_xyzw(0.0, 1.0, 0.0, 0.0)),
+            ),
+            (
+                Quat::from_xyzw(2.0, 0.0, 0.0, 2.0),
+                Some(Quat::from_rotation_x(std::f32::consts::FRAC_PI_2)),
+            ),
+            (Quat::from_xyzw(0.0, 0.0, 0.0, 0.0), None),
+            (Quat::from_xyzw(f32::NAN, 0.0, 0.0, 1.0), None),
+            (Quat::from_xyzw(f32::INFINITY, 0.0, 0.0, 1.0), None),
+        ];
+        for (q, expected) in cases {
+            let got = unit_quaternion(q);
+            match (got, expected) {
+                (Some(g), Some(e)) => assert!(g.dot(e) > 1.0 - 1e-6, "{q}: {g} vs {e}"),
+                (g, e) => assert_eq!(g, e, "{q}"),
+            }
+        }
+    }
 
     #[test]
     fn exp_map_matches_the_exact_rotation() {

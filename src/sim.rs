@@ -14,6 +14,7 @@ use crate::error::{
 use crate::invariants::{Violation, check_body, check_index};
 use crate::lattice::Shape;
 use crate::resources::*;
+use crate::rotation::unit_quaternion;
 use crate::solver::MAX_SOLVER_PARTICLES;
 use crate::systems::{CleaveSchedule, install};
 use crate::tool::{CutMode, Path, Pose, ToolShape};
@@ -283,7 +284,7 @@ fn spawn_keyframed<C: Component>(
 ) -> Entity {
     let mut e = world.spawn(object);
     if !path.keys.is_empty() {
-        e.insert(follow(path.clone()));
+        e.insert(follow(path.normalized()));
     }
     e.id()
 }
@@ -298,15 +299,18 @@ fn starting_pose(world: &World, what: &str, path: &Path, pose: Pose) -> Result<P
         MAX_COORDINATE,
         "|x|, |y|, |z| ≤ 1e6 (metres)",
     )?;
-    if !pose.rotation.is_finite() || pose.rotation.length() < 1e-6 {
-        return Err(crate::error::out_of_range(
+    let rotation = unit_quaternion(pose.rotation).ok_or_else(|| {
+        crate::error::out_of_range(
             &format!("{what}.pose.rotation"),
             pose.rotation,
             "finite, non-zero quaternion",
-        ));
-    }
+        )
+    })?;
     let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time);
-    Ok(path.sample(now as f32).unwrap_or(pose))
+    Ok(path
+        .normalized()
+        .sample(now as f32)
+        .unwrap_or(Pose { rotation, ..pose }))
 }
 
 /// Spawns a collider into any world prepared with [`crate::systems::install`].
@@ -379,13 +383,13 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         1e4,
         "|vx|, |vy|, |vz| ≤ 1e4 (m/s)",
     )?;
-    if !desc.rotation.is_finite() || desc.rotation.length() < 1e-6 {
-        return Err(crate::error::out_of_range(
+    let rotation = unit_quaternion(desc.rotation).ok_or_else(|| {
+        crate::error::out_of_range(
             "body.rotation",
             desc.rotation,
             "finite, non-zero quaternion",
-        ));
-    }
+        )
+    })?;
     for (i, pin) in desc.pins.iter().enumerate() {
         check_finite_vec(&format!("body.pins[{i}].min"), pin.min)?;
         check_finite_vec(&format!("body.pins[{i}].max"), pin.max)?;
@@ -403,11 +407,15 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         1e9,
         "1e-9 ≤ density·spacing³ ≤ 1e9 (kg per particle)",
     )?;
-    let lattice = desc.shape.voxelise(desc.spacing)?;
+    let budget = world
+        .get_resource::<SimSettings>()
+        .map_or(crate::lattice::DEFAULT_MEMORY_BUDGET_GB, |s| {
+            s.0.memory_budget_gb
+        });
+    let lattice = desc.shape.voxelise_within(desc.spacing, budget)?;
     check_particle_budget(existing_particles(world), lattice.len() as u64)?;
     let seed_grid = seed_grid_offset(&desc.material, &mut world.resource_mut::<SimRng>().0);
     let table = clusters_on_grid(&lattice, &desc.material, seed_grid);
-    let rotation = desc.rotation.normalize();
     let body = world
         .spawn(Body {
             material: desc.material.clone(),

@@ -4,6 +4,7 @@
 
 use crate::convex::{self, Convex};
 use crate::error::{Result, check_finite_vec, check_positive, out_of_range};
+use crate::rotation::unit_quaternion;
 use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -200,8 +201,9 @@ pub struct Path {
 }
 
 impl Path {
-    /// Checks that times increase and every key is finite; the error names the key as
-    /// `{owner}.path[i]` (`owner`: `tool`, `collider`).
+    /// Checks that times increase and every key is finite (a rotation: finite and
+    /// non-zero); the error names the key as `{owner}.path[i]` (`owner`: `tool`,
+    /// `collider`).
     pub fn validate(&self, owner: &str) -> Result<()> {
         for (i, (t, pose)) in self.keys.iter().enumerate() {
             if !t.is_finite() {
@@ -212,7 +214,7 @@ impl Path {
                 ));
             }
             check_finite_vec(&format!("{owner}.path[{i}].position"), pose.position)?;
-            if !pose.rotation.is_finite() || pose.rotation.length() < 1e-6 {
+            if unit_quaternion(pose.rotation).is_none() {
                 return Err(out_of_range(
                     &format!("{owner}.path[{i}].rotation"),
                     pose.rotation,
@@ -228,6 +230,18 @@ impl Path {
             }
         }
         Ok(())
+    }
+
+    /// The path with every key's rotation scaled to unit length (a key that is not a
+    /// finite, non-zero quaternion stays as it is: [`Path::validate`] refuses it).
+    pub fn normalized(&self) -> Path {
+        let unit = |p: Pose| Pose {
+            rotation: unit_quaternion(p.rotation).unwrap_or(p.rotation),
+            ..p
+        };
+        Path {
+            keys: self.keys.iter().map(|(t, p)| (*t, unit(*p))).collect(),
+        }
     }
 
     /// Pose at time `t`, or `None` for an empty path.

@@ -179,7 +179,22 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
             &format!("    colliders: [(shape: {shape})],\n    tools: [("),
         )
     };
-    let cases: [(&str, String, &[&str]); 16] = [
+    let cases: [(&str, String, &[&str]); 18] = [
+        (
+            "raw.ron",
+            GOOD.replace("Cells(cells: (4, 4, 4))", "Sphere(0.6)"),
+            &[
+                "raw.ron:3:",
+                "bodies[0].shape.Sphere",
+                "expected a field name, found `0.6`",
+                "Sphere(radius: 0.6)",
+            ],
+        ),
+        (
+            "budget.ron",
+            GOOD.replace("frames: 2,", "frames: 2, settings: (memory_budget_gb: 0),"),
+            &["budget.ron:2:", "settings.memory_budget_gb", "0.001 ≤ memory_budget_gb"],
+        ),
         (
             "ball.ron",
             collider("Sphere(radius: -1.0)"),
@@ -303,6 +318,98 @@ fn a_body_past_the_memory_budget_is_refused_before_anything_is_allocated() {
     }
     // refused up front: well under the seconds a 38 GB allocation would take to fail
     assert!(start.elapsed().as_secs_f64() < 5.0);
+}
+
+#[test]
+fn a_memory_budget_refuses_bodies_it_cannot_hold_and_a_fine_mesh_is_refused_at_once() {
+    // a budget of 1 MB refuses 8,000 particles
+    let text = GOOD
+        .replace(
+            "frames: 2,",
+            "frames: 2, settings: (memory_budget_gb: 0.001),",
+        )
+        .replace("Cells(cells: (4, 4, 4))", "Cells(cells: (20, 20, 20))");
+    let (code, err) = run_file("small.ron", &text);
+    assert_eq!(code, Some(2), "{err}");
+    for e in ["small.ron:3:14: bodies[0]", "memory budget of 0.001 GB"] {
+        assert!(err.contains(e), "`{e}` missing from: {err}");
+    }
+    // a closed 3,120-triangle ball, 1 m across, at spacing 0.005: 8 million cells
+    let (stacks, slices) = (40usize, 40usize);
+    let mut obj = String::from("v 0 0.5 0\n");
+    for i in 1..stacks {
+        let theta = std::f64::consts::PI * i as f64 / stacks as f64;
+        for j in 0..slices {
+            let phi = std::f64::consts::TAU * j as f64 / slices as f64;
+            let (s, c) = (theta.sin() * 0.5, theta.cos() * 0.5);
+            obj += &format!("v {} {} {}\n", s * phi.cos(), c, s * phi.sin());
+        }
+    }
+    obj += "v 0 -0.5 0\n";
+    let ring = |i: usize, j: usize| 2 + (i - 1) * slices + j % slices;
+    let last = 2 + (stacks - 1) * slices;
+    let mut triangles = 0;
+    for j in 0..slices {
+        obj += &format!("f 1 {} {}\n", ring(1, j + 1), ring(1, j));
+        obj += &format!(
+            "f {last} {} {}\n",
+            ring(stacks - 1, j),
+            ring(stacks - 1, j + 1)
+        );
+        triangles += 2;
+        for i in 1..stacks - 1 {
+            let (a, b, c, d) = (
+                ring(i, j),
+                ring(i, j + 1),
+                ring(i + 1, j),
+                ring(i + 1, j + 1),
+            );
+            obj += &format!("f {a} {b} {d}\nf {a} {d} {c}\n");
+            triangles += 2;
+        }
+    }
+    assert_eq!(triangles, 3120);
+    let dir = std::env::temp_dir().join(format!("cleave-scene-files-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("ball.obj"), obj).unwrap();
+    let text = GOOD
+        .replace("Cells(cells: (4, 4, 4))", r#"Mesh(path: "ball.obj")"#)
+        .replace("spacing: 0.1", "spacing: 0.005");
+    let start = std::time::Instant::now();
+    let (code, err) = run_file("fine.ron", &text);
+    assert_eq!(code, Some(2), "{err}");
+    for e in [
+        "fine.ron:3:14: bodies[0]",
+        "particles",
+        "memory budget of 2 GB",
+    ] {
+        assert!(err.contains(e), "`{e}` missing from: {err}");
+    }
+    assert!(start.elapsed().as_secs_f64() < 10.0);
+    // and at a spacing the budget allows, it runs
+    let (code, err) = run_file(
+        "coarse.ron",
+        &text.replace("spacing: 0.005", "spacing: 0.05"),
+    );
+    assert_eq!(code, Some(0), "{err}");
+}
+
+#[test]
+fn a_byte_order_mark_and_a_long_rotation_are_read_as_meant() {
+    let text = format!(
+        "\u{feff}{}",
+        GOOD.replace(
+            "(1.0, (position: (0.0, 0.5, 0.0)))",
+            "(1.0, (position: (0.0, 0.5, 0.0), rotation: (0.0, 0.0, 0.0, 1e30)))",
+        )
+    );
+    let (code, err) = run_file("bom.ron", &text);
+    assert_eq!(code, Some(0), "{err}");
+    let scene = SceneFile::parse(&text)
+        .unwrap()
+        .to_scene(Path::new("."))
+        .unwrap();
+    assert_eq!(scene.tools[0].path.keys[1].1.rotation, glam::Quat::IDENTITY);
 }
 
 #[test]

@@ -102,18 +102,26 @@ pub fn density<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
 }
 pub fn rotation<'de, D: Deserializer<'de>>(d: D) -> Result<Quat, D::Error> {
     let q = Quat::deserialize(d)?;
-    if q.is_finite() && q.length() > 1e-6 {
+    match crate::rotation::unit_quaternion(q) {
         // keep unit quaternions bit-exact (files round-trip); normalise the rest
-        Ok(if (q.length() - 1.0).abs() < 1e-5 {
+        Some(unit) => Ok(if (q.length() - 1.0).abs() < 1e-5 {
             q
         } else {
-            q.normalize()
-        })
-    } else {
-        Err(D::Error::custom(format!(
-            "{q} is out of range (allowed: a finite, non-zero quaternion (x, y, z, w))"
-        )))
+            unit
+        }),
+        None => Err(D::Error::custom(format!(
+            "({}, {}, {}, {}) is out of range (allowed: a finite, non-zero quaternion (x, y, z, w))",
+            q.x, q.y, q.z, q.w
+        ))),
     }
+}
+pub fn memory_budget_gb<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(
+        v,
+        (1e-3..=1024.0).contains(&v),
+        "0.001 ≤ memory_budget_gb ≤ 1024",
+    )
 }
 fn count<'de, D: Deserializer<'de>>(d: D, lo: u32, hi: u32, name: &str) -> Result<u32, D::Error> {
     let v = u32::deserialize(d)?;

@@ -78,6 +78,9 @@ pub struct SettingsFile {
     pub contacts: bool,
     /// Check the invariants after every frame (slow; for tests).
     pub check_invariants_every_frame: bool,
+    /// Memory one body may take, in GB.
+    #[serde(deserialize_with = "check::memory_budget_gb")]
+    pub memory_budget_gb: f32,
 }
 
 impl Default for SettingsFile {
@@ -372,6 +375,7 @@ impl SettingsFile {
             solver: c.solver,
             contacts: c.contacts,
             check_invariants_every_frame: c.check_invariants_every_frame,
+            memory_budget_gb: c.memory_budget_gb,
         }
     }
 
@@ -388,6 +392,7 @@ impl SettingsFile {
             contacts: self.contacts,
             seed,
             check_invariants_every_frame: self.check_invariants_every_frame,
+            memory_budget_gb: self.memory_budget_gb,
         }
     }
 }
@@ -589,6 +594,8 @@ impl SceneFile {
     /// Parses RON text; errors read `LINE:COLUMN: FIELD: MESSAGE`. An optional value
     /// may be written bare (`particle_mass: 0.5`) or as `Some(0.5)`.
     pub fn parse(text: &str) -> Result<Self, String> {
+        // (editors on some systems start UTF-8 files with a byte-order mark)
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let options = ron::Options::default()
             .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
         let mut de = ron::Deserializer::from_str_with_options(text, &options)
@@ -615,12 +622,22 @@ fn path_and_pose(keys: &[(f32, PoseFile)], pose: Option<PoseFile>) -> (ToolPath,
 }
 
 fn spanned(e: &ron::error::SpannedError, path: &str) -> String {
+    // (a value where a field name belongs ends the path in `?`)
+    let path = path.strip_suffix(".?").unwrap_or(path);
     let field = if path.is_empty() || path == "." || path == "?" {
         String::new()
     } else {
         format!(" {path}:")
     };
-    format!("{}:{}:{field} {}", e.position.line, e.position.col, e.code)
+    let message = match &e.code {
+        // RON reads `Sphere(0.6)` as a field named `0.6`
+        ron::Error::SuggestRawIdentifier(found) => format!(
+            "expected a field name, found `{found}`: fields are named, as in \
+             `Sphere(radius: 0.6)`"
+        ),
+        code => code.to_string(),
+    };
+    format!("{}:{}:{field} {message}", e.position.line, e.position.col)
 }
 
 /// Reads a scene file; errors name the file.
