@@ -115,7 +115,7 @@ fn share_a_cluster<K: Ord>(a: &[K], b: &[K]) -> bool {
 }
 
 /// Makes every live lattice edge at the given particles *covered*: both ends in a
-/// common cluster. Returns the number of edges that needed a bridge.
+/// common cluster. Returns the clusters that grew or were created for it, ascending.
 ///
 /// Edge coverage implies SPEC §3.4's goal (no isolated cluster): inside a connected
 /// piece any two particles are joined by a lattice path whose consecutive particles
@@ -127,29 +127,52 @@ pub fn cover_edges<S: ClusterStore>(
     lattice: &Lattice,
     particles: impl IntoIterator<Item = u32>,
     max: usize,
-) -> usize {
+) -> Vec<u32> {
     let particles: Vec<u32> = particles
         .into_iter()
         .filter(|p| lattice.is_live(*p))
         .collect();
-    with_slots(lattice.len(), |listed| {
+    let mut changed = with_slots(lattice.len(), |listed| {
         for &p in &particles {
             listed[p as usize] = 0;
         }
-        let mut bridges = 0;
+        let mut changed = Vec::new();
         for &a in &particles {
             for b in lattice.neighbours(a) {
                 // an edge between two listed particles is looked at once, from its lower end
                 if !(listed[b as usize] == 0 && b < a) {
-                    bridges += usize::from(cover_edge(store, a, b, max).is_some());
+                    changed.extend(cover_edge(store, a, b, max));
                 }
             }
         }
         for &p in &particles {
             listed[p as usize] = u32::MAX;
         }
-        bridges
-    })
+        changed
+    });
+    changed.sort_unstable();
+    changed.dedup();
+    changed
+}
+
+/// Makes every given live particle covered: each lattice edge at it lies in some
+/// cluster ([`cover_edges`]), and a particle still in no cluster (it has no live edge)
+/// gets a cluster of its own. Returns the clusters that grew or were created, ascending.
+pub fn cover_particles<S: ClusterStore>(
+    store: &mut S,
+    lattice: &Lattice,
+    particles: &[u32],
+    max: usize,
+) -> Vec<u32> {
+    let mut changed = cover_edges(store, lattice, particles.iter().copied(), max);
+    for &p in particles {
+        if lattice.is_live(p) && store.clusters_of(p).is_empty() {
+            changed.push(store.create(vec![p]));
+        }
+    }
+    changed.sort_unstable();
+    changed.dedup();
+    changed
 }
 
 /// Makes each of the given live lattice edges covered (see [`cover_edges`]); returns
@@ -239,11 +262,15 @@ mod tests {
             .voxelise(1.0)
             .unwrap();
         let mut t = ClusterTable::from_clusters(4, vec![vec![0, 1], vec![2, 3]]);
-        assert_eq!(cover_edges(&mut t, &l, 0..4, 3), 1);
+        assert_eq!(cover_edges(&mut t, &l, 0..4, 3), [0]);
         assert_eq!(t.members(0), &[0, 1, 2]);
-        assert_eq!(cover_edges(&mut t, &l, 0..4, 3), 0, "idempotent");
+        assert_eq!(
+            cover_edges(&mut t, &l, 0..4, 3),
+            Vec::<u32>::new(),
+            "idempotent"
+        );
         let mut t = ClusterTable::from_clusters(4, vec![vec![0, 1], vec![2, 3]]);
-        assert_eq!(cover_edges(&mut t, &l, 0..4, 2), 1);
+        assert_eq!(cover_edges(&mut t, &l, 0..4, 2), [2]);
         assert_eq!(
             t.members(2),
             &[1, 2],
@@ -251,6 +278,18 @@ mod tests {
         );
         // only edges at the given particles are looked at
         let mut t = ClusterTable::from_clusters(4, vec![vec![0, 1], vec![2, 3]]);
-        assert_eq!(cover_edges(&mut t, &l, [0, 3], 3), 0);
+        assert_eq!(cover_edges(&mut t, &l, [0, 3], 3), Vec::<u32>::new());
+        // a particle in no cluster and with no edge gets a cluster of its own
+        let mut l = l;
+        l.sever(1, 2);
+        let mut t = ClusterTable::from_clusters(4, vec![vec![0, 1], vec![2, 3]]);
+        l.sever(0, 1);
+        let mut t2 = ClusterTable::from_clusters(4, vec![vec![0], vec![2, 3]]);
+        assert_eq!(cover_particles(&mut t2, &l, &[0, 1], 3), [2]);
+        assert_eq!(t2.members(2), &[1]);
+        assert_eq!(
+            cover_particles(&mut t, &l, &[0, 1, 2, 3], 3),
+            Vec::<u32>::new()
+        );
     }
 }

@@ -10,7 +10,6 @@ use crate::collider::ColliderShape;
 use crate::config::Material;
 use crate::lattice::Lattice;
 use crate::tool::{CutMode, Path, Pose, ToolShape};
-use bevy_ecs::entity::{Entities, EntityIndex};
 use bevy_ecs::prelude::*;
 use glam::{IVec3, Vec3};
 
@@ -67,35 +66,96 @@ pub struct BodyLattice {
     pub pieces: usize,
 }
 
-/// Cluster data of a body: for each particle index, the clusters that contain it, as
-/// cluster entity indices ([`Entity::index_u32`]), ascending.
+/// Cluster data of a body: which clusters hold each particle, and the entity of each
+/// cluster.
 ///
-/// An index names the cluster entity that is alive with it (live entities never share
-/// an index): [`ParticleClusters::clusters_of`] resolves them. Four bytes per entry
-/// instead of an [`Entity`]'s eight keep the index at 32 B per particle.
+/// A cluster is named by a *key* its body hands out ([`ClusterKeys`]), not by its
+/// entity: the particle index, the reconstruction and the cut stages' hand-over all use
+/// keys, and entities appear only where clusters meet the ECS. So a body names its
+/// clusters alike whatever entities the world hands out, and a saved simulation resumes
+/// exactly as it would have gone on.
 #[derive(Component, Clone, Debug, Default)]
-pub struct ParticleClusters(pub ClusterIndex);
+pub struct ParticleClusters {
+    /// For each particle index, the keys of the clusters that hold it, ascending.
+    pub index: ClusterIndex,
+    /// The entity of each key.
+    pub keys: ClusterKeys,
+}
 
 impl ParticleClusters {
     /// The cluster entities that contain particle `p` (none for an index out of range).
-    pub fn clusters_of<'a>(
-        &'a self,
-        p: u32,
-        entities: &'a Entities,
-    ) -> impl Iterator<Item = Entity> + 'a {
-        self.0
+    pub fn clusters_of(&self, p: u32) -> impl Iterator<Item = Entity> + '_ {
+        self.index
             .clusters_of(p)
             .iter()
-            .map(|k| cluster_entity(entities, *k))
+            .filter_map(|k| self.keys.entity(*k))
     }
 }
 
-/// The live entity with index `k` (an entry of [`ParticleClusters`]).
-#[inline]
-pub fn cluster_entity(entities: &Entities, k: u32) -> Entity {
-    match EntityIndex::from_raw_u32(k) {
-        Some(index) => entities.resolve_from_index(index),
-        None => Entity::PLACEHOLDER,
+/// The cluster entity behind each key of one body, and the keys free for reuse. A freed
+/// key is handed out again before a new one (the last freed first), so keys stay dense.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ClusterKeys {
+    entities: Vec<Entity>,
+    free: Vec<u32>,
+}
+
+impl ClusterKeys {
+    /// Names the cluster entity `e`; returns its key.
+    pub fn insert(&mut self, e: Entity) -> u32 {
+        match self.free.pop() {
+            Some(k) => {
+                self.entities[k as usize] = e;
+                k
+            }
+            None => {
+                self.entities.push(e);
+                self.entities.len() as u32 - 1
+            }
+        }
+    }
+
+    /// Frees key `k`; returns the entity it named.
+    pub fn remove(&mut self, k: u32) -> Option<Entity> {
+        let e = self.entity(k)?;
+        self.entities[k as usize] = Entity::PLACEHOLDER;
+        self.free.push(k);
+        Some(e)
+    }
+
+    /// The entity of key `k`, if it names one.
+    pub fn entity(&self, k: u32) -> Option<Entity> {
+        self.entities
+            .get(k as usize)
+            .copied()
+            .filter(|e| *e != Entity::PLACEHOLDER)
+    }
+
+    /// Every key in use with its entity, by key.
+    pub fn iter(&self) -> impl Iterator<Item = (u32, Entity)> + '_ {
+        (0..self.entities.len() as u32).filter_map(|k| self.entity(k).map(|e| (k, e)))
+    }
+
+    /// The keys in use.
+    pub fn len(&self) -> usize {
+        self.entities.len() - self.free.len()
+    }
+
+    /// Whether no key is in use.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The entity of every key slot (`Entity::PLACEHOLDER` where free) and the free keys,
+    /// last freed last: everything that decides the keys handed out next.
+    pub fn parts(&self) -> (&[Entity], &[u32]) {
+        (&self.entities, &self.free)
+    }
+
+    /// Keys as [`ClusterKeys::parts`] gave them (with the entities of another world,
+    /// when a saved simulation is loaded).
+    pub fn from_parts(entities: Vec<Entity>, free: Vec<u32>) -> Self {
+        Self { entities, free }
     }
 }
 

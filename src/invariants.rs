@@ -59,6 +59,12 @@ pub enum Violation {
         /// A cluster that holds all of its members.
         container: u64,
     },
+    /// A body's key table names a cluster whose entity is gone or is not a cluster of
+    /// the body (despawned from outside, say).
+    MissingCluster {
+        /// The cluster key.
+        cluster: u64,
+    },
     /// A live particle's position is not finite (NaN or infinite), or its entity has
     /// lost its position.
     NonFinite {
@@ -91,6 +97,9 @@ impl fmt::Display for Violation {
             ),
             Violation::Contained { cluster, container } => {
                 write!(f, "cluster {cluster} lies inside cluster {container}")
+            }
+            Violation::MissingCluster { cluster } => {
+                write!(f, "cluster {cluster} has no cluster entity")
             }
             Violation::NonFinite { particle } => {
                 write!(f, "particle {particle} has no finite position")

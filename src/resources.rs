@@ -101,9 +101,9 @@ pub struct BodyCutReport {
     /// Edges linked again between carved particles, `(a, b)` with `a < b`: no cluster
     /// covers them yet.
     pub relinked: Vec<(u32, u32)>,
-    /// Clusters that contained a removed particle or both ends of a severed edge, by
-    /// ascending entity index.
-    pub cut_clusters: Vec<Entity>,
+    /// Keys of the clusters that contained a removed particle or both ends of a severed
+    /// edge, ascending.
+    pub cut_clusters: Vec<u32>,
 }
 
 /// Output of cut, input of regroup.
@@ -125,12 +125,12 @@ pub struct RebuiltClusters {
 pub struct RebuiltBody {
     /// The body.
     pub body: Entity,
-    /// Clusters produced by regroup, then by split.
-    pub clusters: Vec<Entity>,
+    /// Keys of the clusters produced by regroup, then by split.
+    pub clusters: Vec<u32>,
     /// Edges the splits separated (see [`crate::reconstruct::SplitOutcome`]).
     pub cut_edges: Vec<(u32, u32)>,
-    /// The parts of the clusters split, which the expand stage grows.
-    pub split_parts: Vec<Entity>,
+    /// Keys of the parts of the clusters split, which the expand stage grows.
+    pub split_parts: Vec<u32>,
 }
 
 /// Dense solver state kept between steps; rebuilt only when topology changes.

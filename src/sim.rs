@@ -443,7 +443,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         particles[i as usize] = e;
     }
     let compliance = desc.material.cluster_compliance(desc.spacing);
-    let (index, _) = spawn_clusters(world, body, &table, lattice.len(), compliance);
+    let (clusters, _) = spawn_clusters(world, body, &table, lattice.len(), compliance);
     let pieces = lattice.piece_count();
     world.entity_mut(body).insert((
         BodyLattice {
@@ -451,21 +451,24 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             particles,
             pieces,
         },
-        ParticleClusters(index),
+        clusters,
     ));
     Ok(body)
 }
 
-/// Spawns the clusters of `table` as entities of `body`; returns their particle index
-/// and the entities, in order.
+/// Spawns the clusters of `table` as entities of `body`, with keys in table order;
+/// returns the body's cluster data and the entities, in order.
 fn spawn_clusters(
     world: &mut World,
     body: Entity,
     table: &ClusterTable,
     particles: usize,
     compliance: f32,
-) -> (ClusterIndex, Vec<Entity>) {
-    let mut index = ClusterIndex::new(particles);
+) -> (ParticleClusters, Vec<Entity>) {
+    let mut clusters = ParticleClusters {
+        index: ClusterIndex::new(particles),
+        keys: ClusterKeys::default(),
+    };
     let mut entities = Vec::with_capacity(table.len());
     for (_, members) in table.iter() {
         let e = world
@@ -475,10 +478,11 @@ fn spawn_clusters(
                 Compliance(compliance),
             ))
             .id();
-        index.add_cluster(e.index_u32(), members);
+        let k = clusters.keys.insert(e);
+        clusters.index.add_cluster(k, members);
         entities.push(e);
     }
-    (index, entities)
+    (clusters, entities)
 }
 
 /// Replaces the clusters of `body` by a fresh clustering of its current geometry: the
@@ -510,8 +514,8 @@ pub fn recluster(world: &mut World, body: Entity) -> Result<Vec<Entity>> {
     for e in old {
         world.despawn(e);
     }
-    let (index, clusters) = spawn_clusters(world, body, &table, particles, compliance);
-    world.entity_mut(body).insert(ParticleClusters(index));
+    let (body_clusters, clusters) = spawn_clusters(world, body, &table, particles, compliance);
+    world.entity_mut(body).insert(body_clusters);
     world.resource_mut::<SolverCache>().valid = false;
     Ok(clusters)
 }
@@ -520,33 +524,29 @@ pub fn recluster(world: &mut World, body: Entity) -> Result<Vec<Entity>> {
 /// clusters index matches its clusters' members, and that every live particle has a
 /// finite position; returns `(body, violation)`.
 pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
-    let mut clusters_by_body: std::collections::BTreeMap<Entity, Vec<(Entity, &[u32])>> =
-        Default::default();
-    let Some(mut q) = world.try_query::<(Entity, &ClusterMembers, &ClusterOf)>() else {
-        return Vec::new();
-    };
-    for (e, m, of) in q.iter(world) {
-        clusters_by_body
-            .entry(of.0)
-            .or_default()
-            .push((e, m.0.as_slice()));
-    }
     let Some(mut bodies) =
         world.try_query::<(Entity, &Body, &BodyLattice, Option<&ParticleClusters>)>()
     else {
         return Vec::new();
     };
     let mut out = Vec::new();
-    for (e, body, lattice, index) in bodies.iter(world) {
-        let clusters = clusters_by_body.remove(&e).unwrap_or_default();
-        if let Some(index) = index {
-            let keyed = clusters.iter().map(|(k, m)| (k.index_u32(), *m));
-            let violations = check_index(keyed, index.0.iter());
+    for (e, body, lattice, clusters) in bodies.iter(world) {
+        // each body's clusters by key, as its key table names them
+        let mut listed: Vec<(u32, &[u32])> = Vec::new();
+        if let Some(clusters) = clusters {
+            for (k, entity) in clusters.keys.iter() {
+                let of_body = world.get::<ClusterOf>(entity).is_some_and(|of| of.0 == e);
+                match world.get::<ClusterMembers>(entity) {
+                    Some(m) if of_body => listed.push((k, m.0.as_slice())),
+                    _ => out.push((e, Violation::MissingCluster { cluster: k as u64 })),
+                }
+            }
+            let violations = check_index(listed.iter().copied(), clusters.index.iter());
             out.extend(violations.into_iter().map(|v| (e, v)));
         }
         for v in check_body(
             &lattice.lattice,
-            clusters.iter().map(|(k, m)| (k.to_bits(), *m)),
+            listed.iter().map(|(k, m)| (*k as u64, *m)),
             body.material.max_cluster_size as usize,
         ) {
             out.push((e, v));
@@ -664,13 +664,13 @@ mod tests {
         }
         let index = world.get::<ParticleClusters>(body).expect("a body's index");
         for (p, expected) in holding.iter_mut().enumerate() {
-            let mut found: Vec<Entity> = index.clusters_of(p as u32, world.entities()).collect();
+            let mut found: Vec<Entity> = index.clusters_of(p as u32).collect();
             found.sort_unstable();
             expected.sort_unstable();
             assert!(!found.is_empty(), "particle {p} is in no cluster");
             assert_eq!(&found, expected, "particle {p}");
         }
-        assert_eq!(index.clusters_of(1000, world.entities()).count(), 0);
+        assert_eq!(index.clusters_of(1000).count(), 0);
         Ok(())
     }
 }

@@ -11,7 +11,6 @@
 use crate::carve::carve;
 use crate::components::{
     Body, BodyLattice, InvMass, Particle, ParticleClusters, Position, PrevPosition, Velocity,
-    cluster_entity,
 };
 use crate::particle_split::{Pairs, apply_splits, far_position};
 use crate::resources::{
@@ -19,7 +18,6 @@ use crate::resources::{
     ParticlesSplit,
 };
 use crate::tear::sever_keeping_pieces;
-use bevy_ecs::entity::Entities;
 use bevy_ecs::prelude::*;
 use std::borrow::Cow;
 
@@ -36,7 +34,6 @@ type ParticleState = (
 #[allow(clippy::too_many_arguments)]
 pub fn cut(
     mut commands: Commands,
-    entities: &Entities,
     list: Res<CutList>,
     mut report: ResMut<CutReport>,
     mut bodies: Query<(Entity, &Body, &mut BodyLattice, &ParticleClusters)>,
@@ -66,12 +63,12 @@ pub fn cut(
                     e.despawn();
                     despawned_here.push(particle);
                 }
-                cut_clusters.extend_from_slice(index.0.clusters_of(p));
+                cut_clusters.extend_from_slice(index.index.clusters_of(p));
             }
         }
         let (splits, mut severed) = split(&mut commands, &mut body, cut, &mut particles);
         for &(p, _) in &splits {
-            cut_clusters.extend_from_slice(index.0.clusters_of(p));
+            cut_clusters.extend_from_slice(index.index.clusters_of(p));
         }
         severed.extend(
             cut.edges
@@ -90,8 +87,14 @@ pub fn cut(
         let torn = sever_keeping_pieces(&mut body.lattice, &cut.torn, min_piece);
         for &(a, b) in severed.iter().chain(&torn) {
             // only a cluster holding both ends may fall apart
-            let of_b = index.0.clusters_of(b);
-            cut_clusters.extend(index.0.clusters_of(a).iter().filter(|k| of_b.contains(k)));
+            let of_b = index.index.clusters_of(b);
+            cut_clusters.extend(
+                index
+                    .index
+                    .clusters_of(a)
+                    .iter()
+                    .filter(|k| of_b.contains(k)),
+            );
         }
         if removed.is_empty()
             && severed.is_empty()
@@ -103,10 +106,6 @@ pub fn cut(
         }
         cut_clusters.sort_unstable();
         cut_clusters.dedup();
-        let cut_clusters = cut_clusters
-            .into_iter()
-            .map(|k| cluster_entity(entities, k))
-            .collect();
         let before = body.pieces;
         body.pieces = body.lattice.piece_count();
         if body.pieces != before {

@@ -1,19 +1,19 @@
 //! [`ClusterStore`] over ECS cluster entities: member lists live in `ClusterMembers`
-//! components, the particle index in the body's `ParticleClusters`. A cluster's key is
-//! its entity index (`Entity::index_u32`), resolved to the live entity when a component
-//! is read or written. New clusters get reserved entities whose components are inserted
-//! by [`EcsClusterStore::finish`]. [`BodyClusters`] is the system parameter the
-//! reconstruction stages open a body's store from.
+//! components, the particle index and the key → entity table in the body's
+//! `ParticleClusters`. New clusters get reserved entities, named by a key the body hands
+//! out at once, whose components are inserted by [`EcsClusterStore::finish`]; the keys
+//! of removed clusters are freed there too, so that no key is handed out twice within
+//! one store's edits. [`BodyClusters`] is the system parameter the reconstruction stages
+//! open a body's store from.
 
 use crate::cluster_edits::{ClusterEdits, diff_into};
 use crate::cluster_index::ClusterIndex;
 use crate::cluster_store::{ClusterStore, extend_indexed, extend_members, normalise, owned_list};
 use crate::components::{
-    Body, BodyLattice, ClusterMembers, ClusterOf, Compliance, ParticleClusters, cluster_entity,
+    Body, BodyLattice, ClusterKeys, ClusterMembers, ClusterOf, Compliance, ParticleClusters,
 };
 use crate::config::Material;
 use crate::lattice::Lattice;
-use bevy_ecs::entity::Entities;
 use bevy_ecs::prelude::*;
 use bevy_ecs::system::SystemParam;
 use rustc_hash::{FxHashMap, FxHashSet};
@@ -23,11 +23,11 @@ use rustc_hash::{FxHashMap, FxHashSet};
 #[derive(SystemParam)]
 pub struct BodyClusters<'w, 's> {
     commands: Commands<'w, 's>,
-    entities: &'w Entities,
     bodies: Query<
         'w,
         's,
         (
+            Entity,
             &'static Body,
             &'static BodyLattice,
             &'static mut ParticleClusters,
@@ -37,21 +37,45 @@ pub struct BodyClusters<'w, 's> {
 }
 
 impl<'w, 's> BodyClusters<'w, 's> {
+    /// Per body, the keys whose entities are among `gone` (despawned) while the body's key
+    /// table still names them: clusters despawned from outside. By body, keys ascending.
+    pub fn lost_clusters(&self, gone: &FxHashSet<Entity>) -> Vec<(Entity, Vec<u32>)> {
+        if gone.is_empty() {
+            return Vec::new();
+        }
+        let mut lost: Vec<(Entity, Vec<u32>)> = self
+            .bodies
+            .iter()
+            .map(|(body, _, _, clusters)| {
+                let keys = clusters.keys.iter();
+                (
+                    body,
+                    keys.filter(|(_, e)| gone.contains(e))
+                        .map(|(k, _)| k)
+                        .collect(),
+                )
+            })
+            .filter(|(_, keys): &(Entity, Vec<u32>)| !keys.is_empty())
+            .collect();
+        lost.sort_unstable_by_key(|(body, _)| *body);
+        lost
+    }
+
     /// The store of `body`'s clusters, with its material and lattice; `None` if `body`
     /// is not a body.
     pub fn open(
         &mut self,
         body: Entity,
     ) -> Option<(EcsClusterStore<'_, 'w, 's>, &Material, &Lattice)> {
-        let (b, lattice, index) = self.bodies.get_mut(body).ok()?;
-        let index = &mut index.into_inner().0;
+        let (_, b, lattice, clusters) = self.bodies.get_mut(body).ok()?;
+        let ParticleClusters { index, keys } = clusters.into_inner();
         // (particles split by the cut have their slots from here on)
         index.grow(lattice.lattice.len());
         let store = EcsClusterStore {
             body,
             compliance: b.material.cluster_compliance(lattice.lattice.spacing()),
             index,
-            entities: self.entities,
+            keys,
             clusters: &mut self.clusters,
             commands: &mut self.commands,
             created: FxHashMap::default(),
@@ -67,17 +91,12 @@ pub struct EcsClusterStore<'a, 'w, 's> {
     /// Compliance of the clusters this store creates.
     compliance: f32,
     index: &'a mut ClusterIndex,
-    entities: &'a Entities,
+    keys: &'a mut ClusterKeys,
     clusters: &'a mut Query<'w, 's, &'static mut ClusterMembers>,
     commands: &'a mut Commands<'w, 's>,
     /// Clusters made through this store: key → (reserved entity, members).
     created: FxHashMap<u32, (Entity, Vec<u32>)>,
     removed: FxHashSet<u32>,
-}
-
-/// The store keys of cluster entities (their entity indices), in order.
-pub fn keys_of(clusters: &[Entity]) -> Vec<u32> {
-    clusters.iter().map(|e| e.index_u32()).collect()
 }
 
 impl EcsClusterStore<'_, '_, '_> {
@@ -86,17 +105,44 @@ impl EcsClusterStore<'_, '_, '_> {
         keys.into_iter().map(|k| self.entity(k)).collect()
     }
 
-    /// The entity of cluster `k` (reserved, if this store created it).
+    /// The entity of cluster `k` (reserved, if this store created it;
+    /// `Entity::PLACEHOLDER` if `k` names none).
     pub fn entity(&self, k: u32) -> Entity {
-        match self.created.get(&k) {
-            Some((e, _)) => *e,
-            None => cluster_entity(self.entities, k),
-        }
+        self.keys.entity(k).unwrap_or(Entity::PLACEHOLDER)
     }
 
-    /// Inserts the components of the clusters created through this store.
+    /// Forgets clusters `lost` whose entities are gone: takes them out of the particle
+    /// index and frees their keys. Returns the particles they held, ascending.
+    pub fn forget(&mut self, lost: &[u32]) -> Vec<u32> {
+        let mut held = Vec::new();
+        for (p, keys) in self.index.iter().enumerate() {
+            if keys.iter().any(|k| lost.binary_search(k).is_ok()) {
+                held.push(p as u32);
+            }
+        }
+        for &p in &held {
+            for &k in lost {
+                self.index.remove(p, k);
+            }
+        }
+        for &k in lost {
+            self.keys.remove(k);
+        }
+        held
+    }
+
+    /// Inserts the components of the clusters created through this store, and frees the
+    /// keys of those it removed.
     pub fn finish(self) {
-        for (e, members) in self.created.into_values() {
+        let mut removed: Vec<u32> = self.removed.into_iter().collect();
+        // (in key order: the free list's order decides the keys handed out next)
+        removed.sort_unstable();
+        for k in removed {
+            self.keys.remove(k);
+        }
+        let mut created: Vec<(u32, (Entity, Vec<u32>))> = self.created.into_iter().collect();
+        created.sort_unstable_by_key(|(k, _)| *k);
+        for (_, (e, members)) in created {
             self.commands.entity(e).insert((
                 ClusterMembers(members),
                 ClusterOf(self.body),
@@ -115,7 +161,7 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_> {
         if self.removed.contains(&k) {
             return &[];
         }
-        stored_members(&self.created, self.clusters, self.entities, k)
+        stored_members(&self.created, self.clusters, self.keys, k)
     }
 
     fn apply(&mut self, edits: &ClusterEdits) -> Vec<u32> {
@@ -128,7 +174,7 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_> {
                 m.clear();
                 m.extend_from_slice(members);
             } else if !self.removed.contains(&k)
-                && let Ok(mut m) = self.clusters.get_mut(cluster_entity(self.entities, k))
+                && let Ok(mut m) = self.clusters.get_mut(self.entity(k))
             {
                 diff_into(&m.0, members, k, &mut changes);
                 m.0.clear();
@@ -139,7 +185,7 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_> {
             if let Some((_, m)) = self.created.get_mut(&k) {
                 extend_members(m, extra, k, &mut changes);
             } else if !self.removed.contains(&k)
-                && let Ok(mut m) = self.clusters.get_mut(cluster_entity(self.entities, k))
+                && let Ok(mut m) = self.clusters.get_mut(self.entity(k))
             {
                 // marked changed only when it did change: the solver layout re-reads
                 // changed clusters
@@ -154,7 +200,7 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_> {
             if self.removed.contains(&k) {
                 continue;
             }
-            let members = stored_members(&self.created, self.clusters, self.entities, k);
+            let members = stored_members(&self.created, self.clusters, self.keys, k);
             diff_into(members, &[], k, &mut changes);
             let e = self.entity(k);
             self.created.remove(&k);
@@ -165,7 +211,7 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_> {
             .created()
             .map(|members| {
                 let e = self.commands.spawn_empty().id();
-                let k = e.index_u32();
+                let k = self.keys.insert(e);
                 diff_into(&[], members, k, &mut changes);
                 self.created.insert(k, (e, owned_list(members)));
                 k
@@ -179,7 +225,7 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_> {
         if let Some((_, m)) = self.created.get_mut(&k) {
             extend_indexed(m, extra, k, self.index);
         } else if !self.removed.contains(&k)
-            && let Ok(mut m) = self.clusters.get_mut(cluster_entity(self.entities, k))
+            && let Ok(mut m) = self.clusters.get_mut(self.entity(k))
         {
             // marked changed only when it did change (see `apply`)
             let members = &mut m.bypass_change_detection().0;
@@ -194,7 +240,7 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_> {
     fn create(&mut self, members: Vec<u32>) -> u32 {
         let members = normalise(members);
         let e = self.commands.spawn_empty().id();
-        let k = e.index_u32();
+        let k = self.keys.insert(e);
         self.index.add_cluster(k, &members);
         self.created.insert(k, (e, members));
         k
@@ -207,13 +253,13 @@ impl ClusterStore for EcsClusterStore<'_, '_, '_> {
 fn stored_members<'x>(
     created: &'x FxHashMap<u32, (Entity, Vec<u32>)>,
     clusters: &'x Query<'_, '_, &mut ClusterMembers>,
-    entities: &Entities,
+    keys: &ClusterKeys,
     k: u32,
 ) -> &'x [u32] {
     match created.get(&k) {
         Some((_, m)) => m,
         None => clusters
-            .get(cluster_entity(entities, k))
+            .get(keys.entity(k).unwrap_or(Entity::PLACEHOLDER))
             .map(|m| m.0.as_slice())
             .unwrap_or(&[]),
     }

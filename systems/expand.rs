@@ -3,7 +3,7 @@
 //! which guarantees what §3.4 aims at (no isolated cluster), and the clusters that lie
 //! inside others are removed. Writes cluster data only.
 
-use super::ecs_store::{BodyClusters, keys_of};
+use super::ecs_store::BodyClusters;
 use crate::clustering::cover_edge_list;
 use crate::reconstruct;
 use crate::resources::{ClustersRebuilt, CutTimings, RebuiltClusters, SimRng};
@@ -32,12 +32,12 @@ pub fn expand(
         reconstruct::expand_clusters(
             &mut store,
             lattice,
-            &keys_of(&rebuilt.split_parts),
+            &rebuilt.split_parts,
             m.expand_count as usize,
             max,
             &mut rng.0,
         );
-        let mut keys = keys_of(&rebuilt.clusters);
+        let mut keys = rebuilt.clusters.clone();
         keys.extend(cover_edge_list(
             &mut store,
             lattice,

@@ -2,7 +2,6 @@
 //! rebuild when bodies appear or vanish, otherwise a patch of only the clusters that
 //! changed (after a cut) and the particles that were cut.
 
-use crate::cluster_index::ClusterIndex;
 use crate::components::*;
 use crate::config::SolverMode;
 use crate::lattice::Lattice;
@@ -10,7 +9,6 @@ use crate::resources::{
     BodyCutReport, BodyDense, ClusterSlots, LayoutUpdate, SolverCache, dense_owner,
 };
 use crate::solver::{ClusterSpec, SolverLayout};
-use bevy_ecs::entity::Entities;
 use bevy_ecs::prelude::*;
 use glam::Quat;
 use std::collections::HashMap;
@@ -34,9 +32,7 @@ pub struct LayoutChanges<'a, 'c> {
     /// Each body's particle → clusters index, sorted by body: the clusters whose Jacobi
     /// weights a patch changes are found from it instead of by a pass over every
     /// membership of the layout.
-    pub indices: Vec<(Entity, &'c ClusterIndex)>,
-    /// Resolves the cluster entity indices that `indices` lists.
-    pub entities: &'c Entities,
+    pub indices: Vec<(Entity, &'c ParticleClusters)>,
 }
 
 /// Brings the layout up to date: patches in the `changes` when that is possible, else
@@ -81,7 +77,6 @@ fn patch(
         clusters: mut changed,
         removed,
         indices,
-        entities,
     } = changes;
     if !cache.layout.can_patch() {
         return false;
@@ -173,7 +168,6 @@ fn patch(
             clusters,
             slot_of,
             indices: &indices,
-            entities,
         };
         layout.patch_with_neighbours(&removed_slots, &specs, &retired, |particles| {
             kept.holding(particles)
@@ -213,8 +207,7 @@ struct KeptClusters<'a> {
     body_dense: &'a [BodyDense],
     clusters: &'a [Entity],
     slot_of: &'a ClusterSlots,
-    indices: &'a [(Entity, &'a ClusterIndex)],
-    entities: &'a Entities,
+    indices: &'a [(Entity, &'a ParticleClusters)],
 }
 
 impl KeptClusters<'_> {
@@ -225,7 +218,7 @@ impl KeptClusters<'_> {
     fn holding(&self, particles: &[u32]) -> Vec<u32> {
         let mut found = Vec::new();
         // (a cut touches one body, or a few: its index is looked up again only on a change)
-        let mut body_index: Option<(Entity, &ClusterIndex)> = None;
+        let mut body_index: Option<(Entity, &ParticleClusters)> = None;
         for &d in particles {
             let Some((body, local)) = dense_owner(self.locals, self.body_dense, d as usize) else {
                 continue;
@@ -237,14 +230,14 @@ impl KeptClusters<'_> {
                     .ok()
                     .map(|i| self.indices[i]);
             }
-            let Some((_, index)) = body_index else {
+            let Some((_, clusters)) = body_index else {
                 continue;
             };
-            let list = index.clusters_of(local);
-            found.extend(list.iter().filter_map(|k| {
-                let e = cluster_entity(self.entities, *k);
-                self.slot_of.get(e, self.clusters)
-            }));
+            found.extend(
+                clusters
+                    .clusters_of(local)
+                    .filter_map(|e| self.slot_of.get(e, self.clusters)),
+            );
         }
         found
     }

@@ -1,23 +1,47 @@
 //! Stage regroup (SPEC §3.1–3.2): cut clusters → pieces; redundant pieces dropped,
 //! fragments merged into neighbours (after giving the new halves of split particles
 //! their clusters). Writes cluster data only.
+//!
+//! A cluster entity despawned from outside (by a game, say) is forgotten here first:
+//! its particles and edges are covered again, so the body stays legal.
 
-use super::ecs_store::{BodyClusters, keys_of};
+use super::ecs_store::BodyClusters;
 use crate::cluster_store::ClusterStore;
+use crate::clustering::cover_particles;
+use crate::components::ClusterMembers;
 use crate::reconstruct;
 use crate::resources::{CutReport, CutTimings, RebuiltBody, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
+use rustc_hash::FxHashSet;
 use std::time::Instant;
 
-/// Runs [`reconstruct::regroup()`] on every body that lost particles.
+/// Repairs around clusters despawned from outside, then runs [`reconstruct::regroup()`]
+/// on every body that lost particles or edges.
 pub fn regroup(
     report: Res<CutReport>,
     mut rng: ResMut<SimRng>,
     mut rebuilt: ResMut<RebuiltClusters>,
     mut timings: ResMut<CutTimings>,
+    mut removed: RemovedComponents<ClusterMembers>,
     mut clusters: BodyClusters,
 ) {
     rebuilt.bodies.clear();
+    let gone: FxHashSet<Entity> = removed.read().collect();
+    for (body, lost) in clusters.lost_clusters(&gone) {
+        let Some((mut store, material, lattice)) = clusters.open(body) else {
+            continue;
+        };
+        let held = store.forget(&lost);
+        let max = material.max_cluster_size as usize;
+        let changed = cover_particles(&mut store, lattice, &held, max);
+        store.finish();
+        rebuilt.bodies.push(RebuiltBody {
+            body,
+            clusters: changed,
+            cut_edges: Vec::new(),
+            split_parts: Vec::new(),
+        });
+    }
     if report.bodies.is_empty() {
         return;
     }
@@ -33,9 +57,7 @@ pub fn regroup(
                 store.add_members(k, &[new]);
             }
         }
-        let cut_clusters = keys_of(&cut.cut_clusters);
-        let produced = reconstruct::regroup(&mut store, lattice, &cut_clusters, &mut rng.0);
-        let produced = store.entities_of(produced);
+        let produced = reconstruct::regroup(&mut store, lattice, &cut.cut_clusters, &mut rng.0);
         store.finish();
         rebuilt.bodies.push(RebuiltBody {
             body: cut.body,

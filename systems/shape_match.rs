@@ -10,7 +10,6 @@ use crate::components::*;
 use crate::resources::{CutReport, ParticlesRepaired, SimSettings, SolverCache, SubstepClock};
 use crate::solver::{Colliders, PosedCollider};
 use crate::table_rows::ParticleColumns;
-use bevy_ecs::entity::Entities;
 use bevy_ecs::prelude::*;
 use glam::{Vec3, Vec3A};
 
@@ -52,7 +51,6 @@ pub fn shape_match(
     materials: Query<&Body>,
     colliders: Query<(&Collider, &ColliderPose)>,
     indices: Query<(Entity, &ParticleClusters)>,
-    entities: &Entities,
     changed_bodies: Query<Entity, Changed<BodyLattice>>,
     clusters: Query<(Entity, &ClusterMembers, &ClusterOf, &Compliance)>,
     changed_clusters: ChangedClusters,
@@ -79,11 +77,10 @@ pub fn shape_match(
             clusters: changed_clusters.iter().collect(),
             removed: &removed,
             indices: {
-                let mut list: Vec<_> = indices.iter().map(|(b, i)| (b, &i.0)).collect();
+                let mut list: Vec<_> = indices.iter().collect();
                 list.sort_unstable_by_key(|(b, _)| *b);
                 list
             },
-            entities,
         };
         sync_layout(&mut cache, &bodies, changes, clusters.iter(), config.solver);
         cache.contacts_built = None;

@@ -1,7 +1,7 @@
 //! Stage split (SPEC §3.3, §4): splits rebuilt clusters larger than the material's
 //! [`crate::config::Material::split_size`]. Writes cluster data only.
 
-use super::ecs_store::{BodyClusters, keys_of};
+use super::ecs_store::BodyClusters;
 use crate::reconstruct;
 use crate::resources::{CutTimings, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
@@ -23,10 +23,10 @@ pub fn split(
             continue;
         };
         let too_big = material.split_size() as usize;
-        let keys = keys_of(&rebuilt.clusters);
-        let outcome = reconstruct::split_oversized(&mut store, lattice, &keys, too_big, &mut rng.0);
-        rebuilt.clusters = store.entities_of(outcome.clusters);
-        rebuilt.split_parts = store.entities_of(outcome.parts);
+        let keys = &rebuilt.clusters;
+        let outcome = reconstruct::split_oversized(&mut store, lattice, keys, too_big, &mut rng.0);
+        rebuilt.clusters = outcome.clusters;
+        rebuilt.split_parts = outcome.parts;
         // (after the edges a carve linked again, which regroup listed)
         rebuilt.cut_edges.extend(outcome.cut_edges);
         store.finish();

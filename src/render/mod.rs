@@ -115,11 +115,8 @@ pub fn snapshot(world: &mut World, mode: ColorMode) -> Snapshot {
             let piece = piece_offset + labels[i as usize];
             let rgb = match (mode, clusters) {
                 (ColorMode::Clusters, Some(c)) => {
-                    let sum: Vec3 = c
-                        .clusters_of(i, world.entities())
-                        .map(|e| cluster_colour(e.to_bits()))
-                        .sum();
-                    let mean = sum / c.0.clusters_of(i).len().max(1) as f32;
+                    let sum: Vec3 = c.clusters_of(i).map(|e| cluster_colour(e.to_bits())).sum();
+                    let mean = sum / c.index.clusters_of(i).len().max(1) as f32;
                     [mean.x as u8, mean.y as u8, mean.z as u8]
                 }
                 _ => PIECE_COLOURS[piece as usize % PIECE_COLOURS.len()],
