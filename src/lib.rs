@@ -78,7 +78,7 @@ pub mod prelude {
     pub use crate::sim::{
         BodyDesc, ColliderDesc, PinRegion, Simulation, ToolDesc, check_invariants,
     };
-    pub use crate::systems::{CleaveSchedule, SimStage, SubstepSchedule, install};
+    pub use crate::systems::{CleaveSchedule, SimStage, SubstepSchedule, SyncSchedule, install};
     pub use crate::tool::{CutMode, Path, Pose, ToolShape};
     pub use bevy_ecs::message::MessageReader;
     pub use glam::{Quat, UVec3, Vec3};

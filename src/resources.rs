@@ -164,6 +164,9 @@ pub struct SolverCache {
     /// The `contacts` setting the contact particles were built for with the current
     /// layout (`None`: not built since the layout last changed).
     pub contacts_built: Option<bool>,
+    /// Set when a saved simulation is loaded: the layout matches the loaded entities,
+    /// which the next layout update only takes note of instead of patching them in.
+    pub adopt_changes: bool,
 }
 
 /// The layout slot of each cluster entity, as a table by entity index: a lookup is two

@@ -1,18 +1,90 @@
-//! Keeps the shape-match stage's dense solver layout in step with the ECS: a full
+//! Keeps the shape-match stage's dense solver layout in step with the ECS, once at the
+//! start of each frame ([`sync_solver`], in its own [`crate::systems::SyncSchedule`] so
+//! that saving a simulation can bring the layout up to date the same way): a full
 //! rebuild when bodies appear or vanish, otherwise a patch of only the clusters that
 //! changed (after a cut) and the particles that were cut.
 
+use super::contact_sync::sync_contacts;
 use crate::components::*;
 use crate::config::SolverMode;
 use crate::lattice::Lattice;
 use crate::resources::{
     BodyCutReport, BodyDense, ClusterSlots, LayoutUpdate, SolverCache, dense_owner,
 };
+use crate::resources::{CutReport, SimSettings};
 use crate::solver::{ClusterSpec, SolverLayout};
 use bevy_ecs::prelude::*;
 use glam::Quat;
 use std::collections::HashMap;
 use std::time::Instant;
+
+/// Clusters that changed (or appeared) since the last run (any body).
+type ChangedClusters<'w, 's> = Query<
+    'w,
+    's,
+    (
+        Entity,
+        &'static ClusterMembers,
+        &'static ClusterOf,
+        &'static Compliance,
+    ),
+    Or<(Changed<ClusterMembers>, Changed<Compliance>)>,
+>;
+
+/// Brings the solver layout and the contact particles up to date with what changed in
+/// the ECS since the last run: cuts, rebuilt clusters, bodies spawned or despawned, a
+/// solver or contact setting changed. Writes the solver cache only.
+///
+/// After a simulation is loaded, its restored layout already matches the ECS: the first
+/// run only takes note of the loaded entities as seen ([`SolverCache::adopt_changes`]).
+#[allow(clippy::too_many_arguments)]
+pub fn sync_solver(
+    settings: Res<SimSettings>,
+    mut cache: ResMut<SolverCache>,
+    cut: Res<CutReport>,
+    bodies: Query<(Entity, &BodyLattice)>,
+    materials: Query<&Body>,
+    indices: Query<(Entity, &ParticleClusters)>,
+    changed_bodies: Query<Entity, Changed<BodyLattice>>,
+    clusters: Query<ClusterItem>,
+    changed_clusters: ChangedClusters,
+    mut removed_clusters: RemovedComponents<ClusterMembers>,
+    mut removed_bodies: RemovedComponents<BodyLattice>,
+) {
+    let config = &settings.0;
+    let removed: Vec<Entity> = removed_clusters.read().collect();
+    let bodies_removed = removed_bodies.read().count() > 0;
+    if std::mem::take(&mut cache.adopt_changes) {
+        return;
+    }
+    if bodies_removed {
+        cache.valid = false;
+    }
+    let changed_bodies: Vec<Entity> = changed_bodies.iter().collect();
+    if !cache.valid
+        || cache.layout.mode() != config.solver
+        || !removed.is_empty()
+        || !changed_bodies.is_empty()
+        || !changed_clusters.is_empty()
+    {
+        let changes = LayoutChanges {
+            bodies: &changed_bodies,
+            cut: &cut.bodies,
+            clusters: changed_clusters.iter().collect(),
+            removed: &removed,
+            indices: {
+                let mut list: Vec<_> = indices.iter().collect();
+                list.sort_unstable_by_key(|(b, _)| *b);
+                list
+            },
+        };
+        sync_layout(&mut cache, &bodies, changes, clusters.iter(), config.solver);
+        cache.contacts_built = None;
+    }
+    if cache.contacts_built != Some(config.contacts) {
+        sync_contacts(&mut cache, &bodies, &materials, config.contacts);
+    }
+}
 
 /// Cluster data as the shape-match stage reads it.
 pub type ClusterItem<'a> = (Entity, &'a ClusterMembers, &'a ClusterOf, &'a Compliance);

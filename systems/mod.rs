@@ -1,6 +1,7 @@
 //! The ECS stages of SPEC §2 as ordered system sets, and the schedules that run them.
 //!
-//! [`CleaveSchedule`] runs once per frame: [`SimStage::MoveColliders`], then
+//! [`CleaveSchedule`] runs once per frame: [`SimStage::Sync`] (an exclusive system that
+//! runs [`SyncSchedule`]: the solver layout brought up to date), [`SimStage::MoveColliders`], then
 //! [`SimStage::Substeps`] (an exclusive system that runs [`SubstepSchedule`] — predict →
 //! shape-match — `substeps` times), then
 //! `MoveTools → Detect → Cut → Regroup → Split → Expand`, chained, then the optional
@@ -30,6 +31,8 @@ use rand::SeedableRng;
 /// The stages, in order.
 #[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum SimStage {
+    /// Brings the solver layout up to date with the ECS (runs [`SyncSchedule`]).
+    Sync,
     /// Forces, damping, predicted positions (in [`SubstepSchedule`]).
     Predict,
     /// Constraint iterations: cluster shape matching, then every other constraint kind
@@ -59,6 +62,11 @@ pub enum SimStage {
 #[derive(ScheduleLabel, Clone, Debug, PartialEq, Eq, Hash)]
 pub struct CleaveSchedule;
 
+/// Runs once at the start of each frame, and when a simulation is saved or loaded:
+/// brings the solver layout up to date with the ECS.
+#[derive(ScheduleLabel, Clone, Debug, PartialEq, Eq, Hash)]
+pub struct SyncSchedule;
+
 /// Runs `substeps` times per frame: predict → shape-match.
 #[derive(ScheduleLabel, Clone, Debug, PartialEq, Eq, Hash)]
 pub struct SubstepSchedule;
@@ -81,12 +89,21 @@ pub fn build_substep_schedule() -> Schedule {
     s
 }
 
+/// Builds the layout-update schedule.
+pub fn build_sync_schedule() -> Schedule {
+    let mut s = Schedule::new(SyncSchedule);
+    strict(&mut s);
+    s.add_systems(layout_sync::sync_solver);
+    s
+}
+
 /// Builds the frame schedule (substeps, then detect → … → expand).
 pub fn build_schedule() -> Schedule {
     let mut s = Schedule::new(CleaveSchedule);
     strict(&mut s);
     s.configure_sets(
         (
+            SimStage::Sync,
             SimStage::MoveColliders,
             SimStage::Substeps,
             SimStage::MoveTools,
@@ -99,6 +116,7 @@ pub fn build_schedule() -> Schedule {
         )
             .chain(),
     );
+    s.add_systems(run_sync.in_set(SimStage::Sync));
     s.add_systems(move_colliders::move_colliders.in_set(SimStage::MoveColliders));
     s.add_systems(run_substeps.in_set(SimStage::Substeps));
     s.add_systems(move_tools::move_tools.in_set(SimStage::MoveTools));
@@ -133,8 +151,14 @@ pub fn install(world: &mut World, config: crate::config::SimConfig) {
     MessageRegistry::register_message::<ClustersRebuilt>(world);
     MessageRegistry::register_message::<BodySplit>(world);
     MessageRegistry::register_message::<ParticlesRepaired>(world);
+    world.add_schedule(build_sync_schedule());
     world.add_schedule(build_substep_schedule());
     world.add_schedule(build_schedule());
+}
+
+/// Exclusive system: runs the layout-update schedule.
+pub fn run_sync(world: &mut World) {
+    world.run_schedule(SyncSchedule);
 }
 
 /// Exclusive system: runs the substep schedule `substeps` times and advances the clock.

@@ -1,13 +1,11 @@
 //! Stage shape-match (SPEC §2.2): gathers particles into the dense solver layout
-//! (brought up to date only when topology changes, see [`super::layout_sync`]), places
-//! the colliders for this substep, runs the iterations with every constraint kind
-//! (contacts, colliders), derives velocities, and scatters back. Writes particle data
-//! and its own cache only.
+//! (which [`super::layout_sync::sync_solver`] has brought up to date at the start of the
+//! frame), places the colliders for this substep, runs the iterations with every
+//! constraint kind (contacts, colliders), derives velocities, and scatters back. Writes
+//! particle data and its own cache only.
 
-use super::contact_sync::sync_contacts;
-use super::layout_sync::{LayoutChanges, sync_layout};
 use crate::components::*;
-use crate::resources::{CutReport, ParticlesRepaired, SimSettings, SolverCache, SubstepClock};
+use crate::resources::{ParticlesRepaired, SimSettings, SolverCache, SubstepClock};
 use crate::solver::{Colliders, PosedCollider};
 use crate::table_rows::ParticleColumns;
 use bevy_ecs::prelude::*;
@@ -17,19 +15,6 @@ use glam::{Vec3, Vec3A};
 /// started the substep inside: a body spawned in a collider comes out at a walk, not
 /// shot out.
 pub const MAX_DEPENETRATION_SPEED: f32 = 2.0;
-
-/// Clusters that changed (or appeared) since the last run (any body).
-type ChangedClusters<'w, 's> = Query<
-    'w,
-    's,
-    (
-        Entity,
-        &'static ClusterMembers,
-        &'static ClusterOf,
-        &'static Compliance,
-    ),
-    Or<(Changed<ClusterMembers>, Changed<Compliance>)>,
->;
 
 /// Particle data the stage reads and writes.
 type ParticleData = (
@@ -46,48 +31,12 @@ pub fn shape_match(
     settings: Res<SimSettings>,
     substep: Res<SubstepClock>,
     mut cache: ResMut<SolverCache>,
-    cut: Res<CutReport>,
     bodies: Query<(Entity, &BodyLattice)>,
-    materials: Query<&Body>,
     colliders: Query<(&Collider, &ColliderPose)>,
-    indices: Query<(Entity, &ParticleClusters)>,
-    changed_bodies: Query<Entity, Changed<BodyLattice>>,
-    clusters: Query<(Entity, &ClusterMembers, &ClusterOf, &Compliance)>,
-    changed_clusters: ChangedClusters,
-    mut removed_clusters: RemovedComponents<ClusterMembers>,
-    mut removed_bodies: RemovedComponents<BodyLattice>,
     mut particles: Query<ParticleData>,
     mut repaired_messages: MessageWriter<ParticlesRepaired>,
 ) {
     let config = &settings.0;
-    let removed: Vec<Entity> = removed_clusters.read().collect();
-    if removed_bodies.read().count() > 0 {
-        cache.valid = false;
-    }
-    let changed_bodies: Vec<Entity> = changed_bodies.iter().collect();
-    if !cache.valid
-        || cache.layout.mode() != config.solver
-        || !removed.is_empty()
-        || !changed_bodies.is_empty()
-        || !changed_clusters.is_empty()
-    {
-        let changes = LayoutChanges {
-            bodies: &changed_bodies,
-            cut: &cut.bodies,
-            clusters: changed_clusters.iter().collect(),
-            removed: &removed,
-            indices: {
-                let mut list: Vec<_> = indices.iter().collect();
-                list.sort_unstable_by_key(|(b, _)| *b);
-                list
-            },
-        };
-        sync_layout(&mut cache, &bodies, changes, clusters.iter(), config.solver);
-        cache.contacts_built = None;
-    }
-    if cache.contacts_built != Some(config.contacts) {
-        sync_contacts(&mut cache, &bodies, &materials, config.contacts);
-    }
     let cache = &mut *cache;
     // Usually every particle sits in one table: its columns are copied in parallel.
     let one_table = {
