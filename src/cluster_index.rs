@@ -26,7 +26,7 @@ const SPILLED: u32 = u32::MAX - 1;
 const PREFETCH_AHEAD: usize = 16;
 
 /// One particle's keys in place: ascending, then [`EMPTY`] slots.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[repr(C, align(32))]
 struct Slots([u32; INLINE_KEYS]);
 
@@ -99,7 +99,7 @@ impl Slots {
 }
 
 /// The particle → clusters index (see the module docs).
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct ClusterIndex {
     slots: Vec<Slots>,
     spill: FxHashMap<u32, Vec<u32>>,

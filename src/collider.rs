@@ -32,7 +32,6 @@ pub enum ColliderShape {
     },
     /// A closed triangle mesh, through its sampled signed distance (scene files name
     /// the OBJ file; see `scene_file`).
-    #[serde(skip)]
     Mesh(Arc<MeshSdf>),
 }
 

@@ -18,7 +18,7 @@ use glam::{IVec3, Vec3};
 /// Its lattice coordinate and rest position never change, so they are stored once per
 /// body, not per entity: `lattice.coord(index)` and `lattice.rest_position(index)` of the
 /// body's [`BodyLattice`].
-#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Particle {
     /// The body entity.
     pub body: Entity,
@@ -27,23 +27,23 @@ pub struct Particle {
 }
 
 /// Current (or, during a substep, predicted) position.
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Position(pub Vec3);
 
 /// Position at the start of the current substep.
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PrevPosition(pub Vec3);
 
 /// Velocity.
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Velocity(pub Vec3);
 
 /// Inverse mass; 0 pins the particle.
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct InvMass(pub f32);
 
 /// A body: its material, and where its clustering's seed grid lies.
-#[derive(Component, Clone, Debug)]
+#[derive(Component, Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Body {
     /// Material and clustering parameters.
     pub material: Material,
@@ -56,7 +56,7 @@ pub struct Body {
 
 /// Particle data of a body: the lattice (coordinate ↔ index, live flags), the entity of
 /// each particle index, and the number of connected pieces.
-#[derive(Component, Clone, Debug)]
+#[derive(Component, Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct BodyLattice {
     /// The lattice.
     pub lattice: Lattice,
@@ -74,7 +74,7 @@ pub struct BodyLattice {
 /// keys, and entities appear only where clusters meet the ECS. So a body names its
 /// clusters alike whatever entities the world hands out, and a saved simulation resumes
 /// exactly as it would have gone on.
-#[derive(Component, Clone, Debug, Default)]
+#[derive(Component, Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct ParticleClusters {
     /// For each particle index, the keys of the clusters that hold it, ascending.
     pub index: ClusterIndex,
@@ -94,7 +94,7 @@ impl ParticleClusters {
 
 /// The cluster entity behind each key of one body, and the keys free for reuse. A freed
 /// key is handed out again before a new one (the last freed first), so keys stay dense.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct ClusterKeys {
     entities: Vec<Entity>,
     free: Vec<u32>,
@@ -160,21 +160,27 @@ impl ClusterKeys {
 }
 
 /// A cluster's members as body-local particle indices, sorted.
-#[derive(Component, Clone, Debug, PartialEq, Eq)]
+#[derive(Component, Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct ClusterMembers(pub Vec<u32>);
 
-/// The body a cluster belongs to.
-#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ClusterOf(pub Entity);
+/// The body a cluster belongs to, and the key it names the cluster by (see
+/// [`ClusterKeys`]).
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct ClusterOf {
+    /// The body entity.
+    pub body: Entity,
+    /// The cluster's key in the body.
+    pub key: u32,
+}
 
 /// Compliance `1/κ` of a cluster's elastic energy in m/N (0: rigid); see
 /// [`crate::config::Material::compliance`].
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Compliance(pub f32);
 
 /// A cutting tool: shape, cut width (how far from its surface `remove` and `split` reach)
 /// and cut mode.
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Tool {
     /// Shape in the local frame.
     pub shape: ToolShape,
@@ -185,7 +191,7 @@ pub struct Tool {
 }
 
 /// The tool's pose now and at the previous frame (for the swept test).
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ToolPose {
     /// Current pose.
     pub current: Pose,
@@ -194,12 +200,12 @@ pub struct ToolPose {
 }
 
 /// A keyframed path that drives the tool's pose from the simulation clock.
-#[derive(Component, Clone, Debug, PartialEq)]
+#[derive(Component, Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ToolPath(pub Path);
 
 /// A collider that particles cannot enter: static, moved by a [`ColliderPath`], or
 /// moved by game code through its [`ColliderPose`].
-#[derive(Component, Clone, Debug, PartialEq)]
+#[derive(Component, Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Collider {
     /// Shape in the local frame.
     pub shape: ColliderShape,
@@ -209,7 +215,7 @@ pub struct Collider {
 
 /// The collider's pose at the end of the current frame and at its start; the substeps
 /// move it from one to the other.
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ColliderPose {
     /// Pose at the end of the frame being simulated.
     pub current: Pose,
@@ -219,5 +225,5 @@ pub struct ColliderPose {
 
 /// A keyframed path that drives a collider's pose from the simulation clock (a press, a
 /// paddle).
-#[derive(Component, Clone, Debug, PartialEq)]
+#[derive(Component, Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ColliderPath(pub Path);

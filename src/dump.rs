@@ -119,7 +119,7 @@ pub fn dump_body(world: &mut World, body: Entity) -> Option<DumpBody> {
     let mut clusters: Vec<DumpCluster> = world
         .query::<(Entity, &ClusterMembers, &ClusterOf)>()
         .iter(world)
-        .filter(|(_, _, of)| of.0 == body)
+        .filter(|(_, _, of)| of.body == body)
         .map(|(e, m, _)| DumpCluster {
             id: e.to_bits(),
             members: m.0.iter().map(|i| id(*i)).collect(),

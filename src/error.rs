@@ -71,6 +71,9 @@ pub enum CleaveError {
     /// An entity passed to the API is not what was expected.
     #[error("{0}")]
     InvalidEntity(String),
+    /// A saved simulation could not be written or read (see [`crate::save`]).
+    #[error("saved simulation: {0}")]
+    Save(String),
 }
 
 /// Short alias used across the crate.

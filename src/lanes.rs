@@ -372,3 +372,36 @@ mod tests {
         }
     }
 }
+
+/// Serde for `f32x8` as eight floats (`#[serde(with = "crate::lanes::f32x8_serde")]`).
+pub mod f32x8_serde {
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+    use wide::f32x8;
+
+    /// Writes the eight lanes.
+    pub fn serialize<S: Serializer>(v: &f32x8, s: S) -> Result<S::Ok, S::Error> {
+        v.to_array().serialize(s)
+    }
+
+    /// Reads eight lanes.
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f32x8, D::Error> {
+        Ok(f32x8::from(<[f32; 8]>::deserialize(d)?))
+    }
+}
+
+impl serde::Serialize for Vec3x8 {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        [self.x.to_array(), self.y.to_array(), self.z.to_array()].serialize(s)
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Vec3x8 {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let [x, y, z] = <[[f32; 8]; 3]>::deserialize(d)?;
+        Ok(Self {
+            x: f32x8::from(x),
+            y: f32x8::from(y),
+            z: f32x8::from(z),
+        })
+    }
+}

@@ -52,7 +52,7 @@ fn check_budget(field: &str, particles: u64, budget_gb: f32) -> Result<()> {
 ///
 /// Particle indices are stable for the life of the body (never reused); a removed
 /// particle keeps its coordinate but is no longer *live*.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Lattice {
     spacing: f32,
     min: IVec3,

@@ -46,6 +46,7 @@ pub mod reconstruct;
 pub mod render;
 pub mod resources;
 pub mod rotation;
+pub mod save;
 pub mod scene;
 pub mod scene_file;
 pub mod sim;

@@ -11,7 +11,7 @@ use std::path::Path;
 pub const MAX_OBJ_BYTES: u64 = 256 << 20;
 
 /// A closed triangle mesh.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TriangleMesh {
     /// Vertex positions.
     pub vertices: Vec<Vec3>,

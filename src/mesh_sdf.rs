@@ -19,7 +19,7 @@ use glam::{UVec3, Vec3, Vec3A};
 pub const MAX_RESOLUTION: u32 = 256;
 
 /// A closed mesh's signed distance on a grid (negative inside).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MeshSdf {
     /// Position of the first sample.
     origin: Vec3A,

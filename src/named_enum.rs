@@ -59,9 +59,14 @@ macro_rules! named_enum {
                         v.parse().map_err(E::custom)
                     }
                 }
-                // (`any`: a bare RON identifier then fails with the list of quoted names
-                // instead of a bare "expected string")
-                d.deserialize_any(Name)
+                // (`any` in text formats: a bare RON identifier then fails with the list of
+                // quoted names instead of a bare "expected string"; binary formats, which
+                // cannot tell what comes next, read a string)
+                if d.is_human_readable() {
+                    d.deserialize_any(Name)
+                } else {
+                    d.deserialize_str(Name)
+                }
             }
         }
     };

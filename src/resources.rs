@@ -11,11 +11,11 @@ use rand_chacha::ChaCha8Rng;
 pub struct SimSettings(pub SimConfig);
 
 /// The one seeded random stream used by every stage (portable ChaCha8).
-#[derive(Resource, Clone, Debug)]
+#[derive(Resource, Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct SimRng(pub ChaCha8Rng);
 
 /// Frame counter and simulated time.
-#[derive(Resource, Clone, Copy, Debug, Default)]
+#[derive(Resource, Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct SimClock {
     /// Frames completed.
     pub frame: u64,
@@ -88,7 +88,7 @@ pub struct CutList {
 }
 
 /// What cut did to one body.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct BodyCutReport {
     /// The body.
     pub body: Entity,
@@ -107,7 +107,7 @@ pub struct BodyCutReport {
 }
 
 /// Output of cut, input of regroup.
-#[derive(Resource, Clone, Debug, Default)]
+#[derive(Resource, Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct CutReport {
     /// One entry per body that lost particles or edges this frame.
     pub bodies: Vec<BodyCutReport>,
@@ -233,7 +233,7 @@ pub fn dense_owner(locals: &[u32], body_dense: &[BodyDense], d: usize) -> Option
 }
 
 /// One body's particles in the solver layout.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct BodyDense {
     /// The body.
     pub body: Entity,

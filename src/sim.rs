@@ -164,6 +164,18 @@ impl Simulation {
         }
     }
 
+    /// Writes the whole simulation to `writer` in cleave's binary format (see
+    /// [`crate::save`]); [`Simulation::load`] resumes it exactly.
+    pub fn save(&mut self, writer: impl std::io::Write) -> Result<()> {
+        crate::save::save(&mut self.world, writer)
+    }
+
+    /// Reads a simulation written by [`Simulation::save`]: it goes on bit for bit as the
+    /// saved one would have.
+    pub fn load(reader: impl std::io::Read) -> Result<Self> {
+        crate::save::load(reader)
+    }
+
     /// Replaces the clusters of `body` by a fresh clustering of its current geometry
     /// (see [`recluster`]); returns the new cluster entities.
     pub fn recluster(&mut self, body: Entity) -> Result<Vec<Entity>> {
@@ -250,7 +262,7 @@ impl Simulation {
             .world
             .query::<(Entity, &ClusterMembers, &ClusterOf)>()
             .iter(&self.world)
-            .filter(|(_, _, of)| of.0 == body)
+            .filter(|(_, _, of)| of.body == body)
             .map(|(e, m, _)| (e, m.0.clone()))
             .collect();
         clusters.sort_unstable_by_key(|(e, _)| *e);
@@ -471,15 +483,14 @@ fn spawn_clusters(
     };
     let mut entities = Vec::with_capacity(table.len());
     for (_, members) in table.iter() {
-        let e = world
-            .spawn((
-                ClusterMembers(members.to_vec()),
-                ClusterOf(body),
-                Compliance(compliance),
-            ))
-            .id();
-        let k = clusters.keys.insert(e);
-        clusters.index.add_cluster(k, members);
+        let e = world.spawn_empty().id();
+        let key = clusters.keys.insert(e);
+        world.entity_mut(e).insert((
+            ClusterMembers(members.to_vec()),
+            ClusterOf { body, key },
+            Compliance(compliance),
+        ));
+        clusters.index.add_cluster(key, members);
         entities.push(e);
     }
     (clusters, entities)
@@ -508,7 +519,7 @@ pub fn recluster(world: &mut World, body: Entity) -> Result<Vec<Entity>> {
     let old: Vec<Entity> = world
         .query::<(Entity, &ClusterOf)>()
         .iter(world)
-        .filter(|(_, of)| of.0 == body)
+        .filter(|(_, of)| of.body == body)
         .map(|(e, _)| e)
         .collect();
     for e in old {
@@ -535,7 +546,9 @@ pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
         let mut listed: Vec<(u32, &[u32])> = Vec::new();
         if let Some(clusters) = clusters {
             for (k, entity) in clusters.keys.iter() {
-                let of_body = world.get::<ClusterOf>(entity).is_some_and(|of| of.0 == e);
+                let of_body = world
+                    .get::<ClusterOf>(entity)
+                    .is_some_and(|of| of.body == e);
                 match world.get::<ClusterMembers>(entity) {
                     Some(m) if of_body => listed.push((k, m.0.as_slice())),
                     _ => out.push((e, Violation::MissingCluster { cluster: k as u64 })),
@@ -657,7 +670,7 @@ mod tests {
         let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf)>();
         let mut holding: Vec<Vec<Entity>> = vec![Vec::new(); 5 * 4 * 3];
         for (e, members, of) in clusters.iter(world) {
-            assert_eq!(of.0, body);
+            assert_eq!(of.body, body);
             for &p in &members.0 {
                 holding[p as usize].push(e);
             }

@@ -137,7 +137,7 @@ pub fn body_stats(world: &mut World, body: Entity) -> Option<BodyStats> {
     let mut clusters = 0;
     let mut memberships = 0;
     for (members, of) in world.query::<(&ClusterMembers, &ClusterOf)>().iter(world) {
-        if of.0 == body {
+        if of.body == body {
             clusters += 1;
             memberships += members.0.len();
         }

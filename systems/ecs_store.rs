@@ -142,10 +142,13 @@ impl EcsClusterStore<'_, '_, '_> {
         }
         let mut created: Vec<(u32, (Entity, Vec<u32>))> = self.created.into_iter().collect();
         created.sort_unstable_by_key(|(k, _)| *k);
-        for (_, (e, members)) in created {
+        for (key, (e, members)) in created {
             self.commands.entity(e).insert((
                 ClusterMembers(members),
-                ClusterOf(self.body),
+                ClusterOf {
+                    body: self.body,
+                    key,
+                },
                 Compliance(self.compliance),
             ));
         }

@@ -181,11 +181,12 @@ fn patch(
         .iter()
         .filter_map(|e| cache.slot_of.remove(*e, &cache.clusters))
         .collect();
-    changed.sort_unstable_by_key(|c| c.0);
+    // (by body and key: an order that does not depend on the entities' ids)
+    changed.sort_unstable_by_key(|(_, _, of, _)| (of.body, of.key));
     let mut flat = Vec::new();
     let mut entries = Vec::with_capacity(changed.len());
     for (e, members, of, compliance) in changed {
-        let Some(b) = body_index(cache, of.0) else {
+        let Some(b) = body_index(cache, of.body) else {
             return false;
         };
         let rotation = match cache.slot_of.remove(e, &cache.clusters) {
@@ -366,10 +367,12 @@ fn retired_by_scan(
     true
 }
 
-/// One cluster while the layout is rebuilt: sort key `(body, first dense member,
-/// entity)`, its members' range in the flat member array, and its compliance.
+/// One cluster while the layout is rebuilt: sort key `(body, first dense member, key)`,
+/// its entity, its members' range in the flat member array, and its compliance.
 struct ClusterEntry {
-    order: (Entity, u32, Entity),
+    /// Body, first dense member, key.
+    order: (Entity, u32, u32),
+    entity: Entity,
     range: std::ops::Range<usize>,
     compliance: f32,
 }
@@ -421,25 +424,26 @@ pub fn rebuild_cache<'b, 'c>(
     let mut flat: Vec<u32> = Vec::new();
     let mut cluster_list: Vec<ClusterEntry> = Vec::new();
     for (e, members, of, compliance) in clusters {
-        let Ok(b) = body_dense.binary_search_by_key(&of.0, |b| b.body) else {
+        let Ok(b) = body_dense.binary_search_by_key(&of.body, |b| b.body) else {
             continue;
         };
         let start = flat.len();
         dense_members(&body_dense[b].dense, &members.0, &mut flat);
         if let Some(&first) = flat[start..].iter().min() {
             cluster_list.push(ClusterEntry {
-                order: (of.0, first, e),
+                order: (of.body, first, of.key),
+                entity: e,
                 range: start..flat.len(),
                 compliance: solver_compliance(compliance),
             });
         }
     }
-    // Clusters in the order of their first member (then entity, for determinism).
+    // Clusters in the order of their first member (then key, for determinism).
     cluster_list.sort_unstable_by_key(|c| c.order);
     let specs = cluster_list.iter().map(|c| ClusterSpec {
         members: &flat[c.range.clone()],
         compliance: c.compliance,
-        rotation: warm.get(&c.order.2).copied().unwrap_or(Quat::IDENTITY),
+        rotation: warm.get(&c.entity).copied().unwrap_or(Quat::IDENTITY),
     });
     cache.layout = SolverLayout::new(&rest, specs, mode);
     let max_index = particles
@@ -457,7 +461,7 @@ pub fn rebuild_cache<'b, 'c>(
     cache.body_dense = body_dense;
     // (collected from a borrow: `into_iter` would reuse the entries' allocation, six
     // times the size the entities need, and keep it)
-    cache.clusters = cluster_list.iter().map(|c| c.order.2).collect();
+    cache.clusters = cluster_list.iter().map(|c| c.entity).collect();
     cache.slot_of = ClusterSlots::from_clusters(&cache.clusters);
     cache.valid = true;
 }

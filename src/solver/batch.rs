@@ -43,11 +43,12 @@ type Group = [u32; 2];
 
 /// Member `j`'s rest offset and weight in each of a batch's clusters, as fixed by the
 /// layout (or by its template, see `template.rs`).
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub(super) struct MomentRow {
     /// Rest offsets `q` from the cluster's rest centroid (padding: 0).
     pub(super) offset: Vec3x8,
     /// Matching weights (padding: 0).
+    #[serde(with = "crate::lanes::f32x8_serde")]
     pub(super) weight: f32x8,
 }
 
@@ -84,7 +85,7 @@ pub(super) struct RowPulls<'a> {
 }
 
 /// The clusters in batches of [`LANES`] clusters, the batches in coloured groups.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub(super) struct Batches {
     /// All batches' particle rows.
     particles: Vec<ParticleRow>,

@@ -132,7 +132,7 @@ pub struct ClusterSpec<'a> {
 }
 
 /// Dense arrays for the solver; see the module docs.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct SolverLayout {
     /// Particle positions (predicted during a substep).
     pub positions: Vec<Vec3A>,
@@ -169,7 +169,9 @@ pub struct SolverLayout {
     /// Whether the clusters changed since the per-particle and per-cluster coefficients
     /// above were computed.
     coefficients_stale: bool,
-    /// Projective dynamics: the factored global matrix (built on first use).
+    /// Projective dynamics: the factored global matrix (built on first use; not saved:
+    /// a loaded layout factors the same matrix again).
+    #[serde(skip)]
     global: Option<projective::GlobalSolve>,
     /// Seconds spent building projective dynamics' global factor since the layout was
     /// made (the engine reports its growth over a cut).

@@ -29,7 +29,7 @@ type Canonical = SmallVec<[(u32, Vec3A, f32); 32]>;
 pub(super) type Order = SmallVec<[u32; 32]>;
 
 /// The shared rest shape (see the module docs).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub(super) struct Template {
     /// Member `j`'s rest offset and weight, the same in every lane.
     pub(super) rows: Vec<MomentRow>,
