@@ -552,6 +552,73 @@ fn fifty_cuts_keep_the_dump_legal_and_a_scooped_beam_sags_as_if_built_with_its_h
     assert!(sag(&rebuilt) > cantilever_sag(&[]), "{}", sag(&rebuilt));
 }
 
+/// Every particle's lattice coordinate and position in a dump, sorted (entity ids
+/// differ between a run and a loaded one).
+fn particles_of(dump: &Value) -> Vec<String> {
+    let mut out: Vec<String> = dump["bodies"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|b| b["particles"].as_array().unwrap().iter())
+        .map(|p| format!("{} {}", p["lattice"], p["position"]))
+        .collect();
+    out.sort();
+    out
+}
+
+#[test]
+fn a_run_saved_and_loaded_from_the_command_line_goes_on_as_one_run() {
+    let quiet = ["--png-every", "0", "--gif-every", "0", "--quiet"];
+    let file = std::env::temp_dir().join(format!("cleave-save-{}.bin", std::process::id()));
+    let file = file.to_str().unwrap();
+    let (_, straight) = run_with("random", Some(300), &quiet);
+    run_with(
+        "random",
+        Some(100),
+        &[&quiet[..], &["--save-state", file]].concat(),
+    );
+    let (summary, resumed) = run_with(
+        "random",
+        Some(200),
+        &[&quiet[..], &["--load-state", file]].concat(),
+    );
+    assert_eq!(resumed["frame"], 300);
+    assert_eq!(summary["invariant_violations"], 0);
+    assert_eq!(particles_of(&resumed), particles_of(&straight));
+    let cleave = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_cleave"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    for (args, needle) in [
+        (
+            vec![
+                "run",
+                "random",
+                "--load-state",
+                file,
+                "--solver",
+                "projective",
+            ],
+            "--solver cannot be combined",
+        ),
+        (
+            vec!["run", "random", "--load-state", "/nonexistent.bin"],
+            "/nonexistent.bin: cannot be opened",
+        ),
+        (
+            vec!["run", "random", "--load-state", "Cargo.toml"],
+            "not a saved cleave simulation",
+        ),
+    ] {
+        let out = cleave(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+}
+
 #[test]
 fn fidelity_reports_and_refuses_bad_counts() {
     let cleave = |args: &[&str]| {

@@ -43,9 +43,16 @@ enum Command {
         /// Worker threads (default: all cores).
         #[arg(long)]
         threads: Option<usize>,
-        /// Write the final state (cleave-state/1 JSON) to this file.
+        /// Write the final state (cleave-state/2 JSON) to this file.
         #[arg(long)]
         dump_state: Option<PathBuf>,
+        /// Save the simulation at the end to this file (binary; `--load-state` resumes it).
+        #[arg(long)]
+        save_state: Option<PathBuf>,
+        /// Start from a simulation saved with `--save-state` instead of the scene's start
+        /// (the scene still names the run; `--frames` counts the frames run on).
+        #[arg(long)]
+        load_state: Option<PathBuf>,
         /// Write a PNG every N frames (0: none).
         #[arg(long, default_value_t = 30)]
         png_every: u32,
@@ -236,6 +243,8 @@ fn main() -> ExitCode {
             seed,
             threads,
             dump_state,
+            save_state,
+            load_state,
             png_every,
             gif_every,
             color,
@@ -264,6 +273,8 @@ fn main() -> ExitCode {
                 out,
                 seed,
                 dump_state,
+                save_state,
+                load_state,
                 pictures: pictures::PictureOptions {
                     png_every,
                     gif_every,

@@ -324,12 +324,68 @@ pub struct RunArgs {
     pub seed: Option<u64>,
     /// State dump file.
     pub dump_state: Option<PathBuf>,
+    /// Where to save the simulation at the end (`--save-state`).
+    pub save_state: Option<PathBuf>,
+    /// A saved simulation to run on instead of the scene's start (`--load-state`).
+    pub load_state: Option<PathBuf>,
     /// Pictures to write.
     pub pictures: PictureOptions,
     /// Print milliseconds per stage.
     pub profile: bool,
     /// No progress bar and no table.
     pub quiet: bool,
+}
+
+/// A new simulation of `scene` (errors name the scene, the entry's line and column in a
+/// scene file, and the entry); returns it and its bodies.
+fn start(scene: &Scene, scene_name: &str) -> Result<(Simulation, Vec<Entity>), String> {
+    let mut sim = Simulation::new(scene.config.clone()).map_err(|e| e.to_string())?;
+    let fail = |what: &str, i: usize, e: cleave::error::CleaveError| {
+        let at = std::fs::read_to_string(scene_name)
+            .ok()
+            .and_then(|text| entry_position(&text, what, i))
+            .map_or(String::new(), |(line, column)| format!(":{line}:{column}"));
+        format!("{scene_name}{at}: {what}[{i}]: {e}")
+    };
+    let mut bodies = Vec::with_capacity(scene.bodies.len());
+    for (i, b) in scene.bodies.iter().enumerate() {
+        bodies.push(sim.spawn_body(b).map_err(|e| fail("bodies", i, e))?);
+    }
+    for (i, t) in scene.tools.iter().enumerate() {
+        sim.spawn_tool(t).map_err(|e| fail("tools", i, e))?;
+    }
+    for (i, c) in scene.colliders.iter().enumerate() {
+        sim.spawn_collider(c).map_err(|e| fail("colliders", i, e))?;
+    }
+    Ok((sim, bodies))
+}
+
+/// The simulation saved in `path` (`--load-state`), which brings its own settings: the
+/// flags that would change them are refused.
+fn resume(
+    path: &Path,
+    args: &RunArgs,
+    seed_given: bool,
+) -> Result<(Simulation, Vec<Entity>), String> {
+    let o = &args.overrides;
+    let conflicting = [
+        ("--seed", seed_given),
+        ("--solver", o.solver.is_some()),
+        ("--substeps", o.substeps.is_some()),
+        ("--iterations", o.iterations.is_some()),
+        ("--cut-mode", o.cut_mode.is_some()),
+    ];
+    if let Some((flag, _)) = conflicting.iter().find(|(_, given)| *given) {
+        return Err(format!(
+            "--load-state: {flag} cannot be combined with it (a saved simulation keeps its settings)"
+        ));
+    }
+    let file = std::fs::File::open(path)
+        .map_err(|e| format!("{}: cannot be opened: {e}", path.display()))?;
+    let mut sim = Simulation::load(std::io::BufReader::new(file))
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let bodies = sim.bodies();
+    Ok((sim, bodies))
 }
 
 /// Runs the scene and writes the outputs.
@@ -351,7 +407,7 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
             tool.cut_mode = mode;
         }
     }
-    let seed = scene.config.seed;
+    let seed_given = seed.is_some();
     let frames = frames.unwrap_or(scene.frames);
     if let Some(at) = args.recluster_at
         && at > frames
@@ -360,35 +416,26 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
             "--recluster-at: {at} is past the last frame (allowed 0 ≤ recluster-at ≤ {frames})"
         ));
     }
-    let mut sim = Simulation::new(scene.config.clone()).map_err(|e| e.to_string())?;
-    let mut bodies = Vec::with_capacity(scene.bodies.len());
-    // errors name the scene, the entry's line and column in a scene file, and the entry
-    let fail = |what: &str, i: usize, e: cleave::error::CleaveError| {
-        let at = std::fs::read_to_string(scene_name)
-            .ok()
-            .and_then(|text| entry_position(&text, what, i))
-            .map_or(String::new(), |(line, column)| format!(":{line}:{column}"));
-        format!("{scene_name}{at}: {what}[{i}]: {e}")
+    let (mut sim, bodies) = match &args.load_state {
+        Some(path) => resume(path, args, seed_given)?,
+        None => start(&scene, scene_name)?,
     };
-    for (i, b) in scene.bodies.iter().enumerate() {
-        bodies.push(sim.spawn_body(b).map_err(|e| fail("bodies", i, e))?);
-    }
-    for (i, t) in scene.tools.iter().enumerate() {
-        sim.spawn_tool(t).map_err(|e| fail("tools", i, e))?;
-    }
-    for (i, c) in scene.colliders.iter().enumerate() {
-        sim.spawn_collider(c).map_err(|e| fail("colliders", i, e))?;
-    }
-    let mut tracked = Vec::with_capacity(bodies.len());
-    for (body, desc) in bodies.iter().zip(&scene.bodies) {
-        tracked.push(Tracked::new(&mut sim, *body, desc.spacing)?);
-    }
-    let h = scene
-        .bodies
+    let seed = sim.config().seed;
+    let dt = sim.config().dt;
+    let spacings: Vec<f32> = bodies
         .iter()
-        .map(|b| b.spacing)
-        .fold(f32::INFINITY, f32::min);
-    let h_first = scene.bodies.first().map_or(1.0, |b| b.spacing);
+        .map(|b| {
+            sim.world()
+                .get::<BodyLattice>(*b)
+                .map_or(1.0, |l| l.lattice.spacing())
+        })
+        .collect();
+    let mut tracked = Vec::with_capacity(bodies.len());
+    for (body, h) in bodies.iter().zip(&spacings) {
+        tracked.push(Tracked::new(&mut sim, *body, *h)?);
+    }
+    let h = spacings.iter().copied().fold(f32::INFINITY, f32::min);
+    let h_first = spacings.first().copied().unwrap_or(1.0);
     let mut step_ms = Vec::new();
     let mut cut_particles = 0;
     let mut min_gap: Option<f64> = None;
@@ -399,7 +446,7 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     let mut pictures = Pictures::new(
         &out,
         PictureOptions {
-            dt: scene.config.dt,
+            dt,
             ..args.pictures.clone()
         },
     )?;
@@ -507,6 +554,12 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?,
     )
     .map_err(|e| format!("cannot write `{}`: {e}", path.display()))?;
+    if let Some(path) = &args.save_state {
+        let file = std::fs::File::create(path)
+            .map_err(|e| format!("cannot create `{}`: {e}", path.display()))?;
+        sim.save(std::io::BufWriter::new(file))
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+    }
     if let Some(file) = dump {
         let state = dump_world(sim.world_mut());
         std::fs::write(
