@@ -2,7 +2,7 @@
 //! size, the memberships per particle and the clusters' mean extent — and the ratios of
 //! one clustering's numbers to another's. `cleave fidelity` compares a cut body's
 //! rebuilt clusters with a fresh clustering of the same geometry this way: the
-//! reconstruction aims to keep all four (SPEC §3, end).
+//! reconstruction aims to keep all four.
 
 use crate::lattice::Lattice;
 use glam::IVec3;

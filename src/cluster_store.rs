@@ -31,7 +31,7 @@ pub trait ClusterStore {
     }
 }
 
-/// Spare room of a member list a store makes: the expansion (SPEC §3.4) adds a few
+/// Spare room of a member list a store makes: the expansion adds a few
 /// particles to a new cluster next, which would otherwise reallocate the list.
 const LIST_HEADROOM: usize = 8;
 

@@ -1,4 +1,4 @@
-//! Initial distance-based clustering (SPEC §1) and the edge-cover repair that keeps every
+//! Initial distance-based clustering and the edge-cover repair that keeps every
 //! piece's clusters linked (no isolated cluster).
 //!
 //! Clusters are Chebyshev balls of radius `r` around seeds on a sub-lattice of stride
@@ -117,7 +117,7 @@ fn share_a_cluster<K: Ord>(a: &[K], b: &[K]) -> bool {
 /// Makes every live lattice edge at the given particles *covered*: both ends in a
 /// common cluster. Returns the clusters that grew or were created for it, ascending.
 ///
-/// Edge coverage implies SPEC §3.4's goal (no isolated cluster): inside a connected
+/// Edge coverage implies what expansion aims at (no isolated cluster): inside a connected
 /// piece any two particles are joined by a lattice path whose consecutive particles
 /// share a cluster, so the piece's cluster-overlap graph is connected. Unlike that global
 /// property, coverage can be restored locally: after a cut only the edges a split

@@ -215,7 +215,7 @@ pub struct Material {
     /// Largest allowed cluster (≥ 2): the initial clustering truncates its balls here,
     /// and no cut makes a cluster larger (see [`Material::split_size`]).
     pub max_cluster_size: u32,
-    /// Particles added to each part of a split cluster by the expand stage (SPEC §3.4).
+    /// Particles added to each part of a split cluster by the expand stage.
     pub expand_count: u32,
     /// Radius of each particle's contact ball; `None`: half the lattice spacing, so
     /// that neighbouring balls touch.
@@ -277,7 +277,7 @@ impl Material {
 
     /// Members of the largest cluster the initial clustering builds: a full `(2r+1)³`
     /// ball, or [`Material::max_cluster_size`] if that is smaller. After a cut, a
-    /// cluster larger than this is too big and is split (SPEC §3.3), so the rebuilt
+    /// cluster larger than this is too big and is split, so the rebuilt
     /// clusters stay the size a fresh clustering would make.
     pub fn split_size(&self) -> u32 {
         (2 * self.cluster_radius + 1)

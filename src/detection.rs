@@ -1,4 +1,4 @@
-//! The tests of the detect stage (SPEC §2.3) as plain functions: which particles come
+//! The tests of the detect stage as plain functions: which particles come
 //! within reach of a tool anywhere along its motion since the last frame
 //! ([`particles_hit`]), and which edges a tool separates ([`edges_separated`]). Both are
 //! exact for a translating tool (see [`crate::tool::Sweep`]), whatever its speed.

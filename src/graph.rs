@@ -122,7 +122,7 @@ pub fn body_pieces(lattice: &Lattice) -> (Vec<u32>, usize) {
 }
 
 /// Live particles adjacent to `members` but not in it: the cluster's *adjacent
-/// particles* (SPEC §1), without duplicates, in discovery order (members in the given
+/// particles*, without duplicates, in discovery order (members in the given
 /// order, each one's neighbours in lattice order) — deterministic without a sort.
 pub fn adjacent_particles(members: &[u32], lattice: &Lattice) -> Vec<u32> {
     with_slots(lattice.len(), |mark| {

@@ -1,4 +1,4 @@
-//! The invariants of SPEC §1 and §3 on plain data: every cluster connected, no dead
+//! The invariants of a body's clusters, on plain data: every cluster connected, no dead
 //! member, every live particle covered, no isolated cluster, no oversized cluster, no
 //! cluster inside (or equal to) another; and the particle → clusters index in step with
 //! the member lists.

@@ -1,6 +1,6 @@
 //! Eight-wide structure-of-arrays vectors, matrices and quaternions (one lane per
 //! cluster), so that the solver fits eight clusters with one stream of AVX instructions
-//! instead of eight scalar streams (issue 4, "batched cluster work").
+//! instead of eight scalar streams.
 //!
 //! Plain maths on [`wide::f32x8`]; lane `l` of every value belongs to the same cluster.
 

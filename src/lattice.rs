@@ -1,5 +1,5 @@
 //! The particle lattice of one body: coordinates, the 6-neighbourhood, removal, and
-//! voxelisation of shapes into lattice points (SPEC §1).
+//! voxelisation of shapes into lattice points.
 
 use crate::error::{CleaveError, Result, check_finite_vec, check_positive};
 use crate::mesh::TriangleMesh;

@@ -1,15 +1,57 @@
 //! # cleave
 //!
 //! Lattice shape-matching soft bodies with real-time cutting, as ordered bevy_ecs
-//! systems. A body is a voxel lattice of particles; overlapping clusters of particles
-//! are shape-matching constraints (SPEC §2). Cutting tools remove particles, sever the
-//! lattice's edges or split particles in two, and materials may tear; the cut clusters
-//! are rebuilt locally by graph algorithms (SPEC §3–4) so pieces separate while the body
-//! keeps its stiffness.
+//! systems.
+//!
+//! ## The model
+//!
+//! A body is a voxel lattice of particles: each particle's rest position is its lattice
+//! coordinate times the spacing, and two particles are *adjacent* when a voxel edge joins
+//! them. The edges are data ([`lattice::Lattice`]): a cut may remove a particle, sever an
+//! edge or split a particle in two. Overlapping *clusters* of particles — each one
+//! connected through the edges — are shape-matching constraints (Müller et al. 2005):
+//! each pulls its members toward the best rigid placement of their rest shape, with the
+//! stiffness of its material, so the body is elastic ([`clustering`] builds them).
+//!
+//! ## One frame
+//!
+//! The stages run as ordered ECS systems ([`systems`]): `substeps` times, **predict**
+//! (forces, damping, inertial prediction) and **shape-match** (the solver's iterations
+//! over clusters, contacts and colliders, [`solver`]); then **detect** (read-only: which
+//! particles and edges the tools reach, which voxels tear, [`detection`]), **cut**
+//! (particle data only), and **regroup**, **split**, **expand** (cluster data only): the
+//! cut clusters rebuilt by graph algorithms ([`reconstruct`]) so that pieces separate
+//! while the body keeps the clusters, and the stiffness, of its shape built fresh.
+//!
+//! ## Example
+//!
+//! ```
+//! use cleave::prelude::*;
+//!
+//! # fn main() -> cleave::error::Result<()> {
+//! let mut sim = Simulation::new(SimConfig::default())?;
+//! let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(12, 6, 6), 0.1), 0.1);
+//! desc.position = Vec3::new(0.0, 0.5, 0.0);
+//! let body = sim.spawn_body(&desc)?;
+//! // a blade through the middle, moving down
+//! let at = |y: f32| Pose { position: Vec3::new(0.0, y, 0.0), rotation: Quat::from_rotation_y(1.5708) };
+//! sim.spawn_tool(&ToolDesc {
+//!     shape: ToolShape::Blade { half_width: 1.0, half_height: 0.2 },
+//!     cut_width: 0.101,
+//!     cut_mode: CutMode::Remove,
+//!     path: Path { keys: vec![(0.0, at(1.5)), (0.2, at(-0.5))] },
+//!     pose: at(1.5),
+//! })?;
+//! sim.run(30);
+//! assert_eq!(sim.pieces(body)?.len(), 2);
+//! assert!(check_invariants(sim.world()).is_empty());
+//! # Ok(())
+//! # }
+//! ```
 //!
 //! Pure algorithms live in plain modules ([`lattice`], [`clustering`], [`reconstruct`],
 //! [`solver`], [`rotation`]); [`systems`] holds the thin ECS stages; [`sim::Simulation`]
-//! is the headless facade.
+//! is the headless facade; [`save`] writes and resumes a simulation.
 #![warn(missing_docs)]
 
 pub mod bench;

@@ -531,7 +531,7 @@ pub fn recluster(world: &mut World, body: Entity) -> Result<Vec<Entity>> {
     Ok(clusters)
 }
 
-/// Checks SPEC §1/§3 invariants of every body in `world`, that each body's particle →
+/// Checks the invariants ([`crate::invariants`]) of every body in `world`, that each body's particle →
 /// clusters index matches its clusters' members, and that every live particle has a
 /// finite position; returns `(body, violation)`.
 pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {

@@ -1,4 +1,4 @@
-//! Stage cut (SPEC §2.4): removes the detected particles from their bodies, splits the
+//! Stage cut: removes the detected particles from their bodies, splits the
 //! particles a `split` blade passes through (spawning their new halves, halving the
 //! masses), severs the detected and torn edges, and reports it all with the cut
 //! clusters. Writes particle data only (it reads the particle → clusters index to name

@@ -1,4 +1,4 @@
-//! Stage detect (SPEC §2.3): READ-ONLY. Selects, over the whole volume each tool swept
+//! Stage detect: READ-ONLY. Selects, over the whole volume each tool swept
 //! since the last frame, the particles a `remove` tool comes within half its cut width
 //! of, and the edges a `sever` or `split` tool separates; and, in bodies whose material
 //! tears, the edges of voxels stretched past the limit. Its only output is the

@@ -1,4 +1,4 @@
-//! Stage expand (SPEC §3.4): the parts of split clusters grow by random adjacent
+//! Stage expand (reconstruction steps 3 and 4): the parts of split clusters grow by random adjacent
 //! particles; then every lattice edge a split separated is covered by a cluster again,
 //! which guarantees what §3.4 aims at (no isolated cluster), and the clusters that lie
 //! inside others are removed. Writes cluster data only.

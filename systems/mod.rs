@@ -1,4 +1,5 @@
-//! The ECS stages of SPEC §2 as ordered system sets, and the schedules that run them.
+//! The ECS stages of a frame (see the crate docs) as ordered system sets, and the
+//! schedules that run them.
 //!
 //! [`CleaveSchedule`] runs once per frame: [`SimStage::Sync`] (an exclusive system that
 //! runs [`SyncSchedule`]: the solver layout brought up to date), [`SimStage::MoveColliders`], then
@@ -48,11 +49,11 @@ pub enum SimStage {
     Detect,
     /// Removes the listed particles.
     Cut,
-    /// SPEC §3.1–3.2.
+    /// Reconstruction step 1 (see [`crate::reconstruct`]).
     Regroup,
-    /// SPEC §3.3, §4.
+    /// Reconstruction step 2.
     Split,
-    /// SPEC §3.4.
+    /// Reconstruction steps 3 and 4.
     Expand,
     /// Optional invariant check (debug / tests).
     Verify,

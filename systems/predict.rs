@@ -1,4 +1,4 @@
-//! Stage predict (SPEC §2.1): gravity, damping, predicted position. Particle data only.
+//! Stage predict: gravity, damping, predicted position. Particle data only.
 //!
 //! The particle components are read as whole table columns (bevy's contiguous query
 //! iteration) and advanced in parallel chunks.

@@ -1,4 +1,4 @@
-//! Stage regroup (SPEC §3.1–3.2): cut clusters → pieces; redundant pieces dropped,
+//! Stage regroup (reconstruction step 1): cut clusters → pieces; redundant pieces dropped,
 //! fragments merged into neighbours (after giving the new halves of split particles
 //! their clusters). Writes cluster data only.
 //!

@@ -1,4 +1,4 @@
-//! Stage shape-match (SPEC §2.2): gathers particles into the dense solver layout
+//! Stage shape-match: gathers particles into the dense solver layout
 //! (which [`super::layout_sync::sync_solver`] has brought up to date at the start of the
 //! frame), places the colliders for this substep, runs the iterations with every
 //! constraint kind (contacts, colliders), derives velocities, and scatters back. Writes

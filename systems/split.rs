@@ -1,4 +1,4 @@
-//! Stage split (SPEC §3.3, §4): splits rebuilt clusters larger than the material's
+//! Stage split (reconstruction step 2): splits rebuilt clusters larger than the material's
 //! [`crate::config::Material::split_size`]. Writes cluster data only.
 
 use super::ecs_store::BodyClusters;

@@ -1,4 +1,4 @@
-//! SPEC §3.4: the parts of a split cluster grow by a few randomly chosen adjacent
+//! Reconstruction step 3: the parts of a split cluster grow by a few randomly chosen adjacent
 //! particles (one BFS layer), so that they overlap each other and their neighbours again.
 //!
 //! The notes grow "the small clusters the split produced" (小簇); growing every rebuilt

@@ -1,9 +1,26 @@
-//! Cluster reconstruction after a cut (SPEC §3–4), as pure functions over a
-//! [`crate::cluster_store::ClusterStore`]:
-//! [`regroup()`] (pieces, dropped when redundant, fragments merged, §3.1–3.2),
-//! [`split_oversized`] (§3.3 and §4), [`expand_clusters`] (§3.4), then
-//! [`crate::clustering::cover_edge_list`] (the local edge-cover repair) and
-//! [`remove_contained`] (no cluster inside another).
+//! Cluster reconstruction after a cut, as pure functions over a
+//! [`crate::cluster_store::ClusterStore`]. The *cut clusters* are those that held a
+//! removed particle or both ends of a severed edge.
+//!
+//! 1. **Pieces** ([`regroup()`]): each cut cluster falls into its connected pieces. A
+//!    piece whose particles and edges all lie in other clusters is redundant and goes;
+//!    a piece whose rest shape is a point or a line (a *fragment*, which cannot fix a
+//!    rotation) merges into the neighbour cluster that holds most of it; the other
+//!    pieces stay clusters — they are what a fresh clustering builds there.
+//! 2. **Split** ([`split_oversized`]): a cluster larger than the initial clustering's
+//!    largest is split in two, and the halves again, on rest positions: the plane
+//!    across the long axis of the members' covariance, a connected half grown from a
+//!    random member toward that plane, and a repair that leaves both halves connected
+//!    ([`split`]).
+//! 3. **Expand** ([`expand_clusters`]): the parts of a split grow by a few adjacent
+//!    particles, so they overlap their neighbours again.
+//! 4. **Repair**: every lattice edge a split separated is covered by a cluster again
+//!    ([`crate::clustering::cover_edge_list`]), so no cluster is isolated from the
+//!    ones around it, and no cluster is left inside another ([`remove_contained`]).
+//!
+//! Everything is topology: which side of a cut a particle is on is never decided by
+//! geometry, so any number of partial, curved or disconnected cuts work alike; the
+//! price is that every cluster must stay connected, which all four steps keep.
 //! [`rebuild_after_cut`] runs them in order, as the ECS stages do.
 
 pub mod contained;
@@ -24,7 +41,7 @@ use crate::config::Material;
 use crate::lattice::Lattice;
 use rand::Rng;
 
-/// The whole reconstruction of SPEC §3 for one body whose particles have already been
+/// The whole reconstruction for one body whose particles have already been
 /// removed from `lattice`: regroup the `cut_clusters`, split what grew bigger than
 /// [`Material::split_size`], expand the split parts, restore the cover of the edges the
 /// splits separated, and remove the clusters that lie inside others. Returns the

@@ -1,4 +1,4 @@
-//! The tightest projection plane of a point set (SPEC §4.1): the eigenvector of the
+//! The tightest projection plane of a point set (for splitting a cluster): the eigenvector of the
 //! largest eigenvalue of the covariance matrix is the plane's normal.
 
 use glam::{Mat3, Vec3};

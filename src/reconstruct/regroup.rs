@@ -1,11 +1,11 @@
-//! SPEC §3.1–3.2: cut clusters fall into pieces (connected components of their live
+//! Reconstruction step 1: cut clusters fall into pieces (connected components of their live
 //! members); the pieces that add nothing are dropped, the fragments merge into the
 //! neighbour cluster that shares most of their particles, and the other pieces stay as
 //! clusters.
 //!
 //! Two departures from the notes' letter, both measured against a fresh clustering of
 //! the same cut geometry (`cleave fidelity`), which is what the reconstruction aims at
-//! (SPEC §3, end: the body's clusters, and so its stiffness, stay what they were):
+//! (the body's clusters, and so its stiffness, should stay what they were):
 //!
 //! - **Not every piece merges.** Merging every piece grows the neighbours by a whole
 //!   piece, and the split that follows cuts the union along a new plane: clusters came out
@@ -303,7 +303,7 @@ impl MergeForest {
 }
 
 /// Replaces every cut cluster by its pieces, drops the redundant ones and merges the
-/// fragments into neighbour clusters (SPEC §3.2; see the module docs for the rules).
+/// fragments into neighbour clusters (see the module docs for the rules).
 /// Returns the clusters this produced — the neighbour clusters that received a merge and
 /// the pieces that remain clusters — ascending, without duplicates.
 ///

@@ -1,4 +1,4 @@
-//! Splitting an oversized cluster in two (SPEC §3.3, §4): PCA normal on rest positions
+//! Splitting an oversized cluster in two (reconstruction step 2): PCA normal on rest positions
 //! (§4.1), geometric partition grown from a random vertex with the normal flip (§4.2),
 //! and topological repair so both halves are connected (§4.3).
 
@@ -110,7 +110,7 @@ impl SplitScratch {
         edges.truncate(len);
     }
 
-    /// SPEC §4.2: grows a connected set S (`in_s`) from vertex `start` whose boundary
+    /// Grows a connected set S (`in_s`) from vertex `start` whose boundary
     /// approximates the plane through `start` with normal `normal`.
     ///
     /// The frontier is a bit set. Step 3 takes any frontier vertex on the negative side
@@ -186,7 +186,7 @@ impl SplitScratch {
         in_s.push(true);
     }
 
-    /// SPEC §4.3: moves every component of G − S but the largest into S (`in_s`); the
+    /// The topological repair: moves every component of G − S but the largest into S (`in_s`); the
     /// remaining component is M (`in_m`).
     fn topological_repair(&mut self) {
         // label: IN_S for S (and the sentinel), UNSEEN for G − S not reached yet, else
@@ -247,7 +247,7 @@ impl SplitScratch {
 }
 
 /// Splits a connected cluster (sorted members, at least 2) into two connected, disjoint
-/// halves that cover it, using rest (lattice) positions (SPEC §4).
+/// halves that cover it, using rest (lattice) positions (see the module docs).
 pub fn split_cluster(
     members: &[u32],
     lattice: &Lattice,
@@ -256,7 +256,7 @@ pub fn split_cluster(
     SplitScratch::default().split(members, lattice, rng)
 }
 
-/// The parts of one connected cluster split (SPEC §3.3) until none has more than `max`
+/// The parts of one connected cluster split until none has more than `max`
 /// members, and the lattice edges between members that ended in different parts — the
 /// only edges a split can leave without a common cluster — as sorted `(lower, higher)`
 /// particle pairs.
@@ -299,12 +299,12 @@ pub struct SplitOutcome {
     /// Lattice edges whose ends ended in different parts of a split; they may need a
     /// bridge (see [`crate::clustering::cover_edge_list`]).
     pub cut_edges: Vec<(u32, u32)>,
-    /// The parts of the clusters that were split (the expansion of SPEC §3.4 grows
+    /// The parts of the clusters that were split (the expansion grows
     /// these).
     pub parts: Vec<u32>,
 }
 
-/// SPEC §3.3: splits every cluster in `keys` above `max` members, and the halves again,
+/// Reconstruction step 2: splits every cluster in `keys` above `max` members, and the halves again,
 /// until all are at most `max` (after a cut, `max` is [`crate::config::Material::split_size`]).
 ///
 /// The splits only read their cluster and the lattice, so they run in parallel, each with

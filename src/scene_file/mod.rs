@@ -174,7 +174,7 @@ pub struct MaterialFile {
     /// Largest cluster size.
     #[serde(deserialize_with = "check::max_cluster_size")]
     pub max_cluster_size: u32,
-    /// Particles added to each part of a cluster split after a cut (SPEC §3.4).
+    /// Particles added to each part of a cluster split after a cut.
     pub expand_count: u32,
     /// Contact ball radius in metres; `None`: half the spacing.
     #[serde(deserialize_with = "check::contact_radius")]

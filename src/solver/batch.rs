@@ -1,5 +1,4 @@
-//! Batched cluster fits (SPEC §2.2, issue 4 "batched cluster work"): eight clusters of
-//! one colour are fitted at once, one per SIMD lane. Their members are gathered into
+//! Batched cluster fits: eight clusters of one colour are fitted at once, one per SIMD lane. Their members are gathered into
 //! rows (row `j` holds member `j` of every lane's cluster), the moment matrices are
 //! accumulated and the rotations extracted (Müller 2016, warm-started) eight wide, and
 //! every row's pull `R q + c − p` is computed eight wide and handed to the caller,

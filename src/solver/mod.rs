@@ -1,4 +1,4 @@
-//! The dense shape-matching kernel (SPEC §2.2): positions and rest positions in
+//! The dense shape-matching kernel: positions and rest positions in
 //! contiguous per-particle arrays, cluster members as index ranges with each
 //! membership's rest offset and weight beside it, clusters grouped by colour. Built once
 //! per topology, then iterated many times.

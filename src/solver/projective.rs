@@ -1,4 +1,4 @@
-//! Projective dynamics' global step (Bouaziz et al. 2014, SPEC §6.5).
+//! Projective dynamics' global step (Bouaziz et al. 2014).
 //!
 //! The clusters' rotation fits are the local step (the Jacobi cluster pass, which adds
 //! each cluster's pull `gᵢₖ − pᵢ` to its members). The global step then solves the
