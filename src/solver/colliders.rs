@@ -242,12 +242,13 @@ impl Colliders {
 fn bounds(points: &[Vec3A]) -> (Vec3A, Vec3A) {
     let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
     // Σ 0·p stays zero while every point is finite and turns NaN at the first that is
-    // not: one multiply-add per point where a finiteness test costs several instructions
+    // not: a multiply and an add per point where a finiteness test costs several (not
+    // glam's `mul_add`: without FMA in the build it calls a software fused multiply-add)
     let mut probe = Vec3A::ZERO;
     for p in points {
         lo = lo.min(*p);
         hi = hi.max(*p);
-        probe = p.mul_add(Vec3A::ZERO, probe);
+        probe += *p * Vec3A::ZERO;
     }
     if probe.is_nan() {
         (Vec3A::NEG_INFINITY, Vec3A::INFINITY)

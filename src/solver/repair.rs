@@ -28,7 +28,7 @@ impl SolverLayout {
                 // Σ 0·p stays zero while every point is finite
                 let probe = chunk
                     .iter()
-                    .fold(Vec3A::ZERO, |probe, p| p.mul_add(Vec3A::ZERO, probe));
+                    .fold(Vec3A::ZERO, |probe, p| probe + *p * Vec3A::ZERO);
                 let first = task * PER_TASK;
                 let found: Vec<u32> = if probe.is_nan() {
                     (0..chunk.len())
