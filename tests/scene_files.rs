@@ -179,7 +179,25 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
             &format!("    colliders: [(shape: {shape})],\n    tools: [("),
         )
     };
-    let cases: [(&str, String, &[&str]); 18] = [
+    let cases: [(&str, String, &[&str]); 21] = [
+        (
+            "zero.ron",
+            GOOD.replace("Cells(cells: (4, 4, 4))", r#"Mesh(path: "/dev/zero")"#),
+            &["zero.ron", "bodies[0].shape.path", "/dev/zero", "not a regular file"],
+        ),
+        (
+            "nothing.ron",
+            GOOD.replace("Cells(cells: (4, 4, 4))", "Sphere(radius: 0.001)"),
+            &["nothing.ron:3:14: bodies[0]", "`shape` produced no particles"],
+        ),
+        (
+            "capsule.ron",
+            GOOD.replace(
+                "Cells(cells: (4, 4, 4))",
+                "Capsule(radius: 0.2, half_length: -0.5)",
+            ),
+            &["capsule.ron:3:14: bodies[0]", "shape.half_length", "-0.5"],
+        ),
         (
             "raw.ron",
             GOOD.replace("Cells(cells: (4, 4, 4))", "Sphere(0.6)"),
