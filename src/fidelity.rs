@@ -273,11 +273,8 @@ fn run_scene(mut scene: Scene, frames: u32, mode: CutMode) -> Result<(Simulation
     for tool in &mut scene.tools {
         tool.cut_mode = mode;
     }
-    let mut sim = Simulation::new(scene.config.clone())?;
-    let body = sim.spawn_body(&scene.bodies[0])?;
-    for tool in &scene.tools {
-        sim.spawn_tool(tool)?;
-    }
+    let mut sim = Simulation::from_scene(&scene)?;
+    let body = sim.bodies()[0];
     sim.run(frames);
     Ok((sim, body))
 }

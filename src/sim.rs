@@ -121,6 +121,22 @@ impl Simulation {
         Ok(Self { world })
     }
 
+    /// A simulation of `scene`: its settings, then its bodies, tools and colliders
+    /// spawned in order (the first error stops it).
+    pub fn from_scene(scene: &crate::scene::Scene) -> Result<Self> {
+        let mut sim = Self::new(scene.config.clone())?;
+        for b in &scene.bodies {
+            sim.spawn_body(b)?;
+        }
+        for t in &scene.tools {
+            sim.spawn_tool(t)?;
+        }
+        for c in &scene.colliders {
+            sim.spawn_collider(c)?;
+        }
+        Ok(sim)
+    }
+
     /// The world (read).
     pub fn world(&self) -> &World {
         &self.world

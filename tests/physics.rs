@@ -148,18 +148,9 @@ fn run_scene_bits_tagged(
         .build()
         .unwrap();
     pool.install(|| {
-        let scene = builtin(name, 7).unwrap();
-        let config = SimConfig {
-            solver,
-            ..scene.config
-        };
-        let mut sim = Simulation::new(config).unwrap();
-        for b in &scene.bodies {
-            sim.spawn_body(b).unwrap();
-        }
-        for t in &scene.tools {
-            sim.spawn_tool(t).unwrap();
-        }
+        let mut scene = builtin(name, 7).unwrap();
+        scene.config.solver = solver;
+        let mut sim = Simulation::from_scene(&scene).unwrap();
         if tag_half {
             let mut q = sim.world_mut().query::<(Entity, &Particle)>();
             let tagged: Vec<Entity> = q
@@ -393,14 +384,18 @@ fn closed_obj_mesh_voxelises() {
     );
 }
 
+/// The `drop` scene with its invariants checked every frame, and its body.
+fn checked_drop() -> (Simulation, Entity) {
+    let mut scene = builtin("drop", 0).unwrap();
+    scene.config.check_invariants_every_frame = true;
+    let mut sim = Simulation::from_scene(&scene).unwrap();
+    let body = sim.bodies()[0];
+    (sim, body)
+}
+
 #[test]
 fn a_particle_despawned_from_outside_is_removed_as_if_cut() {
-    let mut config = builtin("drop", 0).unwrap().config;
-    config.check_invariants_every_frame = true;
-    let mut sim = Simulation::new(config).unwrap();
-    let body = sim
-        .spawn_body(&builtin("drop", 0).unwrap().bodies[0])
-        .unwrap();
+    let (mut sim, body) = checked_drop();
     sim.run(5);
     let before = sim.positions(body).unwrap().len();
     // a particle in the middle of the box, gone without a word to the engine
@@ -424,12 +419,7 @@ fn a_particle_despawned_from_outside_is_removed_as_if_cut() {
 
 #[test]
 fn clusters_despawned_from_outside_are_forgotten_and_their_particles_covered_again() {
-    let mut config = builtin("drop", 0).unwrap().config;
-    config.check_invariants_every_frame = true;
-    let mut sim = Simulation::new(config).unwrap();
-    let body = sim
-        .spawn_body(&builtin("drop", 0).unwrap().bodies[0])
-        .unwrap();
+    let (mut sim, body) = checked_drop();
     sim.run(5);
     let clusters = sim.clusters(body).unwrap();
     // one cluster, then every cluster of one corner particle, gone without a word

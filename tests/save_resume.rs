@@ -7,17 +7,7 @@ use cleave::prelude::*;
 use cleave::scene::{Scene, builtin};
 
 fn start(scene: &Scene) -> Simulation {
-    let mut sim = Simulation::new(scene.config.clone()).unwrap();
-    for b in &scene.bodies {
-        sim.spawn_body(b).unwrap();
-    }
-    for t in &scene.tools {
-        sim.spawn_tool(t).unwrap();
-    }
-    for c in &scene.colliders {
-        sim.spawn_collider(c).unwrap();
-    }
-    sim
+    Simulation::from_scene(scene).unwrap()
 }
 
 /// Every body's particle positions and velocities (bits), cluster member lists and

@@ -8,16 +8,7 @@ use std::path::Path;
 use std::process::Command;
 
 fn positions_after(scene: &Scene, frames: u32) -> Vec<u32> {
-    let mut sim = Simulation::new(scene.config.clone()).unwrap();
-    for b in &scene.bodies {
-        sim.spawn_body(b).unwrap();
-    }
-    for t in &scene.tools {
-        sim.spawn_tool(t).unwrap();
-    }
-    for c in &scene.colliders {
-        sim.spawn_collider(c).unwrap();
-    }
+    let mut sim = Simulation::from_scene(scene).unwrap();
     sim.run(frames);
     let mut q = sim.world_mut().query::<(&Particle, &Position)>();
     let mut v: Vec<(u32, [f32; 3])> = q
