@@ -1,8 +1,8 @@
-//! Batched cluster fits: eight clusters of one colour are fitted at once, one per SIMD lane. Their members are gathered into
-//! rows (row `j` holds member `j` of every lane's cluster), the moment matrices are
-//! accumulated and the rotations extracted (Müller 2016, warm-started) eight wide, and
-//! every row's pull `R q + c − p` is computed eight wide and handed to the caller,
-//! which applies it member by member.
+//! Batched cluster fits: eight clusters of one colour are fitted at once, one per SIMD
+//! lane. Their members are gathered into rows (row `j` holds member `j` of every lane's
+//! cluster), the moment matrices are accumulated and the rotations extracted (Müller
+//! 2016, warm-started) eight wide, and every row's pull `R q + c − p` is computed eight
+//! wide and handed to the caller, which applies it member by member.
 //!
 //! Batches run in *groups*: one task runs a group's batches in order, and the groups of
 //! one colour share no particle, so they run in parallel. Gauss–Seidel groups batches of
