@@ -499,13 +499,17 @@ fn spawn_clusters(
     };
     let mut entities = Vec::with_capacity(table.len());
     for (_, members) in table.iter() {
-        let e = world.spawn_empty().id();
-        let key = clusters.keys.insert(e);
-        world.entity_mut(e).insert((
-            ClusterMembers(members.to_vec()),
-            ClusterOf { body, key },
-            Compliance(compliance),
-        ));
+        // (fresh keys count up from 0: the key is known before the entity)
+        let key = clusters.keys.len() as u32;
+        let e = world
+            .spawn((
+                ClusterMembers(members.to_vec()),
+                ClusterOf { body, key },
+                Compliance(compliance),
+            ))
+            .id();
+        let named = clusters.keys.insert(e);
+        debug_assert_eq!(named, key);
         clusters.index.add_cluster(key, members);
         entities.push(e);
     }

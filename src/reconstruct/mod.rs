@@ -53,7 +53,6 @@ pub fn rebuild_after_cut<S: ClusterStore>(
     material: &Material,
     rng: &mut impl Rng,
 ) -> Vec<u32> {
-    let max = material.max_cluster_size as usize;
     let produced = regroup(store, lattice, cut_clusters, rng);
     let split = split_oversized(
         store,
@@ -62,16 +61,42 @@ pub fn rebuild_after_cut<S: ClusterStore>(
         material.split_size() as usize,
         rng,
     );
+    expand_and_repair(
+        store,
+        lattice,
+        &split.clusters,
+        &split.parts,
+        &split.cut_edges,
+        material,
+        rng,
+    )
+}
+
+/// Steps 3 and 4 after steps 1–2 produced `clusters`: expands the split `parts`, covers
+/// the `cut_edges` the splits separated again, and removes the clusters that lie inside
+/// others around them. Returns the rebuilt clusters that remain, ascending.
+pub fn expand_and_repair<S: ClusterStore>(
+    store: &mut S,
+    lattice: &Lattice,
+    clusters: &[u32],
+    parts: &[u32],
+    cut_edges: &[(u32, u32)],
+    material: &Material,
+    rng: &mut impl Rng,
+) -> Vec<u32> {
+    let max = material.max_cluster_size as usize;
     expand_clusters(
         store,
         lattice,
-        &split.parts,
+        parts,
         material.expand_count as usize,
         max,
         rng,
     );
-    let mut rebuilt = split.clusters;
-    rebuilt.extend(cover_edge_list(store, lattice, &split.cut_edges, max));
+    let mut rebuilt = clusters.to_vec();
+    rebuilt.extend(cover_edge_list(store, lattice, cut_edges, max));
+    rebuilt.sort_unstable();
+    rebuilt.dedup();
     let removed = remove_contained(store, lattice.len(), &rebuilt);
     rebuilt.retain(|k| removed.binary_search(k).is_err());
     rebuilt
