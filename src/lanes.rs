@@ -1,9 +1,12 @@
 //! Eight-wide structure-of-arrays vectors, matrices and quaternions (one lane per
-//! cluster), so that the solver fits eight clusters with one stream of AVX instructions
-//! instead of eight scalar streams.
+//! cluster), so that the solver fits eight clusters with one stream of SIMD
+//! instructions instead of eight scalar streams.
 //!
-//! Plain maths on [`wide::f32x8`]; lane `l` of every value belongs to the same cluster.
+//! Plain maths, generic over the eight-lane float [`Lane`] (see [`crate::simd`]); lane
+//! `l` of every value belongs to the same cluster. Stored values use the default lane
+//! type, [`wide::f32x8`]; kernels load them into theirs with [`Vec3x8::load`].
 
+use crate::simd::Lane;
 use glam::{Mat3A, Quat, Vec3A};
 use wide::f32x8;
 
@@ -12,112 +15,79 @@ pub const LANES: usize = 8;
 
 /// Eight 3-vectors, one per lane.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct Vec3x8 {
+pub struct Vec3x8<L = f32x8> {
     /// x of every lane.
-    pub x: f32x8,
+    pub x: L,
     /// y of every lane.
-    pub y: f32x8,
+    pub y: L,
     /// z of every lane.
-    pub z: f32x8,
+    pub z: L,
 }
 
-impl Vec3x8 {
+impl<L: Lane> Vec3x8<L> {
     /// All lanes zero.
     pub const ZERO: Self = Self {
-        x: f32x8::ZERO,
-        y: f32x8::ZERO,
-        z: f32x8::ZERO,
+        x: L::ZERO,
+        y: L::ZERO,
+        z: L::ZERO,
     };
 
     /// The same vector in every lane.
     #[inline(always)]
     pub fn splat(v: Vec3A) -> Self {
         Self {
-            x: f32x8::splat(v.x),
-            y: f32x8::splat(v.y),
-            z: f32x8::splat(v.z),
+            x: L::splat(v.x),
+            y: L::splat(v.y),
+            z: L::splat(v.z),
+        }
+    }
+
+    /// A stored value in lanes `L`.
+    #[inline(always)]
+    pub fn load(v: &Vec3x8) -> Self {
+        Self {
+            x: L::from_stored(v.x),
+            y: L::from_stored(v.y),
+            z: L::from_stored(v.z),
+        }
+    }
+
+    /// The stored form of `self`.
+    #[inline(always)]
+    pub fn store(self) -> Vec3x8 {
+        Vec3x8 {
+            x: self.x.to_stored(),
+            y: self.y.to_stored(),
+            z: self.z.to_stored(),
         }
     }
 
     /// Gathers one vector per lane (a 4×8 transpose in registers on AVX).
     #[inline(always)]
     pub fn from_lanes(v: [Vec3A; LANES]) -> Self {
-        #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
-        // SAFETY: AVX is enabled at compile time (the cfg above).
-        unsafe {
-            use std::arch::x86_64::*;
-            let pair = |lo: Vec3A, hi: Vec3A| {
-                _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(lo.into()), hi.into())
-            };
-            // [a_l | a_{l+4}] for l = 0..4, then a 4×4 transpose in each 128-bit half
-            let (v0, v1, v2, v3) = (
-                pair(v[0], v[4]),
-                pair(v[1], v[5]),
-                pair(v[2], v[6]),
-                pair(v[3], v[7]),
-            );
-            let (xy01, zw01) = (_mm256_unpacklo_ps(v0, v1), _mm256_unpackhi_ps(v0, v1));
-            let (xy23, zw23) = (_mm256_unpacklo_ps(v2, v3), _mm256_unpackhi_ps(v2, v3));
-            Self {
-                x: _mm256_shuffle_ps::<0x44>(xy01, xy23).into(),
-                y: _mm256_shuffle_ps::<0xEE>(xy01, xy23).into(),
-                z: _mm256_shuffle_ps::<0x44>(zw01, zw23).into(),
-            }
-        }
-        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
-        Self {
-            x: f32x8::new(v.map(|v| v.x)),
-            y: f32x8::new(v.map(|v| v.y)),
-            z: f32x8::new(v.map(|v| v.z)),
-        }
+        let [x, y, z] = L::transpose_in(v);
+        Self { x, y, z }
     }
 
     /// One vector per lane: the inverse of [`Vec3x8::from_lanes`].
     #[inline(always)]
     pub fn to_lanes(self) -> [Vec3A; LANES] {
-        #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
-        // SAFETY: AVX is enabled at compile time (the cfg above).
-        unsafe {
-            use std::arch::x86_64::*;
-            let (x, y, z): (__m256, __m256, __m256) = (self.x.into(), self.y.into(), self.z.into());
-            let zero = _mm256_setzero_ps();
-            // [x y x y] and [z 0 z 0] pairs, then [x y z 0] per lane in each half
-            let (xy01, xy23) = (_mm256_unpacklo_ps(x, y), _mm256_unpackhi_ps(x, y));
-            let (z01, z23) = (_mm256_unpacklo_ps(z, zero), _mm256_unpackhi_ps(z, zero));
-            let v0 = _mm256_shuffle_ps::<0x44>(xy01, z01);
-            let v1 = _mm256_shuffle_ps::<0xEE>(xy01, z01);
-            let v2 = _mm256_shuffle_ps::<0x44>(xy23, z23);
-            let v3 = _mm256_shuffle_ps::<0xEE>(xy23, z23);
-            let (lo, hi) = (_mm256_castps256_ps128, _mm256_extractf128_ps::<1>);
-            [
-                lo(v0),
-                lo(v1),
-                lo(v2),
-                lo(v3),
-                hi(v0),
-                hi(v1),
-                hi(v2),
-                hi(v3),
-            ]
-            .map(Vec3A::from)
-        }
-        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
-        std::array::from_fn(|l| self.lane(l))
+        L::transpose_out([self.x, self.y, self.z])
     }
 
     /// The vector of lane `l`.
     #[inline(always)]
     pub fn lane(&self, l: usize) -> Vec3A {
         Vec3A::new(
-            self.x.as_array()[l],
-            self.y.as_array()[l],
-            self.z.as_array()[l],
+            self.x.to_array()[l],
+            self.y.to_array()[l],
+            self.z.to_array()[l],
         )
     }
 
     /// Every lane scaled by its own factor.
     #[inline(always)]
-    pub fn scale(self, s: f32x8) -> Self {
+    pub fn scale(self, s: L) -> Self {
         Self {
             x: self.x * s,
             y: self.y * s,
@@ -127,7 +97,7 @@ impl Vec3x8 {
 
     /// `self · s + c`, fused.
     #[inline(always)]
-    pub fn mul_add(self, s: f32x8, c: Self) -> Self {
+    pub fn mul_add(self, s: L, c: Self) -> Self {
         Self {
             x: self.x.mul_add(s, c.x),
             y: self.y.mul_add(s, c.y),
@@ -137,7 +107,7 @@ impl Vec3x8 {
 
     /// Lane-wise dot product.
     #[inline(always)]
-    pub fn dot(self, o: Self) -> f32x8 {
+    pub fn dot(self, o: Self) -> L {
         self.x.mul_add(o.x, self.y.mul_add(o.y, self.z * o.z))
     }
 
@@ -153,12 +123,12 @@ impl Vec3x8 {
 
     /// Largest absolute component per lane.
     #[inline(always)]
-    pub fn abs_max(self) -> f32x8 {
+    pub fn abs_max(self) -> L {
         self.x.abs().max(self.y.abs()).max(self.z.abs())
     }
 }
 
-impl std::ops::Add for Vec3x8 {
+impl<L: Lane> std::ops::Add for Vec3x8<L> {
     type Output = Self;
     #[inline(always)]
     fn add(self, o: Self) -> Self {
@@ -170,7 +140,7 @@ impl std::ops::Add for Vec3x8 {
     }
 }
 
-impl std::ops::Sub for Vec3x8 {
+impl<L: Lane> std::ops::Sub for Vec3x8<L> {
     type Output = Self;
     #[inline(always)]
     fn sub(self, o: Self) -> Self {
@@ -184,16 +154,16 @@ impl std::ops::Sub for Vec3x8 {
 
 /// Eight 3×3 matrices, stored by columns.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct Mat3x8 {
+pub struct Mat3x8<L = f32x8> {
     /// First column.
-    pub x_axis: Vec3x8,
+    pub x_axis: Vec3x8<L>,
     /// Second column.
-    pub y_axis: Vec3x8,
+    pub y_axis: Vec3x8<L>,
     /// Third column.
-    pub z_axis: Vec3x8,
+    pub z_axis: Vec3x8<L>,
 }
 
-impl Mat3x8 {
+impl<L: Lane> Mat3x8<L> {
     /// All lanes zero.
     pub const ZERO: Self = Self {
         x_axis: Vec3x8::ZERO,
@@ -203,26 +173,26 @@ impl Mat3x8 {
 
     /// `self · v` per lane.
     #[inline(always)]
-    pub fn mul_vec(&self, v: Vec3x8) -> Vec3x8 {
+    pub fn mul_vec(&self, v: Vec3x8<L>) -> Vec3x8<L> {
         self.z_axis
             .mul_add(v.z, self.y_axis.mul_add(v.y, self.x_axis.scale(v.x)))
     }
 
     /// Lane-wise `self · v + t`, as three fused multiply-adds per component.
     #[inline(always)]
-    pub fn mul_vec_add(&self, v: Vec3x8, t: Vec3x8) -> Vec3x8 {
+    pub fn mul_vec_add(&self, v: Vec3x8<L>, t: Vec3x8<L>) -> Vec3x8<L> {
         self.z_axis
             .mul_add(v.z, self.y_axis.mul_add(v.y, self.x_axis.mul_add(v.x, t)))
     }
 
     /// The rotation matrix of each lane's unit quaternion.
     #[inline(always)]
-    pub fn from_quat(q: Quatx8) -> Self {
+    pub fn from_quat(q: Quatx8<L>) -> Self {
         let (x2, y2, z2) = (q.x + q.x, q.y + q.y, q.z + q.z);
         let (xx, xy, xz) = (q.x * x2, q.x * y2, q.x * z2);
         let (yy, yz, zz) = (q.y * y2, q.y * z2, q.z * z2);
         let (wx, wy, wz) = (q.w * x2, q.w * y2, q.w * z2);
-        let one = f32x8::ONE;
+        let one = L::ONE;
         Self {
             x_axis: Vec3x8 {
                 x: one - (yy + zz),
@@ -254,26 +224,26 @@ impl Mat3x8 {
 
 /// Eight quaternions.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct Quatx8 {
+pub struct Quatx8<L = f32x8> {
     /// Vector part x.
-    pub x: f32x8,
+    pub x: L,
     /// Vector part y.
-    pub y: f32x8,
+    pub y: L,
     /// Vector part z.
-    pub z: f32x8,
+    pub z: L,
     /// Scalar part.
-    pub w: f32x8,
+    pub w: L,
 }
 
-impl Quatx8 {
+impl<L: Lane> Quatx8<L> {
     /// Gathers one quaternion per lane.
     #[inline(always)]
     pub fn from_lanes(q: [Quat; LANES]) -> Self {
         Self {
-            x: f32x8::new(q.map(|q| q.x)),
-            y: f32x8::new(q.map(|q| q.y)),
-            z: f32x8::new(q.map(|q| q.z)),
-            w: f32x8::new(q.map(|q| q.w)),
+            x: L::from_array(q.map(|q| q.x)),
+            y: L::from_array(q.map(|q| q.y)),
+            z: L::from_array(q.map(|q| q.z)),
+            w: L::from_array(q.map(|q| q.w)),
         }
     }
 
@@ -281,10 +251,10 @@ impl Quatx8 {
     #[inline(always)]
     pub fn lane(&self, l: usize) -> Quat {
         Quat::from_xyzw(
-            self.x.as_array()[l],
-            self.y.as_array()[l],
-            self.z.as_array()[l],
-            self.w.as_array()[l],
+            self.x.to_array()[l],
+            self.y.to_array()[l],
+            self.z.to_array()[l],
+            self.w.to_array()[l],
         )
     }
 
@@ -296,7 +266,7 @@ impl Quatx8 {
             self.y
                 .mul_add(self.y, self.z.mul_add(self.z, self.w * self.w)),
         );
-        let inv = f32x8::ONE / len2.sqrt();
+        let inv = L::ONE / len2.sqrt();
         Self {
             x: self.x * inv,
             y: self.y * inv,
@@ -308,7 +278,7 @@ impl Quatx8 {
     /// Lane-wise choice: `mask` lanes (all bits set) from `if_true`, the others from
     /// `if_false`.
     #[inline(always)]
-    pub fn select(mask: f32x8, if_true: Self, if_false: Self) -> Self {
+    pub fn select(mask: L, if_true: Self, if_false: Self) -> Self {
         Self {
             x: mask.select(if_true.x, if_false.x),
             y: mask.select(if_true.y, if_false.y),
@@ -318,7 +288,7 @@ impl Quatx8 {
     }
 }
 
-impl std::ops::Mul for Quatx8 {
+impl<L: Lane> std::ops::Mul for Quatx8<L> {
     type Output = Self;
     /// Hamilton product `self · o` per lane.
     #[inline(always)]
@@ -340,36 +310,49 @@ impl std::ops::Mul for Quatx8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::simd::{WithLanes, on_every_backend};
     use glam::Vec3;
+
+    /// The lanes against glam, lane by lane, with lanes `L`.
+    #[derive(Clone)]
+    struct MatchGlam;
+
+    impl WithLanes for MatchGlam {
+        type Output = ();
+        fn run<L: Lane>(self) {
+            let vs: [Vec3A; LANES] = std::array::from_fn(|l| {
+                Vec3A::new(l as f32, 1.0 - l as f32 * 0.5, 0.25 * l as f32)
+            });
+            let ws: [Vec3A; LANES] = std::array::from_fn(|l| Vec3A::new(0.5, l as f32, -2.0));
+            let qs: [Quat; LANES] = std::array::from_fn(|l| {
+                Quat::from_axis_angle(Vec3::new(1.0, l as f32, 2.0).normalize(), 0.3 * l as f32)
+            });
+            let (v, w, q) = (
+                Vec3x8::<L>::from_lanes(vs),
+                Vec3x8::from_lanes(ws),
+                Quatx8::from_lanes(qs),
+            );
+            let m = Mat3x8::from_quat(q);
+            let product = q * Quatx8::from_lanes(qs.map(|q| q.inverse()));
+            for l in 0..LANES {
+                assert_eq!(v.to_lanes()[l], vs[l]);
+                assert_eq!(v.lane(l), vs[l]);
+                assert!(v.cross(w).lane(l).abs_diff_eq(vs[l].cross(ws[l]), 1e-5));
+                assert!((v.dot(w).to_array()[l] - vs[l].dot(ws[l])).abs() < 1e-5);
+                assert!(m.lane(l).abs_diff_eq(Mat3A::from_quat(qs[l]), 1e-6));
+                assert!(m.mul_vec(v).lane(l).abs_diff_eq(qs[l] * vs[l], 1e-5));
+                let t = Vec3A::new(0.5, -2.0, 3.0) * l as f32;
+                let moved = m.mul_vec_add(v, Vec3x8::<L>::from_lanes([t; LANES]));
+                assert!(moved.lane(l).abs_diff_eq(qs[l] * vs[l] + t, 1e-5));
+                assert!(product.lane(l).abs_diff_eq(Quat::IDENTITY, 1e-6));
+                assert!((v.abs_max().to_array()[l] - vs[l].abs().max_element()).abs() == 0.0);
+            }
+        }
+    }
 
     #[test]
     fn lanes_match_glam() {
-        let vs: [Vec3A; LANES] =
-            std::array::from_fn(|l| Vec3A::new(l as f32, 1.0 - l as f32 * 0.5, 0.25 * l as f32));
-        let ws: [Vec3A; LANES] = std::array::from_fn(|l| Vec3A::new(0.5, l as f32, -2.0));
-        let qs: [Quat; LANES] = std::array::from_fn(|l| {
-            Quat::from_axis_angle(Vec3::new(1.0, l as f32, 2.0).normalize(), 0.3 * l as f32)
-        });
-        let (v, w, q) = (
-            Vec3x8::from_lanes(vs),
-            Vec3x8::from_lanes(ws),
-            Quatx8::from_lanes(qs),
-        );
-        let m = Mat3x8::from_quat(q);
-        let product = q * Quatx8::from_lanes(qs.map(|q| q.inverse()));
-        for l in 0..LANES {
-            assert_eq!(v.to_lanes()[l], vs[l]);
-            assert_eq!(v.lane(l), vs[l]);
-            assert!(v.cross(w).lane(l).abs_diff_eq(vs[l].cross(ws[l]), 1e-5));
-            assert!((v.dot(w).as_array()[l] - vs[l].dot(ws[l])).abs() < 1e-5);
-            assert!(m.lane(l).abs_diff_eq(Mat3A::from_quat(qs[l]), 1e-6));
-            assert!(m.mul_vec(v).lane(l).abs_diff_eq(qs[l] * vs[l], 1e-5));
-            let t = Vec3A::new(0.5, -2.0, 3.0) * l as f32;
-            let moved = m.mul_vec_add(v, Vec3x8::from_lanes([t; LANES]));
-            assert!(moved.lane(l).abs_diff_eq(qs[l] * vs[l] + t, 1e-5));
-            assert!(product.lane(l).abs_diff_eq(Quat::IDENTITY, 1e-6));
-            assert!((v.abs_max().as_array()[l] - vs[l].abs().max_element()).abs() == 0.0);
-        }
+        on_every_backend(MatchGlam);
     }
 }
 

@@ -92,6 +92,7 @@ pub mod save;
 pub mod scene;
 pub mod scene_file;
 pub mod sim;
+pub mod simd;
 pub mod solver;
 pub mod static_solve;
 pub mod stats;

@@ -4,8 +4,8 @@
 //! Always returns a unit quaternion (a proper rotation), never NaN, for any input.
 
 use crate::lanes::{Mat3x8, Quatx8, Vec3x8};
+use crate::simd::Lane;
 use glam::{Mat3A, Quat, Vec3A};
-use wide::f32x8;
 
 /// The unit quaternion in the direction of `q`, whatever its length; `None` when `q` is
 /// not finite or is zero. Scaling by the largest component first keeps the length from
@@ -73,14 +73,18 @@ pub fn warm_start(warm: Quat) -> Quat {
 /// update is negligible or non-finite, keeps its current rotation). The warm starts
 /// must be unit quaternions (see [`warm_start`]).
 #[inline(always)]
-pub fn extract_rotation_x8(a: &Mat3x8, warm: Quatx8, max_iterations: u32) -> Quatx8 {
+pub fn extract_rotation_x8<L: Lane>(
+    a: &Mat3x8<L>,
+    warm: Quatx8<L>,
+    max_iterations: u32,
+) -> Quatx8<L> {
     let scale = a
         .x_axis
         .abs_max()
         .max(a.y_axis.abs_max())
         .max(a.z_axis.abs_max());
-    let mut active = scale.is_finite() & scale.simd_gt(f32x8::ZERO);
-    let epsilon = scale * f32x8::splat(1e-9);
+    let mut active = scale.is_finite() & scale.simd_gt(L::ZERO);
+    let epsilon = scale * L::splat(1e-9);
     let mut q = warm;
     for _ in 0..max_iterations {
         if !active.any() {
@@ -89,9 +93,9 @@ pub fn extract_rotation_x8(a: &Mat3x8, warm: Quatx8, max_iterations: u32) -> Qua
         let r = Mat3x8::from_quat(q);
         let omega = r.x_axis.cross(a.x_axis) + r.y_axis.cross(a.y_axis) + r.z_axis.cross(a.z_axis);
         let dot = r.x_axis.dot(a.x_axis) + r.y_axis.dot(a.y_axis) + r.z_axis.dot(a.z_axis);
-        let omega = omega.scale(f32x8::ONE / (dot.abs() + epsilon));
+        let omega = omega.scale(L::ONE / (dot.abs() + epsilon));
         let w2 = omega.dot(omega);
-        active = active & w2.simd_gt(f32x8::splat(1e-18)) & w2.is_finite();
+        active = active & w2.simd_gt(L::splat(1e-18)) & w2.is_finite();
         let turned = (exp_map_x8(omega, w2) * q).normalize();
         q = Quatx8::select(active, turned, q);
     }
@@ -100,17 +104,16 @@ pub fn extract_rotation_x8(a: &Mat3x8, warm: Quatx8, max_iterations: u32) -> Qua
 
 /// [`exp_map`] per lane.
 #[inline(always)]
-fn exp_map_x8(omega: Vec3x8, w2: f32x8) -> Quatx8 {
-    let x2 = w2 * f32x8::splat(0.25);
-    let sin_over_w = f32x8::splat(0.5)
-        * (f32x8::ONE - x2 / f32x8::splat(6.0) * (f32x8::ONE - x2 / f32x8::splat(20.0)));
-    let cos = f32x8::ONE - x2 * f32x8::splat(0.5) * (f32x8::ONE - x2 / f32x8::splat(12.0));
-    let small = w2.simd_lt(f32x8::ONE);
+fn exp_map_x8<L: Lane>(omega: Vec3x8<L>, w2: L) -> Quatx8<L> {
+    let x2 = w2 * L::splat(0.25);
+    let sin_over_w = L::splat(0.5) * (L::ONE - x2 / L::splat(6.0) * (L::ONE - x2 / L::splat(20.0)));
+    let cos = L::ONE - x2 * L::splat(0.5) * (L::ONE - x2 / L::splat(12.0));
+    let small = w2.simd_lt(L::ONE);
     let (sin_over_w, cos) = if small.all() {
         (sin_over_w, cos)
     } else {
         let w = w2.sqrt();
-        let (sin, exact_cos) = (w * f32x8::splat(0.5)).sin_cos();
+        let (sin, exact_cos) = (w * L::splat(0.5)).sin_cos();
         (
             small.select(sin_over_w, sin / w),
             small.select(cos, exact_cos),
@@ -146,6 +149,7 @@ fn exp_map(omega: Vec3A, w2: f32) -> Quat {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::simd::{WithLanes, on_every_backend};
     use glam::{Mat3, Vec3};
 
     #[test]
@@ -182,18 +186,29 @@ mod tests {
             assert!(q.dot(exact).abs() > 1.0 - 1e-6, "{w}: {q} vs {exact}");
         }
     }
+    /// [`exp_map_x8`] against [`exp_map`], with lanes `L`.
+    #[derive(Clone)]
+    struct ExpMapLanes;
+
+    impl WithLanes for ExpMapLanes {
+        type Output = ();
+        fn run<L: Lane>(self) {
+            for w in [1e-4f32, 0.1, 0.5, 0.99, 1.0, 1.5, 2.0, 3.0, 10.0, 100.0] {
+                let axis = Vec3A::new(0.3, -0.5, 0.8).normalize();
+                let lanes = exp_map_x8(Vec3x8::<L>::from_lanes([axis * w; 8]), L::splat(w * w));
+                let scalar = exp_map(axis * w, w * w);
+                assert!(
+                    lanes.lane(3).abs_diff_eq(scalar, 1e-6),
+                    "{w}: {} vs {scalar}",
+                    lanes.lane(3)
+                );
+            }
+        }
+    }
+
     #[test]
     fn exp_map_lanes_match_the_scalar_map() {
-        for w in [1e-4f32, 0.1, 0.5, 0.99, 1.0, 1.5, 2.0, 3.0, 10.0, 100.0] {
-            let axis = Vec3A::new(0.3, -0.5, 0.8).normalize();
-            let lanes = exp_map_x8(Vec3x8::from_lanes([axis * w; 8]), f32x8::splat(w * w));
-            let scalar = exp_map(axis * w, w * w);
-            assert!(
-                lanes.lane(3).abs_diff_eq(scalar, 1e-6),
-                "{w}: {} vs {scalar}",
-                lanes.lane(3)
-            );
-        }
+        on_every_backend(ExpMapLanes);
     }
 
     use rand::{Rng, SeedableRng};
@@ -233,55 +248,68 @@ mod tests {
         }
     }
 
-    #[test]
-    fn eight_lanes_match_the_scalar_extraction() {
-        let mut rng = ChaCha8Rng::seed_from_u64(9);
-        for round in 0..200 {
-            // lanes 0–3 degenerate, the others rotations times a positive stretch, warm
-            // started within 0.6 rad of their rotation (as a solver's warm starts are:
-            // far from it, one iteration is ill-conditioned in any precision)
-            let mut warm = [Quat::IDENTITY; 8];
-            let mats: [Mat3; 8] = std::array::from_fn(|l| {
-                let r = random_rotation(&mut rng);
-                let near = Quat::from_axis_angle(
-                    Vec3::from_array(std::array::from_fn(|_| rng.random_range(-1.0..1.0)))
-                        .try_normalize()
-                        .unwrap_or(Vec3::X),
-                    rng.random_range(0.0..0.6),
-                );
-                warm[l] = (near * r).normalize();
-                match (round + l) % 8 {
-                    0 => Mat3::ZERO,
-                    1 => Mat3::from_cols(Vec3::NAN, Vec3::X, Vec3::Y),
-                    2 => Mat3::from_quat(r) * 1e-30,
-                    3 => Mat3::from_quat(r) * 1e30,
-                    _ => {
-                        let u = Mat3::from_quat(random_rotation(&mut rng));
-                        let s =
-                            Vec3::from_array(std::array::from_fn(|_| rng.random_range(0.3..3.0)));
-                        Mat3::from_quat(r) * u * Mat3::from_diagonal(s) * u.transpose()
-                    }
-                }
-            });
-            let a = Mat3x8 {
-                x_axis: Vec3x8::from_lanes(mats.map(|m| Vec3A::from(m.x_axis))),
-                y_axis: Vec3x8::from_lanes(mats.map(|m| Vec3A::from(m.y_axis))),
-                z_axis: Vec3x8::from_lanes(mats.map(|m| Vec3A::from(m.z_axis))),
-            };
-            for iterations in [1, 4] {
-                let q = extract_rotation_x8(&a, Quatx8::from_lanes(warm), iterations);
-                for l in 0..8 {
-                    let scalar = extract_rotation(Mat3A::from(mats[l]), warm[l], iterations);
-                    assert!(is_proper(q.lane(l)), "{:?}", mats[l]);
-                    assert!(
-                        q.lane(l).dot(scalar).abs() > 1.0 - 1e-5,
-                        "{:?}: {} vs {scalar}",
-                        mats[l],
-                        q.lane(l)
+    /// [`extract_rotation_x8`] against [`extract_rotation`] on random and degenerate
+    /// matrices, with lanes `L`.
+    #[derive(Clone)]
+    struct ExtractionLanes;
+
+    impl WithLanes for ExtractionLanes {
+        type Output = ();
+        fn run<L: Lane>(self) {
+            let mut rng = ChaCha8Rng::seed_from_u64(9);
+            for round in 0..200 {
+                // lanes 0–3 degenerate, the others rotations times a positive stretch, warm
+                // started within 0.6 rad of their rotation (as a solver's warm starts are:
+                // far from it, one iteration is ill-conditioned in any precision)
+                let mut warm = [Quat::IDENTITY; 8];
+                let mats: [Mat3; 8] = std::array::from_fn(|l| {
+                    let r = random_rotation(&mut rng);
+                    let near = Quat::from_axis_angle(
+                        Vec3::from_array(std::array::from_fn(|_| rng.random_range(-1.0..1.0)))
+                            .try_normalize()
+                            .unwrap_or(Vec3::X),
+                        rng.random_range(0.0..0.6),
                     );
+                    warm[l] = (near * r).normalize();
+                    match (round + l) % 8 {
+                        0 => Mat3::ZERO,
+                        1 => Mat3::from_cols(Vec3::NAN, Vec3::X, Vec3::Y),
+                        2 => Mat3::from_quat(r) * 1e-30,
+                        3 => Mat3::from_quat(r) * 1e30,
+                        _ => {
+                            let u = Mat3::from_quat(random_rotation(&mut rng));
+                            let s = Vec3::from_array(std::array::from_fn(|_| {
+                                rng.random_range(0.3..3.0)
+                            }));
+                            Mat3::from_quat(r) * u * Mat3::from_diagonal(s) * u.transpose()
+                        }
+                    }
+                });
+                let a = Mat3x8 {
+                    x_axis: Vec3x8::<L>::from_lanes(mats.map(|m| Vec3A::from(m.x_axis))),
+                    y_axis: Vec3x8::from_lanes(mats.map(|m| Vec3A::from(m.y_axis))),
+                    z_axis: Vec3x8::from_lanes(mats.map(|m| Vec3A::from(m.z_axis))),
+                };
+                for iterations in [1, 4] {
+                    let q = extract_rotation_x8(&a, Quatx8::from_lanes(warm), iterations);
+                    for l in 0..8 {
+                        let scalar = extract_rotation(Mat3A::from(mats[l]), warm[l], iterations);
+                        assert!(is_proper(q.lane(l)), "{:?}", mats[l]);
+                        assert!(
+                            q.lane(l).dot(scalar).abs() > 1.0 - 1e-5,
+                            "{:?}: {} vs {scalar}",
+                            mats[l],
+                            q.lane(l)
+                        );
+                    }
                 }
             }
         }
+    }
+
+    #[test]
+    fn eight_lanes_match_the_scalar_extraction() {
+        on_every_backend(ExtractionLanes);
     }
 
     #[test]

@@ -27,6 +27,7 @@ use super::template::Template;
 use super::{CLUSTERS_PER_TASK, FREE_SLOT, PATCH_HEADROOM, SolverLayout};
 use crate::lanes::{LANES, Mat3x8, Quatx8, Vec3x8};
 use crate::rotation::extract_rotation_x8;
+use crate::simd::{Lane, WithLanes, dispatch};
 use glam::{Quat, Vec3A};
 use rayon::prelude::*;
 use wide::f32x8;
@@ -66,6 +67,31 @@ pub(super) const PARTICLE_BYTES: u32 = size_of::<Vec3A>() as u32;
 
 /// The members' positions of one row during a fit: scratch of one task.
 pub(super) type FitRow = Vec3x8;
+
+/// What a solver scheme does with one batch: generic over the lane type, so that each
+/// group of batches runs with the backend [`dispatch`] picks.
+pub(super) trait BatchKernel: Sync {
+    /// Runs batch `b` with lanes `L` (inline it: see [`WithLanes::run`]); `fit_rows` is
+    /// scratch for [`SolverLayout::fit_batch`].
+    fn batch<L: Lane>(&self, b: usize, fit_rows: &mut Vec<FitRow>);
+}
+
+/// One group's batches in order: the unit of work [`dispatch`] hands to a backend.
+struct GroupRun<'a, K> {
+    kernel: &'a K,
+    group: Group,
+    fit_rows: &'a mut Vec<FitRow>,
+}
+
+impl<K: BatchKernel> WithLanes for GroupRun<'_, K> {
+    type Output = ();
+    #[inline(always)]
+    fn run<L: Lane>(self) {
+        for b in self.group[0]..self.group[1] {
+            self.kernel.batch::<L>(b as usize, self.fit_rows);
+        }
+    }
+}
 
 /// One row's result of a fit, handed to the caller member by member.
 pub(super) struct RowPulls<'a> {
@@ -540,17 +566,18 @@ impl SolverLayout {
         self.batches = batches;
     }
 
-    /// Runs `f(batch, fit_rows)` for every batch, colour after colour; the groups of
-    /// one colour run in parallel (they share no particle), each group's batches in
-    /// order. `fit_rows` is scratch for [`Self::fit_batch`].
-    pub(super) fn for_each_batch_by_colour(&self, f: impl Fn(usize, &mut Vec<FitRow>) + Sync) {
+    /// Runs `kernel` on every batch, colour after colour; the groups of one colour run
+    /// in parallel (they share no particle), each group's batches in order.
+    pub(super) fn for_each_batch_by_colour(&self, kernel: &impl BatchKernel) {
         for groups in &self.batches.of_colour {
             groups
                 .par_iter()
-                .for_each_init(Vec::new, |fit_rows, group| {
-                    for b in group[0]..group[1] {
-                        f(b as usize, fit_rows);
-                    }
+                .for_each_init(Vec::new, |fit_rows, &group| {
+                    dispatch(GroupRun {
+                        kernel,
+                        group,
+                        fit_rows,
+                    })
                 });
         }
     }
@@ -611,7 +638,7 @@ impl SolverLayout {
     /// batch's members once their rows' positions were gathered (all rows are gathered
     /// before the first `apply`).
     #[inline(always)]
-    pub(super) unsafe fn fit_batch(
+    pub(super) unsafe fn fit_batch<L: Lane>(
         &self,
         b: usize,
         fit_rows: &mut Vec<FitRow>,
@@ -641,8 +668,8 @@ impl SolverLayout {
         // (a templated batch broadcasts the template's: no per-lane reads, no transpose)
         let (bias, inv_weight_sum) = if templated {
             (
-                Vec3x8::splat(template.bias),
-                f32x8::splat(template.inv_weight_sum),
+                Vec3x8::<L>::splat(template.bias),
+                L::splat(template.inv_weight_sum),
             )
         } else {
             let (mut bias, mut inv_weight_sum) = ([Vec3A::ZERO; LANES], [0.0f32; LANES]);
@@ -652,28 +679,37 @@ impl SolverLayout {
                     inv_weight_sum[l] = self.inv_weight_sum[k as usize];
                 }
             }
-            (Vec3x8::from_lanes(bias), f32x8::new(inv_weight_sum))
+            (Vec3x8::from_lanes(bias), L::from_array(inv_weight_sum))
         };
-        // SAFETY: particle indices were bounds-checked when the layout was built; the
-        // positions are not written during the call (the caller's contract).
-        let gather = |at: &ParticleRow| unsafe {
-            let p = |l: usize| *positions.byte_add(at[l] as usize);
+        /// The positions of a row's particles (a function, not a closure, so that it is
+        /// inlined into the backend's code).
+        ///
+        /// # Safety
+        /// `positions` holds every particle of `at`, and no task writes them.
+        #[inline(always)]
+        unsafe fn gather<L: Lane>(positions: *const Vec3A, at: &ParticleRow) -> Vec3x8<L> {
+            let p = |l: usize| unsafe { *positions.byte_add(at[l] as usize) };
             Vec3x8::from_lanes([p(0), p(1), p(2), p(3), p(4), p(5), p(6), p(7)])
-        };
+        }
         let Some(first) = particles.first() else {
             return;
         };
-        let origin = gather(first);
+        // SAFETY (both gathers): particle indices were bounds-checked when the layout
+        // was built; the positions are not written during the call (the caller's
+        // contract).
+        let origin = unsafe { gather::<L>(positions, first) };
         let mut sum = Vec3x8::ZERO;
         let mut a = Mat3x8::ZERO;
         let rows = particles.iter().zip(moments);
         for ((at, row), position) in rows.clone().zip(fit_rows.iter_mut()) {
-            *position = gather(at);
-            let d = (*position - origin).scale(row.weight);
+            let p = unsafe { gather::<L>(positions, at) };
+            *position = p.store();
+            let offset = Vec3x8::<L>::load(&row.offset);
+            let d = (p - origin).scale(L::from_stored(row.weight));
             sum = sum + d;
-            a.x_axis = d.mul_add(row.offset.x, a.x_axis);
-            a.y_axis = d.mul_add(row.offset.y, a.y_axis);
-            a.z_axis = d.mul_add(row.offset.z, a.z_axis);
+            a.x_axis = d.mul_add(offset.x, a.x_axis);
+            a.y_axis = d.mul_add(offset.y, a.y_axis);
+            a.z_axis = d.mul_add(offset.z, a.z_axis);
         }
         let q = extract_rotation_x8(&a, Quatx8::from_lanes(warm), self.rotation_iterations());
         for (l, &k) in lanes.iter().enumerate() {
@@ -688,9 +724,9 @@ impl SolverLayout {
         for (j, ((at, row), position)) in rows.zip(fit_rows.iter()).enumerate() {
             // members have a positive weight, padding rows weight 0: their pull is
             // masked to exactly zero
-            let member = row.weight.simd_gt(f32x8::ZERO) & f32x8::ONE;
-            let goal = r.mul_vec_add(row.offset, centroid);
-            let pull = (goal - *position).scale(member);
+            let member = L::from_stored(row.weight).simd_gt(L::ZERO) & L::ONE;
+            let goal = r.mul_vec_add(Vec3x8::load(&row.offset), centroid);
+            let pull = (goal - Vec3x8::load(position)).scale(member);
             apply(RowPulls {
                 at,
                 position,

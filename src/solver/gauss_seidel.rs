@@ -14,10 +14,11 @@
 //! keeps each cluster's step free of momentum.
 
 use super::SolverLayout;
-use super::batch::PARTICLE_BYTES;
+use super::batch::{BatchKernel, FitRow, PARTICLE_BYTES};
 use super::sweep::Disjoint;
 use crate::lanes::LANES;
-use glam::Vec3A;
+use crate::simd::Lane;
+use glam::{Quat, Vec3A};
 
 impl SolverLayout {
     /// One sweep over all colours: every cluster (eight at a time) is fitted to the
@@ -52,42 +53,71 @@ impl SolverLayout {
         let this = &*self;
         // `self`'s other arrays are only read; positions, carries and rotations go
         // through the `Disjoint` pointers (no reference to them is alive in a colour).
-        this.for_each_batch_by_colour(|b, fit_rows| {
-            // each lane's cluster's compliance over dt² (unread when no cluster is)
-            let compliance = if COMPLIANT {
-                this.lane_clusters(b)
-                    .map(|k| k.map_or(0.0, |k| this.compliance[k] * inv_dt2))
-            } else {
-                [0.0; LANES]
-            };
-            let first_row = this.first_row(b);
-            // SAFETY (both blocks): this task owns the batch's clusters, their rotations,
-            // their membership rows and their members' positions and carries for the
-            // colour (see `Disjoint`); member indices were bounds-checked when the
-            // layout was built.
-            unsafe {
-                this.fit_batch(b, fit_rows, positions.as_ptr(), rotations, |row| {
-                    for (l, &compliance) in compliance.iter().enumerate() {
-                        let m = (row.at[l] / PARTICLE_BYTES) as usize;
-                        let inv_mass = this.inv_mass[m];
-                        if row.row < row.size[l] as usize && inv_mass != 0.0 {
-                            let step = if COMPLIANT {
-                                let at = (first_row + row.row) * LANES + l;
-                                // β = α mᵢ / (dt² wᵢ)
-                                let beta = compliance / (inv_mass * this.inv_count[m]);
-                                let done = membership_carry.read(at);
-                                let step = (row.pull[l] - done * beta) / (1.0 + beta);
-                                membership_carry.write(at, done + step);
-                                step
-                            } else {
-                                row.pull[l]
-                            };
-                            positions.write(m, row.position.lane(l) + step);
-                            carry.write(m, carry.read(m) + step);
-                        }
-                    }
-                })
-            };
+        this.for_each_batch_by_colour(&SweepKernel::<COMPLIANT> {
+            layout: this,
+            inv_dt2,
+            positions,
+            carry,
+            membership_carry,
+            rotations,
         });
+    }
+}
+
+/// A sweep's work on one batch (see [`SolverLayout::sweep_colours`]).
+struct SweepKernel<'a, const COMPLIANT: bool> {
+    layout: &'a SolverLayout,
+    /// `1/dt²`.
+    inv_dt2: f32,
+    /// Per particle: its position.
+    positions: Disjoint<Vec3A>,
+    /// Per particle: its moves this substep.
+    carry: Disjoint<Vec3A>,
+    /// Per membership row and lane: its correction this substep (compliant only).
+    membership_carry: Disjoint<Vec3A>,
+    /// Per cluster: its warm-start rotation.
+    rotations: Disjoint<Quat>,
+}
+
+impl<const COMPLIANT: bool> BatchKernel for SweepKernel<'_, COMPLIANT> {
+    #[inline(always)]
+    fn batch<L: Lane>(&self, b: usize, fit_rows: &mut Vec<FitRow>) {
+        let this = self.layout;
+        let (positions, carry, membership_carry) =
+            (self.positions, self.carry, self.membership_carry);
+        // each lane's cluster's compliance over dt² (unread when no cluster is)
+        let compliance = if COMPLIANT {
+            this.lane_clusters(b)
+                .map(|k| k.map_or(0.0, |k| this.compliance[k] * self.inv_dt2))
+        } else {
+            [0.0; LANES]
+        };
+        let first_row = this.first_row(b);
+        // SAFETY (both blocks): this task owns the batch's clusters, their rotations,
+        // their membership rows and their members' positions and carries for the colour
+        // (see `Disjoint`); member indices were bounds-checked when the layout was built.
+        unsafe {
+            this.fit_batch::<L>(b, fit_rows, positions.as_ptr(), self.rotations, |row| {
+                for (l, &compliance) in compliance.iter().enumerate() {
+                    let m = (row.at[l] / PARTICLE_BYTES) as usize;
+                    let inv_mass = this.inv_mass[m];
+                    if row.row < row.size[l] as usize && inv_mass != 0.0 {
+                        let step = if COMPLIANT {
+                            let at = (first_row + row.row) * LANES + l;
+                            // β = α mᵢ / (dt² wᵢ)
+                            let beta = compliance / (inv_mass * this.inv_count[m]);
+                            let done = membership_carry.read(at);
+                            let step = (row.pull[l] - done * beta) / (1.0 + beta);
+                            membership_carry.write(at, done + step);
+                            step
+                        } else {
+                            row.pull[l]
+                        };
+                        positions.write(m, row.position.lane(l) + step);
+                        carry.write(m, carry.read(m) + step);
+                    }
+                }
+            })
+        };
     }
 }

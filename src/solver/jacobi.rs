@@ -4,9 +4,11 @@
 //! particle sums its pulls in a fixed order for any thread count); then every particle
 //! moves by its step (see [`step_coefficients`]).
 
+use super::batch::{BatchKernel, FitRow};
 use super::sweep::Disjoint;
 use super::{PARTICLES_PER_TASK, SolverLayout};
-use glam::Vec3A;
+use crate::simd::Lane;
+use glam::{Quat, Vec3A};
 use rayon::prelude::*;
 
 impl SolverLayout {
@@ -16,40 +18,10 @@ impl SolverLayout {
         let pulls = Disjoint::new(&mut self.pulls);
         let rotations = Disjoint::new(&mut self.rotations);
         let this = &*self;
-        this.for_each_batch_by_colour(|b, fit_rows| {
-            // A lane in use adds every row, padding too: a padding row's pull is zero
-            // and its particle the lane's own first member. An unused lane's particles
-            // may belong to other tasks' clusters: it adds nothing. Lanes may share a
-            // particle: their pulls are added one after another.
-            let used = this.lanes_in_use(b);
-            // SAFETY (this block and the two below): this task owns the group's
-            // clusters, their rotations and their members' pulls for the colour (see
-            // `Disjoint`); `add` is only called with members of the group's clusters,
-            // whose indices were bounds-checked when the layout was built.
-            // (`move`: a copy of the pointer, which the writes through it cannot change)
-            let add = move |at: u32, pull| unsafe {
-                pulls.write_at(at, pulls.read_at(at) + pull);
-            };
-            let positions = this.positions.as_ptr();
-            // (two calls rather than a test per lane: most batches are full)
-            if used.iter().all(|u| *u) {
-                unsafe {
-                    this.fit_batch(b, fit_rows, positions, rotations, |row| {
-                        for (&at, &pull) in row.at.iter().zip(&row.pull) {
-                            add(at, pull);
-                        }
-                    })
-                };
-            } else {
-                unsafe {
-                    this.fit_batch(b, fit_rows, positions, rotations, |row| {
-                        let lanes = row.at.iter().zip(&row.pull).zip(&used);
-                        for ((&at, &pull), _) in lanes.filter(|(_, in_use)| **in_use) {
-                            add(at, pull);
-                        }
-                    })
-                };
-            }
+        this.for_each_batch_by_colour(&PullKernel {
+            layout: this,
+            pulls,
+            rotations,
         });
     }
 
@@ -167,6 +139,55 @@ fn move_block<const ANCHORED: bool>(moving: Moving, c: Coefficients) {
         *pull = Vec3A::ZERO;
         *p += step;
         *carry += step;
+    }
+}
+
+/// The cluster pass's work on one batch (see [`SolverLayout::accumulate_pulls`]).
+struct PullKernel<'a> {
+    layout: &'a SolverLayout,
+    /// Per particle: the sum of its clusters' pulls.
+    pulls: Disjoint<Vec3A>,
+    /// Per cluster: its warm-start rotation.
+    rotations: Disjoint<Quat>,
+}
+
+impl BatchKernel for PullKernel<'_> {
+    #[inline(always)]
+    fn batch<L: Lane>(&self, b: usize, fit_rows: &mut Vec<FitRow>) {
+        let (this, pulls) = (self.layout, self.pulls);
+        // A lane in use adds every row, padding too: a padding row's pull is zero and
+        // its particle the lane's own first member. An unused lane's particles may
+        // belong to other tasks' clusters: it adds nothing. Lanes may share a particle:
+        // their pulls are added one after another.
+        let used = this.lanes_in_use(b);
+        // SAFETY (this block and the two below): this task owns the group's clusters,
+        // their rotations and their members' pulls for the colour (see `Disjoint`);
+        // `add` is only called with members of the group's clusters, whose indices were
+        // bounds-checked when the layout was built.
+        // (`move`: a copy of the pointer, which the writes through it cannot change)
+        let add = move |at: u32, pull| unsafe {
+            pulls.write_at(at, pulls.read_at(at) + pull);
+        };
+        let positions = this.positions.as_ptr();
+        // (two calls rather than a test per lane: most batches are full)
+        if used.iter().all(|u| *u) {
+            unsafe {
+                this.fit_batch::<L>(b, fit_rows, positions, self.rotations, |row| {
+                    for (&at, &pull) in row.at.iter().zip(&row.pull) {
+                        add(at, pull);
+                    }
+                })
+            };
+        } else {
+            unsafe {
+                this.fit_batch::<L>(b, fit_rows, positions, self.rotations, |row| {
+                    let lanes = row.at.iter().zip(&row.pull).zip(&used);
+                    for ((&at, &pull), _) in lanes.filter(|(_, in_use)| **in_use) {
+                        add(at, pull);
+                    }
+                })
+            };
+        }
     }
 }
 
