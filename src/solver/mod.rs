@@ -438,10 +438,15 @@ impl SolverLayout {
     /// shape whatever the iteration count, instead of sagging until an unconverged
     /// iteration happens to balance gravity.
     pub fn solve(&mut self, iterations: u32, dt: f32, kinds: &mut ConstraintKinds) {
-        self.predicted.clone_from(&self.positions);
-        self.begin_substep(dt, iterations);
-        self.iterate(iterations, dt, kinds);
-        self.finish_substep();
+        // Called from outside rayon's pool (a user's thread, an ECS executor), each of
+        // the solve's many parallel loops would hand its work to the pool and sleep until
+        // it is done; the solve moves onto a pool thread once instead.
+        rayon::scope(|_| {
+            self.predicted.clone_from(&self.positions);
+            self.begin_substep(dt, iterations);
+            self.iterate(iterations, dt, kinds);
+            self.finish_substep();
+        })
     }
 
     /// The iterations of [`Self::solve`], continuing from the current positions toward
