@@ -110,28 +110,21 @@ struct Coefficients<'a> {
 }
 
 /// The particle pass over one block: `p += step`, `carry += step` with
-/// `step = σ·pull + a·(s + k − p)`, pulls cleared. With AVX, two particles at a time: a
-/// pair of `Vec3A`s fills one eight-lane vector (their fourth lanes ride along and are
-/// never read), so each operation moves two particles. Every lane computes exactly
-/// what the one-particle loop does. `ANCHORED`: whether the `a` term is computed (when
-/// every `a` is 0 it adds nothing).
+/// `step = σ·pull + a·(s + k − p)`, pulls cleared. `ANCHORED`: whether the `a` term is
+/// computed (when every `a` is 0 it adds nothing).
 fn move_block<const ANCHORED: bool>(moving: Moving, c: Coefficients) {
     let Moving {
         positions,
         carry,
         pulls,
     } = moving;
-    #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
-    let first = pairs::move_pairs::<ANCHORED>(positions, carry, pulls, c);
-    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
-    let first = 0;
-    let rest = positions[first..]
+    let particles = positions
         .iter_mut()
-        .zip(&mut carry[first..])
-        .zip(&mut pulls[first..])
-        .zip(c.predicted[first..].iter().zip(&c.pushed[first..]))
-        .zip(c.scale[first..].iter().zip(&c.anchor[first..]));
-    for ((((p, carry), pull), (&s, &pushed)), (&scale, &anchor)) in rest {
+        .zip(carry)
+        .zip(pulls)
+        .zip(c.predicted.iter().zip(c.pushed))
+        .zip(c.scale.iter().zip(c.anchor));
+    for ((((p, carry), pull), (&s, &pushed)), (&scale, &anchor)) in particles {
         let mut step = *pull * scale;
         if ANCHORED {
             step += (s + pushed - *p) * anchor;
@@ -191,142 +184,10 @@ impl BatchKernel for PullKernel<'_> {
     }
 }
 
-/// The particle pass two particles at a time (see [`move_block`]).
-#[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
-mod pairs {
-    use super::Coefficients;
-    use glam::Vec3A;
-    use std::arch::x86_64::*;
-    use wide::f32x8;
-
-    /// Moves the particles of `positions` in pairs; returns the index of the first
-    /// particle left (the last one of an odd count).
-    #[inline(always)]
-    pub(super) fn move_pairs<const ANCHORED: bool>(
-        positions: &mut [Vec3A],
-        carry: &mut [Vec3A],
-        pulls: &mut [Vec3A],
-        c: Coefficients,
-    ) -> usize {
-        let (position_pairs, _) = positions.as_chunks_mut::<2>();
-        let (carry_pairs, _) = carry.as_chunks_mut::<2>();
-        let (pull_pairs, _) = pulls.as_chunks_mut::<2>();
-        let (predicted_pairs, _) = c.predicted.as_chunks::<2>();
-        let (pushed_pairs, _) = c.pushed.as_chunks::<2>();
-        let (scale_pairs, _) = c.scale.as_chunks::<2>();
-        let (anchor_pairs, _) = c.anchor.as_chunks::<2>();
-        let done = 2 * position_pairs.len();
-        let pairs = position_pairs
-            .iter_mut()
-            .zip(carry_pairs.iter_mut())
-            .zip(pull_pairs.iter_mut())
-            .zip(predicted_pairs.iter().zip(pushed_pairs))
-            .zip(scale_pairs.iter().zip(anchor_pairs));
-        for ((((p, carry), pull), (s, pushed)), (scale, anchor)) in pairs {
-            let position = load(p);
-            let mut step = load(pull) * widen(scale);
-            if ANCHORED {
-                let target = load(s) + load(pushed);
-                step += (target - position) * widen(anchor);
-            }
-            *pull = [Vec3A::ZERO; 2];
-            store(p, position + step);
-            store(carry, load(carry) + step);
-        }
-        done
-    }
-
-    /// Two particles' scalars, each over its particle's four lanes.
-    #[inline(always)]
-    fn widen(x: &[f32; 2]) -> f32x8 {
-        f32x8::new([x[0], x[0], x[0], x[0], x[1], x[1], x[1], x[1]])
-    }
-
-    /// Two `Vec3A`s as one eight-lane vector.
-    #[inline(always)]
-    fn load(v: &[Vec3A; 2]) -> f32x8 {
-        // SAFETY: AVX is enabled at compile time (the module's cfg).
-        unsafe { _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(v[0].into()), v[1].into()) }
-            .into()
-    }
-
-    /// The two halves of an eight-lane vector into two `Vec3A`s.
-    #[inline(always)]
-    fn store(v: &mut [Vec3A; 2], x: f32x8) {
-        let x: __m256 = x.into();
-        // SAFETY: AVX is enabled at compile time (the module's cfg).
-        unsafe {
-            v[0] = _mm256_castps256_ps128(x).into();
-            v[1] = _mm256_extractf128_ps::<1>(x).into();
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
-
-    /// The one-particle rule the pass applies to every particle.
-    fn moved_one_by_one(moving: Moving, c: Coefficients) {
-        for i in 0..moving.positions.len() {
-            let p = moving.positions[i];
-            let target = c.predicted[i] + c.pushed[i];
-            let step = moving.pulls[i] * c.scale[i] + (target - p) * c.anchor[i];
-            // (`+ 0·x` is exact: the unanchored pass may skip it)
-            moving.pulls[i] = Vec3A::ZERO;
-            moving.positions[i] = p + step;
-            moving.carry[i] += step;
-        }
-    }
-
-    #[test]
-    fn the_pairwise_pass_moves_every_particle_as_the_one_particle_rule() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
-        let mut v = || Vec3A::new(rng.random_range(-50.0..50.0), rng.random(), rng.random());
-        for n in [0usize, 1, 2, 7, 64] {
-            let positions: Vec<Vec3A> = (0..n).map(|_| v()).collect();
-            let carry: Vec<Vec3A> = (0..n).map(|_| v()).collect();
-            let predicted: Vec<Vec3A> = (0..n).map(|_| v()).collect();
-            let pushed: Vec<Vec3A> = (0..n).map(|_| v()).collect();
-            let mut pulls: Vec<Vec3A> = (0..n).map(|_| v()).collect();
-            // every third particle pinned, every other one compliant
-            let (scale, anchor): (Vec<f32>, Vec<f32>) = (0..n)
-                .map(|i| {
-                    let inv_mass = (i % 3 != 1) as u8 as f32;
-                    let inertia = if i % 2 == 0 { 0.0 } else { 0.3 * i as f32 };
-                    step_coefficients(1.0 / (1 + i % 8) as f32, inertia, inv_mass)
-                })
-                .unzip();
-            let c = Coefficients {
-                predicted: &predicted,
-                pushed: &pushed,
-                scale: &scale,
-                anchor: &anchor,
-            };
-            for poison in [false, true] {
-                if poison && n > 0 {
-                    pulls[n - 1] = Vec3A::new(f32::NAN, 0.0, 0.0);
-                    pulls[n / 2] = Vec3A::new(0.0, f32::INFINITY, 0.0);
-                }
-                let (mut p1, mut c1, mut u1) = (positions.clone(), carry.clone(), pulls.clone());
-                let (mut p2, mut c2, mut u2) = (positions.clone(), carry.clone(), pulls.clone());
-                let moving = |positions, carry, pulls| Moving {
-                    positions,
-                    carry,
-                    pulls,
-                };
-                move_block::<true>(moving(&mut p1, &mut c1, &mut u1), c);
-                moved_one_by_one(moving(&mut p2, &mut c2, &mut u2), c);
-                let bits = |v: &[Vec3A]| -> Vec<[u32; 3]> {
-                    v.iter().map(|x| x.to_array().map(f32::to_bits)).collect()
-                };
-                assert_eq!(bits(&p1), bits(&p2), "positions, n = {n}");
-                assert_eq!(bits(&c1), bits(&c2), "carry, n = {n}");
-                assert_eq!(bits(&u1), bits(&u2), "pulls, n = {n}");
-            }
-        }
-    }
 
     #[test]
     fn the_unanchored_pass_equals_the_anchored_one_when_every_anchor_is_zero() {
