@@ -33,6 +33,8 @@ pub trait Lane:
     + BitAnd<Output = Self>
     + sealed::Sealed
 {
+    /// The backend's name, as [`backend`] reports it.
+    const NAME: &'static str;
     /// All lanes 0.
     const ZERO: Self;
     /// All lanes 1.
@@ -86,6 +88,7 @@ mod sealed {
 }
 
 impl Lane for f32x8 {
+    const NAME: &'static str = "portable";
     const ZERO: Self = f32x8::ZERO;
     const ONE: Self = f32x8::ONE;
     #[inline(always)]
@@ -203,10 +206,16 @@ pub fn dispatch<T: WithLanes>(task: T) -> T::Output {
     }
 }
 
-/// Runs `task` with the portable backend, whatever the CPU has (for tests that compare
-/// the backends).
-pub fn dispatch_portable<T: WithLanes>(task: T) -> T::Output {
-    task.run::<f32x8>()
+/// The backend [`dispatch`] runs on this CPU: `"avx2+fma"` or `"portable"`.
+pub fn backend() -> &'static str {
+    struct Name;
+    impl WithLanes for Name {
+        type Output = &'static str;
+        fn run<L: Lane>(self) -> &'static str {
+            L::NAME
+        }
+    }
+    dispatch(Name)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -276,6 +285,7 @@ mod avx2 {
     binary!(BitAnd, bitand, _mm256_and_ps);
 
     impl Lane for Avx2 {
+        const NAME: &'static str = "avx2+fma";
         const ZERO: Self = from_floats([0.0; 8]);
         const ONE: Self = from_floats([1.0; 8]);
         #[inline(always)]
@@ -428,7 +438,7 @@ mod avx2 {
 /// Runs `task` with every backend this CPU has, portable first (for tests).
 #[cfg(test)]
 pub(crate) fn on_every_backend<T: WithLanes + Clone>(task: T) -> Vec<T::Output> {
-    let mut outputs = vec![dispatch_portable(task.clone())];
+    let mut outputs = vec![task.clone().run::<f32x8>()];
     #[cfg(target_arch = "x86_64")]
     if avx2::available() {
         // SAFETY: the CPU has AVX2 and FMA (just checked).
@@ -536,10 +546,16 @@ mod tests {
                 }
             }
         }
-        #[cfg(target_arch = "x86_64")]
-        if avx2::available() {
-            let outputs = on_every_backend(EveryOperation([[1.0; 8]; 3]));
-            assert_eq!(outputs.len(), 2, "an AVX2 machine tests both backends");
-        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn a_cpu_with_avx2_and_fma_runs_the_avx2_backend() {
+        let avx2 = std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("fma");
+        let expected = if avx2 { "avx2+fma" } else { "portable" };
+        assert_eq!(backend(), expected);
+        let outputs = on_every_backend(EveryOperation([[1.0; 8]; 3]));
+        assert_eq!(outputs.len(), 1 + usize::from(avx2), "every backend tested");
     }
 }

@@ -41,12 +41,13 @@ pub fn bench(
     sizes.dedup();
     if !json {
         println!(
-            "cleave bench: {}, {} substeps × {} iterations, {} timed steps, {} thread(s)",
+            "cleave bench: {}, {} substeps × {} iterations, {} timed steps, {} thread(s), {} lanes",
             config.solver,
             config.substeps,
             config.iterations,
             steps,
-            rayon::current_num_threads()
+            rayon::current_num_threads(),
+            cleave::simd::backend()
         );
         println!(
             "{:>5} {:>9} {:>8} {:>11} {:>10} {:>9} {:>10} {:>9} {:>7} {:>8} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>11} {:>10} {:>9}",
