@@ -7,12 +7,16 @@
 //!   default x86-64 build);
 //! - `Avx2` on x86-64: one 256-bit register, fused multiply-adds.
 //!
-//! A crate that depends on cleave is built for the x86-64 baseline unless its author
-//! sets a target CPU, so the backend is picked at run time: [`dispatch`] runs a
-//! [`WithLanes`] task inside a function compiled for AVX2 and FMA when the CPU has
-//! them, and with `f32x8` otherwise. Every `Lane` method is `#[inline(always)]`, so a
-//! task's whole kernel is compiled into that function with the 256-bit instructions.
-//! A build that already targets AVX2 and FMA picks `Avx2` at compile time.
+//! Cargo builds for the x86-64 baseline unless whoever builds the program sets a target
+//! CPU, so the backend is picked at run time: [`dispatch`] runs a [`WithLanes`] task
+//! inside a function compiled for AVX2 and FMA when the CPU has them, and with `f32x8`
+//! otherwise. Every `Lane` method is `#[inline(always)]`, so a task's whole kernel is
+//! compiled into that function with the 256-bit instructions. A build that already
+//! targets AVX2 and FMA picks `Avx2` at compile time.
+//!
+//! A closure is compiled as a function of its own, without the caller's target
+//! features: code that computes with lanes inside a kernel goes in `#[inline(always)]`
+//! functions, not closures, or every lane operation in it becomes a call.
 
 use glam::Vec3A;
 use std::ops::{Add, BitAnd, Div, Mul, Sub};
@@ -175,8 +179,9 @@ pub trait WithLanes {
     /// What the task returns.
     type Output;
     /// Runs the task with lanes `L`. Implementations should be `#[inline(always)]`, and
-    /// so should everything they call that computes with `L`, so that the whole kernel
-    /// is compiled for the backend's instruction set.
+    /// so should everything they call that computes with `L` (no closures: see the
+    /// module docs), so that the whole kernel is compiled for the backend's
+    /// instruction set.
     fn run<L: Lane>(self) -> Self::Output;
 }
 
