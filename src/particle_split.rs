@@ -20,15 +20,26 @@ pub struct SplitPlan {
 }
 
 /// Plans the splits of the `candidates` (live particles a split blade passes through,
-/// ascending, each with the blade's plane), reading only: an edge from a candidate goes
-/// to its new half when the neighbour lies across the plane (on the other side by more
-/// than rounding: a neighbour on the plane, in the candidate's own layer, stays) and the
-/// blade's sweep `crosses` the edge; an edge between two candidates across the plane is
-/// severed instead (the blade passes between them), and so is every such edge of a
-/// candidate the plane passes more than a quarter cell from (near its cell's face, the
-/// halves' rest places, a quarter cell either side of the centre, would lie on one side).
-/// A candidate without such an edge stays whole: a particle the blade passed once is
-/// not split again.
+/// ascending, each with the blade's plane), reading only.
+///
+/// A particle belongs to the side of the plane where its neighbours lie on balance (the
+/// sign of the sum of their signed distances), or, when they balance, where it lies
+/// itself; with all six neighbours at rest, that is the side of its own position. The
+/// plan's plane for a candidate is oriented so that its side is the positive one.
+///
+/// An edge from a candidate goes to its new half when the neighbour belongs to the
+/// other side (one on the plane, within rounding, as in the candidate's own layer,
+/// stays) and the blade's sweep `crosses` the edge; an edge between two candidates on
+/// different sides is severed instead (the blade passes between them), and so is every
+/// such edge of a candidate the plane passes more than a quarter cell from (near its
+/// cell's face, the halves' rest places, a quarter cell either side of the centre, would
+/// lie on one side). A candidate without such an edge stays whole.
+///
+/// Sides by the neighbours make a split final: a half of a particle the blade split,
+/// and each of its neighbours, keeps belonging to its side however close to the plane
+/// it drifts while the blade still passes (by its own position alone, a particle on the
+/// plane would flip sides as the body moves, and each flip would strip its edges to a
+/// new half, leaving single particles behind).
 pub fn plan_splits(
     lattice: &Lattice,
     candidates: &[(u32, BladePlane)],
@@ -36,19 +47,30 @@ pub fn plan_splits(
     crosses: impl Fn(u32, u32) -> bool,
 ) -> SplitPlan {
     let tolerance = 1e-3 * lattice.spacing();
+    // the side of the plane a particle belongs to: where its neighbours lie on balance,
+    // else where it lies; `None` on the plane, within rounding
+    let side = |p: u32, plane: &BladePlane| {
+        let links = lattice.links(p);
+        let live = links.iter().filter(|&&q| q != NO_PARTICLE);
+        let balance: f32 = live.map(|&q| plane.distance(position(q))).sum();
+        let own = plane.distance(position(p));
+        [balance, own]
+            .into_iter()
+            .find(|d| d.abs() > tolerance)
+            .map(|d| d > 0.0)
+    };
     let is_candidate = |q: u32| candidates.binary_search_by_key(&q, |(c, _)| *c).is_ok();
     let mut plan = SplitPlan::default();
     for &(p, plane) in candidates {
         let dp = plane.distance(position(p));
-        let side = dp >= 0.0;
+        let p_side = side(p, &plane).unwrap_or(dp >= 0.0);
         let near_face = dp.abs() >= 0.25 * lattice.spacing();
         let mut moves = [false; 6];
         for (d, q) in lattice.links(p).into_iter().enumerate() {
-            if q == NO_PARTICLE {
-                continue;
-            }
-            let dq = plane.distance(position(q));
-            if dq.abs() <= tolerance || (dq >= 0.0) == side || !crosses(p, q) {
+            if q == NO_PARTICLE
+                || side(q, &plane).is_none_or(|q_side| q_side == p_side)
+                || !crosses(p, q)
+            {
                 continue;
             }
             if is_candidate(q) || near_face {
@@ -59,6 +81,7 @@ pub fn plan_splits(
                 moves[d] = true;
             }
         }
+        let plane = if p_side { plane } else { plane.flipped() };
         if moves.iter().any(|m| *m) {
             plan.splits.push((p, moves, plane));
         }
@@ -88,12 +111,15 @@ pub fn apply_splits(lattice: &mut Lattice, plan: &SplitPlan) -> (Pairs, Pairs) {
     (pairs, severed)
 }
 
-/// Where the far half of a particle at `x` goes: its mirror image across the plane, at
-/// least `gap` from the plane on the far side, so that the halves never coincide.
-pub fn far_position(x: Vec3, plane: &BladePlane, gap: f32) -> Vec3 {
+/// Where the halves of a particle at `x` go, `(kept, new)`, for a plan's plane (whose
+/// positive side the particle keeps): the kept half on the positive side (mirrored
+/// across the plane when the particle lies on the other), the new half at its mirror
+/// image, at least `gap` beyond the plane, so that the halves never coincide.
+pub fn split_positions(x: Vec3, plane: &BladePlane, gap: f32) -> (Vec3, Vec3) {
     let d = plane.distance(x);
-    let far = if d >= 0.0 { -d.max(gap) } else { (-d).max(gap) };
-    x + (far - d) * plane.normal
+    let kept = x - (d - d.abs()) * plane.normal;
+    let new = kept - (d.abs() + d.abs().max(gap)) * plane.normal;
+    (kept, new)
 }
 
 #[cfg(test)]
@@ -141,10 +167,69 @@ mod tests {
             assert!(lattice.neighbours(old).all(|q| lattice.coord(q).x >= 0));
             assert!(lattice.neighbours(new).all(|q| lattice.coord(q).x <= 0));
             let x = rest[old as usize];
-            let y = far_position(x, &plane, 0.05);
+            let (kept, y) = split_positions(x, &plane, 0.05);
+            assert_eq!(kept, x, "on its own side already");
             assert!(
                 (plane.distance(y) + plane.distance(x)).abs() < 1e-6 && plane.distance(y) < 0.0
             );
         }
+    }
+
+    #[test]
+    fn the_halves_go_to_their_sides_of_the_plane() {
+        let plane = BladePlane {
+            normal: Vec3::new(0.6, 0.8, 0.0),
+            offset: 1.0,
+        };
+        for d in [-0.3f32, -0.02, 0.0, 0.02, 0.3] {
+            let x = Vec3::new(1.0, 0.5, -2.0) + d * plane.normal;
+            let (kept, new) = split_positions(x, &plane, 0.05);
+            // the kept half on the positive side, mirrored there when it was not
+            assert!((plane.distance(kept) - d.abs()).abs() < 1e-5, "{d}: {kept}");
+            assert!(
+                (plane.distance(new) + d.abs().max(0.05)).abs() < 1e-5,
+                "{d}: {new}"
+            );
+            // both along the normal through x
+            assert!((kept - x).cross(plane.normal).length() < 1e-5);
+            assert!((new - x).cross(plane.normal).length() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn a_half_that_drifts_across_the_plane_is_not_split_again() {
+        let mut lattice = Shape::cuboid(UVec3::new(6, 2, 2), 1.0)
+            .voxelise(1.0)
+            .unwrap();
+        let plane = BladePlane {
+            normal: Vec3::X,
+            offset: 0.4,
+        };
+        let layer: Vec<(u32, BladePlane)> = lattice
+            .live_particles()
+            .filter(|&p| lattice.coord(p).x == 0)
+            .map(|p| (p, plane))
+            .collect();
+        let rest: Vec<Vec3> = (0..lattice.len() as u32)
+            .map(|p| lattice.rest_position(p))
+            .collect();
+        let plan = plan_splits(&lattice, &layer, |p| rest[p as usize], |_, _| true);
+        let (pairs, _) = apply_splits(&mut lattice, &plan);
+        assert_eq!(pairs.len(), 4);
+        // the blade still passes; the halves drift: the kept ones just across the plane
+        // (by their own position on the far side, with all their edges on the near one)
+        let mut position: Vec<Vec3> = (0..lattice.len() as u32)
+            .map(|p| lattice.rest_position(p))
+            .collect();
+        let mut halves = Vec::new();
+        for &(old, new) in &pairs {
+            position[old as usize].x = 0.38;
+            position[new as usize].x = 0.3;
+            halves.extend([(old, plane), (new, plane)]);
+        }
+        halves.sort_unstable_by_key(|(p, _)| *p);
+        let again = plan_splits(&lattice, &halves, |p| position[p as usize], |_, _| true);
+        assert_eq!(again, SplitPlan::default(), "no half splits again");
+        assert_eq!(lattice.piece_count(), 2);
     }
 }

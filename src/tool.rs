@@ -159,6 +159,14 @@ impl BladePlane {
     pub fn distance(&self, x: Vec3) -> f32 {
         self.normal.dot(x) - self.offset
     }
+
+    /// The same plane with its sides swapped.
+    pub fn flipped(&self) -> Self {
+        Self {
+            normal: -self.normal,
+            offset: -self.offset,
+        }
+    }
 }
 
 /// A rigid pose.

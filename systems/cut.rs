@@ -12,7 +12,7 @@ use crate::carve::carve;
 use crate::components::{
     Body, BodyLattice, InvMass, Particle, ParticleClusters, Position, PrevPosition, Velocity,
 };
-use crate::particle_split::{Pairs, apply_splits, far_position};
+use crate::particle_split::{Pairs, apply_splits, split_positions};
 use crate::resources::{
     BodyCut, BodyCutReport, BodySplit, CutList, CutReport, EdgesSevered, ParticlesCut,
     ParticlesSplit,
@@ -21,10 +21,11 @@ use crate::tear::sever_keeping_pieces;
 use bevy_ecs::prelude::*;
 use std::borrow::Cow;
 
-/// Particle data the stage reads, and the masses it halves.
+/// Particle data the stage reads, and the positions it moves and masses it halves when
+/// it splits particles.
 type ParticleState = (
-    &'static Position,
-    &'static PrevPosition,
+    &'static mut Position,
+    &'static mut PrevPosition,
     &'static Velocity,
     &'static mut InvMass,
 );
@@ -145,9 +146,10 @@ pub fn cut(
     }
 }
 
-/// Splits the cut's split particles of `body` ([`split_particles`]): spawns each new
-/// half at the mirror image of its particle across the blade (at least a tenth of a
-/// cell beyond it), with the same velocity, and halves both masses. Returns the
+/// Splits the cut's split particles of `body` ([`split_particles`]): puts each
+/// particle on the side of the blade it keeps and spawns its new half at its mirror
+/// image (at least a tenth of a cell beyond the blade; see [`split_positions`]), with the
+/// same velocity, and halves both masses. Returns the
 /// `(particle, new half)` pairs and the edges severed between split particles.
 fn split(
     commands: &mut Commands,
@@ -168,11 +170,16 @@ fn split(
             .binary_search_by_key(&old, |(p, ..)| *p)
             .map(|k| cut.splits.splits[k].2)
             .expect("a split particle has its plane");
-        let Ok((x, prev, v, mut inv_mass)) = particles.get_mut(body.particles[old as usize]) else {
+        let Ok((mut x, mut prev, v, mut inv_mass)) =
+            particles.get_mut(body.particles[old as usize])
+        else {
             continue;
         };
         inv_mass.0 *= 2.0;
-        let far = far_position(x.0, &plane, gap);
+        let (kept, far) = split_positions(x.0, &plane, gap);
+        // (moved with its previous position: no velocity from the move)
+        prev.0 += kept - x.0;
+        x.0 = kept;
         let entity = commands
             .spawn((
                 Particle {
