@@ -22,9 +22,11 @@ pub struct SplitPlan {
 /// Plans the splits of the `candidates` (live particles a split blade passes through,
 /// ascending, each with the blade's plane), reading only.
 ///
-/// A particle belongs to the side of the plane where its neighbours lie on balance (the
-/// sign of the sum of their signed distances), or, when they balance, where it lies
-/// itself; with all six neighbours at rest, that is the side of its own position. The
+/// A particle belongs to the side of the plane where its lattice stencil lies on
+/// balance: the sign of the sum of its six neighbours' signed distances, a missing
+/// neighbour counted at the particle's own place (and its own place decides when they
+/// balance). With all six neighbours at rest, that is the side of its own position; a
+/// half whose neighbours all lie on one side belongs there wherever it drifts. The
 /// plan's plane for a candidate is oriented so that its side is the positive one.
 ///
 /// An edge from a candidate goes to its new half when the neighbour belongs to the
@@ -47,13 +49,18 @@ pub fn plan_splits(
     crosses: impl Fn(u32, u32) -> bool,
 ) -> SplitPlan {
     let tolerance = 1e-3 * lattice.spacing();
-    // the side of the plane a particle belongs to: where its neighbours lie on balance,
-    // else where it lies; `None` on the plane, within rounding
+    // the side of the plane a particle belongs to (see the docs); `None` on the plane,
+    // within rounding
     let side = |p: u32, plane: &BladePlane| {
-        let links = lattice.links(p);
-        let live = links.iter().filter(|&&q| q != NO_PARTICLE);
-        let balance: f32 = live.map(|&q| plane.distance(position(q))).sum();
         let own = plane.distance(position(p));
+        let balance: f32 = lattice
+            .links(p)
+            .iter()
+            .map(|&q| match q {
+                NO_PARTICLE => own,
+                q => plane.distance(position(q)),
+            })
+            .sum();
         [balance, own]
             .into_iter()
             .find(|d| d.abs() > tolerance)
