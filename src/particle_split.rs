@@ -135,24 +135,31 @@ mod tests {
     use crate::lattice::Shape;
     use glam::UVec3;
 
-    #[test]
-    fn a_split_layer_parts_a_bar_into_two_pieces_without_losing_particles() {
-        let mut lattice = Shape::cuboid(UVec3::new(6, 2, 2), 1.0)
+    /// A 6×2×2 bar, a blade across x = 0.4 (through the layer of cells whose centres lie
+    /// at 0.5), that layer as candidates, and the rest positions.
+    fn bar_and_layer() -> (Lattice, BladePlane, Vec<(u32, BladePlane)>, Vec<Vec3>) {
+        let lattice = Shape::cuboid(UVec3::new(6, 2, 2), 1.0)
             .voxelise(1.0)
             .unwrap();
-        let before = lattice.live_count();
-        // a blade across x = 0.4, through the layer of cells whose centres lie at 0.5
         let plane = BladePlane {
             normal: Vec3::X,
             offset: 0.4,
         };
-        let layer: Vec<(u32, BladePlane)> = lattice
+        let layer = lattice
             .live_particles()
             .filter(|&p| lattice.coord(p).x == 0)
             .map(|p| (p, plane))
             .collect();
-        let at = |p: u32| lattice.rest_position(p);
-        let rest: Vec<Vec3> = (0..lattice.len() as u32).map(at).collect();
+        let rest = (0..lattice.len() as u32)
+            .map(|p| lattice.rest_position(p))
+            .collect();
+        (lattice, plane, layer, rest)
+    }
+
+    #[test]
+    fn a_split_layer_parts_a_bar_into_two_pieces_without_losing_particles() {
+        let (mut lattice, plane, layer, rest) = bar_and_layer();
+        let before = lattice.live_count();
         let plan = plan_splits(&lattice, &layer, |p| rest[p as usize], |_, _| true);
         // an edge the blade does not cross stays
         assert!(
@@ -205,21 +212,7 @@ mod tests {
 
     #[test]
     fn a_half_that_drifts_across_the_plane_is_not_split_again() {
-        let mut lattice = Shape::cuboid(UVec3::new(6, 2, 2), 1.0)
-            .voxelise(1.0)
-            .unwrap();
-        let plane = BladePlane {
-            normal: Vec3::X,
-            offset: 0.4,
-        };
-        let layer: Vec<(u32, BladePlane)> = lattice
-            .live_particles()
-            .filter(|&p| lattice.coord(p).x == 0)
-            .map(|p| (p, plane))
-            .collect();
-        let rest: Vec<Vec3> = (0..lattice.len() as u32)
-            .map(|p| lattice.rest_position(p))
-            .collect();
+        let (mut lattice, plane, layer, rest) = bar_and_layer();
         let plan = plan_splits(&lattice, &layer, |p| rest[p as usize], |_, _| true);
         let (pairs, _) = apply_splits(&mut lattice, &plan);
         assert_eq!(pairs.len(), 4);

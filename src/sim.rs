@@ -290,7 +290,7 @@ impl Simulation {
 pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
     desc.shape.validate()?;
     check_positive("tool.cut_width", desc.cut_width)?;
-    let pose = starting_pose(world, "tool", &desc.path, desc.pose)?;
+    let (pose, path) = starting_pose(world, "tool", &desc.path, desc.pose)?;
     let tool = Tool {
         shape: desc.shape,
         cut_width: desc.cut_width,
@@ -300,26 +300,27 @@ pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
         current: pose,
         last: pose,
     };
-    Ok(spawn_keyframed(world, (tool, at), &desc.path, ToolPath))
+    Ok(spawn_keyframed(world, (tool, at), path, ToolPath))
 }
 
 /// Spawns `object`, with the component `follow` makes of `path` when it has keys.
 fn spawn_keyframed<C: Component>(
     world: &mut World,
     object: impl Bundle,
-    path: &Path,
+    path: Path,
     follow: impl FnOnce(Path) -> C,
 ) -> Entity {
     let mut e = world.spawn(object);
     if !path.keys.is_empty() {
-        e.insert(follow(path.normalized()));
+        e.insert(follow(path));
     }
     e.id()
 }
 
 /// Checks a keyframed object's `path` and `pose` (errors name `what`) and returns its
-/// pose at the world's current time: the path's, or `pose` without a path.
-fn starting_pose(world: &World, what: &str, path: &Path, pose: Pose) -> Result<Pose> {
+/// pose at the world's current time (the path's, or `pose` without a path) and the path
+/// with unit rotations.
+fn starting_pose(world: &World, what: &str, path: &Path, pose: Pose) -> Result<(Pose, Path)> {
     path.validate(what)?;
     check_vec_within(
         &format!("{what}.pose.position"),
@@ -335,10 +336,9 @@ fn starting_pose(world: &World, what: &str, path: &Path, pose: Pose) -> Result<P
         )
     })?;
     let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time);
-    Ok(path
-        .normalized()
-        .sample(now as f32)
-        .unwrap_or(Pose { rotation, ..pose }))
+    let path = path.normalized();
+    let pose = path.sample(now as f32).unwrap_or(Pose { rotation, ..pose });
+    Ok((pose, path))
 }
 
 /// Spawns a collider into any world prepared with [`crate::systems::install`].
@@ -351,7 +351,7 @@ pub fn spawn_collider(world: &mut World, desc: &ColliderDesc) -> Result<Entity> 
         100.0,
         "0 ≤ friction ≤ 100",
     )?;
-    let pose = starting_pose(world, "collider", &desc.path, desc.pose)?;
+    let (pose, path) = starting_pose(world, "collider", &desc.path, desc.pose)?;
     let collider = Collider {
         shape: desc.shape.clone(),
         friction: desc.friction,
@@ -360,12 +360,7 @@ pub fn spawn_collider(world: &mut World, desc: &ColliderDesc) -> Result<Entity> 
         current: pose,
         last: pose,
     };
-    Ok(spawn_keyframed(
-        world,
-        (collider, at),
-        &desc.path,
-        ColliderPath,
-    ))
+    Ok(spawn_keyframed(world, (collider, at), path, ColliderPath))
 }
 
 /// Particle slots of the bodies already in `world` (live or cut).

@@ -9,9 +9,9 @@ use crate::components::*;
 use crate::config::SolverMode;
 use crate::lattice::Lattice;
 use crate::resources::{
-    BodyCutReport, BodyDense, ClusterSlots, LayoutUpdate, SolverCache, dense_owner,
+    BodyCutReport, BodyDense, ClusterSlots, CutReport, LayoutUpdate, SimSettings, SolverCache,
+    dense_owner,
 };
-use crate::resources::{CutReport, SimSettings};
 use crate::solver::{ClusterSpec, SolverLayout};
 use bevy_ecs::prelude::*;
 use glam::Quat;
