@@ -1,10 +1,10 @@
 //! A full slice cut event (regroup + split + expand + edge-cover repair) on 32³ and 64³
 //! bodies, against re-clustering the cut body from scratch with the initial clustering.
 
-use cleave::cluster_store::{ClusterStore, ClusterTable};
-use cleave::clustering::initial_clusters;
+use cleave::body::lattice::{Lattice, Shape};
+use cleave::clusters::clustering::initial_clusters;
+use cleave::clusters::store::{ClusterStore, ClusterTable};
 use cleave::config::Material;
-use cleave::lattice::{Lattice, Shape};
 use cleave::reconstruct::rebuild_after_cut;
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use glam::UVec3;

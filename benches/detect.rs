@@ -4,10 +4,10 @@
 //! of `particles_hit` against testing every particle (in parallel too); and the edge
 //! test of a severing blade (`edges_separated`).
 
-use cleave::components::Tool;
-use cleave::detection::{ToolSweep, edges_separated, particles_hit};
-use cleave::lattice::Shape;
-use cleave::tool::{CutMode, Pose, ToolShape};
+use cleave::body::lattice::Shape;
+use cleave::cut::detection::{ToolSweep, edges_separated, particles_hit};
+use cleave::cut::tool::{CutMode, Pose, ToolShape};
+use cleave::ecs::components::Tool;
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{Quat, UVec3, Vec3, Vec3A};
 use rayon::prelude::*;

@@ -28,7 +28,7 @@ pub enum SolverMode {
     Projective,
 }
 
-crate::named_enum::named_enum!(SolverMode, "solver", [
+crate::util::named_enum::named_enum!(SolverMode, "solver", [
     Jacobi => "jacobi",
     GaussSeidel => "gauss-seidel",
     Projective => "projective",
@@ -82,7 +82,7 @@ pub struct SimConfig {
     /// Run `check_invariants` after every frame and panic on a violation (tests, debugging).
     pub check_invariants_every_frame: bool,
     /// Memory one body may take, in GB (0.001–1024): a body whose lattice could hold
-    /// more particles than this allows, at [`crate::lattice::BYTES_PER_PARTICLE`] each, is
+    /// more particles than this allows, at [`crate::body::lattice::BYTES_PER_PARTICLE`] each, is
     /// refused before anything is allocated.
     pub memory_budget_gb: f32,
 }
@@ -104,7 +104,7 @@ impl Default for SimConfig {
             contacts: true,
             seed: 0,
             check_invariants_every_frame: false,
-            memory_budget_gb: crate::lattice::DEFAULT_MEMORY_BUDGET_GB,
+            memory_budget_gb: crate::body::lattice::DEFAULT_MEMORY_BUDGET_GB,
         }
     }
 }
@@ -228,7 +228,7 @@ pub struct Material {
     /// (particles more than two lattice cells apart).
     pub self_contact: bool,
     /// The largest principal stretch a voxel (the 8 particles around one lattice cell)
-    /// bears before it tears; `None`: the body never tears (see [`crate::tear`]).
+    /// bears before it tears; `None`: the body never tears (see [`crate::cut::tear`]).
     pub tear_stretch: Option<f32>,
     /// Most voxels of one body that tear in one frame (≥ 1): the strongest stretches
     /// go first, the rest wait for the next frame, so a crack grows over frames instead

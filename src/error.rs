@@ -71,7 +71,7 @@ pub enum CleaveError {
     /// An entity passed to the API is not what was expected.
     #[error("{0}")]
     InvalidEntity(String),
-    /// A saved simulation could not be written or read (see [`crate::save`]).
+    /// A saved simulation could not be written or read (see [`crate::io::save`]).
     #[error("saved simulation: {0}")]
     Save(String),
 }

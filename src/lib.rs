@@ -54,53 +54,22 @@
 //! is the headless facade; [`save`] writes and resumes a simulation.
 #![warn(missing_docs)]
 
-pub mod bench;
-pub mod carve;
-pub mod cluster_edits;
-pub mod cluster_index;
-pub mod cluster_shape;
-pub mod cluster_store;
-pub mod clustering;
-pub mod collider;
-pub mod components;
+pub mod analysis;
+pub mod body;
+pub mod clusters;
 pub mod config;
-pub mod convex;
-pub mod detection;
-pub mod dump;
+pub mod cut;
+pub mod ecs;
 pub mod error;
-#[cfg(feature = "render")]
-pub mod export;
-pub mod fidelity;
-pub mod graph;
-pub mod invariants;
-pub mod lanes;
-pub mod lattice;
-pub mod mesh;
-pub mod mesh_sdf;
-mod named_enum;
-pub mod particle_split;
-#[cfg(feature = "bevy_app")]
-pub mod plugin;
-pub mod prefetch;
-pub mod profile;
+pub mod geometry;
+pub mod io;
+pub mod math;
 pub mod reconstruct;
-#[cfg(feature = "render")]
-pub mod render;
-pub mod resources;
-pub mod rotation;
-pub mod save;
-pub mod scene;
-pub mod scene_file;
 pub mod sim;
-pub mod simd;
 pub mod solver;
-pub mod static_solve;
-pub mod stats;
 #[path = "../systems/mod.rs"]
 pub mod systems;
-pub mod table_rows;
-pub mod tear;
-pub mod tool;
+pub mod util;
 
 /// The glam version cleave's types use (vectors, quaternions), so that users need not
 /// depend on a matching version themselves.
@@ -111,19 +80,19 @@ pub use bevy_ecs;
 
 /// The types most users need.
 pub mod prelude {
-    pub use crate::collider::ColliderShape;
-    pub use crate::components::*;
+    pub use crate::body::lattice::{SdfShape, Shape};
     pub use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
-    pub use crate::error::{CleaveError, Result};
-    pub use crate::lattice::{SdfShape, Shape};
-    pub use crate::resources::{
+    pub use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
+    pub use crate::ecs::check::check_invariants;
+    pub use crate::ecs::components::*;
+    pub use crate::ecs::desc::{BodyDesc, ColliderDesc, PinRegion, ToolDesc};
+    pub use crate::ecs::resources::{
         BodySplit, ClustersRebuilt, EdgesSevered, ParticlesCut, ParticlesRepaired,
     };
-    pub use crate::sim::{
-        BodyDesc, ColliderDesc, PinRegion, Simulation, ToolDesc, check_invariants,
-    };
+    pub use crate::error::{CleaveError, Result};
+    pub use crate::geometry::collider::ColliderShape;
+    pub use crate::sim::simulation::Simulation;
     pub use crate::systems::{CleaveSchedule, SimStage, SubstepSchedule, SyncSchedule, install};
-    pub use crate::tool::{CutMode, Path, Pose, ToolShape};
     pub use bevy_ecs::message::MessageReader;
     pub use glam::{Quat, UVec3, Vec3};
 }

@@ -2,9 +2,9 @@
 //! solver layout (a new body, a cut), the surface particles of every body, each labelled
 //! with its piece, in the layout's dense order.
 
-use crate::components::{Body, BodyLattice};
-use crate::graph::body_pieces;
-use crate::resources::SolverCache;
+use crate::body::graph::body_pieces;
+use crate::ecs::components::{Body, BodyLattice};
+use crate::ecs::resources::SolverCache;
 use crate::solver::{ContactGroup, ContactParticles};
 use bevy_ecs::prelude::*;
 

@@ -8,16 +8,16 @@
 //! as if cut: its body's lattice and clusters are rebuilt around the hole, instead of
 //! listing a particle that no longer exists.
 
-use crate::carve::carve;
-use crate::components::{
+use crate::cut::carve::carve;
+use crate::cut::particle_split::{Pairs, apply_splits, split_positions};
+use crate::cut::tear::sever_keeping_pieces;
+use crate::ecs::components::{
     Body, BodyLattice, InvMass, Particle, ParticleClusters, Position, PrevPosition, Velocity,
 };
-use crate::particle_split::{Pairs, apply_splits, split_positions};
-use crate::resources::{
+use crate::ecs::resources::{
     BodyCut, BodyCutReport, BodySplit, CutList, CutReport, EdgesSevered, ParticlesCut,
     ParticlesSplit,
 };
-use crate::tear::sever_keeping_pieces;
 use bevy_ecs::prelude::*;
 use std::borrow::Cow;
 

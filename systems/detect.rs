@@ -2,17 +2,17 @@
 //! since the last frame, the particles a `remove` tool comes within half its cut width
 //! of, and the edges a `sever` or `split` tool separates; and, in bodies whose material
 //! tears, the edges of voxels stretched past the limit. Its only output is the
-//! `CutList`. The tests themselves are [`crate::detection::particles_hit`],
-//! [`crate::detection::edges_separated`] and [`crate::tear::find_tears`] (parallel,
+//! `CutList`. The tests themselves are [`crate::cut::detection::particles_hit`],
+//! [`crate::cut::detection::edges_separated`] and [`crate::cut::tear::find_tears`] (parallel,
 //! deterministic order).
 
-use crate::components::{Body, BodyLattice, Tool, ToolPose};
-use crate::detection::{ToolSweep, edges_separated, particles_hit, particles_inside};
-use crate::lattice::NO_PARTICLE;
-use crate::particle_split::plan_splits;
-use crate::resources::{BodyCut, CutList, SolverCache};
-use crate::tear::find_tears;
-use crate::tool::{BladePlane, CutMode};
+use crate::body::lattice::NO_PARTICLE;
+use crate::cut::detection::{ToolSweep, edges_separated, particles_hit, particles_inside};
+use crate::cut::particle_split::plan_splits;
+use crate::cut::tear::find_tears;
+use crate::cut::tool::{BladePlane, CutMode};
+use crate::ecs::components::{Body, BodyLattice, Tool, ToolPose};
+use crate::ecs::resources::{BodyCut, CutList, SolverCache};
 use bevy_ecs::prelude::*;
 
 /// Fills the cut list from the solver cache's dense positions.

@@ -6,14 +6,14 @@
 //! one store's edits. [`BodyClusters`] is the system parameter the reconstruction stages
 //! open a body's store from.
 
-use crate::cluster_edits::{ClusterEdits, diff_into};
-use crate::cluster_index::ClusterIndex;
-use crate::cluster_store::{ClusterStore, extend_indexed, extend_members, normalise, owned_list};
-use crate::components::{
+use crate::body::lattice::Lattice;
+use crate::clusters::edits::{ClusterEdits, diff_into};
+use crate::clusters::index::ClusterIndex;
+use crate::clusters::store::{ClusterStore, extend_indexed, extend_members, normalise, owned_list};
+use crate::config::Material;
+use crate::ecs::components::{
     Body, BodyLattice, ClusterKeys, ClusterMembers, ClusterOf, Compliance, ParticleClusters,
 };
-use crate::config::Material;
-use crate::lattice::Lattice;
 use bevy_ecs::prelude::*;
 use bevy_ecs::system::SystemParam;
 use rustc_hash::{FxHashMap, FxHashSet};

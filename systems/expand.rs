@@ -4,8 +4,8 @@
 //! clusters that lie inside others are removed. Writes cluster data only.
 
 use super::ecs_store::BodyClusters;
+use crate::ecs::resources::{ClustersRebuilt, CutTimings, RebuiltClusters, SimRng};
 use crate::reconstruct;
-use crate::resources::{ClustersRebuilt, CutTimings, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
 use std::time::Instant;
 

@@ -5,10 +5,10 @@
 //! changed (after a cut) and the particles that were cut.
 
 use super::contact_sync::sync_contacts;
-use crate::components::*;
+use crate::body::lattice::Lattice;
 use crate::config::SolverMode;
-use crate::lattice::Lattice;
-use crate::resources::{
+use crate::ecs::components::*;
+use crate::ecs::resources::{
     BodyCutReport, BodyDense, ClusterSlots, CutReport, LayoutUpdate, SimSettings, SolverCache,
     dense_owner,
 };

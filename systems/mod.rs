@@ -23,7 +23,7 @@ pub mod regroup;
 pub mod shape_match;
 pub mod split;
 
-use crate::resources::*;
+use crate::ecs::resources::*;
 use bevy_ecs::message::MessageRegistry;
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::{LogLevel, ScheduleBuildSettings, ScheduleLabel, SingleThreadedExecutor};
@@ -183,6 +183,6 @@ fn invariant_checks_enabled(settings: Res<SimSettings>) -> bool {
 
 /// Panics with the list of violations if any invariant is broken.
 pub fn verify(world: &World) {
-    let violations = crate::sim::check_invariants(world);
+    let violations = crate::ecs::check::check_invariants(world);
     assert!(violations.is_empty(), "invariants violated: {violations:?}");
 }

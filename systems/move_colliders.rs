@@ -2,8 +2,8 @@
 //! frame becomes this frame's start, the path gives its end. Colliders without a path
 //! keep whatever game code wrote (and the start follows). Writes collider data only.
 
-use crate::components::{ColliderPath, ColliderPose};
-use crate::resources::{SimClock, SimSettings};
+use crate::ecs::components::{ColliderPath, ColliderPose};
+use crate::ecs::resources::{SimClock, SimSettings};
 use bevy_ecs::prelude::*;
 
 /// Updates every collider pose for the frame about to be simulated.

@@ -1,8 +1,8 @@
 //! Advances keyframed tools: the last pose becomes the previous one, the path gives the
 //! new one. Tools without a path keep whatever game code wrote (and the last pose follows).
 
-use crate::components::{ToolPath, ToolPose};
-use crate::resources::SimClock;
+use crate::ecs::components::{ToolPath, ToolPose};
+use crate::ecs::resources::SimClock;
 use bevy_ecs::prelude::*;
 
 /// Updates every tool pose for this frame. Writes tool data only.

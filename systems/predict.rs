@@ -3,8 +3,8 @@
 //! The particle components are read as whole table columns (bevy's contiguous query
 //! iteration) and advanced in parallel chunks.
 
-use crate::components::{InvMass, Position, PrevPosition, Velocity};
-use crate::resources::SimSettings;
+use crate::ecs::components::{InvMass, Position, PrevPosition, Velocity};
+use crate::ecs::resources::SimSettings;
 use bevy_ecs::prelude::*;
 use rayon::prelude::*;
 

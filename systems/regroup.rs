@@ -6,11 +6,11 @@
 //! its particles and edges are covered again, so the body stays legal.
 
 use super::ecs_store::BodyClusters;
-use crate::cluster_store::ClusterStore;
-use crate::clustering::cover_particles;
-use crate::components::ClusterMembers;
+use crate::clusters::clustering::cover_particles;
+use crate::clusters::store::ClusterStore;
+use crate::ecs::components::ClusterMembers;
+use crate::ecs::resources::{CutReport, CutTimings, RebuiltBody, RebuiltClusters, SimRng};
 use crate::reconstruct;
-use crate::resources::{CutReport, CutTimings, RebuiltBody, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
 use rustc_hash::FxHashSet;
 use std::time::Instant;

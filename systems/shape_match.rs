@@ -4,10 +4,10 @@
 //! constraint kind (contacts, colliders), derives velocities, and scatters back. Writes
 //! particle data and its own cache only.
 
-use crate::components::*;
-use crate::resources::{ParticlesRepaired, SimSettings, SolverCache, SubstepClock};
+use crate::ecs::components::*;
+use crate::ecs::resources::{ParticlesRepaired, SimSettings, SolverCache, SubstepClock};
+use crate::ecs::table_rows::ParticleColumns;
 use crate::solver::{Colliders, PosedCollider};
-use crate::table_rows::ParticleColumns;
 use bevy_ecs::prelude::*;
 use glam::{Vec3, Vec3A};
 
@@ -99,7 +99,7 @@ fn repair_non_finite(cache: &mut SolverCache, bodies: &Query<(Entity, &BodyLatti
         ..
     } = cache;
     layout.repair_non_finite(live, |d, positions| {
-        let Some((body, local)) = crate::resources::dense_owner(locals, body_dense, d) else {
+        let Some((body, local)) = crate::ecs::resources::dense_owner(locals, body_dense, d) else {
             return Vec3A::ZERO;
         };
         let (Ok((_, lattice)), Ok(b)) = (

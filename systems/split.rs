@@ -2,8 +2,8 @@
 //! [`crate::config::Material::split_size`]. Writes cluster data only.
 
 use super::ecs_store::BodyClusters;
+use crate::ecs::resources::{CutTimings, RebuiltClusters, SimRng};
 use crate::reconstruct;
-use crate::resources::{CutTimings, RebuiltClusters, SimRng};
 use bevy_ecs::prelude::*;
 use std::time::Instant;
 

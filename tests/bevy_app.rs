@@ -4,10 +4,10 @@
 
 use bevy_app::{App, Update};
 use bevy_ecs::prelude::*;
-use cleave::plugin::CleavePlugin;
+use cleave::ecs::spawn::{spawn_body, spawn_tool};
+use cleave::io::scene::builtin;
 use cleave::prelude::*;
-use cleave::scene::builtin;
-use cleave::sim::{spawn_body, spawn_tool};
+use cleave::sim::plugin::CleavePlugin;
 
 #[derive(Resource, Default)]
 struct Seen {

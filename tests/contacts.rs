@@ -113,7 +113,7 @@ fn a_plate_at_20_m_per_s_pushes_a_body_instead_of_passing_through() -> cleave::e
 }
 
 /// A closed octahedron |x| + |y| + |z| = `r` as a triangle mesh.
-fn octahedron(r: f32) -> cleave::mesh::TriangleMesh {
+fn octahedron(r: f32) -> cleave::geometry::mesh::TriangleMesh {
     let v = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z].map(|v| v * r);
     let t = vec![
         [0, 2, 4],
@@ -125,14 +125,14 @@ fn octahedron(r: f32) -> cleave::mesh::TriangleMesh {
         [3, 1, 5],
         [0, 3, 5],
     ];
-    cleave::mesh::TriangleMesh::new(v.to_vec(), t, std::path::Path::new("octahedron"))
+    cleave::geometry::mesh::TriangleMesh::new(v.to_vec(), t, std::path::Path::new("octahedron"))
         .expect("a closed mesh")
 }
 
 #[test]
 fn bodies_rest_on_and_do_not_tunnel_into_a_mesh_collider() -> cleave::error::Result<()> {
     let mut sim = Simulation::new(SimConfig::default())?;
-    let sdf = cleave::mesh_sdf::MeshSdf::new(&octahedron(0.6), 48)?;
+    let sdf = cleave::geometry::mesh_sdf::MeshSdf::new(&octahedron(0.6), 48)?;
     let shape = ColliderShape::Mesh(std::sync::Arc::new(sdf));
     // turned, its lower tip in the ground: a ramp of four sloped faces
     let pose = Pose {
@@ -373,7 +373,7 @@ proptest! {
 
 #[test]
 fn the_pile_ends_with_no_particle_inside_a_wall() -> cleave::error::Result<()> {
-    let scene = cleave::scene::builtin("pile", 0).expect("a built-in");
+    let scene = cleave::io::scene::builtin("pile", 0).expect("a built-in");
     let mut sim = Simulation::new(scene.config.clone())?;
     let bodies: Vec<Entity> = scene
         .bodies
@@ -422,7 +422,7 @@ fn horseshoe(self_contact: bool) -> BodyDesc {
             })
             .fold(f32::INFINITY, f32::min)
     };
-    let shape = Shape::Sdf(cleave::lattice::SdfShape {
+    let shape = Shape::Sdf(cleave::body::lattice::SdfShape {
         sdf: std::sync::Arc::new(sdf),
         min: Vec3::splat(-0.1),
         max: Vec3::new(2.0, 0.7, 0.4),

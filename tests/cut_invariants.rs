@@ -3,11 +3,11 @@
 //! random cuts on random shapes — through the pure reconstruction pipeline (arbitrary removed sets: single survivors, everything removed)
 //! and through the ECS with real tools (under every solver).
 
-use cleave::cluster_store::{ClusterStore, ClusterTable};
-use cleave::clustering::{initial_clusters, uncovered_edges};
+use cleave::body::lattice::{Lattice, Shape};
+use cleave::clusters::clustering::{initial_clusters, uncovered_edges};
+use cleave::clusters::invariants::{check_body, check_index};
+use cleave::clusters::store::{ClusterStore, ClusterTable};
 use cleave::config::Material;
-use cleave::invariants::{check_body, check_index};
-use cleave::lattice::{Lattice, Shape};
 use cleave::prelude::*;
 use cleave::reconstruct::rebuild_after_cut;
 use glam::{Quat, UVec3, Vec3};
@@ -363,7 +363,7 @@ fn a_cut_that_removes_everything_leaves_a_legal_empty_body() {
     })
     .unwrap();
     sim.run(3);
-    let stats = cleave::stats::body_stats(sim.world_mut(), body).unwrap();
+    let stats = cleave::analysis::stats::body_stats(sim.world_mut(), body).unwrap();
     assert_eq!((stats.particles, stats.clusters, stats.pieces), (0, 0, 0));
     assert!(check_invariants(sim.world()).is_empty());
 }

@@ -4,12 +4,12 @@
 //! engine's seeded block of 50 random cuts, on a scooped cantilever's static sag, and on
 //! cuts made here on plain data; and `recluster` gives that reference.
 
-use cleave::cluster_shape::ClusterShape;
-use cleave::cluster_store::{ClusterStore, ClusterTable};
-use cleave::clustering::{clusters_on_grid, seed_grid_offset};
+use cleave::analysis::cluster_shape::ClusterShape;
+use cleave::analysis::fidelity::{FidelityOptions, fidelity};
+use cleave::body::lattice::{Lattice, Shape};
+use cleave::clusters::clustering::{clusters_on_grid, seed_grid_offset};
+use cleave::clusters::store::{ClusterStore, ClusterTable};
 use cleave::config::Material;
-use cleave::fidelity::{FidelityOptions, fidelity};
-use cleave::lattice::{Lattice, Shape};
 use cleave::prelude::*;
 use cleave::reconstruct::rebuild_after_cut;
 use rand::{Rng, SeedableRng};
@@ -139,7 +139,7 @@ fn cuts_on_plain_data_keep_the_clusters_a_fresh_clustering_makes() {
 
 #[test]
 fn recluster_gives_the_initial_clustering_of_the_current_geometry() {
-    let mut scene = cleave::scene::builtin("cuts", 4).unwrap();
+    let mut scene = cleave::io::scene::builtin("cuts", 4).unwrap();
     scene.tools.truncate(6);
     let mut sim = Simulation::new(scene.config.clone()).unwrap();
     let body = sim.spawn_body(&scene.bodies[0]).unwrap();

@@ -3,9 +3,9 @@
 //! with the same members, rest offsets and weights; cut particles frozen.
 
 use bevy_ecs::prelude::*;
+use cleave::ecs::resources::{CutReport, SolverCache};
+use cleave::io::scene::builtin;
 use cleave::prelude::*;
-use cleave::resources::{CutReport, SolverCache};
-use cleave::scene::builtin;
 use cleave::systems::layout_sync::rebuild_cache;
 use glam::Vec4;
 use std::collections::BTreeMap;
@@ -129,7 +129,7 @@ fn particles_lost_outside_a_cut_report_are_still_frozen() {
         assert!(lattice.lattice.remove(a) && lattice.lattice.remove(b));
         // the second round's report names one of the two
         world.resource_mut::<CutReport>().bodies = if reported {
-            vec![cleave::resources::BodyCutReport {
+            vec![cleave::ecs::resources::BodyCutReport {
                 body,
                 removed: vec![a],
                 severed: Vec::new(),

@@ -4,9 +4,9 @@
 //! the field.
 
 use bevy_ecs::prelude::*;
+use cleave::analysis::stats::body_stats;
+use cleave::io::scene::builtin;
 use cleave::prelude::*;
-use cleave::scene::builtin;
-use cleave::stats::body_stats;
 use glam::{Quat, UVec3, Vec3};
 
 fn free_config() -> SimConfig {
@@ -310,7 +310,8 @@ fn bad_input_is_an_error_naming_the_field() {
         let e = err(sim.spawn_body(&desc));
         assert!(e.contains(field) && e.contains("allowed"), "{e}");
     }
-    let missing = cleave::mesh::TriangleMesh::load_obj(std::path::Path::new("no/such/file.obj"));
+    let missing =
+        cleave::geometry::mesh::TriangleMesh::load_obj(std::path::Path::new("no/such/file.obj"));
     assert!(
         missing
             .unwrap_err()
@@ -319,7 +320,7 @@ fn bad_input_is_an_error_naming_the_field() {
     );
     let dir = std::env::temp_dir().join(format!("cleave-open-{}.obj", std::process::id()));
     std::fs::write(&dir, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
-    let e = cleave::mesh::TriangleMesh::load_obj(&dir)
+    let e = cleave::geometry::mesh::TriangleMesh::load_obj(&dir)
         .unwrap_err()
         .to_string();
     assert!(e.contains("not closed"), "{e}");
@@ -373,7 +374,7 @@ fn closed_obj_mesh_voxelises() {
         obj += &format!("f {} {} {} {}\n", f[0], f[1], f[2], f[3]);
     }
     std::fs::write(&path, obj).unwrap();
-    let mesh = cleave::mesh::TriangleMesh::load_obj(&path).unwrap();
+    let mesh = cleave::geometry::mesh::TriangleMesh::load_obj(&path).unwrap();
     let lattice = Shape::Mesh(std::sync::Arc::new(mesh))
         .voxelise(0.25)
         .unwrap();
@@ -413,7 +414,7 @@ fn a_particle_despawned_from_outside_is_removed_as_if_cut() {
     assert!(check_invariants(sim.world()).is_empty());
     let stats = body_stats(sim.world_mut(), body).unwrap();
     assert!(stats.shape_error_h < 0.2, "{}", stats.shape_error_h);
-    let dump = serde_json::to_string(&cleave::dump::dump_world(sim.world_mut())).unwrap();
+    let dump = serde_json::to_string(&cleave::io::dump::dump_world(sim.world_mut())).unwrap();
     assert!(!dump.contains("null"), "the dump lists no missing particle");
 }
 
@@ -425,9 +426,10 @@ fn clusters_despawned_from_outside_are_forgotten_and_their_particles_covered_aga
     // one cluster, then every cluster of one corner particle, gone without a word
     sim.world_mut().despawn(clusters[3].0);
     assert!(
-        check_invariants(sim.world())
-            .iter()
-            .any(|(_, v)| matches!(v, cleave::invariants::Violation::MissingCluster { .. })),
+        check_invariants(sim.world()).iter().any(|(_, v)| matches!(
+            v,
+            cleave::clusters::invariants::Violation::MissingCluster { .. }
+        )),
         "the checker sees the hole before the engine repairs it"
     );
     sim.run(1);

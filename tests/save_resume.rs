@@ -3,8 +3,8 @@
 //! every solver; and what is not a saved simulation is refused with a clear error.
 
 use cleave::config::SolverMode;
+use cleave::io::scene::{Scene, builtin};
 use cleave::prelude::*;
-use cleave::scene::{Scene, builtin};
 
 fn start(scene: &Scene) -> Simulation {
     Simulation::from_scene(scene).unwrap()
@@ -13,7 +13,11 @@ fn start(scene: &Scene) -> Simulation {
 /// Every body's particle positions and velocities (bits), cluster member lists and
 /// pieces, and the frame.
 fn state(sim: &mut Simulation) -> Vec<u64> {
-    let mut out = vec![sim.world().resource::<cleave::resources::SimClock>().frame];
+    let mut out = vec![
+        sim.world()
+            .resource::<cleave::ecs::resources::SimClock>()
+            .frame,
+    ];
     for body in sim.bodies() {
         for (i, x) in sim.positions(body).unwrap() {
             out.push(i as u64);

@@ -1,9 +1,9 @@
 //! Scene files: every built-in round-trips through RON, and bad files give one clear
 //! error line (file, line, column, field, allowed range) and exit code 2.
 
+use cleave::io::scene::{BUILTIN_SCENES, Scene, builtin};
+use cleave::io::scene_file::SceneFile;
 use cleave::prelude::*;
-use cleave::scene::{BUILTIN_SCENES, Scene, builtin};
-use cleave::scene_file::SceneFile;
 use std::path::Path;
 use std::process::Command;
 

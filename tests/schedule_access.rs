@@ -6,9 +6,9 @@
 use bevy_ecs::component::ComponentId;
 use bevy_ecs::prelude::*;
 use bevy_ecs::system::{IntoSystem, System};
-use cleave::components::*;
 use cleave::config::SimConfig;
-use cleave::resources::*;
+use cleave::ecs::components::*;
+use cleave::ecs::resources::*;
 use cleave::systems::*;
 
 struct Access {

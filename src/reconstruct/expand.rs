@@ -14,10 +14,10 @@
 //! where a draw costs one lookup; a cluster with few adjacent particles (the draws keep
 //! missing) is still served by the list, uniformly.
 
-use crate::cluster_edits::ClusterEdits;
-use crate::cluster_store::ClusterStore;
-use crate::graph::{adjacent_particles, position_in};
-use crate::lattice::{Lattice, NO_PARTICLE};
+use crate::body::graph::{adjacent_particles, position_in};
+use crate::body::lattice::{Lattice, NO_PARTICLE};
+use crate::clusters::edits::ClusterEdits;
+use crate::clusters::store::ClusterStore;
 use rand::seq::index::sample;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -109,9 +109,9 @@ fn draw_adjacent(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cluster_store::ClusterTable;
-    use crate::graph::is_connected;
-    use crate::lattice::Shape;
+    use crate::body::graph::is_connected;
+    use crate::body::lattice::Shape;
+    use crate::clusters::store::ClusterTable;
     use glam::UVec3;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;

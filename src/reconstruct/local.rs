@@ -3,8 +3,8 @@
 //! of a cut event (pieces §3.1, split §4), which run thousands of times per cut on sets
 //! of tens of particles.
 
-use crate::graph::with_slots;
-use crate::lattice::Lattice;
+use crate::body::graph::with_slots;
+use crate::body::lattice::Lattice;
 use glam::IVec3;
 
 /// Cells of the largest box a member set is numbered in locally; bigger (sprawling) sets
@@ -13,7 +13,7 @@ const BOX_CELLS: usize = 1 << 14;
 
 /// The lattice graph induced on a member list. Vertex `i` is the member at position
 /// `i`; its row holds, per lattice direction (the order of
-/// [`crate::lattice::NEIGHBOUR_OFFSETS`]), the vertex in the neighbouring cell, or the
+/// [`crate::body::lattice::NEIGHBOUR_OFFSETS`]), the vertex in the neighbouring cell, or the
 /// sentinel [`LocalGraph::len`] when that cell holds no member. Per-vertex arrays with
 /// one slot more, set for the sentinel, let loops over the six neighbours run without a
 /// branch on whether a neighbour exists.
@@ -201,7 +201,7 @@ impl Bits {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lattice::{NEIGHBOUR_OFFSETS, Shape};
+    use crate::body::lattice::{NEIGHBOUR_OFFSETS, Shape};
     use glam::UVec3;
 
     #[test]

@@ -1,5 +1,5 @@
 //! Cluster reconstruction after a cut, as pure functions over a
-//! [`crate::cluster_store::ClusterStore`]. The *cut clusters* are those that held a
+//! [`crate::clusters::store::ClusterStore`]. The *cut clusters* are those that held a
 //! removed particle or both ends of a severed edge.
 //!
 //! 1. **Pieces** ([`regroup()`]): each cut cluster falls into its connected pieces. A
@@ -15,30 +15,29 @@
 //! 3. **Expand** ([`expand_clusters`]): the parts of a split grow by a few adjacent
 //!    particles, so they overlap their neighbours again.
 //! 4. **Repair**: every lattice edge a split separated is covered by a cluster again
-//!    ([`crate::clustering::cover_edge_list`]), so no cluster is isolated from the
-//!    ones around it, and no cluster is left inside another ([`remove_contained`]).
+//!    ([`crate::clusters::clustering::cover_edge_list`]), so no cluster is isolated from the
+//!    ones around it, and no cluster is left inside another ([`remove_contained`](crate::clusters::contained::remove_contained)).
 //!
 //! Everything is topology: which side of a cut a particle is on is never decided by
 //! geometry, so any number of partial, curved or disconnected cuts work alike; the
 //! price is that every cluster must stay connected, which all four steps keep.
 //! [`rebuild_after_cut`] runs them in order, as the ECS stages do.
 
-pub mod contained;
 pub mod expand;
 pub mod local;
 pub mod pca;
 pub mod regroup;
 pub mod split;
 
-pub use contained::remove_contained;
+use crate::clusters::contained::remove_contained;
 pub use expand::expand_clusters;
 pub use regroup::regroup;
 pub use split::{SplitOutcome, split_cluster, split_oversized};
 
-use crate::cluster_store::ClusterStore;
-use crate::clustering::cover_edge_list;
+use crate::body::lattice::Lattice;
+use crate::clusters::clustering::cover_edge_list;
+use crate::clusters::store::ClusterStore;
 use crate::config::Material;
-use crate::lattice::Lattice;
 use rand::Rng;
 
 /// The whole reconstruction for one body whose particles have already been

@@ -35,10 +35,10 @@
 //! written as a cluster of its own.
 
 use super::local::LocalGraph;
-use crate::cluster_edits::ClusterEdits;
-use crate::cluster_index::ClusterIndex;
-use crate::cluster_store::ClusterStore;
-use crate::lattice::{Lattice, NO_PARTICLE};
+use crate::body::lattice::{Lattice, NO_PARTICLE};
+use crate::clusters::edits::ClusterEdits;
+use crate::clusters::index::ClusterIndex;
+use crate::clusters::store::ClusterStore;
 use glam::IVec3;
 use rand::Rng;
 use rayon::prelude::*;
@@ -611,9 +611,9 @@ impl MergeChooser<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cluster_store::ClusterTable;
-    use crate::graph::is_connected;
-    use crate::lattice::Shape;
+    use crate::body::graph::is_connected;
+    use crate::body::lattice::Shape;
+    use crate::clusters::store::ClusterTable;
     use glam::{IVec3, UVec3};
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;

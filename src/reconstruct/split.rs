@@ -4,9 +4,9 @@
 
 use super::local::{Bits, LocalGraph};
 use super::pca::split_normal;
-use crate::cluster_edits::ClusterEdits;
-use crate::cluster_store::ClusterStore;
-use crate::lattice::Lattice;
+use crate::body::lattice::Lattice;
+use crate::clusters::edits::ClusterEdits;
+use crate::clusters::store::ClusterStore;
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -297,7 +297,7 @@ pub struct SplitOutcome {
     /// Every resulting cluster: the inputs (first parts keep their handle) and the new ones.
     pub clusters: Vec<u32>,
     /// Lattice edges whose ends ended in different parts of a split; they may need a
-    /// bridge (see [`crate::clustering::cover_edge_list`]).
+    /// bridge (see [`crate::clusters::clustering::cover_edge_list`]).
     pub cut_edges: Vec<(u32, u32)>,
     /// The parts of the clusters that were split (the expansion grows
     /// these).
@@ -357,8 +357,8 @@ pub fn split_oversized<S: ClusterStore>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::graph::is_connected;
-    use crate::lattice::Shape;
+    use crate::body::graph::is_connected;
+    use crate::body::lattice::Shape;
     use glam::UVec3;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
@@ -415,7 +415,7 @@ mod tests {
         let lattice = Shape::cuboid(UVec3::new(10, 6, 3), 1.0)
             .voxelise(1.0)
             .unwrap();
-        let mut table = crate::cluster_store::ClusterTable::from_clusters(
+        let mut table = crate::clusters::store::ClusterTable::from_clusters(
             lattice.len(),
             vec![lattice.live_particles().collect()],
         );
@@ -428,7 +428,7 @@ mod tests {
         );
         assert!(out.clusters.len() >= 6);
         // the cut edges are exactly the lattice edges no cluster covers any more
-        let mut uncovered = crate::clustering::uncovered_edges(&table, &lattice);
+        let mut uncovered = crate::clusters::clustering::uncovered_edges(&table, &lattice);
         let mut cut_edges = out.cut_edges.clone();
         uncovered.sort_unstable();
         cut_edges.sort_unstable();

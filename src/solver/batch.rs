@@ -25,9 +25,9 @@ use super::colouring::order_by_colour;
 use super::sweep::Disjoint;
 use super::template::Template;
 use super::{CLUSTERS_PER_TASK, FREE_SLOT, PATCH_HEADROOM, SolverLayout};
-use crate::lanes::{LANES, Mat3x8, Quatx8, Vec3x8};
-use crate::rotation::extract_rotation_x8;
-use crate::simd::{Lane, WithLanes, dispatch};
+use crate::math::lanes::{LANES, Mat3x8, Quatx8, Vec3x8};
+use crate::math::rotation::extract_rotation_x8;
+use crate::math::simd::{Lane, WithLanes, dispatch};
 use glam::{Quat, Vec3A};
 use rayon::prelude::*;
 use wide::f32x8;
@@ -48,7 +48,7 @@ pub(super) struct MomentRow {
     /// Rest offsets `q` from the cluster's rest centroid (padding: 0).
     pub(super) offset: Vec3x8,
     /// Matching weights (padding: 0).
-    #[serde(with = "crate::lanes::f32x8_serde")]
+    #[serde(with = "crate::math::lanes::f32x8_serde")]
     pub(super) weight: f32x8,
 }
 

@@ -13,9 +13,9 @@
 
 use super::PARTICLES_PER_TASK;
 use super::kinds::{ConstraintKind, ParticleState};
-use crate::collider::ColliderShape;
 use crate::config::{GroundPlane, SimConfig, StaticBox};
-use crate::tool::Pose;
+use crate::cut::tool::Pose;
+use crate::geometry::collider::ColliderShape;
 use glam::{Affine3A, Vec3A};
 use rayon::prelude::*;
 

@@ -16,8 +16,8 @@
 use super::SolverLayout;
 use super::batch::{BatchKernel, FitRow, PARTICLE_BYTES};
 use super::sweep::Disjoint;
-use crate::lanes::LANES;
-use crate::simd::Lane;
+use crate::math::lanes::LANES;
+use crate::math::simd::Lane;
 use glam::{Quat, Vec3A};
 
 impl SolverLayout {

@@ -7,7 +7,7 @@
 use super::batch::{BatchKernel, FitRow};
 use super::sweep::Disjoint;
 use super::{PARTICLES_PER_TASK, SolverLayout};
-use crate::simd::Lane;
+use crate::math::simd::Lane;
 use glam::{Quat, Vec3A};
 use rayon::prelude::*;
 

@@ -48,7 +48,7 @@ pub use contacts::{ContactGroup, ContactParticles, Contacts, SELF_CONTACT_EXCLUS
 pub use kinds::{ConstraintKind, ConstraintKinds, ParticleState};
 
 use crate::config::SolverMode;
-use crate::rotation::warm_start;
+use crate::math::rotation::warm_start;
 use glam::{Quat, Vec3, Vec3A};
 use rayon::prelude::*;
 
@@ -787,7 +787,7 @@ mod tests {
                 &mut ConstraintKinds::default(),
             );
             let current: Vec<Vec3> = l.positions.iter().map(|p| Vec3::from(*p)).collect();
-            crate::stats::rigid_fit_error(&rest, &current)
+            crate::analysis::stats::rigid_fit_error(&rest, &current)
         };
         let start = error(SolverMode::Jacobi, 0);
         for k in [2, 5, 10] {

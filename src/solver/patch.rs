@@ -214,7 +214,7 @@ impl SolverLayout {
 mod tests {
     use super::*;
     use crate::config::SolverMode;
-    use crate::lanes::LANES;
+    use crate::math::lanes::LANES;
     use crate::solver::colouring::order_by_colour;
     use crate::solver::{ConstraintKinds, unit_specs as specs};
     use glam::Vec3;

@@ -11,7 +11,7 @@
 
 use super::SolverLayout;
 use super::batch::MomentRow;
-use crate::lanes::Vec3x8;
+use crate::math::lanes::Vec3x8;
 use glam::Vec3A;
 use smallvec::SmallVec;
 use wide::f32x8;

@@ -1,6 +1,6 @@
-//! `cleave bench`: the report of [`cleave::bench`] as a table or as JSON lines.
+//! `cleave bench`: the report of [`cleave::analysis::bench`] as a table or as JSON lines.
 
-use cleave::bench::{ConvergenceOptions, bench_pile, bench_size, convergence};
+use cleave::analysis::bench::{ConvergenceOptions, bench_pile, bench_size, convergence};
 use cleave::config::SimConfig;
 
 /// The contact row: the `pile` scene at this spacing (or none).
@@ -47,7 +47,7 @@ pub fn bench(
             config.iterations,
             steps,
             rayon::current_num_threads(),
-            cleave::simd::backend()
+            cleave::math::simd::backend()
         );
         println!(
             "{:>5} {:>9} {:>8} {:>11} {:>10} {:>9} {:>10} {:>9} {:>7} {:>8} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>11} {:>10} {:>9}",

@@ -1,8 +1,8 @@
 //! `cleave fidelity`: the comparison of cut bodies with fresh clusterings of the same
-//! geometry (see [`cleave::fidelity`]), as a table or one JSON object.
+//! geometry (see [`cleave::analysis::fidelity`]), as a table or one JSON object.
 
-use cleave::cluster_shape::ClusterShape;
-use cleave::fidelity::{FidelityOptions, MAX_CUTS, fidelity as compare};
+use cleave::analysis::cluster_shape::ClusterShape;
+use cleave::analysis::fidelity::{FidelityOptions, MAX_CUTS, fidelity as compare};
 
 /// Runs the comparison and prints it.
 pub fn fidelity(options: FidelityOptions, json: bool) -> Result<(), String> {

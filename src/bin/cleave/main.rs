@@ -7,10 +7,10 @@ mod run;
 
 use clap::{Parser, Subcommand};
 use cleave::config::{SimConfig, SolverMode};
-use cleave::render::ColorMode;
-use cleave::scene::BUILTIN_SCENES;
-use cleave::scene_file::SceneFile;
-use cleave::tool::CutMode;
+use cleave::cut::tool::CutMode;
+use cleave::io::render::ColorMode;
+use cleave::io::scene::BUILTIN_SCENES;
+use cleave::io::scene_file::SceneFile;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -303,7 +303,7 @@ fn main() -> ExitCode {
             json,
             threads,
         } => with_threads(threads, |_| {
-            let options = cleave::fidelity::FidelityOptions {
+            let options = cleave::analysis::fidelity::FidelityOptions {
                 cuts,
                 seed,
                 cut_mode,
@@ -334,7 +334,7 @@ fn main() -> ExitCode {
             };
             config.validate().map_err(|e| e.to_string())?;
             if convergence {
-                let options = cleave::bench::ConvergenceOptions {
+                let options = cleave::analysis::bench::ConvergenceOptions {
                     box_size: convergence_size,
                     budget_seconds: budget,
                 };

@@ -2,10 +2,10 @@
 //! optionally PLY point clouds, with the time spent on them.
 
 use bevy_ecs::prelude::*;
-use cleave::export::write_ply;
-use cleave::render::camera::Camera;
-use cleave::render::encode::{GifWriter, write_png};
-use cleave::render::{ColorMode, frame_camera, render, snapshot};
+use cleave::io::export::write_ply;
+use cleave::io::render::camera::Camera;
+use cleave::io::render::encode::{GifWriter, write_png};
+use cleave::io::render::{ColorMode, frame_camera, render, snapshot};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

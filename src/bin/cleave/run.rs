@@ -3,17 +3,20 @@
 
 use crate::pictures::{PictureOptions, Pictures};
 use bevy_ecs::prelude::*;
-use cleave::bench::median;
-use cleave::components::{BodyLattice, InvMass, Position};
+use cleave::analysis::bench::median;
+use cleave::analysis::profile::StageProfile;
+use cleave::analysis::stats::{
+    BodyStats, body_stats, labelled_positions, min_distance_between_labels,
+};
 use cleave::config::{SimConfig, SolverMode};
-use cleave::dump::dump_world;
-use cleave::profile::StageProfile;
-use cleave::resources::{CutTimings, ParticlesCut, SolverCache};
-use cleave::scene::{BUILTIN_SCENES, Scene, builtin};
-use cleave::scene_file::{entry_position, load_scene_file};
-use cleave::sim::{Simulation, check_invariants};
-use cleave::stats::{BodyStats, body_stats, labelled_positions, min_distance_between_labels};
-use cleave::tool::CutMode;
+use cleave::cut::tool::CutMode;
+use cleave::ecs::check::check_invariants;
+use cleave::ecs::components::{BodyLattice, InvMass, Position};
+use cleave::ecs::resources::{CutTimings, ParticlesCut, SolverCache};
+use cleave::io::dump::dump_world;
+use cleave::io::scene::{BUILTIN_SCENES, Scene, builtin};
+use cleave::io::scene_file::{entry_position, load_scene_file};
+use cleave::sim::simulation::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::io::IsTerminal;
@@ -201,12 +204,12 @@ fn gaps(sim: &mut Simulation, h: f32) -> (Option<f64>, Option<f64>) {
 /// with the centroids taken over the same particles at the start and at the end (the
 /// particles there at the start: not the new halves of split particles).
 fn piece_separation(
-    lattice: &cleave::lattice::Lattice,
+    lattice: &cleave::body::lattice::Lattice,
     start: &[glam::Vec3],
     end: &[glam::Vec3],
     h: f32,
 ) -> (f64, f64) {
-    let (labels, pieces) = cleave::graph::body_pieces(lattice);
+    let (labels, pieces) = cleave::body::graph::body_pieces(lattice);
     if pieces < 2 {
         return (0.0, 0.0);
     }

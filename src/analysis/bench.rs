@@ -1,0 +1,475 @@
+//! The measurements behind `cleave bench`: step time of boxes of n³ particles in the
+//! engine and, in the same run, in a bare dense kernel on the same clusters; memory per
+//! particle; a full slice cut event against re-clustering; and a convergence table of
+//! the two solver schemes.
+
+use crate::analysis::static_solve::StaticProblem;
+use crate::body::lattice::Shape;
+use crate::clusters::clustering::initial_clusters;
+use crate::config::{Material, SimConfig, SolverMode};
+use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
+use crate::ecs::components::{BodyLattice, ClusterMembers, ClusterOf, Compliance, Velocity};
+use crate::ecs::desc::{BodyDesc, ToolDesc};
+use crate::ecs::resources::{CutTimings, SimSettings, SolverCache};
+use crate::error::Result;
+use crate::sim::simulation::Simulation;
+use crate::solver::{Colliders, ConstraintKinds, SolverLayout};
+use crate::systems::layout_sync::rebuild_cache;
+use bevy_ecs::prelude::Entity;
+use glam::{Quat, UVec3, Vec3, Vec3A};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+use std::time::Instant;
+
+/// Lattice spacing of the bench boxes.
+const H: f32 = 0.1;
+
+/// One line of the bench report.
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchRow {
+    /// Edge length of the box in particles.
+    pub size: u32,
+    /// Worker threads.
+    pub threads: usize,
+    /// Solver scheme.
+    pub solver: SolverMode,
+    /// Particles.
+    pub particles: usize,
+    /// Clusters.
+    pub clusters: usize,
+    /// Memberships (sum of cluster sizes).
+    pub memberships: usize,
+    /// Solver iterations per step (substeps × iterations).
+    pub iterations: u32,
+    /// Median wall time of one engine step (ECS schedule), ms.
+    pub ms_per_step: f64,
+    /// `ms_per_step / (memberships × iterations)`, ns.
+    pub ns_per_membership_iteration: f64,
+    /// Median wall time of one step of the bare kernel, ms.
+    pub bare_ms_per_step: f64,
+    /// The bare kernel's ns per membership-iteration.
+    pub bare_ns_per_membership_iteration: f64,
+    /// `ms_per_step / bare_ms_per_step`.
+    pub engine_over_bare: f64,
+    /// Peak resident memory of the process / particles, read after the engine's steps
+    /// and before the bare kernel runs (sizes run ascending, so earlier sizes are smaller).
+    pub bytes_per_particle: f64,
+    /// Regroup + split + expand of a full slice through the middle, ms.
+    pub cut_event_ms: f64,
+    /// The whole step in which that slice happens (detection, removal, the cut event,
+    /// the deferred despawns, the layout update and the solve), ms.
+    pub cut_frame_ms: f64,
+    /// Initial clustering of the cut body from scratch, ms.
+    pub recluster_ms: f64,
+    /// The same slice severing instead of removing (a fresh box): the cut event and
+    /// the cut frame, ms.
+    pub sever_event_ms: f64,
+    /// See [`BenchRow::sever_event_ms`].
+    pub sever_frame_ms: f64,
+    /// The same slice in split mode (a fresh box; the blade lies on the faces between
+    /// two layers of cells, so it severs there rather than splits): event and frame, ms.
+    pub split_event_ms: f64,
+    /// See [`BenchRow::split_event_ms`].
+    pub split_frame_ms: f64,
+    /// Bringing the solver layout up to date in the step after the cut, ms.
+    pub relayout_ms: f64,
+    /// Whether that update patched the layout (false: a full rebuild).
+    pub relayout_patched: bool,
+    /// A full rebuild of the solver layout of the cut body, for comparison, ms.
+    pub rebuild_ms: f64,
+}
+
+/// The contact row of the bench: the `pile` scene at a finer spacing, stepped with and
+/// without particle contacts in the same run.
+#[derive(Clone, Debug, Serialize)]
+pub struct PileRow {
+    /// Always `"pile"` (tells this row from the size rows in JSON lines).
+    pub row: &'static str,
+    /// Lattice spacing of the bodies.
+    pub spacing: f32,
+    /// Bodies.
+    pub bodies: usize,
+    /// Particles over all bodies.
+    pub particles: usize,
+    /// Frames stepped (the medians are over the second half, when the bodies touch).
+    pub frames: u32,
+    /// Particles that take part in contacts (surface particles), at the end.
+    pub contact_particles: usize,
+    /// Contact pairs found in the last substep (each counted from both sides).
+    pub contact_pairs: usize,
+    /// Median step with contacts, ms.
+    pub ms_per_step: f64,
+    /// Median step of the same scene with contacts off, ms.
+    pub ms_per_step_without_contacts: f64,
+    /// `ms_per_step / ms_per_step_without_contacts`. The two runs differ in more than
+    /// contacts: without them the bodies sink through each other and lie otherwise.
+    pub contacts_over_without: f64,
+    /// Median time the contact kind itself took in a step (pairs and projection), ms.
+    pub contact_ms_per_step: f64,
+    /// What contacts add to the rest of the same step: `contact_ms_per_step /
+    /// (ms_per_step − contact_ms_per_step)`.
+    pub contact_share: f64,
+    /// What contacts add, per particle (all of them) and solver iteration, ns.
+    pub contact_ns_per_particle_iteration: f64,
+}
+
+/// Runs the `pile` scene at `spacing` for `frames` frames twice, with and without
+/// contacts, alternating steps so both see the same machine noise.
+pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileRow> {
+    let build = |contacts: bool| -> Result<Simulation> {
+        let scene = crate::io::scene::pile_scene(
+            SimConfig {
+                contacts,
+                ..config.clone()
+            },
+            spacing,
+        );
+        let mut sim = Simulation::new(scene.config.clone())?;
+        for b in &scene.bodies {
+            sim.spawn_body(b)?;
+        }
+        for c in &scene.colliders {
+            sim.spawn_collider(c)?;
+        }
+        Ok(sim)
+    };
+    let (mut with, mut without) = (build(true)?, build(false)?);
+    let (mut on, mut off, mut inside) = (Vec::new(), Vec::new(), Vec::new());
+    let contact_seconds = |sim: &Simulation| sim.world().resource::<SolverCache>().kinds.seconds[0];
+    for frame in 0..frames.max(2) {
+        let before = contact_seconds(&with);
+        let (a, b) = (time_ms(1, || with.step()), time_ms(1, || without.step()));
+        if frame >= frames / 2 {
+            on.push(a);
+            off.push(b);
+            inside.push((contact_seconds(&with) - before) * 1e3);
+        }
+    }
+    let cache = with.world().resource::<SolverCache>();
+    let particles = cache.layout.particle_count();
+    let (ms_on, ms_off, ms_in) = (median(&mut on), median(&mut off), median(&mut inside));
+    let iterations = (config.substeps * config.iterations) as f64;
+    Ok(PileRow {
+        row: "pile",
+        spacing,
+        bodies: cache.body_dense.len(),
+        particles,
+        frames,
+        contact_particles: cache.kinds.contacts.particle_count(),
+        contact_pairs: cache.kinds.contacts.pair_count(),
+        ms_per_step: ms_on,
+        ms_per_step_without_contacts: ms_off,
+        contacts_over_without: ms_on / ms_off,
+        contact_ms_per_step: ms_in,
+        contact_share: ms_in / (ms_on - ms_in),
+        contact_ns_per_particle_iteration: (ms_on - ms_off) * 1e6 / (particles as f64 * iterations),
+    })
+}
+
+/// The median of `samples` (0 for none).
+pub fn median(samples: &mut [f64]) -> f64 {
+    if samples.is_empty() {
+        return 0.0;
+    }
+    samples.sort_by(f64::total_cmp);
+    samples[samples.len() / 2]
+}
+
+/// Milliseconds of `f`, run `runs` times, median.
+fn time_ms(runs: usize, mut f: impl FnMut()) -> f64 {
+    let mut samples: Vec<f64> = (0..runs)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    median(&mut samples)
+}
+
+/// Peak resident set size of this process in bytes (Linux `VmHWM`), if known.
+pub fn peak_resident_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// A simulation with one n³ box resting just above the ground.
+fn box_simulation(n: u32, config: &SimConfig) -> Result<Simulation> {
+    let mut sim = Simulation::new(config.clone())?;
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(n), H), H);
+    desc.position = Vec3::new(0.0, n as f32 * H * 0.5 + 0.05, 0.0);
+    sim.spawn_body(&desc)?;
+    Ok(sim)
+}
+
+/// One step of the bare kernel: the engine's predict and solve on dense arrays only
+/// (`velocities`: one per particle of `layout`).
+fn bare_step(
+    layout: &mut SolverLayout,
+    velocities: &mut [Vec3A],
+    config: &SimConfig,
+    kinds: &mut ConstraintKinds,
+) {
+    let dt = config.dt / config.substeps as f32;
+    let keep = (-config.damping * dt).exp();
+    let dv = Vec3A::from(config.gravity * dt);
+    for _ in 0..config.substeps {
+        for (((x, prev), v), inv_mass) in layout
+            .positions
+            .iter_mut()
+            .zip(layout.previous.iter_mut())
+            .zip(velocities.iter_mut())
+            .zip(&layout.inv_mass)
+        {
+            *prev = *x;
+            if *inv_mass == 0.0 {
+                *v = Vec3A::ZERO;
+                continue;
+            }
+            *v = (*v + dv) * keep;
+            *x += *v * dt;
+        }
+        layout.solve(config.iterations, dt, kinds);
+        layout.update_velocities(velocities, 1.0 / dt);
+    }
+}
+
+/// Measures one box size; `steps` ≥ 1 timed steps after 3 warm-up steps.
+pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> {
+    let mut sim = box_simulation(n, config)?;
+    for _ in 0..3 {
+        sim.step();
+    }
+    let world = sim.world_mut();
+    let memberships: usize = world
+        .query::<&ClusterMembers>()
+        .iter(world)
+        .map(|m| m.0.len())
+        .sum();
+    let cache = world.resource::<SolverCache>();
+    let (particles, clusters) = (cache.layout.particle_count(), cache.layout.cluster_count());
+    // before the bare kernel's copy of the layout exists
+    let bytes_per_particle = peak_resident_bytes().unwrap_or(0) as f64 / particles as f64;
+    let mut layout = cache.layout.clone();
+    let mut velocities: Vec<Vec3A> = cache
+        .particles
+        .iter()
+        .map(|e| {
+            world
+                .get::<Velocity>(*e)
+                .map_or(Vec3A::ZERO, |v| v.0.into())
+        })
+        .collect();
+    let mut kinds = ConstraintKinds {
+        colliders: Colliders::from_config(config, std::iter::empty()),
+        ..Default::default()
+    };
+    // Engine and bare steps alternate, so both see the same machine noise.
+    let (mut engine, mut bare) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
+    for _ in 0..steps {
+        engine.push(time_ms(1, || sim.step()));
+        bare.push(time_ms(1, || {
+            bare_step(&mut layout, &mut velocities, config, &mut kinds)
+        }));
+    }
+    drop((layout, velocities));
+    let (ms_per_step, bare_ms_per_step) = (median(&mut engine), median(&mut bare));
+    let (cut_event_ms, cut_frame_ms, recluster_ms) = slice_event(&mut sim, n, CutMode::Remove)?;
+    sim.world_mut().resource_mut::<SolverCache>().last_update = None;
+    sim.step();
+    let update = sim.world().resource::<SolverCache>().last_update;
+    let rebuild_ms = time_ms(1, || {
+        let world = sim.world_mut();
+        let mut bodies = world.query::<(Entity, &BodyLattice)>();
+        let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf, &Compliance)>();
+        let mut fresh = SolverCache::default();
+        rebuild_cache(
+            &mut fresh,
+            bodies.iter(world),
+            clusters.iter(world),
+            config.solver,
+        );
+    });
+    drop(sim);
+    let mut by_mode = Vec::new();
+    for mode in [CutMode::Sever, CutMode::Split] {
+        let mut sim = box_simulation(n, config)?;
+        sim.step();
+        let (event, frame, _) = slice_event(&mut sim, n, mode)?;
+        by_mode.push((event, frame));
+    }
+    let [
+        (sever_event_ms, sever_frame_ms),
+        (split_event_ms, split_frame_ms),
+    ] = by_mode[..]
+    else {
+        unreachable!("two modes")
+    };
+    let iterations = config.substeps * config.iterations;
+    let per_step = (memberships as f64) * iterations as f64;
+    Ok(BenchRow {
+        size: n,
+        threads: rayon::current_num_threads(),
+        solver: config.solver,
+        particles,
+        clusters,
+        memberships,
+        iterations,
+        ms_per_step,
+        ns_per_membership_iteration: ms_per_step * 1e6 / per_step,
+        bare_ms_per_step,
+        bare_ns_per_membership_iteration: bare_ms_per_step * 1e6 / per_step,
+        engine_over_bare: ms_per_step / bare_ms_per_step,
+        bytes_per_particle,
+        cut_event_ms,
+        cut_frame_ms,
+        recluster_ms,
+        sever_event_ms,
+        sever_frame_ms,
+        split_event_ms,
+        split_frame_ms,
+        relayout_ms: update.map_or(f64::NAN, |u| u.ms),
+        relayout_patched: update.is_some_and(|u| u.patched),
+        rebuild_ms,
+    })
+}
+
+/// Drops a blade in cut mode `mode` through the middle of the box in one frame (a full
+/// slice), then times re-clustering the cut body from scratch. Returns `(cut event ms,
+/// cut frame ms, recluster ms)`.
+fn slice_event(sim: &mut Simulation, n: u32, mode: CutMode) -> Result<(f64, f64, f64)> {
+    let now = sim
+        .world()
+        .resource::<crate::ecs::resources::SimClock>()
+        .time;
+    let dt = sim.world().resource::<SimSettings>().0.dt;
+    let half = n as f32 * H;
+    let at = |y: f32| Pose {
+        position: Vec3::new(0.0, y, 0.0),
+        rotation: Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+    };
+    sim.spawn_tool(&ToolDesc {
+        shape: ToolShape::Blade {
+            half_width: half + 1.0,
+            half_height: 0.05,
+        },
+        cut_width: 2.0 * H,
+        cut_mode: mode,
+        path: Path {
+            keys: vec![
+                (now as f32, at(2.0 * half + 1.0)),
+                (now as f32 + dt, at(-1.0)),
+            ],
+        },
+        pose: at(2.0 * half + 1.0),
+    })?;
+    sim.world_mut()
+        .resource_mut::<CutTimings>()
+        .event_ms
+        .clear();
+    let cut_frame_ms = time_ms(1, || sim.step());
+    let cut_event_ms = sim
+        .world()
+        .resource::<CutTimings>()
+        .event_ms
+        .last()
+        .copied()
+        .unwrap_or(f64::NAN);
+    let world = sim.world_mut();
+    let lattice = world
+        .query::<&BodyLattice>()
+        .iter(world)
+        .next()
+        .map(|l| l.lattice.clone());
+    let recluster_ms = match lattice {
+        Some(l) => time_ms(3, || {
+            initial_clusters(&l, &Material::default(), &mut ChaCha8Rng::seed_from_u64(1));
+        }),
+        None => f64::NAN,
+    };
+    Ok((cut_event_ms, cut_frame_ms, recluster_ms))
+}
+
+/// One solver's row of `cleave bench --convergence`.
+#[derive(Clone, Debug, Serialize)]
+pub struct ConvergenceRow {
+    /// `"jacobi"`, `"gauss-seidel"` or `"projective"`.
+    pub solver: String,
+    /// Milliseconds of iterations until the twisted box's shape error is below 0.1 h
+    /// (`None`: not within the budget).
+    pub twisted_box_ms: Option<f64>,
+    /// Iterations that took.
+    pub twisted_box_iterations: Option<u32>,
+    /// The twisted box's shape error (h) when the run stopped.
+    pub twisted_box_final_error_h: f64,
+    /// Milliseconds of iterations until the cantilever's tip sag is within 1 % of the
+    /// converged static sag (`None`: not within the budget).
+    pub cantilever_ms: Option<f64>,
+    /// Iterations that took.
+    pub cantilever_iterations: Option<u32>,
+    /// The tip sag (h) when the run stopped.
+    pub cantilever_final_sag_h: f64,
+    /// The converged static tip sag (h) every solver is measured against.
+    pub cantilever_static_sag_h: f64,
+}
+
+/// Settings of `cleave bench --convergence`.
+#[derive(Clone, Copy, Debug)]
+pub struct ConvergenceOptions {
+    /// Edge of the twisted box, in particles.
+    pub box_size: u32,
+    /// Wall-clock budget of each run, in seconds.
+    pub budget_seconds: f64,
+}
+
+/// How fast each solver converges on two static problems, with the `cantilever`
+/// material (compliant; projective dynamics cannot hold a rigid cluster): (a) an n³
+/// box twisted a quarter turn end to end, gravity off and nothing pinned, until its
+/// shape error is below 0.1 h; (b) the built-in `cantilever` (its pins and gravity),
+/// from straight to within 1 % of its static tip sag. Each is one solve with a time
+/// step of [`crate::analysis::static_solve::STATIC_DT`], iterated in blocks of
+/// [`crate::analysis::static_solve::BLOCK`] iterations; the times are of
+/// the iterations alone (factorization included) and stop after `budget_seconds`. The
+/// static sag is projective dynamics' converged one (checked against Jacobi's and
+/// Gauss–Seidel's where they converge).
+pub fn convergence(options: ConvergenceOptions) -> Result<Vec<ConvergenceRow>> {
+    let scene = crate::io::scene::builtin("cantilever", 0)
+        .ok_or_else(|| crate::error::CleaveError::InvalidEntity("no cantilever scene".into()))?;
+    let beam = &scene.bodies[0];
+    let material = beam.material.clone();
+    let n = options.box_size;
+    let cube = BodyDesc {
+        material: material.clone(),
+        ..BodyDesc::new(Shape::cuboid(UVec3::splat(n), H), H)
+    };
+    // the static sag: projective dynamics until the sag moves less than 1e-6 h a block
+    let reference = StaticProblem::fresh(beam, SolverMode::Projective, scene.config.gravity)?
+        .settled_sag(2000, 1e-6);
+    SolverMode::ALL
+        .iter()
+        .map(|&solver| {
+            let mut twisted = StaticProblem::twisted(&cube, n as f32 * H, solver)?;
+            let (twisted_ms, twisted_iterations, twisted_error) =
+                twisted.run(options.budget_seconds, |p| p.shape_error(), |e| e < 0.1);
+            let mut beam = StaticProblem::fresh(beam, solver, scene.config.gravity)?;
+            let (ms, iterations, sag) = beam.run(
+                options.budget_seconds,
+                |p| p.sag(),
+                |sag| (sag - reference).abs() <= 0.01 * reference.abs(),
+            );
+            Ok(ConvergenceRow {
+                solver: solver.name().to_string(),
+                twisted_box_ms: twisted_ms,
+                twisted_box_iterations: twisted_iterations,
+                twisted_box_final_error_h: twisted_error,
+                cantilever_ms: ms,
+                cantilever_iterations: iterations,
+                cantilever_final_sag_h: sag,
+                cantilever_static_sag_h: reference,
+            })
+        })
+        .collect()
+}

@@ -1,0 +1,9 @@
+//! Measuring the engine: statistics of a state, cluster shapes, fidelity of rebuilt
+//! clusters, static solves, the benchmarks behind `cleave bench`, per-stage profiles.
+
+pub mod bench;
+pub mod cluster_shape;
+pub mod fidelity;
+pub mod profile;
+pub mod static_solve;
+pub mod stats;

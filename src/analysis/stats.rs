@@ -1,0 +1,209 @@
+//! Measurements of a world: counts, shape error against the best rigid fit of the rest
+//! shape, lowest particle, piece centroids.
+
+use crate::body::graph::body_pieces;
+use crate::ecs::components::*;
+use crate::math::rotation::extract_rotation;
+use bevy_ecs::prelude::*;
+use glam::{Mat3, Quat, Vec3};
+use serde::Serialize;
+
+/// Counts and shape measures of one body.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct BodyStats {
+    /// Live particles.
+    pub particles: usize,
+    /// Clusters.
+    pub clusters: usize,
+    /// Sum of cluster sizes.
+    pub memberships: usize,
+    /// Mean cluster size.
+    pub mean_cluster_size: f64,
+    /// Memberships per live particle.
+    pub memberships_per_particle: f64,
+    /// Connected pieces.
+    pub pieces: usize,
+    /// RMS distance to the best rigid fit of the rest shape, per piece, in units of h
+    /// (the largest over pieces).
+    pub shape_error_h: f64,
+    /// Lowest particle height.
+    pub lowest_y: f64,
+    /// Centroid of each piece, ordered by smallest particle index.
+    pub piece_centroids: Vec<[f32; 3]>,
+    /// Whether every position is finite.
+    pub finite: bool,
+    /// The largest speed of a live particle (m/s).
+    pub max_speed: f64,
+}
+
+/// RMS distance between `current` and the best rigid transform of `rest`.
+pub fn rigid_fit_error(rest: &[Vec3], current: &[Vec3]) -> f32 {
+    if rest.is_empty() {
+        return 0.0;
+    }
+    let n = rest.len() as f32;
+    let (rc, cc) = (
+        rest.iter().sum::<Vec3>() / n,
+        current.iter().sum::<Vec3>() / n,
+    );
+    let mut a = Mat3::ZERO;
+    for (r, c) in rest.iter().zip(current) {
+        let (q, p) = (*r - rc, *c - cc);
+        a += Mat3::from_cols(p * q.x, p * q.y, p * q.z);
+    }
+    let rot = extract_rotation(glam::Mat3A::from(a), Quat::IDENTITY, 200);
+    let sum: f32 = rest
+        .iter()
+        .zip(current)
+        .map(|(r, c)| (rot * (*r - rc) + cc - *c).length_squared())
+        .sum();
+    (sum / n).sqrt()
+}
+
+/// The smallest distance between two of `points` with different `labels`, when some
+/// such pair is closer than `reach`; `None` otherwise. A uniform grid of cells of side
+/// `reach`, so the cost is linear in the points (written apart from the contact kind's
+/// broad phase, so that it can check it).
+pub fn min_distance_between_labels(points: &[Vec3], labels: &[u64], reach: f32) -> Option<f32> {
+    use std::collections::HashMap;
+    let cell = |p: Vec3| (p / reach).floor().as_ivec3();
+    let mut grid: HashMap<glam::IVec3, Vec<usize>> = HashMap::new();
+    for (i, p) in points.iter().enumerate() {
+        if p.is_finite() {
+            grid.entry(cell(*p)).or_default().push(i);
+        }
+    }
+    let mut best: Option<f32> = None;
+    for (c, members) in &grid {
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let Some(others) = grid.get(&(*c + glam::IVec3::new(dx, dy, dz))) else {
+                        continue;
+                    };
+                    for &a in members {
+                        for &b in others {
+                            if labels[a] != labels[b] {
+                                let d = points[a].distance(points[b]);
+                                if d < reach && best.is_none_or(|m| d < m) {
+                                    best = Some(d);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    best
+}
+
+/// Live particle positions of every body with their body and piece: `(position, body
+/// ordinal, piece label)`, bodies in entity order.
+pub fn labelled_positions(world: &mut World) -> Vec<(Vec3, u32, u32)> {
+    let mut bodies: Vec<(Entity, BodyLattice)> = world
+        .query::<(Entity, &BodyLattice)>()
+        .iter(world)
+        .map(|(e, b)| (e, b.clone()))
+        .collect();
+    bodies.sort_unstable_by_key(|(e, _)| *e);
+    let mut out = Vec::new();
+    for (ordinal, (_, body)) in bodies.iter().enumerate() {
+        let (labels, _) = body_pieces(&body.lattice);
+        for i in body.lattice.live_particles() {
+            if let Some(p) = world.get::<Position>(body.particles[i as usize]) {
+                out.push((p.0, ordinal as u32, labels[i as usize]));
+            }
+        }
+    }
+    out
+}
+
+/// Statistics of one body.
+pub fn body_stats(world: &mut World, body: Entity) -> Option<BodyStats> {
+    let lattice = world.get::<BodyLattice>(body)?.clone();
+    let l = &lattice.lattice;
+    let positions: Vec<Vec3> = (0..l.len() as u32)
+        .map(|i| {
+            if l.is_live(i) {
+                world
+                    .get::<Position>(lattice.particles[i as usize])
+                    .map_or(Vec3::NAN, |p| p.0)
+            } else {
+                Vec3::ZERO
+            }
+        })
+        .collect();
+    let mut clusters = 0;
+    let mut memberships = 0;
+    for (members, of) in world.query::<(&ClusterMembers, &ClusterOf)>().iter(world) {
+        if of.body == body {
+            clusters += 1;
+            memberships += members.0.len();
+        }
+    }
+    let (labels, pieces) = body_pieces(l);
+    let mut groups: Vec<Vec<u32>> = vec![Vec::new(); pieces];
+    for i in l.live_particles() {
+        groups[labels[i as usize] as usize].push(i);
+    }
+    let h = l.spacing();
+    let mut shape_error = 0.0f32;
+    let mut centroids = Vec::new();
+    for g in &groups {
+        let rest: Vec<Vec3> = g.iter().map(|i| l.rest_position(*i)).collect();
+        let cur: Vec<Vec3> = g.iter().map(|i| positions[*i as usize]).collect();
+        shape_error = shape_error.max(rigid_fit_error(&rest, &cur) / h);
+        centroids.push((cur.iter().sum::<Vec3>() / cur.len() as f32).to_array());
+    }
+    let live: Vec<Vec3> = l.live_particles().map(|i| positions[i as usize]).collect();
+    let n = live.len();
+    Some(BodyStats {
+        particles: n,
+        clusters,
+        memberships,
+        mean_cluster_size: if clusters > 0 {
+            memberships as f64 / clusters as f64
+        } else {
+            0.0
+        },
+        memberships_per_particle: if n > 0 {
+            memberships as f64 / n as f64
+        } else {
+            0.0
+        },
+        pieces,
+        shape_error_h: shape_error as f64,
+        lowest_y: live.iter().map(|p| p.y).fold(f32::INFINITY, f32::min) as f64,
+        piece_centroids: centroids,
+        finite: live.iter().all(|p| p.is_finite()),
+        max_speed: l
+            .live_particles()
+            .filter_map(|i| world.get::<Velocity>(lattice.particles[i as usize]))
+            .map(|v| v.0.length() as f64)
+            .fold(0.0, f64::max),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_closest_pair_of_different_labels_is_found() {
+        let points = [
+            Vec3::ZERO,
+            Vec3::new(0.05, 0.0, 0.0),
+            Vec3::new(0.3, 0.0, 0.0),
+            Vec3::new(0.38, 0.0, 0.0),
+        ];
+        // 0–1 share a label; 2–3 are the closest pair of different labels
+        let d = min_distance_between_labels(&points, &[0, 0, 1, 2], 0.5).unwrap();
+        assert!((d - 0.08).abs() < 1e-6, "{d}");
+        assert_eq!(min_distance_between_labels(&points, &[7; 4], 0.5), None);
+        assert_eq!(
+            min_distance_between_labels(&points, &[0, 0, 1, 1], 0.2),
+            None
+        );
+    }
+}

@@ -1,0 +1,8 @@
+//! Cutting: tools and their swept motion, detection of what they reach (read-only),
+//! and the edits a cut makes to a lattice — carving, tearing, splitting particles.
+
+pub mod carve;
+pub mod detection;
+pub mod particle_split;
+pub mod tear;
+pub mod tool;

@@ -1,0 +1,229 @@
+//! ECS components. Particle side: [`Particle`], [`Position`], [`PrevPosition`],
+//! [`Velocity`], [`InvMass`], and the body's [`BodyLattice`] (which holds what never
+//! changes: lattice coordinates and rest positions). Cluster side: [`ClusterMembers`],
+//! [`ClusterOf`], [`Compliance`], and the body's [`ParticleClusters`] index. Tools:
+//! [`Tool`], [`ToolPose`], [`ToolPath`]. Colliders: [`Collider`], [`ColliderPose`],
+//! [`ColliderPath`].
+
+use crate::body::lattice::Lattice;
+use crate::clusters::index::ClusterIndex;
+use crate::config::Material;
+use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
+use crate::geometry::collider::ColliderShape;
+use bevy_ecs::prelude::*;
+use glam::{IVec3, Vec3};
+
+/// A particle: its body and its body-local index (stable for the body's life).
+///
+/// Its lattice coordinate and rest position never change, so they are stored once per
+/// body, not per entity: `lattice.coord(index)` and `lattice.rest_position(index)` of the
+/// body's [`BodyLattice`].
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Particle {
+    /// The body entity.
+    pub body: Entity,
+    /// Index in the body's lattice.
+    pub index: u32,
+}
+
+/// Current (or, during a substep, predicted) position.
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Position(pub Vec3);
+
+/// Position at the start of the current substep.
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PrevPosition(pub Vec3);
+
+/// Velocity.
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Velocity(pub Vec3);
+
+/// Inverse mass; 0 pins the particle.
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct InvMass(pub f32);
+
+/// A body: its material, and where its clustering's seed grid lies.
+#[derive(Component, Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct Body {
+    /// Material and clustering parameters.
+    pub material: Material,
+    /// Where the initial clustering placed its seed grid
+    /// ([`crate::clusters::clustering::seed_grid_offset`]). A fresh clustering of the body's
+    /// current geometry ([`crate::ecs::spawn::recluster`]) places it there too, so that it
+    /// differs from the spawned clusters only where the body was cut.
+    pub seed_grid: IVec3,
+}
+
+/// Particle data of a body: the lattice (coordinate ↔ index, live flags), the entity of
+/// each particle index, and the number of connected pieces.
+#[derive(Component, Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct BodyLattice {
+    /// The lattice.
+    pub lattice: Lattice,
+    /// Particle entity per index (stale for removed particles).
+    pub particles: Vec<Entity>,
+    /// Connected pieces of the live particle graph.
+    pub pieces: usize,
+}
+
+/// Cluster data of a body: which clusters hold each particle, and the entity of each
+/// cluster.
+///
+/// A cluster is named by a *key* its body hands out ([`ClusterKeys`]), not by its
+/// entity: the particle index, the reconstruction and the cut stages' hand-over all use
+/// keys, and entities appear only where clusters meet the ECS. So a body names its
+/// clusters alike whatever entities the world hands out, and a saved simulation resumes
+/// exactly as it would have gone on.
+#[derive(Component, Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct ParticleClusters {
+    /// For each particle index, the keys of the clusters that hold it, ascending.
+    pub index: ClusterIndex,
+    /// The entity of each key.
+    pub keys: ClusterKeys,
+}
+
+impl ParticleClusters {
+    /// The cluster entities that contain particle `p` (none for an index out of range).
+    pub fn clusters_of(&self, p: u32) -> impl Iterator<Item = Entity> + '_ {
+        self.index
+            .clusters_of(p)
+            .iter()
+            .filter_map(|k| self.keys.entity(*k))
+    }
+}
+
+/// The cluster entity behind each key of one body, and the keys free for reuse. A freed
+/// key is handed out again before a new one (the last freed first), so keys stay dense.
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct ClusterKeys {
+    entities: Vec<Entity>,
+    free: Vec<u32>,
+}
+
+impl ClusterKeys {
+    /// Names the cluster entity `e`; returns its key.
+    pub fn insert(&mut self, e: Entity) -> u32 {
+        match self.free.pop() {
+            Some(k) => {
+                self.entities[k as usize] = e;
+                k
+            }
+            None => {
+                self.entities.push(e);
+                self.entities.len() as u32 - 1
+            }
+        }
+    }
+
+    /// Frees key `k`; returns the entity it named.
+    pub fn remove(&mut self, k: u32) -> Option<Entity> {
+        let e = self.entity(k)?;
+        self.entities[k as usize] = Entity::PLACEHOLDER;
+        self.free.push(k);
+        Some(e)
+    }
+
+    /// The entity of key `k`, if it names one.
+    pub fn entity(&self, k: u32) -> Option<Entity> {
+        self.entities
+            .get(k as usize)
+            .copied()
+            .filter(|e| *e != Entity::PLACEHOLDER)
+    }
+
+    /// Every key in use with its entity, by key.
+    pub fn iter(&self) -> impl Iterator<Item = (u32, Entity)> + '_ {
+        (0..self.entities.len() as u32).filter_map(|k| self.entity(k).map(|e| (k, e)))
+    }
+
+    /// The keys in use.
+    pub fn len(&self) -> usize {
+        self.entities.len() - self.free.len()
+    }
+
+    /// Whether no key is in use.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The entity of every key slot (`Entity::PLACEHOLDER` where free) and the free keys,
+    /// last freed last: everything that decides the keys handed out next.
+    pub fn parts(&self) -> (&[Entity], &[u32]) {
+        (&self.entities, &self.free)
+    }
+
+    /// Keys as [`ClusterKeys::parts`] gave them (with the entities of another world,
+    /// when a saved simulation is loaded).
+    pub fn from_parts(entities: Vec<Entity>, free: Vec<u32>) -> Self {
+        Self { entities, free }
+    }
+}
+
+/// A cluster's members as body-local particle indices, sorted.
+#[derive(Component, Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct ClusterMembers(pub Vec<u32>);
+
+/// The body a cluster belongs to, and the key it names the cluster by (see
+/// [`ClusterKeys`]).
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct ClusterOf {
+    /// The body entity.
+    pub body: Entity,
+    /// The cluster's key in the body.
+    pub key: u32,
+}
+
+/// Compliance `1/κ` of a cluster's elastic energy in m/N (0: rigid); see
+/// [`crate::config::Material::compliance`].
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Compliance(pub f32);
+
+/// A cutting tool: shape, cut width (how far from its surface `remove` and `split` reach)
+/// and cut mode.
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Tool {
+    /// Shape in the local frame.
+    pub shape: ToolShape,
+    /// Width of the cut zone (> 0).
+    pub cut_width: f32,
+    /// What the tool does where it passes.
+    pub mode: CutMode,
+}
+
+/// The tool's pose now and at the previous frame (for the swept test).
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ToolPose {
+    /// Current pose.
+    pub current: Pose,
+    /// Pose at the previous frame.
+    pub last: Pose,
+}
+
+/// A keyframed path that drives the tool's pose from the simulation clock.
+#[derive(Component, Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ToolPath(pub Path);
+
+/// A collider that particles cannot enter: static, moved by a [`ColliderPath`], or
+/// moved by game code through its [`ColliderPose`].
+#[derive(Component, Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Collider {
+    /// Shape in the local frame.
+    pub shape: ColliderShape,
+    /// Coulomb friction coefficient (≥ 0).
+    pub friction: f32,
+}
+
+/// The collider's pose at the end of the current frame and at its start; the substeps
+/// move it from one to the other.
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ColliderPose {
+    /// Pose at the end of the frame being simulated.
+    pub current: Pose,
+    /// Pose at its start.
+    pub last: Pose,
+}
+
+/// A keyframed path that drives a collider's pose from the simulation clock (a press, a
+/// paddle).
+#[derive(Component, Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ColliderPath(pub Path);

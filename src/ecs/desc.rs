@@ -1,0 +1,93 @@
+//! What a body, a tool and a collider are spawned from: plain descriptions, checked
+//! when spawned ([`crate::ecs::spawn`]).
+
+use crate::body::lattice::Shape;
+use crate::config::Material;
+use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
+use crate::geometry::collider::ColliderShape;
+use glam::{Quat, Vec3};
+
+/// An axis-aligned world-space region whose particles are pinned (inverse mass 0): they
+/// move at the region's constant velocity whatever acts on them (zero: they stay), so
+/// pins can hold a body or pull it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PinRegion {
+    /// Minimum corner.
+    pub min: Vec3,
+    /// Maximum corner.
+    pub max: Vec3,
+    /// Velocity of the pinned particles (m/s).
+    #[serde(default)]
+    pub velocity: Vec3,
+}
+
+impl PinRegion {
+    /// Whether the world position `x` lies in the region (bounds included).
+    pub fn contains(&self, x: Vec3) -> bool {
+        x.cmpge(self.min).all() && x.cmple(self.max).all()
+    }
+}
+
+/// Everything needed to spawn a body.
+#[derive(Clone, Debug)]
+pub struct BodyDesc {
+    /// Shape to voxelise (local frame).
+    pub shape: Shape,
+    /// Lattice spacing h (> 0).
+    pub spacing: f32,
+    /// World position of the shape's local origin.
+    pub position: Vec3,
+    /// Initial rotation (rest shape stays unrotated: a rotated body returns to a
+    /// rotated copy of it).
+    pub rotation: Quat,
+    /// Initial velocity.
+    pub velocity: Vec3,
+    /// Material and clustering parameters.
+    pub material: Material,
+    /// Regions of pinned particles (world space, after placement).
+    pub pins: Vec<PinRegion>,
+}
+
+impl BodyDesc {
+    /// A body of the given shape and spacing with default material at the origin.
+    pub fn new(shape: Shape, spacing: f32) -> Self {
+        Self {
+            shape,
+            spacing,
+            position: Vec3::ZERO,
+            rotation: Quat::IDENTITY,
+            velocity: Vec3::ZERO,
+            material: Material::default(),
+            pins: Vec::new(),
+        }
+    }
+}
+
+/// Everything needed to spawn a cutting tool.
+#[derive(Clone, Debug)]
+pub struct ToolDesc {
+    /// Shape.
+    pub shape: ToolShape,
+    /// Width of the cut zone (> 0).
+    pub cut_width: f32,
+    /// What the tool does where it passes.
+    pub cut_mode: CutMode,
+    /// Keyframed path; if empty the tool stays at `pose` until game code moves it.
+    pub path: Path,
+    /// Initial pose.
+    pub pose: Pose,
+}
+
+/// Everything needed to spawn a collider.
+#[derive(Clone, Debug)]
+pub struct ColliderDesc {
+    /// Shape in the local frame.
+    pub shape: ColliderShape,
+    /// Coulomb friction coefficient (≥ 0).
+    pub friction: f32,
+    /// Pose (before the path starts, or for good without a path).
+    pub pose: Pose,
+    /// Keyframed path; empty: static, or moved by game code through
+    /// [`ColliderPose::current`].
+    pub path: Path,
+}

@@ -1,0 +1,10 @@
+//! The ECS data of a simulation: components, resources and messages, descriptions of
+//! what can be spawned and the spawning itself, the map between the particle table and
+//! the solver's dense arrays, and the invariant check over a world.
+
+pub mod check;
+pub mod components;
+pub mod desc;
+pub mod resources;
+pub mod spawn;
+pub mod table_rows;

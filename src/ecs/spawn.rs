@@ -1,0 +1,300 @@
+//! Spawning into any world prepared with [`crate::systems::install`]: bodies
+//! (voxelised, clustered, their particles and clusters as entities), cutting tools and
+//! colliders; and replacing a body's clusters by a fresh clustering.
+
+use crate::clusters::clustering::{clusters_on_grid, seed_grid_offset};
+use crate::clusters::index::ClusterIndex;
+use crate::clusters::store::ClusterTable;
+use crate::cut::tool::{Path, Pose};
+use crate::ecs::components::*;
+use crate::ecs::desc::{BodyDesc, ColliderDesc, ToolDesc};
+use crate::ecs::resources::*;
+use crate::error::{
+    CleaveError, MAX_COORDINATE, Result, check_finite_vec, check_positive, check_range,
+    check_vec_within,
+};
+use crate::math::rotation::unit_quaternion;
+use crate::solver::MAX_SOLVER_PARTICLES;
+use bevy_ecs::prelude::*;
+
+/// Spawns a cutting tool into any world prepared with [`crate::systems::install`].
+pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
+    desc.shape.validate()?;
+    check_positive("tool.cut_width", desc.cut_width)?;
+    let (pose, path) = starting_pose(world, "tool", &desc.path, desc.pose)?;
+    let tool = Tool {
+        shape: desc.shape,
+        cut_width: desc.cut_width,
+        mode: desc.cut_mode,
+    };
+    let at = ToolPose {
+        current: pose,
+        last: pose,
+    };
+    Ok(spawn_keyframed(world, (tool, at), path, ToolPath))
+}
+
+/// Spawns `object`, with the component `follow` makes of `path` when it has keys.
+fn spawn_keyframed<C: Component>(
+    world: &mut World,
+    object: impl Bundle,
+    path: Path,
+    follow: impl FnOnce(Path) -> C,
+) -> Entity {
+    let mut e = world.spawn(object);
+    if !path.keys.is_empty() {
+        e.insert(follow(path));
+    }
+    e.id()
+}
+
+/// Checks a keyframed object's `path` and `pose` (errors name `what`) and returns its
+/// pose at the world's current time (the path's, or `pose` without a path) and the path
+/// with unit rotations.
+fn starting_pose(world: &World, what: &str, path: &Path, pose: Pose) -> Result<(Pose, Path)> {
+    path.validate(what)?;
+    check_vec_within(
+        &format!("{what}.pose.position"),
+        pose.position,
+        MAX_COORDINATE,
+        "|x|, |y|, |z| ≤ 1e6 (metres)",
+    )?;
+    let rotation = unit_quaternion(pose.rotation).ok_or_else(|| {
+        crate::error::out_of_range(
+            &format!("{what}.pose.rotation"),
+            pose.rotation,
+            "finite, non-zero quaternion",
+        )
+    })?;
+    let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time);
+    let path = path.normalized();
+    let pose = path.sample(now as f32).unwrap_or(Pose { rotation, ..pose });
+    Ok((pose, path))
+}
+
+/// Spawns a collider into any world prepared with [`crate::systems::install`].
+pub fn spawn_collider(world: &mut World, desc: &ColliderDesc) -> Result<Entity> {
+    desc.shape.validate("collider.shape")?;
+    check_range(
+        "collider.friction",
+        desc.friction,
+        0.0,
+        100.0,
+        "0 ≤ friction ≤ 100",
+    )?;
+    let (pose, path) = starting_pose(world, "collider", &desc.path, desc.pose)?;
+    let collider = Collider {
+        shape: desc.shape.clone(),
+        friction: desc.friction,
+    };
+    let at = ColliderPose {
+        current: pose,
+        last: pose,
+    };
+    Ok(spawn_keyframed(world, (collider, at), path, ColliderPath))
+}
+
+/// Particle slots of the bodies already in `world` (live or cut).
+fn existing_particles(world: &mut World) -> u64 {
+    let Some(mut bodies) = world.try_query::<&BodyLattice>() else {
+        return 0;
+    };
+    bodies.iter(world).map(|b| b.lattice.len() as u64).sum()
+}
+
+/// Refuses a body of `new` particle slots next to `existing` ones when the solver could
+/// not address them all.
+fn check_particle_budget(existing: u64, new: u64) -> Result<()> {
+    let particles = existing.saturating_add(new);
+    if particles > MAX_SOLVER_PARTICLES {
+        return Err(CleaveError::TooManyParticles {
+            particles,
+            max: MAX_SOLVER_PARTICLES,
+        });
+    }
+    Ok(())
+}
+
+/// Spawns a body into any world prepared with [`crate::systems::install`].
+pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
+    desc.material.validate()?;
+    check_range(
+        "spacing",
+        desc.spacing,
+        1e-4,
+        100.0,
+        "1e-4 ≤ spacing ≤ 100 (metres)",
+    )?;
+    check_vec_within(
+        "body.position",
+        desc.position,
+        MAX_COORDINATE,
+        "|x|, |y|, |z| ≤ 1e6 (metres)",
+    )?;
+    check_vec_within(
+        "body.velocity",
+        desc.velocity,
+        1e4,
+        "|vx|, |vy|, |vz| ≤ 1e4 (m/s)",
+    )?;
+    let rotation = unit_quaternion(desc.rotation).ok_or_else(|| {
+        crate::error::out_of_range(
+            "body.rotation",
+            desc.rotation,
+            "finite, non-zero quaternion",
+        )
+    })?;
+    for (i, pin) in desc.pins.iter().enumerate() {
+        check_finite_vec(&format!("body.pins[{i}].min"), pin.min)?;
+        check_finite_vec(&format!("body.pins[{i}].max"), pin.max)?;
+        check_vec_within(
+            &format!("body.pins[{i}].velocity"),
+            pin.velocity,
+            1e4,
+            "|vx|, |vy|, |vz| ≤ 1e4 (m/s)",
+        )?;
+    }
+    check_range(
+        "material.particle_mass",
+        desc.material.mass_at_spacing(desc.spacing),
+        1e-9,
+        1e9,
+        "1e-9 ≤ density·spacing³ ≤ 1e9 (kg per particle)",
+    )?;
+    let budget = world
+        .get_resource::<SimSettings>()
+        .map_or(crate::body::lattice::DEFAULT_MEMORY_BUDGET_GB, |s| {
+            s.0.memory_budget_gb
+        });
+    let lattice = desc.shape.voxelise_within(desc.spacing, budget)?;
+    check_particle_budget(existing_particles(world), lattice.len() as u64)?;
+    let seed_grid = seed_grid_offset(&desc.material, &mut world.resource_mut::<SimRng>().0);
+    let table = clusters_on_grid(&lattice, &desc.material, seed_grid);
+    let body = world
+        .spawn(Body {
+            material: desc.material.clone(),
+            seed_grid,
+        })
+        .id();
+    // In the solver layout's (Morton) order, so that the particle table's rows and the
+    // layout's slots run in step and the shape-match stage copies them in sequence; in one
+    // batch, so that the table is sized once instead of grown by doubling.
+    let order = lattice.live_in_morton_order();
+    let inv_mass = 1.0 / desc.material.mass_at_spacing(desc.spacing);
+    let spawned = world.spawn_batch(order.iter().map(|&i| {
+        let x = desc.position + rotation * lattice.rest_position(i);
+        let pin = desc.pins.iter().find(|r| r.contains(x));
+        (
+            Particle { body, index: i },
+            Position(x),
+            PrevPosition(x),
+            Velocity(pin.map_or(desc.velocity, |r| r.velocity)),
+            InvMass(if pin.is_some() { 0.0 } else { inv_mass }),
+        )
+    }));
+    let mut particles = vec![Entity::PLACEHOLDER; lattice.len()];
+    for (&i, e) in order.iter().zip(spawned) {
+        particles[i as usize] = e;
+    }
+    let compliance = desc.material.cluster_compliance(desc.spacing);
+    let (clusters, _) = spawn_clusters(world, body, &table, lattice.len(), compliance);
+    let pieces = lattice.piece_count();
+    world.entity_mut(body).insert((
+        BodyLattice {
+            lattice,
+            particles,
+            pieces,
+        },
+        clusters,
+    ));
+    Ok(body)
+}
+
+/// Spawns the clusters of `table` as entities of `body`, with keys in table order;
+/// returns the body's cluster data and the entities, in order.
+fn spawn_clusters(
+    world: &mut World,
+    body: Entity,
+    table: &ClusterTable,
+    particles: usize,
+    compliance: f32,
+) -> (ParticleClusters, Vec<Entity>) {
+    let mut clusters = ParticleClusters {
+        index: ClusterIndex::new(particles),
+        keys: ClusterKeys::default(),
+    };
+    let mut entities = Vec::with_capacity(table.len());
+    for (_, members) in table.iter() {
+        // (fresh keys count up from 0: the key is known before the entity)
+        let key = clusters.keys.len() as u32;
+        let e = world
+            .spawn((
+                ClusterMembers(members.to_vec()),
+                ClusterOf { body, key },
+                Compliance(compliance),
+            ))
+            .id();
+        let named = clusters.keys.insert(e);
+        debug_assert_eq!(named, key);
+        clusters.index.add_cluster(key, members);
+        entities.push(e);
+    }
+    (clusters, entities)
+}
+
+/// Replaces the clusters of `body` by a fresh clustering of its current geometry: the
+/// initial clustering, with the body's seed grid, of the particles and lattice edges
+/// that are live now — the clusters the body would have if it had been spawned with
+/// this shape. This is the reference a cut body's rebuilt clusters are measured
+/// against (`cleave fidelity`). Particles keep their positions and velocities; the
+/// solver layout is rebuilt at the next step. Returns the new cluster entities.
+pub fn recluster(world: &mut World, body: Entity) -> Result<Vec<Entity>> {
+    let not_a_body = || CleaveError::InvalidEntity(format!("{body} is not a body"));
+    let (table, particles, compliance) = {
+        let b = world.get::<Body>(body).ok_or_else(not_a_body)?;
+        let lattice = &world
+            .get::<BodyLattice>(body)
+            .ok_or_else(not_a_body)?
+            .lattice;
+        (
+            clusters_on_grid(lattice, &b.material, b.seed_grid),
+            lattice.len(),
+            b.material.cluster_compliance(lattice.spacing()),
+        )
+    };
+    let old: Vec<Entity> = world
+        .query::<(Entity, &ClusterOf)>()
+        .iter(world)
+        .filter(|(_, of)| of.body == body)
+        .map(|(e, _)| e)
+        .collect();
+    for e in old {
+        world.despawn(e);
+    }
+    let (body_clusters, clusters) = spawn_clusters(world, body, &table, particles, compliance);
+    world.entity_mut(body).insert(body_clusters);
+    world.resource_mut::<SolverCache>().valid = false;
+    Ok(clusters)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bodies_past_the_solver_limit_are_refused() {
+        assert!(check_particle_budget(0, MAX_SOLVER_PARTICLES).is_ok());
+        assert!(check_particle_budget(MAX_SOLVER_PARTICLES - 10, 10).is_ok());
+        for (existing, new) in [
+            (MAX_SOLVER_PARTICLES, 1),
+            (1, MAX_SOLVER_PARTICLES),
+            (u64::MAX, 5),
+        ] {
+            let err = check_particle_budget(existing, new).unwrap_err();
+            assert!(
+                matches!(err, CleaveError::TooManyParticles { max, .. } if max == MAX_SOLVER_PARTICLES),
+                "{err}"
+            );
+        }
+    }
+}

@@ -1,0 +1,329 @@
+//! The solver slot of every row of the particles' ECS table, and the row of every slot,
+//! so the shape-match stage copies particle state between the table's columns and the
+//! dense solver layout in parallel, without an entity lookup per particle.
+//!
+//! The map is checked on every load — the table must have the length it had, each
+//! mapped slot's entity must still sit at its row, and each row that held no particle of
+//! the layout must still hold the same entity, so every row is accounted for — and
+//! rebuilt when the table changed: particles despawned by a cut, or entities spawned
+//! into the same table.
+
+use crate::ecs::components::{InvMass, Position, PrevPosition, Velocity};
+use crate::solver::SolverLayout;
+use bevy_ecs::prelude::Entity;
+use glam::{Vec3, Vec3A};
+use rayon::prelude::*;
+
+/// No row / no slot.
+const NONE: u32 = u32::MAX;
+/// Particles per parallel task.
+const CHUNK: usize = 4096;
+
+/// One ECS table's particle columns, row by row.
+#[derive(Clone, Copy)]
+pub struct ParticleColumns<'a> {
+    /// Entity of each row.
+    pub entities: &'a [Entity],
+    /// Positions (the predicted positions while a substep runs).
+    pub positions: &'a [Position],
+    /// Positions at the start of the substep.
+    pub previous: &'a [PrevPosition],
+    /// Inverse masses.
+    pub inv_mass: &'a [InvMass],
+}
+
+/// Rows ↔ solver slots of one particle table (see the module docs).
+#[derive(Clone, Debug, Default)]
+pub struct TableRows {
+    row_of_slot: Vec<u32>,
+    slot_of_row: Vec<u32>,
+    /// The rows that hold no particle of the layout, and their entities.
+    strangers: Vec<(u32, Entity)>,
+}
+
+impl TableRows {
+    /// Copies the table's particle state into `layout`. `slots` is the particle entity of
+    /// each solver slot, `slot_of_index` the slot of each entity index (`u32::MAX` for
+    /// none). Rows of entities the layout does not hold are skipped; so are slots whose
+    /// entity is not in the table (cut particles), which keep their state.
+    pub fn load(
+        &mut self,
+        layout: &mut SolverLayout,
+        slots: &[Entity],
+        slot_of_index: &[u32],
+        table: ParticleColumns,
+    ) {
+        if !self.try_load(layout, slots, table) {
+            self.rebuild(slots, slot_of_index, table.entities);
+            let loaded = self.try_load(layout, slots, table);
+            debug_assert!(loaded, "a freshly built row map matches its table");
+        }
+    }
+
+    /// Writes the solved positions back into the table's columns (the rows of the last
+    /// [`TableRows::load`]) and adds the solve's corrections to the velocities,
+    /// `v += Σ Δp / dt` (see [`SolverLayout::update_velocities`]).
+    pub fn store(
+        &self,
+        layout: &SolverLayout,
+        inv_dt: f32,
+        positions: &mut [Position],
+        velocities: &mut [Velocity],
+    ) {
+        (
+            positions.par_chunks_mut(CHUNK),
+            velocities.par_chunks_mut(CHUNK),
+            self.slot_of_row.par_chunks(CHUNK),
+        )
+            .into_par_iter()
+            .for_each(|(x, v, slots)| {
+                for ((x, v), &slot) in x.iter_mut().zip(v).zip(slots) {
+                    if slot != NONE {
+                        x.0 = Vec3::from(layout.positions[slot as usize]);
+                        v.0 += Vec3::from(layout.corrections[slot as usize] * inv_dt);
+                    }
+                }
+            });
+    }
+
+    /// Loads through the current map; false (with the layout partly loaded) when the
+    /// map no longer matches the table.
+    fn try_load(
+        &self,
+        layout: &mut SolverLayout,
+        slots: &[Entity],
+        table: ParticleColumns,
+    ) -> bool {
+        if self.slot_of_row.len() != table.entities.len()
+            || self.row_of_slot.len() != slots.len()
+            || self
+                .strangers
+                .iter()
+                .any(|(row, e)| table.entities.get(*row as usize) != Some(e))
+        {
+            return false;
+        }
+        // (zipped to the shortest: every layout array has one entry per slot)
+        (
+            layout.positions.par_chunks_mut(CHUNK),
+            layout.previous.par_chunks_mut(CHUNK),
+            layout.inv_mass.par_chunks_mut(CHUNK),
+            self.row_of_slot.par_chunks(CHUNK),
+            slots.par_chunks(CHUNK),
+        )
+            .into_par_iter()
+            .all(|(x, prev, inv_mass, rows, entities)| {
+                let slots = x.iter_mut().zip(prev).zip(inv_mass).zip(rows).zip(entities);
+                for ((((x, prev), inv_mass), &row), entity) in slots {
+                    if row == NONE {
+                        continue;
+                    }
+                    let row = row as usize;
+                    if table.entities.get(row) != Some(entity) {
+                        return false;
+                    }
+                    *x = Vec3A::from(table.positions[row].0);
+                    *prev = Vec3A::from(table.previous[row].0);
+                    *inv_mass = table.inv_mass[row].0;
+                }
+                true
+            })
+    }
+
+    /// Maps every row whose entity owns a slot (same index and generation).
+    fn rebuild(&mut self, slots: &[Entity], slot_of_index: &[u32], entities: &[Entity]) {
+        self.row_of_slot.clear();
+        self.row_of_slot.resize(slots.len(), NONE);
+        self.slot_of_row.clear();
+        self.slot_of_row.resize(entities.len(), NONE);
+        self.strangers.clear();
+        for (row, entity) in entities.iter().enumerate() {
+            let slot = slot_of_index
+                .get(entity.index_u32() as usize)
+                .copied()
+                .unwrap_or(NONE);
+            if slots.get(slot as usize) == Some(entity) {
+                self.row_of_slot[slot as usize] = row as u32;
+                self.slot_of_row[row] = slot;
+            } else {
+                self.strangers.push((row as u32, *entity));
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::SolverMode;
+    use bevy_ecs::world::World;
+
+    /// A layout of `n` slots (no clusters) and the entity of each slot.
+    fn layout_and_slots(world: &mut World, n: usize) -> (SolverLayout, Vec<Entity>, Vec<u32>) {
+        let layout = SolverLayout::new(&vec![Vec3::ZERO; n], [], SolverMode::Jacobi);
+        let slots: Vec<Entity> = (0..n).map(|_| world.spawn_empty().id()).collect();
+        let max = slots
+            .iter()
+            .map(|e| e.index_u32() as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let mut slot_of_index = vec![NONE; max];
+        for (s, e) in slots.iter().enumerate() {
+            slot_of_index[e.index_u32() as usize] = s as u32;
+        }
+        (layout, slots, slot_of_index)
+    }
+
+    /// Table columns whose values name the entity they belong to (its index).
+    fn columns(
+        rows: &[Entity],
+    ) -> (
+        Vec<Position>,
+        Vec<PrevPosition>,
+        Vec<Velocity>,
+        Vec<InvMass>,
+    ) {
+        let id = |e: &Entity| e.index_u32() as f32;
+        (
+            rows.iter().map(|e| Position(Vec3::splat(id(e)))).collect(),
+            rows.iter()
+                .map(|e| PrevPosition(Vec3::splat(-id(e))))
+                .collect(),
+            rows.iter()
+                .map(|e| Velocity(Vec3::new(id(e), 0.0, 1.0)))
+                .collect(),
+            rows.iter().map(|e| InvMass(id(e) + 0.5)).collect(),
+        )
+    }
+
+    fn load(
+        rows: &mut TableRows,
+        layout: &mut SolverLayout,
+        slots: &[Entity],
+        map: &[u32],
+        table: &[Entity],
+    ) {
+        let (x, prev, _, m) = columns(table);
+        let columns = ParticleColumns {
+            entities: table,
+            positions: &x,
+            previous: &prev,
+            inv_mass: &m,
+        };
+        rows.load(layout, slots, map, columns);
+    }
+
+    /// Every slot holds its own entity's values.
+    fn assert_loaded(layout: &SolverLayout, slots: &[Entity]) {
+        for (s, e) in slots.iter().enumerate() {
+            let id = e.index_u32() as f32;
+            assert_eq!(layout.positions[s], Vec3A::splat(id), "slot {s}");
+            assert_eq!(layout.previous[s], Vec3A::splat(-id));
+            assert_eq!(layout.inv_mass[s], id + 0.5);
+        }
+    }
+
+    #[test]
+    fn rows_follow_the_table_through_reorders() {
+        let mut world = World::new();
+        let n = 3 * CHUNK + 17; // several parallel chunks
+        let (mut layout, slots, map) = layout_and_slots(&mut world, n);
+        let mut rows = TableRows::default();
+        // the table in another order than the slots, with a stranger entity in it
+        let stranger = world.spawn_empty().id();
+        let mut table: Vec<Entity> = slots.iter().rev().copied().collect();
+        table.insert(5, stranger);
+        load(&mut rows, &mut layout, &slots, &map, &table);
+        assert_loaded(&layout, &slots);
+        // a swap-remove (what a despawn does to a table) moves the last row
+        table.swap_remove(9);
+        let gone = slots.iter().position(|e| !table.contains(e)).unwrap();
+        layout.positions[gone] = Vec3A::splat(-7.0);
+        load(&mut rows, &mut layout, &slots, &map, &table);
+        for (s, e) in slots.iter().enumerate() {
+            if s == gone {
+                assert_eq!(
+                    layout.positions[s],
+                    Vec3A::splat(-7.0),
+                    "a missing particle keeps its state"
+                );
+            } else {
+                assert_eq!(layout.positions[s], Vec3A::splat(e.index_u32() as f32));
+            }
+        }
+        // rows trading places (same length) are noticed too
+        table.swap(0, n / 2);
+        load(&mut rows, &mut layout, &slots, &map, &table);
+        let (x, ..) = columns(&table);
+        for (row, e) in table.iter().enumerate() {
+            if let Some(s) = slots.iter().position(|p| p == e) {
+                assert_eq!(Vec3::from(layout.positions[s]), x[row].0);
+            }
+        }
+        // store writes every mapped row's position from its slot and adds the slot's
+        // correction / dt to its velocity, and leaves the stranger alone
+        layout.positions.iter_mut().for_each(|p| *p *= 2.0);
+        for (s, c) in layout.corrections.iter_mut().enumerate() {
+            *c = Vec3A::new(s as f32, 1.0, 0.0);
+        }
+        let (mut x, _, mut v, _) = columns(&table);
+        let at = table.iter().position(|e| *e == stranger).unwrap();
+        x[at] = Position(Vec3::splat(123.0));
+        v[at] = Velocity(Vec3::splat(9.0));
+        rows.store(&layout, 4.0, &mut x, &mut v);
+        for (row, e) in table.iter().enumerate() {
+            let (position, velocity) = match slots.iter().position(|p| p == e) {
+                None => (Vec3::splat(123.0), Vec3::splat(9.0)),
+                Some(s) => {
+                    let id = e.index_u32() as f32;
+                    (
+                        Vec3::splat(2.0 * id),
+                        Vec3::new(id + 4.0 * s as f32, 4.0, 1.0),
+                    )
+                }
+            };
+            assert_eq!((x[row].0, v[row].0), (position, velocity), "row {row}");
+        }
+    }
+
+    #[test]
+    fn a_particle_entering_in_a_strangers_place_is_found() {
+        let mut world = World::new();
+        let (mut layout, slots, map) = layout_and_slots(&mut world, 3);
+        let mut rows = TableRows::default();
+        // slot 1's particle is elsewhere (another table) when the map is built
+        let stranger = world.spawn_empty().id();
+        let table = vec![slots[0], stranger, slots[2]];
+        load(&mut rows, &mut layout, &slots, &map, &table);
+        layout.positions[1] = Vec3A::splat(-1.0);
+        // it comes back where the stranger was: same length, mapped rows unmoved
+        let table = vec![slots[0], slots[1], slots[2]];
+        load(&mut rows, &mut layout, &slots, &map, &table);
+        assert_loaded(&layout, &slots);
+    }
+
+    #[test]
+    fn a_recycled_entity_index_is_not_taken_for_the_old_particle() {
+        let mut world = World::new();
+        let (mut layout, slots, map) = layout_and_slots(&mut world, 4);
+        let mut rows = TableRows::default();
+        load(&mut rows, &mut layout, &slots, &map, &slots);
+        assert_loaded(&layout, &slots);
+        // slot 2's entity is despawned; a new entity reuses its index
+        let old = slots[2];
+        let reused =
+            Entity::from_index_and_generation(old.index(), old.generation().after_versions(1));
+        assert_ne!(reused, old);
+        let table = vec![slots[0], slots[1], reused, slots[3]];
+        layout.positions[2] = Vec3A::splat(-1.0);
+        load(&mut rows, &mut layout, &slots, &map, &table);
+        assert_eq!(layout.positions[2], Vec3A::splat(-1.0));
+        let (mut x, _, mut v, _) = columns(&table);
+        rows.store(&layout, 1.0, &mut x, &mut v);
+        assert_eq!(
+            x[2].0,
+            Vec3::splat(reused.index_u32() as f32),
+            "not written from slot 2"
+        );
+    }
+}

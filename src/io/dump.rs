@@ -1,0 +1,139 @@
+//! The state dump (`cleave-state/2`, JSON), the format other tools check the engine
+//! with: the frame and time, then per body its spacing, the configuration an invariant
+//! checker needs, its live particles (lattice coordinate, position, mass), its live
+//! lattice edges and its clusters. Ids are entity bits: unique across the whole dump and
+//! stable within a run.
+
+use crate::ecs::components::*;
+use crate::ecs::resources::SimClock;
+use bevy_ecs::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// The dump's format tag.
+pub const FORMAT: &str = "cleave-state/2";
+
+/// One particle in the dump.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct DumpParticle {
+    /// Stable id.
+    pub id: u64,
+    /// Lattice coordinate.
+    pub lattice: [i32; 3],
+    /// Position.
+    pub position: [f32; 3],
+    /// Mass (also for a pinned particle, which the solver treats as immovable).
+    pub mass: f32,
+}
+
+/// One cluster in the dump.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct DumpCluster {
+    /// Stable id.
+    pub id: u64,
+    /// Member particle ids.
+    pub members: Vec<u64>,
+}
+
+/// Dumped configuration of one body.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct DumpConfig {
+    /// Largest allowed cluster.
+    pub max_cluster_size: u32,
+}
+
+/// One body in the dump.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct DumpBody {
+    /// Stable id (the body entity's bits).
+    pub id: u64,
+    /// Lattice spacing h.
+    pub spacing: f32,
+    /// Configuration needed to check invariants.
+    pub config: DumpConfig,
+    /// Live particles.
+    pub particles: Vec<DumpParticle>,
+    /// Live lattice edges as id pairs.
+    pub edges: Vec<[u64; 2]>,
+    /// Clusters, by id.
+    pub clusters: Vec<DumpCluster>,
+}
+
+/// The whole dump.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct StateDump {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// Frames completed.
+    pub frame: u64,
+    /// Simulated seconds.
+    pub time: f64,
+    /// Every body, by id.
+    pub bodies: Vec<DumpBody>,
+}
+
+/// Dumps every body of `world`.
+pub fn dump_world(world: &mut World) -> StateDump {
+    let clock = world
+        .get_resource::<SimClock>()
+        .copied()
+        .unwrap_or_default();
+    let mut bodies: Vec<Entity> = world
+        .query_filtered::<Entity, (With<Body>, With<BodyLattice>)>()
+        .iter(world)
+        .collect();
+    bodies.sort_unstable();
+    StateDump {
+        format: FORMAT.into(),
+        frame: clock.frame,
+        time: clock.time,
+        bodies: bodies
+            .into_iter()
+            .filter_map(|b| dump_body(world, b))
+            .collect(),
+    }
+}
+
+/// Dumps one body, or `None` if `body` is not a body.
+pub fn dump_body(world: &mut World, body: Entity) -> Option<DumpBody> {
+    let material = world.get::<Body>(body)?.material.clone();
+    let lattice = world.get::<BodyLattice>(body)?.clone();
+    let l = &lattice.lattice;
+    let id = |i: u32| lattice.particles[i as usize].to_bits();
+    let particles = l
+        .live_particles()
+        .map(|i| DumpParticle {
+            id: id(i),
+            lattice: l.coord(i).to_array(),
+            position: world
+                .get::<Position>(lattice.particles[i as usize])
+                .map_or([f32::NAN; 3], |p| p.0.to_array()),
+            // (a split particle's half has half the mass; a pinned one, whose inverse
+            // mass is 0, the material's)
+            mass: match world.get::<InvMass>(lattice.particles[i as usize]) {
+                Some(w) if w.0 > 0.0 => 1.0 / w.0,
+                _ => material.mass_at_spacing(l.spacing()),
+            },
+        })
+        .collect();
+    let edges = l.edges().into_iter().map(|(a, b)| [id(a), id(b)]).collect();
+    let mut clusters: Vec<DumpCluster> = world
+        .query::<(Entity, &ClusterMembers, &ClusterOf)>()
+        .iter(world)
+        .filter(|(_, _, of)| of.body == body)
+        .map(|(e, m, _)| DumpCluster {
+            id: e.to_bits(),
+            members: m.0.iter().map(|i| id(*i)).collect(),
+        })
+        .collect();
+    clusters.sort_by_key(|c| c.id);
+    Some(DumpBody {
+        id: body.to_bits(),
+        spacing: l.spacing(),
+        config: DumpConfig {
+            max_cluster_size: material.max_cluster_size,
+        },
+        particles,
+        edges,
+        clusters,
+    })
+}

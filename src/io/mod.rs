@@ -1,0 +1,11 @@
+//! In and out: built-in scenes and scene files, state dumps, saved simulations,
+//! pictures and point clouds.
+
+pub mod dump;
+#[cfg(feature = "render")]
+pub mod export;
+#[cfg(feature = "render")]
+pub mod render;
+pub mod save;
+pub mod scene;
+pub mod scene_file;

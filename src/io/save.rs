@@ -1,0 +1,386 @@
+//! Saving a simulation and resuming it: everything that decides how a simulation goes
+//! on — settings, clock, random stream, bodies with their lattices and clusters,
+//! particles, tools, colliders, and the solver's own state (its layout, in the order a
+//! run's cuts left it, and its warm starts) — in a compact binary file. A run that is
+//! saved, loaded and continued is bit for bit the run that was never interrupted.
+//!
+//! The file is a header — the magic bytes [`MAGIC`] and a little-endian `u32` format
+//! version, [`VERSION`] — then the state, encoded with postcard. Entities are written
+//! with their ids in the saving world and given new ones when loaded; everything that
+//! names them (a particle's body, a cluster's body, a body's particles and cluster keys,
+//! the solver's tables) is mapped. Cleave names clusters by keys of its own
+//! ([`crate::ecs::components::ClusterKeys`]), so nothing it decides depends on the ids the
+//! loading world hands out.
+//!
+//! Saved: what cleave spawned (bodies, particles, clusters, tools, colliders) and its
+//! resources. Not saved: other entities, components a game added to cleave's entities,
+//! messages not yet read, and projective dynamics' factor (it is computed again from the
+//! same matrix).
+
+use crate::config::SimConfig;
+use crate::ecs::check::check_invariants;
+use crate::ecs::components::*;
+use crate::ecs::resources::{
+    BodyDense, ClusterSlots, CutReport, SimClock, SimRng, SimSettings, SolverCache,
+};
+use crate::error::{CleaveError, Result};
+use crate::sim::simulation::Simulation;
+use crate::solver::SolverLayout;
+use crate::systems::SyncSchedule;
+use bevy_ecs::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+use std::io::{Read, Write};
+
+/// The first bytes of a saved simulation.
+pub const MAGIC: [u8; 8] = *b"cleave\0s";
+
+/// The format version this build writes and reads.
+pub const VERSION: u32 = 1;
+
+/// Largest saved simulation [`load`] reads, in bytes.
+pub const MAX_SAVE_BYTES: u64 = 4 << 30;
+
+/// A body and what it owns besides its entities.
+#[derive(Serialize, Deserialize)]
+struct BodyState {
+    entity: Entity,
+    body: Body,
+    lattice: BodyLattice,
+    clusters: ParticleClusters,
+}
+
+/// A particle entity.
+#[derive(Serialize, Deserialize)]
+struct ParticleState {
+    entity: Entity,
+    particle: Particle,
+    position: Position,
+    previous: PrevPosition,
+    velocity: Velocity,
+    inv_mass: InvMass,
+}
+
+/// A cluster entity.
+#[derive(Serialize, Deserialize)]
+struct ClusterState {
+    entity: Entity,
+    members: ClusterMembers,
+    of: ClusterOf,
+    compliance: Compliance,
+}
+
+/// A tool entity.
+#[derive(Serialize, Deserialize)]
+struct ToolState {
+    tool: Tool,
+    pose: ToolPose,
+    path: Option<ToolPath>,
+}
+
+/// A collider entity.
+#[derive(Serialize, Deserialize)]
+struct ColliderState {
+    collider: Collider,
+    pose: ColliderPose,
+    path: Option<ColliderPath>,
+}
+
+/// The solver cache without what is derived from it or from the ECS on the way.
+#[derive(Serialize, Deserialize)]
+struct CacheState {
+    layout: SolverLayout,
+    particles: Vec<Entity>,
+    locals: Vec<u32>,
+    live: Vec<bool>,
+    body_dense: Vec<BodyDense>,
+    clusters: Vec<Entity>,
+}
+
+/// Everything saved.
+#[derive(Serialize, Deserialize)]
+struct Snapshot {
+    config: SimConfig,
+    clock: SimClock,
+    rng: SimRng,
+    /// In entity order (the solver finds bodies by it).
+    bodies: Vec<BodyState>,
+    /// In the order the world stores them, which decides the order new ones join.
+    particles: Vec<ParticleState>,
+    clusters: Vec<ClusterState>,
+    tools: Vec<ToolState>,
+    colliders: Vec<ColliderState>,
+    cache: CacheState,
+    cut: CutReport,
+}
+
+fn invalid(what: impl std::fmt::Display) -> CleaveError {
+    CleaveError::Save(what.to_string())
+}
+
+/// Writes `world`'s simulation to `writer` (see the module docs). The solver layout is
+/// brought up to date first, as the next frame would.
+pub fn save(world: &mut World, writer: impl Write) -> Result<()> {
+    world.run_schedule(SyncSchedule);
+    let snapshot = snapshot(world)?;
+    let bytes = postcard::to_stdvec(&snapshot).map_err(invalid)?;
+    let mut writer = writer;
+    writer
+        .write_all(&MAGIC)
+        .and_then(|()| writer.write_all(&VERSION.to_le_bytes()))
+        .and_then(|()| writer.write_all(&bytes))
+        .and_then(|()| writer.flush())
+        .map_err(|e| invalid(format!("cannot write: {e}")))
+}
+
+fn snapshot(world: &mut World) -> Result<Snapshot> {
+    let mut bodies: Vec<BodyState> = world
+        .query::<(Entity, &Body, &BodyLattice, &ParticleClusters)>()
+        .iter(world)
+        .map(|(entity, body, lattice, clusters)| BodyState {
+            entity,
+            body: body.clone(),
+            lattice: lattice.clone(),
+            clusters: clusters.clone(),
+        })
+        .collect();
+    bodies.sort_unstable_by_key(|b| b.entity);
+    let particles = world
+        .query::<(
+            Entity,
+            &Particle,
+            &Position,
+            &PrevPosition,
+            &Velocity,
+            &InvMass,
+        )>()
+        .iter(world)
+        .map(|(entity, p, x, prev, v, w)| ParticleState {
+            entity,
+            particle: *p,
+            position: *x,
+            previous: *prev,
+            velocity: *v,
+            inv_mass: *w,
+        })
+        .collect();
+    let clusters = world
+        .query::<(Entity, &ClusterMembers, &ClusterOf, &Compliance)>()
+        .iter(world)
+        .map(|(entity, m, of, c)| ClusterState {
+            entity,
+            members: m.clone(),
+            of: *of,
+            compliance: *c,
+        })
+        .collect();
+    let tools = world
+        .query::<(&Tool, &ToolPose, Option<&ToolPath>)>()
+        .iter(world)
+        .map(|(tool, pose, path)| ToolState {
+            tool: *tool,
+            pose: *pose,
+            path: path.cloned(),
+        })
+        .collect();
+    let colliders = world
+        .query::<(&Collider, &ColliderPose, Option<&ColliderPath>)>()
+        .iter(world)
+        .map(|(collider, pose, path)| ColliderState {
+            collider: collider.clone(),
+            pose: *pose,
+            path: path.cloned(),
+        })
+        .collect();
+    let cache = world.resource::<SolverCache>();
+    if !cache.valid {
+        return Err(invalid("the solver layout could not be brought up to date"));
+    }
+    Ok(Snapshot {
+        config: world.resource::<SimSettings>().0.clone(),
+        clock: *world.resource::<SimClock>(),
+        rng: world.resource::<SimRng>().clone(),
+        bodies,
+        particles,
+        clusters,
+        tools,
+        colliders,
+        cache: CacheState {
+            layout: cache.layout.clone(),
+            particles: cache.particles.clone(),
+            locals: cache.locals.clone(),
+            live: cache.live.clone(),
+            body_dense: cache.body_dense.clone(),
+            clusters: cache.clusters.clone(),
+        },
+        cut: world.resource::<CutReport>().clone(),
+    })
+}
+
+/// Reads a simulation written by [`save`]: a new [`Simulation`] that goes on exactly as
+/// the saved one would have.
+pub fn load(reader: impl Read) -> Result<Simulation> {
+    let mut bytes = Vec::new();
+    reader
+        .take(MAX_SAVE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| invalid(format!("cannot read: {e}")))?;
+    if bytes.len() as u64 > MAX_SAVE_BYTES {
+        return Err(invalid(format!("larger than {} GiB", MAX_SAVE_BYTES >> 30)));
+    }
+    let header = MAGIC.len() + 4;
+    if bytes.len() < header || bytes[..MAGIC.len()] != MAGIC {
+        return Err(invalid("not a saved cleave simulation"));
+    }
+    let version = u32::from_le_bytes(bytes[MAGIC.len()..header].try_into().unwrap_or_default());
+    if version != VERSION {
+        return Err(invalid(format!(
+            "format version {version}, but this build reads version {VERSION}"
+        )));
+    }
+    let snapshot: Snapshot =
+        postcard::from_bytes(&bytes[header..]).map_err(|e| invalid(format!("corrupt: {e}")))?;
+    restore(snapshot)
+}
+
+/// Old entity → new entity, for the entities the snapshot spawns.
+struct EntityMap(HashMap<Entity, Entity>);
+
+impl EntityMap {
+    /// The new entity of `e`; a placeholder for an entity the save does not hold (a
+    /// particle cut before the save, say).
+    fn get(&self, e: Entity) -> Entity {
+        self.0.get(&e).copied().unwrap_or(Entity::PLACEHOLDER)
+    }
+
+    /// The new entity of `e`, which the save must hold.
+    fn required(&self, e: Entity, what: &str) -> Result<Entity> {
+        self.0
+            .get(&e)
+            .copied()
+            .ok_or_else(|| invalid(format!("{what} names entity {e}, which is not saved")))
+    }
+}
+
+fn restore(snapshot: Snapshot) -> Result<Simulation> {
+    let Snapshot {
+        config,
+        clock,
+        rng,
+        bodies,
+        particles,
+        clusters,
+        tools,
+        colliders,
+        cache,
+        cut,
+    } = snapshot;
+    let mut sim = Simulation::new(config)?;
+    let world = sim.world_mut();
+    let mut map = EntityMap(HashMap::new());
+    // bodies first, in their saved order, so that new ids keep their order
+    for b in &bodies {
+        map.0.insert(b.entity, world.spawn_empty().id());
+    }
+    for p in particles {
+        let particle = Particle {
+            body: map.required(p.particle.body, "a particle")?,
+            ..p.particle
+        };
+        let e = world
+            .spawn((particle, p.position, p.previous, p.velocity, p.inv_mass))
+            .id();
+        map.0.insert(p.entity, e);
+    }
+    for c in clusters {
+        let of = ClusterOf {
+            body: map.required(c.of.body, "a cluster")?,
+            ..c.of
+        };
+        let e = world.spawn((c.members, of, c.compliance)).id();
+        map.0.insert(c.entity, e);
+    }
+    for t in tools {
+        let mut e = world.spawn((t.tool, t.pose));
+        if let Some(path) = t.path {
+            e.insert(path);
+        }
+    }
+    for c in colliders {
+        let mut e = world.spawn((c.collider, c.pose));
+        if let Some(path) = c.path {
+            e.insert(path);
+        }
+    }
+    for b in bodies {
+        let mut lattice = b.lattice;
+        for e in &mut lattice.particles {
+            *e = map.get(*e);
+        }
+        let (entities, free) = b.clusters.keys.parts();
+        let keys = ClusterKeys::from_parts(
+            entities.iter().map(|e| map.get(*e)).collect(),
+            free.to_vec(),
+        );
+        let clusters = ParticleClusters {
+            index: b.clusters.index,
+            keys,
+        };
+        let body = map.get(b.entity);
+        world.entity_mut(body).insert((b.body, lattice, clusters));
+    }
+    *world.resource_mut::<SimClock>() = clock;
+    *world.resource_mut::<SimRng>() = rng;
+    let mut cut = cut;
+    for b in &mut cut.bodies {
+        b.body = map.get(b.body);
+    }
+    *world.resource_mut::<CutReport>() = cut;
+    restore_cache(world, cache, &map)?;
+    // the loaded entities count as seen: the layout already holds them
+    world.resource_mut::<SolverCache>().adopt_changes = true;
+    world.run_schedule(SyncSchedule);
+    let violations = check_invariants(sim.world());
+    if let Some((_, v)) = violations.first() {
+        return Err(invalid(format!("inconsistent: {v}")));
+    }
+    Ok(sim)
+}
+
+/// Puts the saved solver state in `world`'s cache, with its entities mapped.
+fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Result<()> {
+    let slots = saved.layout.positions.len();
+    if [saved.particles.len(), saved.locals.len(), saved.live.len()] != [slots; 3] {
+        return Err(invalid("the solver's particle tables disagree in length"));
+    }
+    let particles: Vec<Entity> = saved.particles.iter().map(|e| map.get(*e)).collect();
+    let clusters: Vec<Entity> = saved.clusters.iter().map(|e| map.get(*e)).collect();
+    let mut body_dense = saved.body_dense;
+    for b in &mut body_dense {
+        b.body = map.required(b.body, "the solver layout")?;
+    }
+    let max_index = particles
+        .iter()
+        .filter(|e| **e != Entity::PLACEHOLDER)
+        .map(|e| e.index_u32() as usize + 1)
+        .max()
+        .unwrap_or(0);
+    let mut dense_of = vec![u32::MAX; max_index];
+    for (d, e) in particles.iter().enumerate() {
+        if *e != Entity::PLACEHOLDER {
+            dense_of[e.index_u32() as usize] = d as u32;
+        }
+    }
+    let mut cache = world.resource_mut::<SolverCache>();
+    cache.layout = saved.layout;
+    cache.slot_of = ClusterSlots::from_clusters(&clusters);
+    cache.particles = particles;
+    cache.clusters = clusters;
+    cache.locals = saved.locals;
+    cache.live = saved.live;
+    cache.body_dense = body_dense;
+    cache.dense_of = dense_of;
+    cache.valid = true;
+    cache.contacts_built = None;
+    Ok(())
+}

@@ -1,0 +1,532 @@
+//! Built-in scenes: a simulation config, bodies, tools and a default frame count.
+
+use crate::body::lattice::Shape;
+use crate::config::{Material, SimConfig, StaticBox};
+use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
+use crate::ecs::desc::{BodyDesc, ColliderDesc, PinRegion, ToolDesc};
+use crate::geometry::collider::ColliderShape;
+use glam::{Quat, UVec3, Vec3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// A runnable scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// Simulation settings.
+    pub config: SimConfig,
+    /// Bodies to spawn.
+    pub bodies: Vec<BodyDesc>,
+    /// Tools to spawn.
+    pub tools: Vec<ToolDesc>,
+    /// Colliders to spawn (besides the config's ground and static boxes).
+    pub colliders: Vec<ColliderDesc>,
+    /// Default number of frames.
+    pub frames: u32,
+}
+
+/// Names and one-line descriptions of the built-in scenes.
+pub const BUILTIN_SCENES: [(&str, &str); 13] = [
+    ("drop", "a 16×8×8 box falls on the ground and settles"),
+    (
+        "cantilever",
+        "a 24×6×6 beam pinned at one end sags under gravity",
+    ),
+    (
+        "slice",
+        "a blade sweeps through a 24×12×12 block on a pedestal: two halves tip off",
+    ),
+    (
+        "dice",
+        "two perpendicular slices through a 24×12×24 block: four pieces",
+    ),
+    (
+        "scoop",
+        "a sphere carves a trench along the top of a block: one piece",
+    ),
+    (
+        "random",
+        "a seeded sequence of random blade and sphere cuts (stress test)",
+    ),
+    (
+        "stack",
+        "a 16×8×8 box dropped onto an 8×8×8 box resting on the ground comes to rest on top",
+    ),
+    (
+        "pile",
+        "boxes, balls and a capsule dropped into a walled bin of tilted static boxes",
+    ),
+    (
+        "press",
+        "a moving plate squeezes a block, then a blade cuts it while squeezed",
+    ),
+    (
+        "tear",
+        "a 32×6×6 bar whose ends are pulled apart by moving pins tears in two",
+    ),
+    (
+        "notch",
+        "the tear bar with a notch at 30 % of its length tears at the notch",
+    ),
+    (
+        "cuts",
+        "a 32×16×16 block, gravity off, cut 50 times by random blades and sphere scoops",
+    ),
+    (
+        "scooped",
+        "the cantilever with 20 sphere scoops near the middle of its top and sides",
+    ),
+];
+
+const H: f32 = 0.1;
+
+/// Where the `notch` scene's notch lies along the bar (x, metres): 30 % of the length.
+pub const NOTCH_X: f32 = -1.6 + 0.3 * 3.2;
+
+/// The `tear` and `notch` scenes: a 32×6×6 rubber bar (E ≈ 0.83 MPa, wave speed
+/// √(E/ρ) ≈ 29 m/s) that tears past a principal stretch of 1.1, gravity off, its two
+/// end regions (2 cells each) pinned and pulled apart at 2 m/s each from rest. The pull
+/// starts as two strain waves of about v/c ≈ 7 % running in from the ends; where they
+/// meet, in the middle, the strain doubles past the limit, and the bar tears there.
+/// With `notch`, a blade removes the top 4 of the 6 rows over one cell at [`NOTCH_X`]
+/// in the first frame, and the ends are pulled at 1 m/s: the doubled waves stay under
+/// the limit, the third of the section left at the notch carries three times the
+/// strain, and the bar tears at the notch. A smallest torn piece of 300 particles (26 %) keeps the waves that
+/// bounce off the new crack faces from chipping thin slabs off the pieces (Gauss–Seidel
+/// with 16 substeps carries the waves; Jacobi at 2 substeps smears them and the grips
+/// tear first).
+fn pulled_bar(config: SimConfig, notch: bool) -> Scene {
+    // (the notched bar is pulled slower: its waves alone do not tear the middle)
+    let (half, pull) = (1.6, if notch { 1.0 } else { 2.0 });
+    let shape = Shape::cuboid(UVec3::new(32, 6, 6), H);
+    let mut body = BodyDesc::new(shape, H);
+    body.position = Vec3::new(0.0, 1.0, 0.0);
+    let end = |sign: f32| PinRegion {
+        min: Vec3::new(if sign < 0.0 { -9.0 } else { half - 2.0 * H }, -9.0, -9.0),
+        max: Vec3::new(if sign < 0.0 { -half + 2.0 * H } else { 9.0 }, 9.0, 9.0),
+        velocity: Vec3::X * sign * pull,
+    };
+    body.pins = vec![end(-1.0), end(1.0)];
+    body.material = Material {
+        compliance: 1.2e-6,
+        tear_stretch: Some(1.1),
+        tear_min_piece: 300,
+        ..Material::default()
+    };
+    // the notch: a blade across the bar at NOTCH_X, its lower edge between the second
+    // and third rows from the bottom, there at the first frame and gone up the next
+    let tools = if notch {
+        let at = |y: f32| Pose {
+            position: Vec3::new(NOTCH_X, y, 0.0),
+            rotation: Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+        };
+        let edge = body.position.y - 0.1;
+        vec![ToolDesc {
+            shape: ToolShape::Blade {
+                half_width: 0.5,
+                half_height: 0.3,
+            },
+            cut_width: 0.5 * H,
+            cut_mode: CutMode::Remove,
+            path: Path {
+                keys: vec![(0.0, at(edge + 0.3)), (0.05, at(edge + 5.0))],
+            },
+            pose: at(edge + 0.3),
+        }]
+    } else {
+        Vec::new()
+    };
+    Scene {
+        config: SimConfig {
+            ground: None,
+            gravity: Vec3::ZERO,
+            solver: crate::config::SolverMode::GaussSeidel,
+            substeps: 16,
+            iterations: 10,
+            ..config
+        },
+        bodies: vec![body],
+        tools,
+        colliders: vec![],
+        frames: 120,
+    }
+}
+
+/// A blade through the vertical axis, its normal yawed `normal_yaw` from +Z, moving
+/// down from `from_y` to `to_y` between times `t0` and `t1`, then leaving below the ground.
+fn blade_vertical_cut(
+    normal_yaw: f32,
+    width: f32,
+    from_y: f32,
+    to_y: f32,
+    t0: f32,
+    t1: f32,
+) -> ToolDesc {
+    // Blade normal is local Z; yaw it about Y so the normal lies in the XZ plane.
+    let rotation = Quat::from_rotation_y(normal_yaw);
+    let at = |y: f32| Pose {
+        position: Vec3::new(0.0, y, 0.0),
+        rotation,
+    };
+    ToolDesc {
+        shape: ToolShape::Blade {
+            half_width: 2.0,
+            half_height: 0.3,
+        },
+        cut_width: width,
+        cut_mode: CutMode::Remove,
+        path: Path {
+            keys: vec![(t0, at(from_y)), (t1, at(to_y)), (t1 + 0.05, at(-5.0))],
+        },
+        pose: at(from_y),
+    }
+}
+
+fn block_on_pedestal(cells: UVec3, pedestal: Vec3) -> (BodyDesc, StaticBox) {
+    let height = 0.6;
+    let mut body = BodyDesc::new(Shape::cuboid(cells, H), H);
+    body.position = Vec3::new(0.0, height + cells.y as f32 * H * 0.5, 0.0);
+    let pedestal = StaticBox {
+        min: Vec3::new(-pedestal.x, 0.0, -pedestal.z),
+        max: Vec3::new(pedestal.x, height, pedestal.z),
+        friction: 0.2,
+    };
+    (body, pedestal)
+}
+
+fn cutting_config(seed: u64) -> SimConfig {
+    SimConfig {
+        seed,
+        ..SimConfig::default()
+    }
+}
+
+/// The built-in scene `name`, with the given seed, or `None`.
+pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
+    let config = SimConfig {
+        seed,
+        ..SimConfig::default()
+    };
+    Some(match name {
+        "drop" => {
+            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(16, 8, 8), H), H);
+            body.position = Vec3::new(0.0, 0.4 + 0.5, 0.0);
+            Scene {
+                config,
+                bodies: vec![body],
+                tools: vec![],
+                colliders: vec![],
+                frames: 300,
+            }
+        }
+        "tear" | "notch" => pulled_bar(config, name == "notch"),
+        "cantilever" => {
+            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(24, 6, 6), H), H);
+            body.position = Vec3::new(0.0, 1.0, 0.0);
+            body.pins = vec![PinRegion {
+                min: Vec3::new(-1.3, 0.0, -1.0),
+                max: Vec3::new(-1.2 + 2.0 * H, 2.0, 1.0),
+                ..PinRegion::default()
+            }];
+            // rubber-like: E ≈ 0.83 MPa (Euler–Bernoulli tip sag ≈ 11.5 h)
+            body.material = Material {
+                compliance: 1.2e-6,
+                ..Material::default()
+            };
+            let config = SimConfig {
+                ground: None,
+                iterations: 20,
+                damping: 2.0,
+                ..config
+            };
+            Scene {
+                config,
+                bodies: vec![body],
+                tools: vec![],
+                colliders: vec![],
+                frames: 600,
+            }
+        }
+        "slice" => {
+            let (body, pedestal) =
+                block_on_pedestal(UVec3::new(24, 12, 12), Vec3::new(0.4, 0.0, 0.8));
+            let top = body.position.y + 0.9;
+            let config = SimConfig {
+                boxes: vec![pedestal],
+                ..cutting_config(seed)
+            };
+            let (bottom, half_pi) = (body.position.y - 0.9, std::f32::consts::FRAC_PI_2);
+            let tool = blade_vertical_cut(half_pi, 1.01 * H, top, bottom, 0.2, 0.5);
+            Scene {
+                config,
+                bodies: vec![body],
+                tools: vec![tool],
+                colliders: vec![],
+                frames: 300,
+            }
+        }
+        "dice" => {
+            let (body, pedestal) =
+                block_on_pedestal(UVec3::new(24, 12, 24), Vec3::new(0.4, 0.0, 0.4));
+            let (top, bottom) = (body.position.y + 0.9, body.position.y - 0.9);
+            let config = SimConfig {
+                boxes: vec![pedestal],
+                ..cutting_config(seed)
+            };
+            let a =
+                blade_vertical_cut(std::f32::consts::FRAC_PI_2, 1.5 * H, top, bottom, 0.2, 0.25);
+            let b = blade_vertical_cut(0.0, 1.5 * H, top, bottom, 0.2, 0.25);
+            Scene {
+                config,
+                bodies: vec![body],
+                tools: vec![a, b],
+                colliders: vec![],
+                frames: 300,
+            }
+        }
+        "scoop" => {
+            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(24, 12, 12), H), H);
+            body.position = Vec3::new(0.0, 0.6, 0.0);
+            let y = body.position.y + 0.6;
+            let at = |x: f32| Pose::at(Vec3::new(x, y, 0.0));
+            let tool = ToolDesc {
+                shape: ToolShape::Sphere { radius: 0.3 },
+                cut_width: 0.5 * H,
+                cut_mode: CutMode::Remove,
+                path: Path {
+                    keys: vec![(0.2, at(-1.6)), (1.2, at(1.6))],
+                },
+                pose: at(-1.6),
+            };
+            Scene {
+                config: cutting_config(seed),
+                bodies: vec![body],
+                tools: vec![tool],
+                colliders: vec![],
+                frames: 120,
+            }
+        }
+        "random" => random_scene(seed),
+        "cuts" => crate::analysis::fidelity::cut_block_scene(seed, 50),
+        "scooped" => crate::analysis::fidelity::scooped_cantilever_scene(seed, 20),
+        "stack" => stack_scene(config),
+        "pile" => pile_scene(config, H),
+        "press" => press_scene(config),
+        _ => return None,
+    })
+}
+
+/// A seeded sequence of random blade and sphere cuts through a block on the ground.
+fn random_scene(seed: u64) -> Scene {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
+    let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(20, 10, 10), H), H);
+    body.position = Vec3::new(0.0, 0.5, 0.0);
+    let mut tools = Vec::new();
+    for i in 0..8 {
+        let t0 = 0.2 + i as f32 * 0.3;
+        let dir = Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        )
+        .normalize_or(Vec3::X);
+        let start = body.position + dir * 2.0;
+        let end = body.position - dir * 2.0
+            + Vec3::new(
+                rng.random_range(-0.5..0.5),
+                0.0,
+                rng.random_range(-0.5..0.5),
+            );
+        let rotation = Quat::from_rotation_arc(
+            Vec3::Z,
+            Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            )
+            .normalize_or(Vec3::Y),
+        );
+        let (shape, width) = if rng.random_bool(0.5) {
+            (
+                ToolShape::Blade {
+                    half_width: 0.8,
+                    half_height: 0.8,
+                },
+                1.01 * H,
+            )
+        } else {
+            (
+                ToolShape::Sphere {
+                    radius: rng.random_range(0.1..0.3),
+                },
+                0.5 * H,
+            )
+        };
+        let path = Path {
+            keys: vec![
+                (
+                    t0,
+                    Pose {
+                        position: start,
+                        rotation,
+                    },
+                ),
+                (
+                    t0 + 0.25,
+                    Pose {
+                        position: end,
+                        rotation,
+                    },
+                ),
+            ],
+        };
+        tools.push(ToolDesc {
+            shape,
+            cut_width: width,
+            cut_mode: CutMode::Remove,
+            path,
+            pose: Pose {
+                position: start,
+                rotation,
+            },
+        });
+    }
+    Scene {
+        config: cutting_config(seed),
+        bodies: vec![body],
+        tools,
+        colliders: vec![],
+        frames: 300,
+    }
+}
+
+/// A box of `cells` lattice points whose lowest layer is at height `bottom`.
+fn box_at(cells: UVec3, x: f32, bottom: f32, z: f32) -> BodyDesc {
+    let mut body = BodyDesc::new(Shape::cuboid(cells, H), H);
+    body.position = Vec3::new(x, bottom + (cells.y - 1) as f32 * H * 0.5, z);
+    body
+}
+
+fn stack_scene(config: SimConfig) -> Scene {
+    let lower = box_at(UVec3::new(8, 8, 8), 0.0, 0.0, 0.0);
+    let upper = box_at(UVec3::new(16, 8, 8), 0.0, 1.2, 0.0);
+    Scene {
+        config,
+        bodies: vec![lower, upper],
+        tools: vec![],
+        colliders: vec![],
+        frames: 300,
+    }
+}
+
+/// A walled bin (four static boxes, each tilted 10° outwards about its long axis) and
+/// seven bodies of four shapes dropped into it one above another, at spacing `h`; with a
+/// smaller `h` the same scene has more particles (the bench's contact row).
+pub fn pile_scene(config: SimConfig, h: f32) -> Scene {
+    let inner = 1.0; // half width of the bin's floor
+    let (height, thickness, tilt) = (1.2, 0.1, 10f32.to_radians());
+    let mut colliders = Vec::new();
+    for k in 0..4 {
+        // wall k faces the centre from the side at angle k·90° about Y
+        let yaw = Quat::from_rotation_y(k as f32 * std::f32::consts::FRAC_PI_2);
+        let outward = yaw * Vec3::X;
+        let lean = Quat::from_axis_angle(yaw * Vec3::Z, -tilt);
+        let centre =
+            outward * (inner + thickness + height * 0.5 * tilt.sin()) + Vec3::Y * (height * 0.5);
+        colliders.push(ColliderDesc {
+            shape: ColliderShape::Box {
+                half_extents: Vec3::new(thickness, height * 0.5, inner + 2.0 * thickness),
+            },
+            friction: 0.3,
+            pose: Pose {
+                position: centre,
+                rotation: lean * yaw,
+            },
+            path: Path::default(),
+        });
+    }
+    let shapes = [
+        Shape::Box {
+            half_extents: Vec3::new(0.35, 0.2, 0.25),
+        },
+        Shape::Sphere { radius: 0.3 },
+        Shape::Capsule {
+            radius: 0.18,
+            half_length: 0.35,
+        },
+        Shape::Box {
+            half_extents: Vec3::splat(0.22),
+        },
+        Shape::Sphere { radius: 0.22 },
+        Shape::Box {
+            half_extents: Vec3::new(0.5, 0.12, 0.15),
+        },
+        Shape::Sphere { radius: 0.25 },
+    ];
+    let bodies = shapes
+        .into_iter()
+        .enumerate()
+        .map(|(i, shape)| {
+            let mut body = BodyDesc::new(shape, h);
+            let a = i as f32 * 2.4;
+            body.position = Vec3::new(0.35 * a.cos(), 0.6 + 0.75 * i as f32, 0.35 * a.sin());
+            body.rotation = Quat::from_rotation_y(0.7 * i as f32);
+            body
+        })
+        .collect();
+    Scene {
+        config,
+        bodies,
+        tools: vec![],
+        colliders,
+        frames: 400,
+    }
+}
+
+fn press_scene(config: SimConfig) -> Scene {
+    let block = box_at(UVec3::new(16, 8, 8), 0.0, 0.0, 0.0);
+    let top = 0.7;
+    let plate_at = |y: f32| Pose::at(Vec3::new(0.0, y + 0.05, 0.0));
+    let plate = ColliderDesc {
+        shape: ColliderShape::Box {
+            half_extents: Vec3::new(1.2, 0.05, 0.8),
+        },
+        friction: 0.5,
+        pose: plate_at(1.2),
+        path: Path {
+            keys: vec![
+                (0.2, plate_at(1.2)),
+                (0.8, plate_at(top - 0.2)),
+                (2.6, plate_at(top - 0.2)),
+                (3.2, plate_at(1.5)),
+            ],
+        },
+    };
+    // a blade in the YZ plane (normal X) sweeping along Z through the squeezed block
+    let blade_at = |z: f32| Pose {
+        position: Vec3::new(0.05, 0.3, z),
+        rotation: Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+    };
+    let blade = ToolDesc {
+        shape: ToolShape::Blade {
+            half_width: 0.3,
+            half_height: 0.6,
+        },
+        cut_width: 1.01 * H,
+        cut_mode: CutMode::Remove,
+        path: Path {
+            keys: vec![
+                (1.2, blade_at(1.5)),
+                (1.8, blade_at(-1.5)),
+                (1.85, blade_at(-5.0)),
+            ],
+        },
+        pose: blade_at(1.5),
+    };
+    Scene {
+        config,
+        bodies: vec![block],
+        tools: vec![blade],
+        colliders: vec![plate],
+        frames: 240,
+    }
+}

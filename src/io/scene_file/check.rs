@@ -1,0 +1,292 @@
+//! Checked readers for the scene-file schema (`deserialize_with`): each one rejects an
+//! out-of-range value with a message that states the allowed range, and the RON reader
+//! adds the file position and the field path.
+
+use super::{BodyFile, ColliderShapeFile, PoseFile};
+use crate::config::{GroundPlane, StaticBox};
+use crate::cut::tool::ToolShape;
+use crate::ecs::desc::PinRegion;
+use glam::{Quat, UVec3, Vec3};
+use serde::de::Error as _;
+use serde::{Deserialize, Deserializer};
+
+fn range<'de, D: Deserializer<'de>>(v: f32, ok: bool, allowed: &str) -> Result<f32, D::Error> {
+    if ok && v.is_finite() {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "{v} is out of range (allowed: {allowed})"
+        )))
+    }
+}
+pub fn positive<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, v > 0.0, "> 0")
+}
+pub fn finite<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, true, "a finite number")
+}
+pub fn dt<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, (1e-6..=1.0).contains(&v), "1e-6 ≤ dt ≤ 1 (seconds)")
+}
+pub fn damping<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(
+        v,
+        (0.0..=1000.0).contains(&v),
+        "0 ≤ damping ≤ 1000 (per second)",
+    )
+}
+pub fn vec3<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
+    let v = Vec3::deserialize(d)?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "{v} is out of range (allowed: finite x, y, z)"
+        )))
+    }
+}
+/// A vector whose components lie within `±max`; `allowed` is the text shown.
+fn bounded<'de, D: Deserializer<'de>>(d: D, max: f32, allowed: &str) -> Result<Vec3, D::Error> {
+    let v = Vec3::deserialize(d)?;
+    if v.is_finite() && v.abs().max_element() <= max {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "{v} is out of range (allowed: {allowed})"
+        )))
+    }
+}
+pub fn coordinates<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
+    bounded(
+        d,
+        crate::error::MAX_COORDINATE,
+        "|x|, |y|, |z| ≤ 1e6 (metres)",
+    )
+}
+pub fn velocity<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
+    bounded(d, 1e4, "|vx|, |vy|, |vz| ≤ 1e4 (m/s)")
+}
+pub fn gravity<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
+    bounded(d, 1e4, "|gx|, |gy|, |gz| ≤ 1e4 (m/s²)")
+}
+pub fn spacing<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(
+        v,
+        (1e-4..=100.0).contains(&v),
+        "1e-4 ≤ spacing ≤ 100 (metres)",
+    )
+}
+pub fn particle_mass<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
+    match Option::<f32>::deserialize(d)? {
+        Some(v) => range::<D>(
+            v,
+            (1e-9..=1e9).contains(&v),
+            "1e-9 ≤ particle_mass ≤ 1e9 (kg)",
+        )
+        .map(Some),
+        None => Ok(None),
+    }
+}
+pub fn compliance<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, (0.0..=1.0).contains(&v), "0 ≤ compliance ≤ 1 (1/Pa)")
+}
+pub fn density<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, (1e-3..=1e6).contains(&v), "1e-3 ≤ density ≤ 1e6 (kg/m³)")
+}
+pub fn rotation<'de, D: Deserializer<'de>>(d: D) -> Result<Quat, D::Error> {
+    let q = Quat::deserialize(d)?;
+    match crate::math::rotation::unit_quaternion(q) {
+        // keep unit quaternions bit-exact (files round-trip); normalise the rest
+        Some(unit) => Ok(if (q.length() - 1.0).abs() < 1e-5 {
+            q
+        } else {
+            unit
+        }),
+        None => Err(D::Error::custom(format!(
+            "({}, {}, {}, {}) is out of range (allowed: a finite, non-zero quaternion (x, y, z, w))",
+            q.x, q.y, q.z, q.w
+        ))),
+    }
+}
+pub fn memory_budget_gb<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(
+        v,
+        (1e-3..=1024.0).contains(&v),
+        "0.001 ≤ memory_budget_gb ≤ 1024",
+    )
+}
+fn count<'de, D: Deserializer<'de>>(d: D, lo: u32, hi: u32, name: &str) -> Result<u32, D::Error> {
+    let v = u32::deserialize(d)?;
+    if (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "{v} is out of range (allowed: {lo} ≤ {name} ≤ {hi})"
+        )))
+    }
+}
+pub fn substeps<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    count(d, 1, 1000, "substeps")
+}
+pub fn iterations<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    count(d, 1, 10_000, "iterations")
+}
+pub fn cluster_radius<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    count(d, 1, 8, "cluster_radius")
+}
+pub fn max_cluster_size<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    count(d, 2, 100_000, "max_cluster_size")
+}
+pub fn frames<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    count(d, 0, 10_000_000, "frames")
+}
+pub fn cells<'de, D: Deserializer<'de>>(d: D) -> Result<UVec3, D::Error> {
+    let v = UVec3::deserialize(d)?;
+    if v.min_element() >= 1 {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "{v} is out of range (allowed: at least 1 cell per axis)"
+        )))
+    }
+}
+pub fn ground<'de, D: Deserializer<'de>>(d: D) -> Result<Option<GroundPlane>, D::Error> {
+    let ground = Option::<GroundPlane>::deserialize(d)?;
+    if let Some(g) = &ground {
+        range::<D>(
+            g.height,
+            g.height.abs() <= crate::error::MAX_COORDINATE,
+            "-1e6 ≤ height ≤ 1e6 (metres)",
+        )?;
+        range::<D>(
+            g.friction,
+            (0.0..=100.0).contains(&g.friction),
+            "0 ≤ friction ≤ 100",
+        )?;
+    }
+    Ok(ground)
+}
+pub fn boxes<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<StaticBox>, D::Error> {
+    let boxes = Vec::<StaticBox>::deserialize(d)?;
+    for (i, b) in boxes.iter().enumerate() {
+        if !(b.min.is_finite() && b.max.is_finite() && b.min.cmple(b.max).all()) {
+            return Err(D::Error::custom(format!(
+                "box {i}: ({}, {}) is out of range (allowed: finite corners, min ≤ max)",
+                b.min, b.max
+            )));
+        }
+        range::<D>(
+            b.friction,
+            (0.0..=100.0).contains(&b.friction),
+            "0 ≤ friction ≤ 100",
+        )?;
+    }
+    Ok(boxes)
+}
+pub fn pins<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<PinRegion>, D::Error> {
+    let pins = Vec::<PinRegion>::deserialize(d)?;
+    for (i, p) in pins.iter().enumerate() {
+        if !(p.min.is_finite() && p.max.is_finite()) {
+            return Err(D::Error::custom(format!(
+                "pin {i}: ({}, {}) is out of range (allowed: finite corners)",
+                p.min, p.max
+            )));
+        }
+        if p.velocity.is_nan() || p.velocity.abs().max_element() > 1e4 {
+            return Err(D::Error::custom(format!(
+                "pin {i}: velocity {} is out of range (allowed: |vx|, |vy|, |vz| ≤ 1e4 m/s)",
+                p.velocity
+            )));
+        }
+    }
+    Ok(pins)
+}
+pub fn collider_shape<'de, D: Deserializer<'de>>(d: D) -> Result<ColliderShapeFile, D::Error> {
+    let shape = ColliderShapeFile::deserialize(d)?;
+    let (value, ok, allowed) = match &shape {
+        ColliderShapeFile::Box { half_extents: h } => (
+            format!("{h}"),
+            h.is_finite() && h.cmpgt(Vec3::ZERO).all(),
+            "half_extents finite and > 0",
+        ),
+        ColliderShapeFile::Sphere { radius } => (
+            format!("{radius}"),
+            radius.is_finite() && *radius > 0.0,
+            "radius finite and > 0",
+        ),
+        ColliderShapeFile::Capsule {
+            radius,
+            half_length,
+        } => (
+            format!("({radius}, {half_length})"),
+            radius.is_finite() && *radius > 0.0 && half_length.is_finite() && *half_length >= 0.0,
+            "radius finite and > 0, half_length finite and ≥ 0",
+        ),
+        ColliderShapeFile::Mesh { resolution, .. } => (
+            format!("{resolution}"),
+            (4..=256).contains(resolution),
+            "4 ≤ resolution ≤ 256",
+        ),
+    };
+    if ok {
+        Ok(shape)
+    } else {
+        Err(D::Error::custom(format!(
+            "{value} is out of range (allowed: {allowed})"
+        )))
+    }
+}
+pub fn tool_shape<'de, D: Deserializer<'de>>(d: D) -> Result<ToolShape, D::Error> {
+    let shape = ToolShape::deserialize(d)?;
+    shape.validate().map_err(D::Error::custom)?;
+    Ok(shape)
+}
+pub fn bodies<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<BodyFile>, D::Error> {
+    let v = Vec::<BodyFile>::deserialize(d)?;
+    if v.is_empty() {
+        Err(D::Error::custom(
+            "the body list is empty (allowed: at least one body)",
+        ))
+    } else {
+        Ok(v)
+    }
+}
+pub fn keys<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(f32, PoseFile)>, D::Error> {
+    let keys = Vec::<(f32, PoseFile)>::deserialize(d)?;
+    for (i, (t, _)) in keys.iter().enumerate() {
+        if !t.is_finite() {
+            return Err(D::Error::custom(format!(
+                "key {i}: time {t} is out of range (allowed: a finite number)"
+            )));
+        }
+        if i > 0 && *t < keys[i - 1].0 {
+            return Err(D::Error::custom(format!(
+                "key {i}: time {t} is before the previous key (allowed: ascending times)"
+            )));
+        }
+    }
+    Ok(keys)
+}
+pub fn friction<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, (0.0..=100.0).contains(&v), "0 ≤ friction ≤ 100")
+}
+pub fn contact_radius<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
+    let v = Option::<f32>::deserialize(d)?;
+    if let Some(r) = v {
+        range::<D>(
+            r,
+            (1e-6..=1e6).contains(&r),
+            "1e-6 ≤ contact_radius ≤ 1e6 (metres), or None for half the spacing",
+        )?;
+    }
+    Ok(v)
+}

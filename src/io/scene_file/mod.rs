@@ -1,0 +1,651 @@
+//! Scenes as RON files: the file schema, checked while it is read so that every error
+//! names the file, line, column and field (and, for a value out of range, the allowed
+//! range); conversion to and from [`Scene`], so every built-in scene is also a file.
+
+use crate::body::lattice::Shape;
+use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
+use crate::cut::tool::{CutMode, Path as ToolPath, Pose, ToolShape};
+use crate::ecs::desc::{BodyDesc, ColliderDesc, PinRegion, ToolDesc};
+use crate::geometry::collider::ColliderShape;
+use crate::geometry::mesh::TriangleMesh;
+use crate::io::scene::Scene;
+use glam::{Quat, UVec3, Vec3};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use std::sync::Arc;
+
+mod check;
+mod positions;
+
+pub use positions::entry_position;
+
+fn default_frames() -> u32 {
+    300
+}
+
+/// A scene file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// Random seed (cluster offsets, reconstruction choices).
+    #[serde(default)]
+    pub seed: u64,
+    /// Frames to simulate.
+    #[serde(default = "default_frames", deserialize_with = "check::frames")]
+    pub frames: u32,
+    /// Simulation settings.
+    #[serde(default)]
+    pub settings: SettingsFile,
+    /// At least one body.
+    #[serde(deserialize_with = "check::bodies")]
+    pub bodies: Vec<BodyFile>,
+    /// Cutting tools.
+    #[serde(default)]
+    pub tools: Vec<ToolFile>,
+    /// Colliders: oriented boxes, balls and capsules, static or on a keyframed path.
+    #[serde(default)]
+    pub colliders: Vec<ColliderFile>,
+}
+
+/// Simulation settings ([`SimConfig`] without the seed).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SettingsFile {
+    /// Seconds per frame.
+    #[serde(deserialize_with = "check::dt")]
+    pub dt: f32,
+    /// Substeps per frame.
+    #[serde(deserialize_with = "check::substeps")]
+    pub substeps: u32,
+    /// Solver iterations per substep.
+    #[serde(deserialize_with = "check::iterations")]
+    pub iterations: u32,
+    /// Gravity (m/s²).
+    #[serde(deserialize_with = "check::gravity")]
+    pub gravity: Vec3,
+    /// Velocity damping per second.
+    #[serde(deserialize_with = "check::damping")]
+    pub damping: f32,
+    /// Ground plane `(height, friction)`, if any.
+    #[serde(deserialize_with = "check::ground")]
+    pub ground: Option<GroundPlane>,
+    /// Static boxes `(min, max, friction)`.
+    #[serde(deserialize_with = "check::boxes")]
+    pub boxes: Vec<StaticBox>,
+    /// Solver scheme.
+    pub solver: SolverMode,
+    /// Whether particles collide with each other.
+    pub contacts: bool,
+    /// Check the invariants after every frame (slow; for tests).
+    pub check_invariants_every_frame: bool,
+    /// Memory one body may take, in GB.
+    #[serde(deserialize_with = "check::memory_budget_gb")]
+    pub memory_budget_gb: f32,
+}
+
+impl Default for SettingsFile {
+    fn default() -> Self {
+        Self::from_config(&SimConfig::default())
+    }
+}
+
+/// A body.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodyFile {
+    /// Shape to voxelise.
+    pub shape: ShapeFile,
+    /// Lattice spacing h in metres.
+    #[serde(deserialize_with = "check::spacing")]
+    pub spacing: f32,
+    /// Position of the shape's origin.
+    #[serde(default, deserialize_with = "check::coordinates")]
+    pub position: Vec3,
+    /// Initial rotation, a quaternion (x, y, z, w).
+    #[serde(default, deserialize_with = "check::rotation")]
+    pub rotation: Quat,
+    /// Initial velocity.
+    #[serde(default, deserialize_with = "check::velocity")]
+    pub velocity: Vec3,
+    /// Material and clustering.
+    #[serde(default)]
+    pub material: MaterialFile,
+    /// Pinned regions (world space).
+    #[serde(default, deserialize_with = "check::pins")]
+    pub pins: Vec<PinRegion>,
+}
+
+/// A shape.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum ShapeFile {
+    /// Exactly `cells` lattice points per axis, centred on the origin.
+    Cells {
+        /// Cells per axis.
+        #[serde(deserialize_with = "check::cells")]
+        cells: UVec3,
+    },
+    /// An axis-aligned box.
+    Box {
+        /// Half size per axis.
+        #[serde(deserialize_with = "check::vec3")]
+        half_extents: Vec3,
+    },
+    /// A ball.
+    Sphere {
+        /// Radius.
+        #[serde(deserialize_with = "check::positive")]
+        radius: f32,
+    },
+    /// A capsule along X.
+    Capsule {
+        /// Radius.
+        #[serde(deserialize_with = "check::positive")]
+        radius: f32,
+        /// Half length of the shaft.
+        #[serde(deserialize_with = "check::finite")]
+        half_length: f32,
+    },
+    /// A closed triangle mesh from an OBJ file (relative to the scene file).
+    Mesh {
+        /// The OBJ file.
+        path: String,
+    },
+}
+
+/// Material and clustering parameters.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MaterialFile {
+    /// Compliance `1/E` in 1/Pa (0: rigid clusters).
+    #[serde(deserialize_with = "check::compliance")]
+    pub compliance: f32,
+    /// Density in kg/m³.
+    #[serde(deserialize_with = "check::density")]
+    pub density: f32,
+    /// Mass of one particle in kg, overriding the density.
+    #[serde(deserialize_with = "check::particle_mass")]
+    pub particle_mass: Option<f32>,
+    /// Cluster radius in lattice units.
+    #[serde(deserialize_with = "check::cluster_radius")]
+    pub cluster_radius: u32,
+    /// Overlap of neighbouring clusters in lattice units (≤ 2·radius).
+    pub cluster_overlap: u32,
+    /// Largest cluster size.
+    #[serde(deserialize_with = "check::max_cluster_size")]
+    pub max_cluster_size: u32,
+    /// Particles added to each part of a cluster split after a cut.
+    pub expand_count: u32,
+    /// Contact ball radius in metres; `None`: half the spacing.
+    #[serde(deserialize_with = "check::contact_radius")]
+    pub contact_radius: Option<f32>,
+    /// Static friction of particle contacts.
+    #[serde(deserialize_with = "check::friction")]
+    pub static_friction: f32,
+    /// Dynamic friction of particle contacts.
+    #[serde(deserialize_with = "check::friction")]
+    pub dynamic_friction: f32,
+    /// Whether a piece folded onto itself collides with itself.
+    pub self_contact: bool,
+    /// Largest principal stretch of a voxel before it tears; `None`: never tears.
+    pub tear_stretch: Option<f32>,
+    /// Most voxels of the body that tear in one frame.
+    pub tear_budget: u32,
+    /// Smallest piece (particles) tearing may cut off.
+    pub tear_min_piece: u32,
+}
+
+impl Default for MaterialFile {
+    fn default() -> Self {
+        Self::from_material(&Material::default())
+    }
+}
+
+/// A tool.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ToolFile {
+    /// Shape: `Sphere(radius)`, `Capsule(radius, half_length)` or
+    /// `Blade(half_width, half_height)`.
+    #[serde(deserialize_with = "check::tool_shape")]
+    pub shape: ToolShape,
+    /// Width of the cut zone.
+    #[serde(deserialize_with = "check::positive")]
+    pub cut_width: f32,
+    /// What the tool does where it passes: `"remove"` (the default), `"sever"` or
+    /// `"split"`.
+    #[serde(default)]
+    pub cut_mode: CutMode,
+    /// Keyframes `(time in seconds, pose)`, ascending; empty: the tool stays at `pose`.
+    #[serde(default, deserialize_with = "check::keys")]
+    pub path: Vec<(f32, PoseFile)>,
+    /// Pose before the path starts (default: the first key's).
+    #[serde(default)]
+    pub pose: Option<PoseFile>,
+}
+
+/// A collider.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ColliderFile {
+    /// Shape: `Box(half_extents)`, `Sphere(radius)`, `Capsule(radius, half_length)`
+    /// (along local X) or `Mesh(path, resolution)` (a closed OBJ mesh).
+    #[serde(deserialize_with = "check::collider_shape")]
+    pub shape: ColliderShapeFile,
+    /// Coulomb friction coefficient.
+    #[serde(
+        default = "default_collider_friction",
+        deserialize_with = "check::friction"
+    )]
+    pub friction: f32,
+    /// Keyframes `(time in seconds, pose)`, ascending; empty: the collider is static.
+    #[serde(default, deserialize_with = "check::keys")]
+    pub path: Vec<(f32, PoseFile)>,
+    /// Pose before the path starts (default: the first key's).
+    #[serde(default)]
+    pub pose: Option<PoseFile>,
+}
+
+fn default_collider_friction() -> f32 {
+    0.5
+}
+
+fn default_mesh_resolution() -> u32 {
+    64
+}
+
+/// A collider's shape in a scene file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum ColliderShapeFile {
+    /// A box with the given half size per local axis.
+    Box {
+        /// Half size per axis.
+        half_extents: Vec3,
+    },
+    /// A ball.
+    Sphere {
+        /// Radius.
+        radius: f32,
+    },
+    /// A capsule along the local X axis.
+    Capsule {
+        /// Radius.
+        radius: f32,
+        /// Half length of the shaft.
+        half_length: f32,
+    },
+    /// A closed triangle mesh from an OBJ file (relative to the scene file), in the
+    /// collider's frame.
+    Mesh {
+        /// The OBJ file.
+        path: String,
+        /// Cells of its sampled distance along its longest axis (4–256).
+        #[serde(default = "default_mesh_resolution")]
+        resolution: u32,
+    },
+}
+
+impl ColliderShapeFile {
+    /// The file form of `shape`; `None` for a mesh given in memory.
+    fn from_shape(shape: &ColliderShape) -> Option<Self> {
+        Some(match *shape {
+            ColliderShape::Box { half_extents } => Self::Box { half_extents },
+            ColliderShape::Sphere { radius } => Self::Sphere { radius },
+            ColliderShape::Capsule {
+                radius,
+                half_length,
+            } => Self::Capsule {
+                radius,
+                half_length,
+            },
+            ColliderShape::Mesh(_) => return None,
+        })
+    }
+
+    /// The shape, checked; a mesh is read relative to `base_dir`. `field` names it in
+    /// errors.
+    fn to_shape(&self, base_dir: &Path, field: &str) -> Result<ColliderShape, String> {
+        let shape = match self {
+            Self::Box { half_extents } => ColliderShape::Box {
+                half_extents: *half_extents,
+            },
+            Self::Sphere { radius } => ColliderShape::Sphere { radius: *radius },
+            Self::Capsule {
+                radius,
+                half_length,
+            } => ColliderShape::Capsule {
+                radius: *radius,
+                half_length: *half_length,
+            },
+            Self::Mesh { path, resolution } => {
+                let file = base_dir.join(path);
+                let mesh =
+                    TriangleMesh::load_obj(&file).map_err(|e| format!("{field}.path: {e}"))?;
+                let sdf = crate::geometry::mesh_sdf::MeshSdf::new(&mesh, *resolution)
+                    .map_err(|e| format!("{field}: {e}"))?;
+                ColliderShape::Mesh(Arc::new(sdf))
+            }
+        };
+        shape.validate(field).map_err(|e| e.to_string())?;
+        Ok(shape)
+    }
+}
+
+/// A pose.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseFile {
+    /// Position.
+    #[serde(deserialize_with = "check::coordinates")]
+    pub position: Vec3,
+    /// Rotation, a quaternion (x, y, z, w).
+    #[serde(default, deserialize_with = "check::rotation")]
+    pub rotation: Quat,
+}
+
+impl From<Pose> for PoseFile {
+    fn from(p: Pose) -> Self {
+        Self {
+            position: p.position,
+            rotation: p.rotation,
+        }
+    }
+}
+
+impl From<PoseFile> for Pose {
+    fn from(p: PoseFile) -> Self {
+        Self {
+            position: p.position,
+            rotation: p.rotation,
+        }
+    }
+}
+
+impl SettingsFile {
+    fn from_config(c: &SimConfig) -> Self {
+        Self {
+            dt: c.dt,
+            substeps: c.substeps,
+            iterations: c.iterations,
+            gravity: c.gravity,
+            damping: c.damping,
+            ground: c.ground,
+            boxes: c.boxes.clone(),
+            solver: c.solver,
+            contacts: c.contacts,
+            check_invariants_every_frame: c.check_invariants_every_frame,
+            memory_budget_gb: c.memory_budget_gb,
+        }
+    }
+
+    fn to_config(&self, seed: u64) -> SimConfig {
+        SimConfig {
+            dt: self.dt,
+            substeps: self.substeps,
+            iterations: self.iterations,
+            gravity: self.gravity,
+            damping: self.damping,
+            ground: self.ground,
+            boxes: self.boxes.clone(),
+            solver: self.solver,
+            contacts: self.contacts,
+            seed,
+            check_invariants_every_frame: self.check_invariants_every_frame,
+            memory_budget_gb: self.memory_budget_gb,
+        }
+    }
+}
+
+impl MaterialFile {
+    fn from_material(m: &Material) -> Self {
+        Self {
+            compliance: m.compliance,
+            density: m.density,
+            particle_mass: m.particle_mass,
+            cluster_radius: m.cluster_radius,
+            cluster_overlap: m.cluster_overlap,
+            max_cluster_size: m.max_cluster_size,
+            expand_count: m.expand_count,
+            contact_radius: m.contact_radius,
+            static_friction: m.static_friction,
+            dynamic_friction: m.dynamic_friction,
+            self_contact: m.self_contact,
+            tear_stretch: m.tear_stretch,
+            tear_budget: m.tear_budget,
+            tear_min_piece: m.tear_min_piece,
+        }
+    }
+
+    fn to_material(&self) -> Material {
+        Material {
+            compliance: self.compliance,
+            density: self.density,
+            particle_mass: self.particle_mass,
+            cluster_radius: self.cluster_radius,
+            cluster_overlap: self.cluster_overlap,
+            max_cluster_size: self.max_cluster_size,
+            expand_count: self.expand_count,
+            contact_radius: self.contact_radius,
+            static_friction: self.static_friction,
+            dynamic_friction: self.dynamic_friction,
+            self_contact: self.self_contact,
+            tear_stretch: self.tear_stretch,
+            tear_budget: self.tear_budget,
+            tear_min_piece: self.tear_min_piece,
+        }
+    }
+}
+
+impl SceneFile {
+    /// The file form of `scene`; `None` if a body's shape has no file form (a signed
+    /// distance function, or a mesh given in memory).
+    pub fn from_scene(scene: &Scene) -> Option<Self> {
+        let bodies = scene
+            .bodies
+            .iter()
+            .map(|b| {
+                let shape = match &b.shape {
+                    Shape::Cells { cells } => ShapeFile::Cells { cells: *cells },
+                    Shape::Box { half_extents } => ShapeFile::Box {
+                        half_extents: *half_extents,
+                    },
+                    Shape::Sphere { radius } => ShapeFile::Sphere { radius: *radius },
+                    Shape::Capsule {
+                        radius,
+                        half_length,
+                    } => ShapeFile::Capsule {
+                        radius: *radius,
+                        half_length: *half_length,
+                    },
+                    Shape::Sdf(_) | Shape::Mesh(_) => return None,
+                };
+                Some(BodyFile {
+                    shape,
+                    spacing: b.spacing,
+                    position: b.position,
+                    rotation: b.rotation,
+                    velocity: b.velocity,
+                    material: MaterialFile::from_material(&b.material),
+                    pins: b.pins.clone(),
+                })
+            })
+            .collect::<Option<Vec<_>>>()?;
+        let tools = scene
+            .tools
+            .iter()
+            .map(|t| ToolFile {
+                shape: t.shape,
+                cut_width: t.cut_width,
+                cut_mode: t.cut_mode,
+                path: t.path.keys.iter().map(|(k, p)| (*k, (*p).into())).collect(),
+                pose: Some(t.pose.into()),
+            })
+            .collect();
+        let colliders = scene
+            .colliders
+            .iter()
+            .map(|c| {
+                Some(ColliderFile {
+                    shape: ColliderShapeFile::from_shape(&c.shape)?,
+                    friction: c.friction,
+                    path: c.path.keys.iter().map(|(k, p)| (*k, (*p).into())).collect(),
+                    pose: Some(c.pose.into()),
+                })
+            })
+            .collect::<Option<Vec<_>>>()?;
+        Some(Self {
+            seed: scene.config.seed,
+            frames: scene.frames,
+            settings: SettingsFile::from_config(&scene.config),
+            bodies,
+            tools,
+            colliders,
+        })
+    }
+
+    /// The scene; mesh paths are resolved against `base_dir`.
+    pub fn to_scene(&self, base_dir: &Path) -> Result<Scene, String> {
+        let mut bodies = Vec::new();
+        for (i, b) in self.bodies.iter().enumerate() {
+            let shape = match &b.shape {
+                ShapeFile::Cells { cells } => Shape::Cells { cells: *cells },
+                ShapeFile::Box { half_extents } => Shape::Box {
+                    half_extents: *half_extents,
+                },
+                ShapeFile::Sphere { radius } => Shape::Sphere { radius: *radius },
+                ShapeFile::Capsule {
+                    radius,
+                    half_length,
+                } => Shape::Capsule {
+                    radius: *radius,
+                    half_length: *half_length,
+                },
+                ShapeFile::Mesh { path } => {
+                    let file = base_dir.join(path);
+                    let mesh = TriangleMesh::load_obj(&file)
+                        .map_err(|e| format!("bodies[{i}].shape.path: {e}"))?;
+                    Shape::Mesh(Arc::new(mesh))
+                }
+            };
+            let material = b.material.to_material();
+            material
+                .validate()
+                .map_err(|e| format!("bodies[{i}]: {e}"))?;
+            bodies.push(BodyDesc {
+                shape,
+                spacing: b.spacing,
+                position: b.position,
+                rotation: b.rotation,
+                velocity: b.velocity,
+                material,
+                pins: b.pins.clone(),
+            });
+        }
+        let tools = self
+            .tools
+            .iter()
+            .map(|t| {
+                let (path, pose) = path_and_pose(&t.path, t.pose);
+                ToolDesc {
+                    shape: t.shape,
+                    cut_width: t.cut_width,
+                    cut_mode: t.cut_mode,
+                    path,
+                    pose,
+                }
+            })
+            .collect();
+        let mut colliders = Vec::with_capacity(self.colliders.len());
+        for (i, c) in self.colliders.iter().enumerate() {
+            let (path, pose) = path_and_pose(&c.path, c.pose);
+            colliders.push(ColliderDesc {
+                shape: c
+                    .shape
+                    .to_shape(base_dir, &format!("colliders[{i}].shape"))?,
+                friction: c.friction,
+                path,
+                pose,
+            });
+        }
+        let config = self.settings.to_config(self.seed);
+        config.validate().map_err(|e| e.to_string())?;
+        Ok(Scene {
+            config,
+            bodies,
+            tools,
+            colliders,
+            frames: self.frames,
+        })
+    }
+
+    /// Pretty RON text with a short header.
+    pub fn to_ron(&self) -> String {
+        let pretty = ron::ser::PrettyConfig::new()
+            .depth_limit(4)
+            .struct_names(false);
+        let body = ron::ser::to_string_pretty(self, pretty).unwrap_or_default();
+        format!(
+            "// cleave scene (RON). Units: metres, seconds. Rotations are quaternions (x, y, z, w).\n\
+             // Run it with `cleave run FILE.ron`.\n{body}\n"
+        )
+    }
+
+    /// Parses RON text; errors read `LINE:COLUMN: FIELD: MESSAGE`. An optional value
+    /// may be written bare (`particle_mass: 0.5`) or as `Some(0.5)`.
+    pub fn parse(text: &str) -> Result<Self, String> {
+        // (editors on some systems start UTF-8 files with a byte-order mark)
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let options = ron::Options::default()
+            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
+        let mut de = ron::Deserializer::from_str_with_options(text, &options)
+            .map_err(|e| spanned(&e, ""))?;
+        let file: Self = serde_path_to_error::deserialize(&mut de).map_err(|e| {
+            let path = e.path().to_string();
+            let span = de.span_error(e.into_inner());
+            spanned(&span, &path)
+        })?;
+        de.end().map_err(|e| spanned(&de.span_error(e), ""))?;
+        Ok(file)
+    }
+}
+
+/// A keyframed path and the pose before it starts (default: the first key's, else the
+/// origin).
+fn path_and_pose(keys: &[(f32, PoseFile)], pose: Option<PoseFile>) -> (ToolPath, Pose) {
+    let keys: Vec<(f32, Pose)> = keys.iter().map(|(k, p)| (*k, (*p).into())).collect();
+    let pose = pose
+        .map(Pose::from)
+        .or_else(|| keys.first().map(|k| k.1))
+        .unwrap_or(Pose::at(Vec3::ZERO));
+    (ToolPath { keys }, pose)
+}
+
+fn spanned(e: &ron::error::SpannedError, path: &str) -> String {
+    // (a value where a field name belongs ends the path in `?`)
+    let path = path.strip_suffix(".?").unwrap_or(path);
+    let field = if path.is_empty() || path == "." || path == "?" {
+        String::new()
+    } else {
+        format!(" {path}:")
+    };
+    let message = match &e.code {
+        // RON reads `Sphere(0.6)` as a field named `0.6`
+        ron::Error::SuggestRawIdentifier(found) => format!(
+            "expected a field name, found `{found}`: fields are named, as in \
+             `Sphere(radius: 0.6)`"
+        ),
+        code => code.to_string(),
+    };
+    format!("{}:{}:{field} {message}", e.position.line, e.position.col)
+}
+
+/// Reads a scene file; errors name the file.
+pub fn load_scene_file(path: &Path) -> Result<Scene, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let file = SceneFile::parse(&text).map_err(|e| format!("{}:{e}", path.display()))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    file.to_scene(base)
+        .map_err(|e| format!("{}: {e}", path.display()))
+}

@@ -1,0 +1,5 @@
+//! The headless facade ([`simulation::Simulation`]) and the Bevy plugin.
+
+#[cfg(feature = "bevy_app")]
+pub mod plugin;
+pub mod simulation;

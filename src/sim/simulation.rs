@@ -1,0 +1,290 @@
+//! `Simulation`: a World plus the cleave schedules, for headless use.
+
+use crate::config::SimConfig;
+use crate::ecs::components::*;
+use crate::ecs::desc::{BodyDesc, ColliderDesc, ToolDesc};
+use crate::ecs::resources::SimSettings;
+use crate::ecs::spawn::{recluster, spawn_body, spawn_collider, spawn_tool};
+use crate::error::{CleaveError, Result};
+use crate::systems::{CleaveSchedule, install};
+use bevy_ecs::message::message_update_system;
+use bevy_ecs::prelude::*;
+use glam::Vec3;
+
+/// A headless simulation: a [`World`] with the cleave resources and schedules.
+pub struct Simulation {
+    world: World,
+}
+
+impl Simulation {
+    /// Validates `config` and builds an empty simulation.
+    pub fn new(config: SimConfig) -> Result<Self> {
+        config.validate()?;
+        let mut world = World::new();
+        install(&mut world, config);
+        Ok(Self { world })
+    }
+
+    /// A simulation of `scene`: its settings, then its bodies, tools and colliders
+    /// spawned in order (the first error stops it).
+    pub fn from_scene(scene: &crate::io::scene::Scene) -> Result<Self> {
+        let mut sim = Self::new(scene.config.clone())?;
+        for b in &scene.bodies {
+            sim.spawn_body(b)?;
+        }
+        for t in &scene.tools {
+            sim.spawn_tool(t)?;
+        }
+        for c in &scene.colliders {
+            sim.spawn_collider(c)?;
+        }
+        Ok(sim)
+    }
+
+    /// The world (read).
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    /// The world (write), e.g. to move tools or pin particles from game code.
+    pub fn world_mut(&mut self) -> &mut World {
+        &mut self.world
+    }
+
+    /// The settings in force.
+    pub fn config(&self) -> &SimConfig {
+        &self.world.resource::<SimSettings>().0
+    }
+
+    /// Voxelises, clusters and spawns a body; returns the body entity.
+    pub fn spawn_body(&mut self, desc: &BodyDesc) -> Result<Entity> {
+        spawn_body(&mut self.world, desc)
+    }
+
+    /// Spawns a cutting tool; returns its entity.
+    pub fn spawn_tool(&mut self, desc: &ToolDesc) -> Result<Entity> {
+        spawn_tool(&mut self.world, desc)
+    }
+
+    /// Spawns a collider; returns its entity.
+    pub fn spawn_collider(&mut self, desc: &ColliderDesc) -> Result<Entity> {
+        spawn_collider(&mut self.world, desc)
+    }
+
+    /// Advances one frame.
+    pub fn step(&mut self) {
+        self.world.run_system_cached(message_update_system).ok();
+        self.world.run_schedule(CleaveSchedule);
+    }
+
+    /// Advances `frames` frames.
+    pub fn run(&mut self, frames: u32) {
+        for _ in 0..frames {
+            self.step();
+        }
+    }
+
+    /// Writes the whole simulation to `writer` in cleave's binary format (see
+    /// [`crate::io::save`]); [`Simulation::load`] resumes it exactly.
+    pub fn save(&mut self, writer: impl std::io::Write) -> Result<()> {
+        crate::io::save::save(&mut self.world, writer)
+    }
+
+    /// Reads a simulation written by [`Simulation::save`]: it goes on bit for bit as the
+    /// saved one would have.
+    pub fn load(reader: impl std::io::Read) -> Result<Self> {
+        crate::io::save::load(reader)
+    }
+
+    /// Replaces the clusters of `body` by a fresh clustering of its current geometry
+    /// (see [`recluster`]); returns the new cluster entities.
+    pub fn recluster(&mut self, body: Entity) -> Result<Vec<Entity>> {
+        recluster(&mut self.world, body)
+    }
+
+    /// Every body entity, in entity order.
+    pub fn bodies(&mut self) -> Vec<Entity> {
+        let mut bodies: Vec<Entity> = self
+            .world
+            .query_filtered::<Entity, With<BodyLattice>>()
+            .iter(&self.world)
+            .collect();
+        bodies.sort_unstable();
+        bodies
+    }
+
+    /// The live particles of `body`, by body-local index, each with a value read from
+    /// its entity.
+    fn read_particles<T>(
+        &self,
+        body: Entity,
+        read: impl Fn(EntityRef) -> Option<T>,
+    ) -> Result<Vec<(u32, T)>> {
+        let lattice = self
+            .world
+            .get::<BodyLattice>(body)
+            .ok_or_else(|| CleaveError::InvalidEntity(format!("{body} is not a body")))?;
+        lattice
+            .lattice
+            .live_particles()
+            .map(|i| {
+                let e = lattice.particles[i as usize];
+                let value = self
+                    .world
+                    .get_entity(e)
+                    .ok()
+                    .and_then(&read)
+                    .ok_or_else(|| {
+                        CleaveError::InvalidEntity(format!(
+                            "particle {i} of body {body} has lost its entity or components"
+                        ))
+                    })?;
+                Ok((i, value))
+            })
+            .collect()
+    }
+
+    /// Positions of the live particles of `body`, with their body-local indices, in
+    /// index order.
+    pub fn positions(&self, body: Entity) -> Result<Vec<(u32, Vec3)>> {
+        self.read_particles(body, |e| e.get::<Position>().map(|p| p.0))
+    }
+
+    /// Velocities of the live particles of `body`, with their body-local indices, in
+    /// index order.
+    pub fn velocities(&self, body: Entity) -> Result<Vec<(u32, Vec3)>> {
+        self.read_particles(body, |e| e.get::<Velocity>().map(|v| v.0))
+    }
+
+    /// The pieces of `body` (connected components of its live particles), each as its
+    /// sorted body-local particle indices, ordered by their smallest index.
+    pub fn pieces(&self, body: Entity) -> Result<Vec<Vec<u32>>> {
+        let lattice = &self
+            .world
+            .get::<BodyLattice>(body)
+            .ok_or_else(|| CleaveError::InvalidEntity(format!("{body} is not a body")))?
+            .lattice;
+        let (labels, count) = crate::body::graph::body_pieces(lattice);
+        let mut pieces = vec![Vec::new(); count];
+        for i in lattice.live_particles() {
+            pieces[labels[i as usize] as usize].push(i);
+        }
+        Ok(pieces)
+    }
+
+    /// The clusters of `body` as `(cluster entity, sorted body-local members)`, by
+    /// entity.
+    pub fn clusters(&mut self, body: Entity) -> Result<Vec<(Entity, Vec<u32>)>> {
+        if self.world.get::<BodyLattice>(body).is_none() {
+            return Err(CleaveError::InvalidEntity(format!("{body} is not a body")));
+        }
+        let mut clusters: Vec<(Entity, Vec<u32>)> = self
+            .world
+            .query::<(Entity, &ClusterMembers, &ClusterOf)>()
+            .iter(&self.world)
+            .filter(|(_, _, of)| of.body == body)
+            .map(|(e, m, _)| (e, m.0.clone()))
+            .collect();
+        clusters.sort_unstable_by_key(|(e, _)| *e);
+        Ok(clusters)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::clusters::invariants::Violation;
+    use crate::ecs::check::check_invariants;
+
+    #[test]
+    fn a_simulation_reads_out_positions_velocities_pieces_and_clusters() -> Result<()> {
+        let mut sim = Simulation::new(SimConfig::default())?;
+        let shape = crate::body::lattice::Shape::cuboid(glam::UVec3::new(6, 3, 3), 0.1);
+        let mut desc = BodyDesc::new(shape, 0.1);
+        desc.position = Vec3::new(0.0, 1.0, 0.0);
+        let body = sim.spawn_body(&desc)?;
+        let start = sim.positions(body)?;
+        sim.run(5);
+        assert_eq!(sim.bodies(), vec![body]);
+        let (positions, velocities) = (sim.positions(body)?, sim.velocities(body)?);
+        assert_eq!(positions.len(), 54);
+        // falling: every particle below its start and moving down, as the ECS says
+        for (((i, p), (j, v)), (k, p0)) in positions.iter().zip(&velocities).zip(&start) {
+            assert_eq!((i, j), (k, k));
+            assert!(p.y < p0.y && v.y < 0.0, "{p0} → {p}, {v}");
+            let entity = sim
+                .world()
+                .get::<BodyLattice>(body)
+                .expect("a body")
+                .particles[*i as usize];
+            assert_eq!(sim.world().get::<Position>(entity).map(|x| x.0), Some(*p));
+        }
+        let pieces = sim.pieces(body)?;
+        assert_eq!(pieces.len(), 1);
+        assert_eq!(pieces[0].len(), 54);
+        let clusters = sim.clusters(body)?;
+        assert!(!clusters.is_empty());
+        let covered: std::collections::BTreeSet<u32> = clusters
+            .iter()
+            .flat_map(|(_, m)| m.iter().copied())
+            .collect();
+        assert_eq!(covered.len(), 54, "every particle in a cluster");
+        // a NaN written into one position is reported
+        assert!(check_invariants(sim.world()).is_empty());
+        let entity = sim
+            .world()
+            .get::<BodyLattice>(body)
+            .expect("a body")
+            .particles[7];
+        sim.world_mut()
+            .entity_mut(entity)
+            .insert(Position(Vec3::NAN));
+        assert_eq!(
+            check_invariants(sim.world()),
+            vec![(body, Violation::NonFinite { particle: 7 })]
+        );
+        // not a body: a clear error
+        let tool = sim.world_mut().spawn_empty().id();
+        assert!(
+            sim.positions(tool)
+                .unwrap_err()
+                .to_string()
+                .contains("is not a body")
+        );
+        assert!(sim.clusters(tool).is_err());
+        Ok(())
+    }
+
+    #[test]
+    fn the_particle_index_resolves_to_the_clusters_that_hold_each_particle() -> Result<()> {
+        let mut sim = Simulation::new(SimConfig::default())?;
+        // freed indices, so that the body's entities reuse them with a later generation
+        let scratch: Vec<Entity> = (0..200)
+            .map(|_| sim.world_mut().spawn_empty().id())
+            .collect();
+        for e in scratch {
+            sim.world_mut().despawn(e);
+        }
+        let shape = crate::body::lattice::Shape::cuboid(glam::UVec3::new(5, 4, 3), 0.1);
+        let body = sim.spawn_body(&BodyDesc::new(shape, 0.1))?;
+        let world = sim.world_mut();
+        let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf)>();
+        let mut holding: Vec<Vec<Entity>> = vec![Vec::new(); 5 * 4 * 3];
+        for (e, members, of) in clusters.iter(world) {
+            assert_eq!(of.body, body);
+            for &p in &members.0 {
+                holding[p as usize].push(e);
+            }
+        }
+        let index = world.get::<ParticleClusters>(body).expect("a body's index");
+        for (p, expected) in holding.iter_mut().enumerate() {
+            let mut found: Vec<Entity> = index.clusters_of(p as u32).collect();
+            found.sort_unstable();
+            expected.sort_unstable();
+            assert!(!found.is_empty(), "particle {p} is in no cluster");
+            assert_eq!(&found, expected, "particle {p}");
+        }
+        assert_eq!(index.clusters_of(1000).count(), 0);
+        Ok(())
+    }
+}

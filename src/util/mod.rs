@@ -1,0 +1,5 @@
+//! Small helpers with no domain of their own: enums spelled by name in files, memory
+//! prefetch hints.
+
+pub(crate) mod named_enum;
+pub mod prefetch;
