@@ -1,7 +1,8 @@
 //! A full slice cut event (regroup + split + expand + edge-cover repair) on 32³ and 64³
 //! bodies, against re-clustering the cut body from scratch with the initial clustering.
 
-use cleave::body::lattice::{Lattice, Shape};
+use cleave::body::lattice::Lattice;
+use cleave::body::shape::Shape;
 use cleave::clusters::clustering::initial_clusters;
 use cleave::clusters::store::{ClusterStore, ClusterTable};
 use cleave::config::Material;

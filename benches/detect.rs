@@ -4,7 +4,7 @@
 //! of `particles_hit` against testing every particle (in parallel too); and the edge
 //! test of a severing blade (`edges_separated`).
 
-use cleave::body::lattice::Shape;
+use cleave::body::shape::Shape;
 use cleave::cut::detection::{ToolSweep, edges_separated, particles_hit};
 use cleave::cut::tool::{CutMode, Pose, ToolShape};
 use cleave::ecs::components::Tool;

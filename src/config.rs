@@ -82,7 +82,7 @@ pub struct SimConfig {
     /// Run `check_invariants` after every frame and panic on a violation (tests, debugging).
     pub check_invariants_every_frame: bool,
     /// Memory one body may take, in GB (0.001–1024): a body whose lattice could hold
-    /// more particles than this allows, at [`crate::body::lattice::BYTES_PER_PARTICLE`] each, is
+    /// more particles than this allows, at [`crate::body::shape::BYTES_PER_PARTICLE`] each, is
     /// refused before anything is allocated.
     pub memory_budget_gb: f32,
 }
@@ -104,7 +104,7 @@ impl Default for SimConfig {
             contacts: true,
             seed: 0,
             check_invariants_every_frame: false,
-            memory_budget_gb: crate::body::lattice::DEFAULT_MEMORY_BUDGET_GB,
+            memory_budget_gb: crate::body::shape::DEFAULT_MEMORY_BUDGET_GB,
         }
     }
 }

@@ -80,7 +80,7 @@ pub use bevy_ecs;
 
 /// The types most users need.
 pub mod prelude {
-    pub use crate::body::lattice::{SdfShape, Shape};
+    pub use crate::body::shape::{SdfShape, Shape};
     pub use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
     pub use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
     pub use crate::ecs::check::check_invariants;

@@ -2,7 +2,7 @@
 //! solver layout (a new body, a cut), the surface particles of every body, each labelled
 //! with its piece, in the layout's dense order.
 
-use crate::body::graph::body_pieces;
+use crate::body::pieces::body_pieces;
 use crate::ecs::components::{Body, BodyLattice};
 use crate::ecs::resources::SolverCache;
 use crate::solver::{ContactGroup, ContactParticles};

@@ -422,7 +422,7 @@ fn horseshoe(self_contact: bool) -> BodyDesc {
             })
             .fold(f32::INFINITY, f32::min)
     };
-    let shape = Shape::Sdf(cleave::body::lattice::SdfShape {
+    let shape = Shape::Sdf(cleave::body::shape::SdfShape {
         sdf: std::sync::Arc::new(sdf),
         min: Vec3::splat(-0.1),
         max: Vec3::new(2.0, 0.7, 0.4),

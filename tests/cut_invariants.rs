@@ -3,7 +3,8 @@
 //! random cuts on random shapes — through the pure reconstruction pipeline (arbitrary removed sets: single survivors, everything removed)
 //! and through the ECS with real tools (under every solver).
 
-use cleave::body::lattice::{Lattice, Shape};
+use cleave::body::lattice::Lattice;
+use cleave::body::shape::Shape;
 use cleave::clusters::clustering::{initial_clusters, uncovered_edges};
 use cleave::clusters::invariants::{check_body, check_index};
 use cleave::clusters::store::{ClusterStore, ClusterTable};

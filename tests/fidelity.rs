@@ -6,7 +6,8 @@
 
 use cleave::analysis::cluster_shape::ClusterShape;
 use cleave::analysis::fidelity::{FidelityOptions, fidelity};
-use cleave::body::lattice::{Lattice, Shape};
+use cleave::body::lattice::Lattice;
+use cleave::body::shape::Shape;
 use cleave::clusters::clustering::{clusters_on_grid, seed_grid_offset};
 use cleave::clusters::store::{ClusterStore, ClusterTable};
 use cleave::config::Material;

@@ -3,7 +3,8 @@
 //! every solver; and what is not a saved simulation is refused with a clear error.
 
 use cleave::config::SolverMode;
-use cleave::io::scene::{Scene, builtin};
+use cleave::ecs::desc::Scene;
+use cleave::io::scene::builtin;
 use cleave::prelude::*;
 
 fn start(scene: &Scene) -> Simulation {

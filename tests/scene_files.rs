@@ -1,7 +1,8 @@
 //! Scene files: every built-in round-trips through RON, and bad files give one clear
 //! error line (file, line, column, field, allowed range) and exit code 2.
 
-use cleave::io::scene::{BUILTIN_SCENES, Scene, builtin};
+use cleave::ecs::desc::Scene;
+use cleave::io::scene::{BUILTIN_SCENES, builtin};
 use cleave::io::scene_file::SceneFile;
 use cleave::prelude::*;
 use std::path::Path;

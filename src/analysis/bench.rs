@@ -4,7 +4,7 @@
 //! the two solver schemes.
 
 use crate::analysis::static_solve::StaticProblem;
-use crate::body::lattice::Shape;
+use crate::body::shape::Shape;
 use crate::clusters::clustering::initial_clusters;
 use crate::config::{Material, SimConfig, SolverMode};
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};

@@ -96,7 +96,7 @@ impl ShapeRatios {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::body::lattice::Shape;
+    use crate::body::shape::Shape;
     use glam::UVec3;
 
     #[test]

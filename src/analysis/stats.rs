@@ -1,7 +1,7 @@
 //! Measurements of a world: counts, shape error against the best rigid fit of the rest
 //! shape, lowest particle, piece centroids.
 
-use crate::body::graph::body_pieces;
+use crate::body::pieces::body_pieces;
 use crate::ecs::components::*;
 use crate::math::rotation::extract_rotation;
 use bevy_ecs::prelude::*;

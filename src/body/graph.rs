@@ -96,31 +96,6 @@ pub fn is_connected(members: &[u32], lattice: &Lattice) -> bool {
     connected_components(members, lattice).len() == 1
 }
 
-/// Labels every live particle with its piece (connected component of the whole body);
-/// removed particles get `u32::MAX`. Returns the labels and the number of pieces.
-pub fn body_pieces(lattice: &Lattice) -> (Vec<u32>, usize) {
-    let mut label = vec![u32::MAX; lattice.len()];
-    let mut pieces = 0u32;
-    let mut stack = Vec::new();
-    for start in lattice.live_particles() {
-        if label[start as usize] != u32::MAX {
-            continue;
-        }
-        label[start as usize] = pieces;
-        stack.push(start);
-        while let Some(p) = stack.pop() {
-            for n in lattice.neighbours(p) {
-                if label[n as usize] == u32::MAX {
-                    label[n as usize] = pieces;
-                    stack.push(n);
-                }
-            }
-        }
-        pieces += 1;
-    }
-    (label, pieces as usize)
-}
-
 /// Live particles adjacent to `members` but not in it: the cluster's *adjacent
 /// particles*, without duplicates, in discovery order (members in the given
 /// order, each one's neighbours in lattice order) — deterministic without a sort.
@@ -153,45 +128,8 @@ pub fn adjacent_particles(members: &[u32], lattice: &Lattice) -> Vec<u32> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::body::lattice::Shape;
+    use crate::body::shape::Shape;
     use glam::{IVec3, UVec3};
-
-    #[test]
-    fn piece_count_agrees_with_labelling_the_pieces() {
-        use rand::{Rng, SeedableRng};
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
-        let mut counts = std::collections::BTreeSet::new();
-        for case in 0..300 {
-            // random occupancy of a small box (sparse to dense), then random removals
-            let dims = IVec3::new(
-                rng.random_range(1..9),
-                rng.random_range(1..9),
-                rng.random_range(1..9),
-            );
-            let fill = rng.random_range(0.2..1.0);
-            let mut coords = Vec::new();
-            for z in 0..dims.z {
-                for y in 0..dims.y {
-                    for x in 0..dims.x {
-                        if rng.random_bool(fill) {
-                            coords.push(IVec3::new(x, y, z) - dims / 2);
-                        }
-                    }
-                }
-            }
-            let mut l = Lattice::from_coords(1.0, coords).unwrap();
-            for p in 0..l.len() as u32 {
-                if rng.random_bool(0.2) {
-                    l.remove(p);
-                }
-            }
-            let pieces = body_pieces(&l).1;
-            assert_eq!(l.piece_count(), pieces, "case {case}");
-            counts.insert(pieces.min(4));
-        }
-        // empty, one, and several pieces all occurred
-        assert_eq!(counts.into_iter().collect::<Vec<_>>(), [0, 1, 2, 3, 4]);
-    }
 
     #[test]
     fn components_of_a_cut_bar() {
@@ -205,7 +143,7 @@ mod tests {
         let comps = connected_components(&all, &l);
         assert_eq!(comps.len(), 2);
         assert_eq!(comps.iter().map(Vec::len).sum::<usize>(), 4);
-        assert_eq!(body_pieces(&l).1, 2);
+        assert_eq!(l.piece_count(), 2);
         let left: Vec<u32> = comps[0].clone();
         assert_eq!(adjacent_particles(&left, &l), Vec::<u32>::new());
     }

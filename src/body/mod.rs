@@ -2,5 +2,9 @@
 //! it), the shapes voxelised into it, and graph algorithms over its edges (pieces,
 //! connectivity).
 
+pub mod edits;
 pub mod graph;
 pub mod lattice;
+mod morton;
+pub mod pieces;
+pub mod shape;

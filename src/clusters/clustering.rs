@@ -237,7 +237,7 @@ pub fn uncovered_edges<S: ClusterStore>(store: &S, lattice: &Lattice) -> Vec<(u3
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::body::lattice::Shape;
+    use crate::body::shape::Shape;
     use glam::UVec3;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;

@@ -3,8 +3,9 @@
 //! cluster inside (or equal to) another; and the particle → clusters index in step with
 //! the member lists.
 
-use crate::body::graph::{body_pieces, is_connected};
+use crate::body::graph::is_connected;
 use crate::body::lattice::Lattice;
+use crate::body::pieces::body_pieces;
 use crate::clusters::contained::subset;
 use petgraph::unionfind::UnionFind;
 use std::fmt;
@@ -230,7 +231,7 @@ pub fn check_index<'a, 'i>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::body::lattice::Shape;
+    use crate::body::shape::Shape;
     use glam::UVec3;
 
     #[test]

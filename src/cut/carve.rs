@@ -39,7 +39,7 @@ pub fn carve(lattice: &mut Lattice, inside: &[u32]) -> (Pairs, Pairs) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::body::lattice::Shape;
+    use crate::body::shape::Shape;
     use glam::{IVec3, UVec3};
 
     /// The particles of a 10-cell bar whose x lies in `range`.

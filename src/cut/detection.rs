@@ -417,7 +417,7 @@ mod tests {
 
     #[test]
     fn edges_found_by_blocks_are_the_edges_that_cross_the_blade() {
-        use crate::body::lattice::Shape;
+        use crate::body::shape::Shape;
         let lattice = Shape::cuboid(glam::UVec3::splat(8), 0.1)
             .voxelise(0.1)
             .unwrap();

@@ -132,7 +132,7 @@ pub fn split_positions(x: Vec3, plane: &BladePlane, gap: f32) -> (Vec3, Vec3) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::body::lattice::Shape;
+    use crate::body::shape::Shape;
     use glam::UVec3;
 
     /// A 6×2×2 bar, a blade across x = 0.4 (through the layer of cells whose centres lie

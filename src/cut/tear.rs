@@ -11,8 +11,8 @@
 //! piece smaller than the material's smallest piece is taken back, so a body does not
 //! crumble into dust where it is crushed or whipped.
 
-use crate::body::graph::body_pieces;
 use crate::body::lattice::Lattice;
+use crate::body::pieces::body_pieces;
 use glam::{IVec3, Mat3, Vec3};
 use rayon::prelude::*;
 
@@ -279,7 +279,7 @@ mod tests {
 
     #[test]
     fn a_pulled_bar_tears_across_the_pull_and_small_pieces_are_kept() {
-        let mut lattice = crate::body::lattice::Shape::cuboid(UVec3::new(8, 3, 3), 1.0)
+        let mut lattice = crate::body::shape::Shape::cuboid(UVec3::new(8, 3, 3), 1.0)
             .voxelise(1.0)
             .unwrap();
         // the cells at x ≥ 0 moved 0.8 further along x: the voxels between x = −1 and 0

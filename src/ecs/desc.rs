@@ -1,8 +1,9 @@
 //! What a body, a tool and a collider are spawned from: plain descriptions, checked
 //! when spawned ([`crate::ecs::spawn`]).
 
-use crate::body::lattice::Shape;
+use crate::body::shape::Shape;
 use crate::config::Material;
+use crate::config::SimConfig;
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::geometry::collider::ColliderShape;
 use glam::{Quat, Vec3};
@@ -90,4 +91,19 @@ pub struct ColliderDesc {
     /// Keyframed path; empty: static, or moved by game code through
     /// [`ColliderPose::current`].
     pub path: Path,
+}
+
+/// A runnable scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// Simulation settings.
+    pub config: SimConfig,
+    /// Bodies to spawn.
+    pub bodies: Vec<BodyDesc>,
+    /// Tools to spawn.
+    pub tools: Vec<ToolDesc>,
+    /// Colliders to spawn (besides the config's ground and static boxes).
+    pub colliders: Vec<ColliderDesc>,
+    /// Default number of frames.
+    pub frames: u32,
 }

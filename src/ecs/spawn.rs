@@ -163,7 +163,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     )?;
     let budget = world
         .get_resource::<SimSettings>()
-        .map_or(crate::body::lattice::DEFAULT_MEMORY_BUDGET_GB, |s| {
+        .map_or(crate::body::shape::DEFAULT_MEMORY_BUDGET_GB, |s| {
             s.0.memory_budget_gb
         });
     let lattice = desc.shape.voxelise_within(desc.spacing, budget)?;

@@ -1,6 +1,7 @@
 //! In and out: built-in scenes and scene files, state dumps, saved simulations,
 //! pictures and point clouds.
 
+pub mod cut_scenes;
 pub mod dump;
 #[cfg(feature = "render")]
 pub mod export;

@@ -24,9 +24,8 @@ use crate::ecs::resources::{
     BodyDense, ClusterSlots, CutReport, SimClock, SimRng, SimSettings, SolverCache,
 };
 use crate::error::{CleaveError, Result};
-use crate::sim::simulation::Simulation;
 use crate::solver::SolverLayout;
-use crate::systems::SyncSchedule;
+use crate::systems::{SyncSchedule, install};
 use bevy_ecs::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
@@ -217,9 +216,10 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
     })
 }
 
-/// Reads a simulation written by [`save`]: a new [`Simulation`] that goes on exactly as
-/// the saved one would have.
-pub fn load(reader: impl Read) -> Result<Simulation> {
+/// Reads a simulation written by [`save`]: a new world, prepared as
+/// [`crate::systems::install`] prepares one, that goes on exactly as the saved one would
+/// have.
+pub fn load(reader: impl Read) -> Result<World> {
     let mut bytes = Vec::new();
     reader
         .take(MAX_SAVE_BYTES + 1)
@@ -262,7 +262,7 @@ impl EntityMap {
     }
 }
 
-fn restore(snapshot: Snapshot) -> Result<Simulation> {
+fn restore(snapshot: Snapshot) -> Result<World> {
     let Snapshot {
         config,
         clock,
@@ -275,8 +275,10 @@ fn restore(snapshot: Snapshot) -> Result<Simulation> {
         cache,
         cut,
     } = snapshot;
-    let mut sim = Simulation::new(config)?;
-    let world = sim.world_mut();
+    config.validate()?;
+    let mut loaded = World::new();
+    install(&mut loaded, config);
+    let world = &mut loaded;
     let mut map = EntityMap(HashMap::new());
     // bodies first, in their saved order, so that new ids keep their order
     for b in &bodies {
@@ -340,11 +342,11 @@ fn restore(snapshot: Snapshot) -> Result<Simulation> {
     // the loaded entities count as seen: the layout already holds them
     world.resource_mut::<SolverCache>().adopt_changes = true;
     world.run_schedule(SyncSchedule);
-    let violations = check_invariants(sim.world());
+    let violations = check_invariants(world);
     if let Some((_, v)) = violations.first() {
         return Err(invalid(format!("inconsistent: {v}")));
     }
-    Ok(sim)
+    Ok(loaded)
 }
 
 /// Puts the saved solver state in `world`'s cache, with its entities mapped.

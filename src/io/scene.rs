@@ -1,28 +1,15 @@
 //! Built-in scenes: a simulation config, bodies, tools and a default frame count.
 
-use crate::body::lattice::Shape;
+use crate::body::shape::Shape;
 use crate::config::{Material, SimConfig, StaticBox};
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
+use crate::ecs::desc::Scene;
 use crate::ecs::desc::{BodyDesc, ColliderDesc, PinRegion, ToolDesc};
 use crate::geometry::collider::ColliderShape;
+use crate::io::cut_scenes::{cut_block_scene, scooped_cantilever_scene};
 use glam::{Quat, UVec3, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-
-/// A runnable scene.
-#[derive(Clone, Debug)]
-pub struct Scene {
-    /// Simulation settings.
-    pub config: SimConfig,
-    /// Bodies to spawn.
-    pub bodies: Vec<BodyDesc>,
-    /// Tools to spawn.
-    pub tools: Vec<ToolDesc>,
-    /// Colliders to spawn (besides the config's ground and static boxes).
-    pub colliders: Vec<ColliderDesc>,
-    /// Default number of frames.
-    pub frames: u32,
-}
 
 /// Names and one-line descriptions of the built-in scenes.
 pub const BUILTIN_SCENES: [(&str, &str); 13] = [
@@ -306,8 +293,8 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
             }
         }
         "random" => random_scene(seed),
-        "cuts" => crate::analysis::fidelity::cut_block_scene(seed, 50),
-        "scooped" => crate::analysis::fidelity::scooped_cantilever_scene(seed, 20),
+        "cuts" => cut_block_scene(seed, 50),
+        "scooped" => scooped_cantilever_scene(builtin("cantilever", seed)?, seed, 20),
         "stack" => stack_scene(config),
         "pile" => pile_scene(config, H),
         "press" => press_scene(config),

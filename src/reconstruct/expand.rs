@@ -110,7 +110,7 @@ fn draw_adjacent(
 mod tests {
     use super::*;
     use crate::body::graph::is_connected;
-    use crate::body::lattice::Shape;
+    use crate::body::shape::Shape;
     use crate::clusters::store::ClusterTable;
     use glam::UVec3;
     use rand::SeedableRng;

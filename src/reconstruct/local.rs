@@ -201,7 +201,8 @@ impl Bits {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::body::lattice::{NEIGHBOUR_OFFSETS, Shape};
+    use crate::body::lattice::NEIGHBOUR_OFFSETS;
+    use crate::body::shape::Shape;
     use glam::UVec3;
 
     #[test]

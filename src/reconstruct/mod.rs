@@ -25,7 +25,9 @@
 
 pub mod expand;
 pub mod local;
+mod merge;
 pub mod pca;
+mod pieces;
 pub mod regroup;
 pub mod split;
 

@@ -358,7 +358,7 @@ pub fn split_oversized<S: ClusterStore>(
 mod tests {
     use super::*;
     use crate::body::graph::is_connected;
-    use crate::body::lattice::Shape;
+    use crate::body::shape::Shape;
     use glam::UVec3;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;

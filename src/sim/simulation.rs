@@ -27,7 +27,7 @@ impl Simulation {
 
     /// A simulation of `scene`: its settings, then its bodies, tools and colliders
     /// spawned in order (the first error stops it).
-    pub fn from_scene(scene: &crate::io::scene::Scene) -> Result<Self> {
+    pub fn from_scene(scene: &crate::ecs::desc::Scene) -> Result<Self> {
         let mut sim = Self::new(scene.config.clone())?;
         for b in &scene.bodies {
             sim.spawn_body(b)?;
@@ -93,7 +93,7 @@ impl Simulation {
     /// Reads a simulation written by [`Simulation::save`]: it goes on bit for bit as the
     /// saved one would have.
     pub fn load(reader: impl std::io::Read) -> Result<Self> {
-        crate::io::save::load(reader)
+        crate::io::save::load(reader).map(|world| Self { world })
     }
 
     /// Replaces the clusters of `body` by a fresh clustering of its current geometry
@@ -164,7 +164,7 @@ impl Simulation {
             .get::<BodyLattice>(body)
             .ok_or_else(|| CleaveError::InvalidEntity(format!("{body} is not a body")))?
             .lattice;
-        let (labels, count) = crate::body::graph::body_pieces(lattice);
+        let (labels, count) = crate::body::pieces::body_pieces(lattice);
         let mut pieces = vec![Vec::new(); count];
         for i in lattice.live_particles() {
             pieces[labels[i as usize] as usize].push(i);
@@ -199,7 +199,7 @@ mod tests {
     #[test]
     fn a_simulation_reads_out_positions_velocities_pieces_and_clusters() -> Result<()> {
         let mut sim = Simulation::new(SimConfig::default())?;
-        let shape = crate::body::lattice::Shape::cuboid(glam::UVec3::new(6, 3, 3), 0.1);
+        let shape = crate::body::shape::Shape::cuboid(glam::UVec3::new(6, 3, 3), 0.1);
         let mut desc = BodyDesc::new(shape, 0.1);
         desc.position = Vec3::new(0.0, 1.0, 0.0);
         let body = sim.spawn_body(&desc)?;
@@ -265,7 +265,7 @@ mod tests {
         for e in scratch {
             sim.world_mut().despawn(e);
         }
-        let shape = crate::body::lattice::Shape::cuboid(glam::UVec3::new(5, 4, 3), 0.1);
+        let shape = crate::body::shape::Shape::cuboid(glam::UVec3::new(5, 4, 3), 0.1);
         let body = sim.spawn_body(&BodyDesc::new(shape, 0.1))?;
         let world = sim.world_mut();
         let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf)>();

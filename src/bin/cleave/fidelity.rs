@@ -2,7 +2,8 @@
 //! geometry (see [`cleave::analysis::fidelity`]), as a table or one JSON object.
 
 use cleave::analysis::cluster_shape::ClusterShape;
-use cleave::analysis::fidelity::{FidelityOptions, MAX_CUTS, fidelity as compare};
+use cleave::analysis::fidelity::{FidelityOptions, fidelity as compare};
+use cleave::io::cut_scenes::MAX_CUTS;
 
 /// Runs the comparison and prints it.
 pub fn fidelity(options: FidelityOptions, json: bool) -> Result<(), String> {

@@ -4,6 +4,7 @@ mod bench;
 mod fidelity;
 mod pictures;
 mod run;
+mod summary;
 
 use clap::{Parser, Subcommand};
 use cleave::config::{SimConfig, SolverMode};

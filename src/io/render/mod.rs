@@ -11,7 +11,7 @@ pub mod camera;
 pub mod canvas;
 pub mod encode;
 
-use crate::body::graph::body_pieces;
+use crate::body::pieces::body_pieces;
 use crate::config::GroundPlane;
 use crate::cut::tool::{Pose, ToolShape};
 use crate::ecs::components::{

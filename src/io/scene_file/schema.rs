@@ -1,0 +1,305 @@
+//! The scene file's schema: every struct and enum a RON scene file is read into, each
+//! field checked while it is read ([`super::check`]).
+
+use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
+use crate::cut::tool::{CutMode, Pose, ToolShape};
+use crate::ecs::desc::PinRegion;
+use glam::{Quat, UVec3, Vec3};
+use serde::{Deserialize, Serialize};
+
+fn default_frames() -> u32 {
+    300
+}
+
+/// A scene file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// Random seed (cluster offsets, reconstruction choices).
+    #[serde(default)]
+    pub seed: u64,
+    /// Frames to simulate.
+    #[serde(default = "default_frames", deserialize_with = "super::check::frames")]
+    pub frames: u32,
+    /// Simulation settings.
+    #[serde(default)]
+    pub settings: SettingsFile,
+    /// At least one body.
+    #[serde(deserialize_with = "super::check::bodies")]
+    pub bodies: Vec<BodyFile>,
+    /// Cutting tools.
+    #[serde(default)]
+    pub tools: Vec<ToolFile>,
+    /// Colliders: oriented boxes, balls and capsules, static or on a keyframed path.
+    #[serde(default)]
+    pub colliders: Vec<ColliderFile>,
+}
+
+/// Simulation settings ([`SimConfig`] without the seed).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SettingsFile {
+    /// Seconds per frame.
+    #[serde(deserialize_with = "super::check::dt")]
+    pub dt: f32,
+    /// Substeps per frame.
+    #[serde(deserialize_with = "super::check::substeps")]
+    pub substeps: u32,
+    /// Solver iterations per substep.
+    #[serde(deserialize_with = "super::check::iterations")]
+    pub iterations: u32,
+    /// Gravity (m/s²).
+    #[serde(deserialize_with = "super::check::gravity")]
+    pub gravity: Vec3,
+    /// Velocity damping per second.
+    #[serde(deserialize_with = "super::check::damping")]
+    pub damping: f32,
+    /// Ground plane `(height, friction)`, if any.
+    #[serde(deserialize_with = "super::check::ground")]
+    pub ground: Option<GroundPlane>,
+    /// Static boxes `(min, max, friction)`.
+    #[serde(deserialize_with = "super::check::boxes")]
+    pub boxes: Vec<StaticBox>,
+    /// Solver scheme.
+    pub solver: SolverMode,
+    /// Whether particles collide with each other.
+    pub contacts: bool,
+    /// Check the invariants after every frame (slow; for tests).
+    pub check_invariants_every_frame: bool,
+    /// Memory one body may take, in GB.
+    #[serde(deserialize_with = "super::check::memory_budget_gb")]
+    pub memory_budget_gb: f32,
+}
+
+impl Default for SettingsFile {
+    fn default() -> Self {
+        Self::from_config(&SimConfig::default())
+    }
+}
+
+/// A body.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodyFile {
+    /// Shape to voxelise.
+    pub shape: ShapeFile,
+    /// Lattice spacing h in metres.
+    #[serde(deserialize_with = "super::check::spacing")]
+    pub spacing: f32,
+    /// Position of the shape's origin.
+    #[serde(default, deserialize_with = "super::check::coordinates")]
+    pub position: Vec3,
+    /// Initial rotation, a quaternion (x, y, z, w).
+    #[serde(default, deserialize_with = "super::check::rotation")]
+    pub rotation: Quat,
+    /// Initial velocity.
+    #[serde(default, deserialize_with = "super::check::velocity")]
+    pub velocity: Vec3,
+    /// Material and clustering.
+    #[serde(default)]
+    pub material: MaterialFile,
+    /// Pinned regions (world space).
+    #[serde(default, deserialize_with = "super::check::pins")]
+    pub pins: Vec<PinRegion>,
+}
+
+/// A shape.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum ShapeFile {
+    /// Exactly `cells` lattice points per axis, centred on the origin.
+    Cells {
+        /// Cells per axis.
+        #[serde(deserialize_with = "super::check::cells")]
+        cells: UVec3,
+    },
+    /// An axis-aligned box.
+    Box {
+        /// Half size per axis.
+        #[serde(deserialize_with = "super::check::vec3")]
+        half_extents: Vec3,
+    },
+    /// A ball.
+    Sphere {
+        /// Radius.
+        #[serde(deserialize_with = "super::check::positive")]
+        radius: f32,
+    },
+    /// A capsule along X.
+    Capsule {
+        /// Radius.
+        #[serde(deserialize_with = "super::check::positive")]
+        radius: f32,
+        /// Half length of the shaft.
+        #[serde(deserialize_with = "super::check::finite")]
+        half_length: f32,
+    },
+    /// A closed triangle mesh from an OBJ file (relative to the scene file).
+    Mesh {
+        /// The OBJ file.
+        path: String,
+    },
+}
+
+/// Material and clustering parameters.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MaterialFile {
+    /// Compliance `1/E` in 1/Pa (0: rigid clusters).
+    #[serde(deserialize_with = "super::check::compliance")]
+    pub compliance: f32,
+    /// Density in kg/m³.
+    #[serde(deserialize_with = "super::check::density")]
+    pub density: f32,
+    /// Mass of one particle in kg, overriding the density.
+    #[serde(deserialize_with = "super::check::particle_mass")]
+    pub particle_mass: Option<f32>,
+    /// Cluster radius in lattice units.
+    #[serde(deserialize_with = "super::check::cluster_radius")]
+    pub cluster_radius: u32,
+    /// Overlap of neighbouring clusters in lattice units (≤ 2·radius).
+    pub cluster_overlap: u32,
+    /// Largest cluster size.
+    #[serde(deserialize_with = "super::check::max_cluster_size")]
+    pub max_cluster_size: u32,
+    /// Particles added to each part of a cluster split after a cut.
+    pub expand_count: u32,
+    /// Contact ball radius in metres; `None`: half the spacing.
+    #[serde(deserialize_with = "super::check::contact_radius")]
+    pub contact_radius: Option<f32>,
+    /// Static friction of particle contacts.
+    #[serde(deserialize_with = "super::check::friction")]
+    pub static_friction: f32,
+    /// Dynamic friction of particle contacts.
+    #[serde(deserialize_with = "super::check::friction")]
+    pub dynamic_friction: f32,
+    /// Whether a piece folded onto itself collides with itself.
+    pub self_contact: bool,
+    /// Largest principal stretch of a voxel before it tears; `None`: never tears.
+    pub tear_stretch: Option<f32>,
+    /// Most voxels of the body that tear in one frame.
+    pub tear_budget: u32,
+    /// Smallest piece (particles) tearing may cut off.
+    pub tear_min_piece: u32,
+}
+
+impl Default for MaterialFile {
+    fn default() -> Self {
+        Self::from_material(&Material::default())
+    }
+}
+
+/// A tool.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ToolFile {
+    /// Shape: `Sphere(radius)`, `Capsule(radius, half_length)` or
+    /// `Blade(half_width, half_height)`.
+    #[serde(deserialize_with = "super::check::tool_shape")]
+    pub shape: ToolShape,
+    /// Width of the cut zone.
+    #[serde(deserialize_with = "super::check::positive")]
+    pub cut_width: f32,
+    /// What the tool does where it passes: `"remove"` (the default), `"sever"` or
+    /// `"split"`.
+    #[serde(default)]
+    pub cut_mode: CutMode,
+    /// Keyframes `(time in seconds, pose)`, ascending; empty: the tool stays at `pose`.
+    #[serde(default, deserialize_with = "super::check::keys")]
+    pub path: Vec<(f32, PoseFile)>,
+    /// Pose before the path starts (default: the first key's).
+    #[serde(default)]
+    pub pose: Option<PoseFile>,
+}
+
+/// A collider.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ColliderFile {
+    /// Shape: `Box(half_extents)`, `Sphere(radius)`, `Capsule(radius, half_length)`
+    /// (along local X) or `Mesh(path, resolution)` (a closed OBJ mesh).
+    #[serde(deserialize_with = "super::check::collider_shape")]
+    pub shape: ColliderShapeFile,
+    /// Coulomb friction coefficient.
+    #[serde(
+        default = "default_collider_friction",
+        deserialize_with = "super::check::friction"
+    )]
+    pub friction: f32,
+    /// Keyframes `(time in seconds, pose)`, ascending; empty: the collider is static.
+    #[serde(default, deserialize_with = "super::check::keys")]
+    pub path: Vec<(f32, PoseFile)>,
+    /// Pose before the path starts (default: the first key's).
+    #[serde(default)]
+    pub pose: Option<PoseFile>,
+}
+
+fn default_collider_friction() -> f32 {
+    0.5
+}
+
+fn default_mesh_resolution() -> u32 {
+    64
+}
+
+/// A collider's shape in a scene file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum ColliderShapeFile {
+    /// A box with the given half size per local axis.
+    Box {
+        /// Half size per axis.
+        half_extents: Vec3,
+    },
+    /// A ball.
+    Sphere {
+        /// Radius.
+        radius: f32,
+    },
+    /// A capsule along the local X axis.
+    Capsule {
+        /// Radius.
+        radius: f32,
+        /// Half length of the shaft.
+        half_length: f32,
+    },
+    /// A closed triangle mesh from an OBJ file (relative to the scene file), in the
+    /// collider's frame.
+    Mesh {
+        /// The OBJ file.
+        path: String,
+        /// Cells of its sampled distance along its longest axis (4–256).
+        #[serde(default = "default_mesh_resolution")]
+        resolution: u32,
+    },
+}
+
+/// A pose.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseFile {
+    /// Position.
+    #[serde(deserialize_with = "super::check::coordinates")]
+    pub position: Vec3,
+    /// Rotation, a quaternion (x, y, z, w).
+    #[serde(default, deserialize_with = "super::check::rotation")]
+    pub rotation: Quat,
+}
+
+impl From<Pose> for PoseFile {
+    fn from(p: Pose) -> Self {
+        Self {
+            position: p.position,
+            rotation: p.rotation,
+        }
+    }
+}
+
+impl From<PoseFile> for Pose {
+    fn from(p: PoseFile) -> Self {
+        Self {
+            position: p.position,
+            rotation: p.rotation,
+        }
+    }
+}

@@ -1,0 +1,252 @@
+//! Shared by the end-to-end tests: running the `cleave` binary on a scene, and an
+//! invariant checker of its state dumps written against the JSON alone (it shares no
+//! code with the engine).
+#![allow(dead_code)] // each test crate uses its own part
+
+use serde_json::Value;
+use std::collections::{HashMap, HashSet, VecDeque};
+use std::path::PathBuf;
+use std::process::Command;
+
+pub fn run(scene: &str, frames: Option<u32>) -> (Value, Value) {
+    run_with(scene, frames, &[])
+}
+
+/// Runs `scene` with extra arguments; returns the summary and the dump.
+pub fn run_with(scene: &str, frames: Option<u32>, extra: &[&str]) -> (Value, Value) {
+    let tag = extra.join("_").replace('-', "");
+    let dir = std::env::temp_dir().join(format!("cleave-test-{scene}{tag}-{}", std::process::id()));
+    let dump = dir.join("state.json");
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_cleave"));
+    cmd.args(["run", scene, "--out"])
+        .arg(&dir)
+        .arg("--dump-state")
+        .arg(&dump);
+    if let Some(f) = frames {
+        cmd.args(["--frames", &f.to_string()]);
+    }
+    cmd.args(extra);
+    let out = cmd.output().expect("run cleave");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let read = |p: PathBuf| serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
+    (read(dir.join("summary.json")), read(dump))
+}
+
+/// Independent check of a `cleave-state/2` dump: returns the number of pieces over all
+/// bodies, panics on a violation.
+pub fn check_dump(dump: &Value) -> usize {
+    pieces_of(dump).len()
+}
+
+/// Every piece of every body of a checked dump, as `(body index, particle ids)`.
+pub fn pieces_of(dump: &Value) -> Vec<(usize, HashSet<u64>)> {
+    assert_eq!(dump["format"], "cleave-state/2");
+    assert!(dump["frame"].as_u64().is_some() && dump["time"].as_f64().is_some());
+    let mut all_ids = HashSet::new();
+    let mut out = Vec::new();
+    for (b, body) in dump["bodies"].as_array().unwrap().iter().enumerate() {
+        for p in body["particles"].as_array().unwrap() {
+            assert!(
+                all_ids.insert(p["id"].as_u64().unwrap()),
+                "particle id repeated"
+            );
+            assert!(p["mass"].as_f64().unwrap() > 0.0);
+        }
+        out.extend(check_body(body).into_iter().map(|piece| (b, piece)));
+    }
+    out
+}
+
+/// Positions by particle id over every body of a dump.
+pub fn positions_of(dump: &Value) -> HashMap<u64, [f64; 3]> {
+    let mut out = HashMap::new();
+    for body in dump["bodies"].as_array().unwrap() {
+        for p in body["particles"].as_array().unwrap() {
+            let x: Vec<f64> = (0..3).map(|k| p["position"][k].as_f64().unwrap()).collect();
+            out.insert(p["id"].as_u64().unwrap(), [x[0], x[1], x[2]]);
+        }
+    }
+    out
+}
+
+/// The smallest distance between particles of different groups (by brute force).
+pub fn min_distance_between(groups: &[Vec<[f64; 3]>]) -> f64 {
+    let mut best = f64::INFINITY;
+    for (i, a) in groups.iter().enumerate() {
+        for b in &groups[i + 1..] {
+            for p in a {
+                for q in b {
+                    let d = (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>().sqrt();
+                    best = best.min(d);
+                }
+            }
+        }
+    }
+    best
+}
+
+/// The smallest distance between particles of different pieces, and of different
+/// bodies, in a dump.
+pub fn dump_gaps(dump: &Value) -> (f64, f64) {
+    let pieces = pieces_of(dump);
+    let at = positions_of(dump);
+    let points = |ids: &HashSet<u64>| ids.iter().map(|i| at[i]).collect::<Vec<_>>();
+    let by_piece: Vec<Vec<[f64; 3]>> = pieces.iter().map(|(_, p)| points(p)).collect();
+    let bodies = pieces.iter().map(|(b, _)| b + 1).max().unwrap_or(0);
+    let by_body: Vec<Vec<[f64; 3]>> = (0..bodies)
+        .map(|b| {
+            pieces
+                .iter()
+                .filter(|(body, _)| *body == b)
+                .flat_map(|(_, p)| points(p))
+                .collect()
+        })
+        .collect();
+    (
+        min_distance_between(&by_piece),
+        min_distance_between(&by_body),
+    )
+}
+
+/// Checks one body of a dump; returns its pieces.
+pub fn check_body(dump: &Value) -> Vec<HashSet<u64>> {
+    let max = dump["config"]["max_cluster_size"].as_u64().unwrap() as usize;
+    let ids: HashSet<u64> = dump["particles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["id"].as_u64().unwrap())
+        .collect();
+    let mut adjacency: HashMap<u64, Vec<u64>> = ids.iter().map(|i| (*i, Vec::new())).collect();
+    let coords: HashMap<u64, Vec<i64>> = dump["particles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| {
+            (
+                p["id"].as_u64().unwrap(),
+                p["lattice"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|c| c.as_i64().unwrap())
+                    .collect(),
+            )
+        })
+        .collect();
+    for e in dump["edges"].as_array().unwrap() {
+        let (a, b) = (e[0].as_u64().unwrap(), e[1].as_u64().unwrap());
+        assert!(
+            ids.contains(&a) && ids.contains(&b),
+            "edge to a dead particle"
+        );
+        let d: i64 = coords[&a]
+            .iter()
+            .zip(&coords[&b])
+            .map(|(x, y)| (x - y).abs())
+            .sum();
+        assert_eq!(d, 1, "edge {a}-{b} is not a voxel edge");
+        adjacency.get_mut(&a).unwrap().push(b);
+        adjacency.get_mut(&b).unwrap().push(a);
+    }
+    let components = |set: &HashSet<u64>| -> Vec<HashSet<u64>> {
+        let mut seen = HashSet::new();
+        let mut out = Vec::new();
+        for &s in set {
+            if !seen.insert(s) {
+                continue;
+            }
+            let mut comp = HashSet::from([s]);
+            let mut queue = VecDeque::from([s]);
+            while let Some(p) = queue.pop_front() {
+                for n in &adjacency[&p] {
+                    if set.contains(n) && seen.insert(*n) {
+                        comp.insert(*n);
+                        queue.push_back(*n);
+                    }
+                }
+            }
+            out.push(comp);
+        }
+        out
+    };
+    let mut covered = HashSet::new();
+    let clusters: Vec<HashSet<u64>> = dump["clusters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| {
+            c["members"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|m| m.as_u64().unwrap())
+                .collect()
+        })
+        .collect();
+    for c in &clusters {
+        assert!(c.len() <= max, "cluster of {} > {max}", c.len());
+        assert!(c.iter().all(|m| ids.contains(m)), "dead member");
+        assert_eq!(components(c).len(), 1, "disconnected cluster");
+        covered.extend(c.iter().copied());
+    }
+    assert_eq!(covered, ids, "uncovered particles");
+    // No cluster inside (or equal to) another: a container holds the smallest member.
+    let mut holding: HashMap<u64, Vec<usize>> = HashMap::new();
+    for (i, c) in clusters.iter().enumerate() {
+        for m in c {
+            holding.entry(*m).or_default().push(i);
+        }
+    }
+    for (i, c) in clusters.iter().enumerate() {
+        let smallest = c.iter().min().unwrap();
+        for &j in &holding[smallest] {
+            assert!(
+                j == i || !c.is_subset(&clusters[j]),
+                "a cluster of {} lies inside one of {}",
+                c.len(),
+                clusters[j].len()
+            );
+        }
+    }
+    let pieces = components(&ids);
+    // No isolated cluster: inside each piece, clusters linked by shared particles.
+    for piece in &pieces {
+        let inside: Vec<&HashSet<u64>> = clusters
+            .iter()
+            .filter(|c| c.iter().any(|m| piece.contains(m)))
+            .collect();
+        let mut reached = vec![false; inside.len()];
+        let mut stack = vec![0];
+        reached[0] = true;
+        while let Some(i) = stack.pop() {
+            for j in 0..inside.len() {
+                if !reached[j] && !inside[i].is_disjoint(inside[j]) {
+                    reached[j] = true;
+                    stack.push(j);
+                }
+            }
+        }
+        assert!(
+            reached.iter().all(|r| *r),
+            "isolated cluster in a piece of {}",
+            piece.len()
+        );
+    }
+    pieces
+}
+
+pub fn f(v: &Value) -> f64 {
+    v.as_f64().unwrap()
+}
+
+pub fn cantilever_sag(extra: &[&str]) -> f64 {
+    let mut args = vec!["--png-every", "0", "--gif-every", "0", "--quiet"];
+    args.extend_from_slice(extra);
+    let (s, _) = run_with("cantilever", Some(600), &args);
+    f(&s["bodies"][0]["tip_drop_h_end"])
+}
