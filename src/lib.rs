@@ -7,18 +7,18 @@
 //!
 //! A body is a voxel lattice of particles: each particle's rest position is its lattice
 //! coordinate times the spacing, and two particles are *adjacent* when a voxel edge joins
-//! them. The edges are data ([`lattice::Lattice`]): a cut may remove a particle, sever an
+//! them. The edges are data ([`body::lattice::Lattice`]): a cut may remove a particle, sever an
 //! edge or split a particle in two. Overlapping *clusters* of particles — each one
 //! connected through the edges — are shape-matching constraints (Müller et al. 2005):
 //! each pulls its members toward the best rigid placement of their rest shape, with the
-//! stiffness of its material, so the body is elastic ([`clustering`] builds them).
+//! stiffness of its material, so the body is elastic ([`clusters::clustering`] builds them).
 //!
 //! ## One frame
 //!
 //! The stages run as ordered ECS systems ([`systems`]): `substeps` times, **predict**
 //! (forces, damping, inertial prediction) and **shape-match** (the solver's iterations
 //! over clusters, contacts and colliders, [`solver`]); then **detect** (read-only: which
-//! particles and edges the tools reach, which voxels tear, [`detection`]), **cut**
+//! particles and edges the tools reach, which voxels tear, [`cut::detection`]), **cut**
 //! (particle data only), and **regroup**, **split**, **expand** (cluster data only): the
 //! cut clusters rebuilt by graph algorithms ([`reconstruct`]) so that pieces separate
 //! while the body keeps the clusters, and the stiffness, of its shape built fresh.
@@ -49,9 +49,9 @@
 //! # }
 //! ```
 //!
-//! Pure algorithms live in plain modules ([`lattice`], [`clustering`], [`reconstruct`],
-//! [`solver`], [`rotation`]); [`systems`] holds the thin ECS stages; [`sim::Simulation`]
-//! is the headless facade; [`save`] writes and resumes a simulation.
+//! Pure algorithms live in plain modules ([`body::lattice`], [`clusters::clustering`], [`reconstruct`],
+//! [`solver`], [`math::rotation`]); [`systems`] holds the thin ECS stages; [`sim::simulation::Simulation`]
+//! is the headless facade; [`io::save`] writes and resumes a simulation.
 #![warn(missing_docs)]
 
 pub mod analysis;

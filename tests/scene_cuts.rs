@@ -87,6 +87,7 @@ fn dice_makes_four_pieces_and_scoop_one() {
     assert_eq!(check_dump(&dump), 1);
 }
 
+/// The pieces of the first body of a checked dump, each as its particles' lattice x.
 fn piece_columns(dump: &Value) -> Vec<Vec<i64>> {
     let lattice_x: HashMap<u64, i64> = dump["bodies"][0]["particles"]
         .as_array()
@@ -175,6 +176,8 @@ fn fifty_cuts_keep_the_dump_legal_and_a_scooped_beam_sags_as_if_built_with_its_h
     assert!(sag(&rebuilt) > cantilever_sag(&[]), "{}", sag(&rebuilt));
 }
 
+/// Every particle's lattice coordinate and position in a dump, sorted (entity ids
+/// differ between a run and a loaded one).
 fn particles_of(dump: &Value) -> Vec<String> {
     let mut out: Vec<String> = dump["bodies"]
         .as_array()

@@ -29,8 +29,6 @@ fn drop_rests_on_the_ground_undeformed() {
     assert_eq!(check_dump(&dump), 1);
 }
 
-/// The `cantilever`'s steady tip sag (frame 600, in h) under the given settings.
-
 #[test]
 fn cantilever_stiffness_belongs_to_the_material_not_the_solver_settings() {
     // the corners of substeps {2, 4, 8} × iterations {5, 10, 20} (the sag is monotone
@@ -142,11 +140,6 @@ fn cantilever_sag_is_steady_and_pin_holds() {
     );
     assert!(f(&s["pinned_max_displacement_h"]) == 0.0);
 }
-
-/// The pieces of the first body of a checked dump, each as its particles' lattice x.
-
-/// Every particle's lattice coordinate and position in a dump, sorted (entity ids
-/// differ between a run and a loaded one).
 
 #[test]
 fn stack_comes_to_rest_on_top_without_overlap() {

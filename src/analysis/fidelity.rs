@@ -3,10 +3,10 @@
 //! reference, the clusters the body would have had if it had been spawned with its
 //! holes), on two seeded scenes:
 //!
-//! - [`cut_block_scene`](crate::io::cut_scenes::cut_block_scene): a 32×16×16 block, gravity off, cut by a sequence of random
+//! - [`cut_block_scene`]: a 32×16×16 block, gravity off, cut by a sequence of random
 //!   blades (through the block and partway in) and sphere scoops; the clusterings are
 //!   compared by their [`ClusterShape`];
-//! - [`scooped_cantilever_scene`](crate::io::cut_scenes::scooped_cantilever_scene): the `cantilever` beam with sphere scoops on its top
+//! - [`scooped_cantilever_scene`]: the `cantilever` beam with sphere scoops on its top
 //!   face near the middle and on its sides at the neutral axis; the beam's static tip
 //!   sag with its rebuilt clusters is compared with its sag with fresh ones (and with
 //!   the beam before the scoops), each from a converged static solve

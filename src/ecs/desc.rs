@@ -89,7 +89,7 @@ pub struct ColliderDesc {
     /// Pose (before the path starts, or for good without a path).
     pub pose: Pose,
     /// Keyframed path; empty: static, or moved by game code through
-    /// [`ColliderPose::current`].
+    /// [`ColliderPose::current`](crate::ecs::components::ColliderPose::current).
     pub path: Path,
 }
 

@@ -81,14 +81,6 @@ impl MergeForest {
     }
 }
 
-/// Replaces every cut cluster by its pieces, drops the redundant ones and merges the
-/// fragments into neighbour clusters (see the module docs for the rules).
-/// Returns the clusters this produced — the neighbour clusters that received a merge and
-/// the pieces that remain clusters — ascending, without duplicates.
-///
-/// A cut cluster stands, as a candidate neighbour, for its piece that holds the
-/// particle in question. Everything that draws from `rng` runs in piece order, so the
-
 /// Whether the members' lattice coordinates lie on one line (a point included): such a
 /// cluster's shape matching cannot fix a rotation.
 pub(super) fn collinear(members: &[u32], lattice: &Lattice) -> bool {

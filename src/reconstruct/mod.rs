@@ -16,7 +16,7 @@
 //!    particles, so they overlap their neighbours again.
 //! 4. **Repair**: every lattice edge a split separated is covered by a cluster again
 //!    ([`crate::clusters::clustering::cover_edge_list`]), so no cluster is isolated from the
-//!    ones around it, and no cluster is left inside another ([`remove_contained`](crate::clusters::contained::remove_contained)).
+//!    ones around it, and no cluster is left inside another ([`remove_contained`]).
 //!
 //! Everything is topology: which side of a cut a particle is on is never decided by
 //! geometry, so any number of partial, curved or disconnected cuts work alike; the

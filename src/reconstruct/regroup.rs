@@ -48,6 +48,13 @@ const CUT_PER_TASK: usize = 64;
 /// Merge groups per parallel task.
 const GROUPS_PER_TASK: usize = 64;
 
+/// Replaces every cut cluster by its pieces, drops the redundant ones and merges the
+/// fragments into neighbour clusters (see the module docs for the rules).
+/// Returns the clusters this produced — the neighbour clusters that received a merge and
+/// the pieces that remain clusters — ascending, without duplicates.
+///
+/// A cut cluster stands, as a candidate neighbour, for its piece that holds the
+/// particle in question. Everything that draws from `rng` runs in piece order, so the
 /// result does not depend on the thread count.
 pub fn regroup<S: ClusterStore>(
     store: &mut S,

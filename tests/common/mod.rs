@@ -244,6 +244,7 @@ pub fn f(v: &Value) -> f64 {
     v.as_f64().unwrap()
 }
 
+/// The `cantilever`'s steady tip sag (frame 600, in h) under the given settings.
 pub fn cantilever_sag(extra: &[&str]) -> f64 {
     let mut args = vec!["--png-every", "0", "--gif-every", "0", "--quiet"];
     args.extend_from_slice(extra);
