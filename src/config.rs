@@ -237,6 +237,12 @@ pub struct Material {
     /// Smallest piece, in particles, that tearing may cut off (≥ 1): a tear that would
     /// leave a smaller piece is taken back.
     pub tear_min_piece: u32,
+    /// Compliance of the lattice edges' distance constraints, `1/E` of the edges in 1/Pa
+    /// (each edge a bar of the material, h² in section and h long, of stiffness `E h`);
+    /// `None` (the default): no edge constraints. With soft clusters (a large
+    /// [`Material::compliance`]) and stiff edges a body bends easily but barely
+    /// stretches; 0 makes every edge hard.
+    pub edge_compliance: Option<f32>,
 }
 
 impl Default for Material {
@@ -256,6 +262,7 @@ impl Default for Material {
             tear_stretch: None,
             tear_budget: 64,
             tear_min_piece: 8,
+            edge_compliance: None,
         }
     }
 }
@@ -374,6 +381,15 @@ impl Material {
                 stretch,
                 "1 < tear_stretch ≤ 1000",
             ));
+        }
+        if let Some(c) = self.edge_compliance {
+            check_range(
+                "material.edge_compliance",
+                c,
+                0.0,
+                1.0,
+                "0 ≤ edge_compliance ≤ 1 (1/Pa)",
+            )?;
         }
         for (field, value) in [
             ("material.tear_budget", self.tear_budget),

@@ -12,7 +12,7 @@ use crate::cut::carve::carve;
 use crate::cut::particle_split::{Pairs, apply_splits, split_positions};
 use crate::cut::tear::sever_keeping_pieces;
 use crate::ecs::components::{
-    Body, BodyLattice, InvMass, Particle, ParticleClusters, Position, PrevPosition, Velocity,
+    Body, BodyLattice, InvMass, Particle, ParticleClusters, Position, Velocity,
 };
 use crate::ecs::resources::{
     BodyCut, BodyCutReport, BodySplit, CutList, CutReport, EdgesSevered, ParticlesCut,
@@ -25,7 +25,6 @@ use std::borrow::Cow;
 /// it splits particles.
 type ParticleState = (
     &'static mut Position,
-    &'static mut PrevPosition,
     &'static Velocity,
     &'static mut InvMass,
 );
@@ -170,15 +169,12 @@ fn split(
             .binary_search_by_key(&old, |(p, ..)| *p)
             .map(|k| cut.splits.splits[k].2)
             .expect("a split particle has its plane");
-        let Ok((mut x, mut prev, v, mut inv_mass)) =
-            particles.get_mut(body.particles[old as usize])
-        else {
+        let Ok((mut x, v, mut inv_mass)) = particles.get_mut(body.particles[old as usize]) else {
             continue;
         };
         inv_mass.0 *= 2.0;
+        // (moved without velocity: a particle's velocity is its own, not its position's)
         let (kept, far) = split_positions(x.0, &plane, gap);
-        // (moved with its previous position: no velocity from the move)
-        prev.0 += kept - x.0;
         x.0 = kept;
         let entity = commands
             .spawn((
@@ -187,7 +183,6 @@ fn split(
                     index: new,
                 },
                 Position(far),
-                PrevPosition(far - (x.0 - prev.0)),
                 Velocity(v.0),
                 InvMass(inv_mass.0),
             ))

@@ -23,7 +23,7 @@ pub fn detect(
     mut out: ResMut<CutList>,
 ) {
     out.cuts.clear();
-    if cache.particles.is_empty() {
+    if cache.entities.is_empty() {
         return;
     }
     detect_tears(&cache, &bodies, &mut out.cuts);
@@ -38,7 +38,7 @@ pub fn detect(
     // inside and sever what they graze
     let (carving, slicing): (Vec<ToolSweep>, Vec<ToolSweep>) =
         severers.into_iter().partition(|t| t.carves());
-    let positions = &cache.layout.positions;
+    let positions = &cache.particles.positions;
     for i in particles_hit(positions, &cache.live, &removers) {
         if let Some((body, local)) = cache.owner(i) {
             BodyCut::entry(&mut out.cuts, body).particles.push(local);
@@ -132,7 +132,7 @@ fn detect_tears(
     bodies: &Query<(&Body, &BodyLattice)>,
     cuts: &mut Vec<BodyCut>,
 ) {
-    let positions = &cache.layout.positions;
+    let positions = &cache.particles.positions;
     for b in &cache.body_dense {
         let Ok((body, lattice)) = bodies.get(b.body) else {
             continue;
@@ -143,7 +143,7 @@ fn detect_tears(
         let position = |p: u32| b.position(positions, p);
         let held = |p: u32| {
             b.slot(p)
-                .and_then(|d| cache.layout.inv_mass.get(d))
+                .and_then(|d| cache.particles.inv_mass.get(d))
                 .is_some_and(|w| *w == 0.0)
         };
         let budget = body.material.tear_budget as usize;

@@ -1,18 +1,20 @@
-//! Keeps the shape-match stage's dense solver layout in step with the ECS, once at the
-//! start of each frame ([`sync_solver`], in its own [`crate::systems::SyncSchedule`] so
-//! that saving a simulation can bring the layout up to date the same way): a full
-//! rebuild when bodies appear or vanish, otherwise a patch of only the clusters that
-//! changed (after a cut) and the particles that were cut.
+//! Keeps the solver's dense layout in step with the ECS, once at the start of each
+//! frame ([`sync_solver`], in its own [`crate::systems::SyncSchedule`] so that saving a
+//! simulation can bring the layout up to date the same way): a full rebuild when
+//! bodies appear or vanish, otherwise a patch of only the clusters that changed (after a
+//! cut) and the particles that were cut. What changed is left for the terms
+//! ([`super::term_sync`]) to hear.
 
-use super::contact_sync::sync_contacts;
 use crate::body::lattice::Lattice;
 use crate::config::SolverMode;
 use crate::ecs::components::*;
 use crate::ecs::resources::{
-    BodyCutReport, BodyDense, ClusterSlots, CutReport, LayoutUpdate, SimSettings, SolverCache,
-    dense_owner,
+    BodyCutReport, BodyDense, ClusterSlots, CutReport, LayoutUpdate, PendingTopology, SimSettings,
+    SolverCache, dense_owner,
 };
-use crate::solver::{ClusterSpec, SolverLayout};
+use crate::solver::clusters::term::{ClusterSpec, ClusterTerm};
+use crate::solver::particles::Particles;
+use crate::solver::solve::Solver;
 use bevy_ecs::prelude::*;
 use glam::Quat;
 use std::collections::HashMap;
@@ -31,9 +33,9 @@ type ChangedClusters<'w, 's> = Query<
     Or<(Changed<ClusterMembers>, Changed<Compliance>)>,
 >;
 
-/// Brings the solver layout and the contact particles up to date with what changed in
-/// the ECS since the last run: cuts, rebuilt clusters, bodies spawned or despawned, a
-/// solver or contact setting changed. Writes the solver cache only.
+/// Brings the solver layout up to date with what changed in the ECS since the last run:
+/// cuts, rebuilt clusters, bodies spawned or despawned, a solver setting changed; records
+/// what changed for the terms. Writes the solver cache only.
 ///
 /// After a simulation is loaded, its restored layout already matches the ECS: the first
 /// run only takes note of the loaded entities as seen ([`SolverCache::adopt_changes`]).
@@ -43,7 +45,6 @@ pub fn sync_solver(
     mut cache: ResMut<SolverCache>,
     cut: Res<CutReport>,
     bodies: Query<(Entity, &BodyLattice)>,
-    materials: Query<&Body>,
     indices: Query<(Entity, &ParticleClusters)>,
     changed_bodies: Query<Entity, Changed<BodyLattice>>,
     clusters: Query<ClusterItem>,
@@ -62,7 +63,7 @@ pub fn sync_solver(
     }
     let changed_bodies: Vec<Entity> = changed_bodies.iter().collect();
     if !cache.valid
-        || cache.layout.mode() != config.solver
+        || cache.solver.mode() != config.solver
         || !removed.is_empty()
         || !changed_bodies.is_empty()
         || !changed_clusters.is_empty()
@@ -79,10 +80,6 @@ pub fn sync_solver(
             },
         };
         sync_layout(&mut cache, &bodies, changes, clusters.iter(), config.solver);
-        cache.contacts_built = None;
-    }
-    if cache.contacts_built != Some(config.contacts) {
-        sync_contacts(&mut cache, &bodies, &materials, config.contacts);
     }
 }
 
@@ -117,10 +114,16 @@ pub fn sync_layout<'a>(
     mode: SolverMode,
 ) {
     let start = Instant::now();
-    let patched = cache.valid && cache.layout.mode() == mode && patch(cache, bodies, changes);
+    let changed_bodies = changes.bodies.to_vec();
+    let patched = cache.valid && cache.solver.mode() == mode && patch(cache, bodies, changes);
     if !patched {
         rebuild_cache(cache, bodies.iter(), all_clusters, mode);
     }
+    let pending = cache
+        .pending_topology
+        .get_or_insert_with(PendingTopology::default);
+    pending.relaid |= !patched;
+    pending.bodies.extend(changed_bodies);
     cache.last_update = Some(LayoutUpdate {
         patched,
         ms: start.elapsed().as_secs_f64() * 1e3,
@@ -150,7 +153,7 @@ fn patch(
         removed,
         indices,
     } = changes;
-    if !cache.layout.can_patch() {
+    if !cache.solver.clusters.can_patch() {
         return false;
     }
     let body_index = |cache: &SolverCache, body: Entity| {
@@ -192,7 +195,7 @@ fn patch(
         let rotation = match cache.slot_of.remove(e, &cache.clusters) {
             Some(slot) => {
                 removed_slots.push(slot);
-                cache.layout.rotations[slot as usize]
+                cache.solver.clusters.rotations()[slot as usize]
             }
             None => Quat::IDENTITY,
         };
@@ -221,14 +224,15 @@ fn patch(
     // only chosen for cuts well below that size.
     let touched: usize = removed_slots
         .iter()
-        .map(|k| cache.layout.cluster_members(*k as usize).len())
+        .map(|k| cache.solver.clusters.cluster_members(*k as usize).len())
         .sum::<usize>()
         + flat.len();
-    let patched = if cache.layout.mode() == SolverMode::Jacobi
-        && touched * 12 < cache.layout.membership_count()
+    let clusters_of = &mut cache.solver.clusters;
+    let patched = if clusters_of.mode() == SolverMode::Jacobi
+        && touched * 12 < clusters_of.membership_count()
     {
         let SolverCache {
-            layout,
+            solver,
             locals,
             body_dense,
             clusters,
@@ -242,18 +246,20 @@ fn patch(
             slot_of,
             indices: &indices,
         };
-        layout.patch_with_neighbours(&removed_slots, &specs, &retired, |particles| {
-            kept.holding(particles)
-        })
+        solver
+            .clusters
+            .patch_with_neighbours(&removed_slots, &specs, |particles| kept.holding(particles))
     } else {
-        cache.layout.patch(&removed_slots, &specs, &retired)
+        cache.solver.clusters.patch(&removed_slots, &specs)
     };
     let Some(slots) = patched else {
         cache.clusters.clear(); // warm starts no longer match their slots
         return false;
     };
+    // cut particles stay in their slots, frozen (no entity loads them again)
     for &d in &retired {
         cache.live[d as usize] = false;
+        cache.particles.inv_mass[d as usize] = 0.0;
     }
     for &slot in &removed_slots {
         cache.clusters[slot as usize] = Entity::PLACEHOLDER;
@@ -390,7 +396,7 @@ pub fn rebuild_cache<'b, 'c>(
         .clusters
         .iter()
         .copied()
-        .zip(cache.layout.rotations.iter().copied())
+        .zip(cache.solver.clusters.rotations().iter().copied())
         .collect();
     let mut body_list: Vec<(Entity, &BodyLattice)> = bodies.collect();
     body_list.sort_unstable_by_key(|(e, _)| *e);
@@ -445,7 +451,11 @@ pub fn rebuild_cache<'b, 'c>(
         compliance: c.compliance,
         rotation: warm.get(&c.entity).copied().unwrap_or(Quat::IDENTITY),
     });
-    cache.layout = SolverLayout::new(&rest, specs, mode);
+    // the terms stay (they hear of the new layout); the schemes' state goes with the
+    // clusters it belonged to
+    let terms = std::mem::take(&mut cache.solver.terms);
+    cache.solver = Solver::new(ClusterTerm::new(&rest, specs, mode), terms);
+    cache.particles = Particles::at_rest(&rest);
     let max_index = particles
         .iter()
         .map(|e| e.index_u32() as usize + 1)
@@ -456,7 +466,7 @@ pub fn rebuild_cache<'b, 'c>(
         cache.dense_of[e.index_u32() as usize] = d as u32;
     }
     cache.live = vec![true; particles.len()];
-    cache.particles = particles;
+    cache.entities = particles;
     cache.locals = locals;
     cache.body_dense = body_dense;
     // (collected from a borrow: `into_iter` would reuse the entries' allocation, six

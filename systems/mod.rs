@@ -1,27 +1,39 @@
 //! The ECS stages of a frame (see the crate docs) as ordered system sets, and the
 //! schedules that run them.
 //!
-//! [`CleaveSchedule`] runs once per frame: [`SimStage::Sync`] (an exclusive system that
-//! runs [`SyncSchedule`]: the solver layout brought up to date), [`SimStage::MoveColliders`], then
-//! [`SimStage::Substeps`] (an exclusive system that runs [`SubstepSchedule`] — predict →
-//! shape-match — `substeps` times), then
-//! `MoveTools → Detect → Cut → Regroup → Split → Expand`, chained, then the optional
-//! invariant check. Access contract (tested in `tests/schedule_access.rs`): predict and
-//! shape-match write particle data only; detect writes only its `CutList`; cut writes
-//! no cluster data; regroup/split/expand write no particle data.
+//! [`CleaveSchedule`] runs once per frame, its stages chained in this order:
+//!
+//! 1. [`SimStage::MoveColliders`] and 2. [`SimStage::MoveAttachments`]: kinematic
+//!    colliders and attachment targets placed for the frame's end;
+//! 3. [`SimStage::Sync`]: an exclusive system that runs [`SyncSchedule`] — the solver
+//!    layout brought up to date ([`layout_sync`]), the terms told what changed and
+//!    where the attachments' targets go ([`term_sync`]), the particles' state loaded
+//!    into the solver ([`load`]);
+//! 4. [`SimStage::Substeps`]: an exclusive system that runs [`SubstepSchedule`] —
+//!    predict → shape-match — `substeps` times;
+//! 5. [`SimStage::Store`]: the particles' state written back to their components;
+//! 6. `MoveTools → Detect → Cut → Regroup → Split → Expand`, then the optional invariant
+//!    check ([`SimStage::Verify`]).
+//!
+//! Access contract (tested in `tests/schedule_access.rs`): predict and shape-match write
+//! particle data only; detect writes only its `CutList`; cut writes no cluster data;
+//! regroup/split/expand write no particle data.
 
-pub mod contact_sync;
 pub mod cut;
 pub mod detect;
 pub mod ecs_store;
 pub mod expand;
 pub mod layout_sync;
+pub mod load;
+pub mod move_attachments;
 pub mod move_colliders;
 pub mod move_tools;
 pub mod predict;
 pub mod regroup;
 pub mod shape_match;
 pub mod split;
+pub mod store;
+pub mod term_sync;
 
 use crate::ecs::resources::*;
 use bevy_ecs::message::MessageRegistry;
@@ -32,17 +44,23 @@ use rand::SeedableRng;
 /// The stages, in order.
 #[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum SimStage {
-    /// Brings the solver layout up to date with the ECS (runs [`SyncSchedule`]).
+    /// Brings the solver up to date with the ECS and loads the particles' state (runs
+    /// [`SyncSchedule`]).
     Sync,
     /// Forces, damping, predicted positions (in [`SubstepSchedule`]).
     Predict,
-    /// Constraint iterations: cluster shape matching, then every other constraint kind
-    /// (contacts, colliders) in each iteration (in [`SubstepSchedule`]).
+    /// Constraint iterations: cluster shape matching, then every other term
+    /// (attachments, edges, contacts, colliders) in each iteration (in
+    /// [`SubstepSchedule`]).
     ShapeMatch,
     /// Advances keyframed colliders to the end of the frame (in [`CleaveSchedule`]).
     MoveColliders,
+    /// Advances attachment targets (paths, velocities) to the end of the frame.
+    MoveAttachments,
     /// Runs the substep schedule (in [`CleaveSchedule`]).
     Substeps,
+    /// Writes the particles' state back to their components.
+    Store,
     /// Advances keyframed tools.
     MoveTools,
     /// Read-only collision detection producing the `CutList`.
@@ -64,7 +82,8 @@ pub enum SimStage {
 pub struct CleaveSchedule;
 
 /// Runs once at the start of each frame, and when a simulation is saved or loaded:
-/// brings the solver layout up to date with the ECS.
+/// brings the solver layout and its terms up to date with the ECS and loads the
+/// particles' state.
 #[derive(ScheduleLabel, Clone, Debug, PartialEq, Eq, Hash)]
 pub struct SyncSchedule;
 
@@ -94,7 +113,14 @@ pub fn build_substep_schedule() -> Schedule {
 pub fn build_sync_schedule() -> Schedule {
     let mut s = Schedule::new(SyncSchedule);
     strict(&mut s);
-    s.add_systems(layout_sync::sync_solver);
+    s.add_systems(
+        (
+            layout_sync::sync_solver,
+            term_sync::sync_terms,
+            load::load_particles,
+        )
+            .chain(),
+    );
     s
 }
 
@@ -104,9 +130,11 @@ pub fn build_schedule() -> Schedule {
     strict(&mut s);
     s.configure_sets(
         (
-            SimStage::Sync,
             SimStage::MoveColliders,
+            SimStage::MoveAttachments,
+            SimStage::Sync,
             SimStage::Substeps,
+            SimStage::Store,
             SimStage::MoveTools,
             SimStage::Detect,
             SimStage::Cut,
@@ -119,7 +147,9 @@ pub fn build_schedule() -> Schedule {
     );
     s.add_systems(run_sync.in_set(SimStage::Sync));
     s.add_systems(move_colliders::move_colliders.in_set(SimStage::MoveColliders));
+    s.add_systems(move_attachments::move_attachments.in_set(SimStage::MoveAttachments));
     s.add_systems(run_substeps.in_set(SimStage::Substeps));
+    s.add_systems(store::store_particles.in_set(SimStage::Store));
     s.add_systems(move_tools::move_tools.in_set(SimStage::MoveTools));
     s.add_systems(detect::detect.in_set(SimStage::Detect));
     s.add_systems(cut::cut.in_set(SimStage::Cut));

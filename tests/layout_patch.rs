@@ -15,12 +15,13 @@ type Clusters = BTreeMap<Entity, Vec<(u32, Vec4)>>;
 
 fn clusters_of(cache: &SolverCache) -> Clusters {
     cache
-        .layout
+        .solver
+        .clusters
         .clusters()
         .map(|(k, members)| {
             let mut list: Vec<(u32, Vec4)> = members
                 .iter()
-                .zip(cache.layout.member_moments(k))
+                .zip(cache.solver.clusters.member_moments(k))
                 .map(|(d, q)| (cache.locals[*d as usize], q))
                 .collect();
             list.sort_by_key(|(p, _)| *p);
@@ -87,7 +88,7 @@ fn check_scene(name: &str, mode: SolverMode) -> usize {
             let lattice = &world.get::<BodyLattice>(body).unwrap().lattice;
             assert_eq!(cache.live[d], lattice.is_live(local));
             if !cache.live[d] {
-                assert_eq!(cache.layout.inv_mass[d], 0.0);
+                assert_eq!(cache.particles.inv_mass[d], 0.0);
             }
         }
     }

@@ -1,9 +1,12 @@
 //! The access contract of every stage, read from the systems' own access sets: predict
-//! and shape-match (with its contacts and colliders) write particle data only; the
-//! collider mover writes collider poses only; detect writes only its CutList and spawns
-//! nothing; cut writes no cluster data; regroup/split/expand write no particle data.
+//! and shape-match (with every term) write only the solver's dense particle state; load
+//! and the term sync write only the solver; store writes only particle positions,
+//! velocities and attachment targets; the collider and attachment movers write their
+//! poses only; detect writes only its CutList and spawns nothing; cut writes no cluster
+//! data; regroup/split/expand write no particle data.
 
 use bevy_ecs::component::ComponentId;
+use bevy_ecs::message::Messages;
 use bevy_ecs::prelude::*;
 use bevy_ecs::system::{IntoSystem, System};
 use cleave::config::SimConfig;
@@ -49,7 +52,6 @@ fn ids(world: &mut World) -> (Vec<ComponentId>, Vec<ComponentId>) {
     let particle = vec![
         world.register_component::<Particle>(),
         world.register_component::<Position>(),
-        world.register_component::<PrevPosition>(),
         world.register_component::<Velocity>(),
         world.register_component::<InvMass>(),
         world.register_component::<BodyLattice>(),
@@ -70,29 +72,52 @@ fn world() -> World {
 }
 
 #[test]
-fn predict_and_shape_match_write_particle_data_only() {
+fn predict_shape_match_load_and_the_term_sync_write_only_the_solver() {
     let mut w = world();
-    let (particle, cluster) = ids(&mut w);
-    for access in [
+    ids(&mut w);
+    let accesses = [
         access_of(&mut w, predict::predict),
         access_of(&mut w, shape_match::shape_match),
-    ] {
-        assert!(
-            access.writes.iter().all(|id| !cluster.contains(id)),
-            "writes cluster data"
-        );
-        assert!(access.writes.contains(&particle[1]), "must write Position");
+        access_of(&mut w, load::load_particles),
+        access_of(&mut w, term_sync::sync_terms),
+    ];
+    let solver = w.component_id::<SolverCache>().expect("registered");
+    for access in accesses {
+        // (shape-match also sends its repair messages)
+        let writes: Vec<ComponentId> = access
+            .writes
+            .into_iter()
+            .filter(|id| Some(*id) != w.component_id::<Messages<ParticlesRepaired>>())
+            .collect();
+        assert_eq!(writes, vec![solver]);
         assert!(!access.deferred, "must not spawn or despawn");
     }
 }
 
 #[test]
-fn moving_colliders_writes_collider_poses_only() {
+fn store_writes_positions_velocities_and_attachment_targets_only() {
+    let mut w = world();
+    let (particle, _) = ids(&mut w);
+    let target = w.register_component::<AttachmentTarget>();
+    let mut access = access_of(&mut w, store::store_particles);
+    access.writes.sort();
+    let mut expected = vec![particle[1], particle[2], target];
+    expected.sort();
+    assert_eq!(access.writes, expected);
+    assert!(!access.deferred);
+}
+
+#[test]
+fn moving_colliders_and_attachments_writes_their_poses_only() {
     let mut w = world();
     ids(&mut w);
     let access = access_of(&mut w, move_colliders::move_colliders);
     let pose = w.register_component::<ColliderPose>();
     assert_eq!(access.writes, vec![pose]);
+    assert!(!access.deferred);
+    let access = access_of(&mut w, move_attachments::move_attachments);
+    let target = w.register_component::<AttachmentTarget>();
+    assert_eq!(access.writes, vec![target]);
     assert!(!access.deferred);
 }
 

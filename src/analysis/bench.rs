@@ -8,15 +8,20 @@ use crate::body::shape::Shape;
 use crate::clusters::clustering::initial_clusters;
 use crate::config::{Material, SimConfig, SolverMode};
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
-use crate::ecs::components::{BodyLattice, ClusterMembers, ClusterOf, Compliance, Velocity};
+use crate::ecs::components::{BodyLattice, ClusterMembers, ClusterOf, Compliance};
 use crate::ecs::desc::{BodyDesc, ToolDesc};
 use crate::ecs::resources::{CutTimings, SimSettings, SolverCache};
 use crate::error::Result;
 use crate::sim::simulation::Simulation;
-use crate::solver::{Colliders, ConstraintKinds, SolverLayout};
+use crate::solver::particles::Particles;
+use crate::solver::registry::Terms;
+use crate::solver::solve::Solver;
+use crate::solver::term::Substep;
+use crate::solver::terms::colliders::Colliders;
+use crate::solver::terms::contacts::Contacts;
 use crate::systems::layout_sync::rebuild_cache;
 use bevy_ecs::prelude::Entity;
-use glam::{Quat, UVec3, Vec3, Vec3A};
+use glam::{Quat, UVec3, Vec3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
@@ -24,6 +29,16 @@ use std::time::Instant;
 
 /// Lattice spacing of the bench boxes.
 const H: f32 = 0.1;
+
+/// The time one part of the engine's solves took: the clusters, a registered term, or
+/// projective dynamics' global step.
+#[derive(Clone, Debug, Serialize)]
+pub struct KindTime {
+    /// The part's name (a term's [`crate::solver::term::Term::name`]).
+    pub name: String,
+    /// Mean milliseconds per step over the timed steps.
+    pub ms_per_step: f64,
+}
 
 /// One line of the bench report.
 #[derive(Clone, Debug, Serialize)]
@@ -78,6 +93,8 @@ pub struct BenchRow {
     pub relayout_patched: bool,
     /// A full rebuild of the solver layout of the cut body, for comparison, ms.
     pub rebuild_ms: f64,
+    /// Every part of the engine's solves (clusters, each registered term), in order.
+    pub kinds: Vec<KindTime>,
 }
 
 /// The contact row of the bench: the `pile` scene at a finer spacing, stepped with and
@@ -136,7 +153,7 @@ pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileR
     };
     let (mut with, mut without) = (build(true)?, build(false)?);
     let (mut on, mut off, mut inside) = (Vec::new(), Vec::new(), Vec::new());
-    let contact_seconds = |sim: &Simulation| sim.world().resource::<SolverCache>().kinds.seconds[0];
+    let contact_seconds = |sim: &Simulation| kind_seconds(sim, "contacts");
     for frame in 0..frames.max(2) {
         let before = contact_seconds(&with);
         let (a, b) = (time_ms(1, || with.step()), time_ms(1, || without.step()));
@@ -147,7 +164,8 @@ pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileR
         }
     }
     let cache = with.world().resource::<SolverCache>();
-    let particles = cache.layout.particle_count();
+    let particles = cache.particles.len();
+    let contacts = cache.solver.terms.get::<Contacts>();
     let (ms_on, ms_off, ms_in) = (median(&mut on), median(&mut off), median(&mut inside));
     let iterations = (config.substeps * config.iterations) as f64;
     Ok(PileRow {
@@ -156,8 +174,8 @@ pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileR
         bodies: cache.body_dense.len(),
         particles,
         frames,
-        contact_particles: cache.kinds.contacts.particle_count(),
-        contact_pairs: cache.kinds.contacts.pair_count(),
+        contact_particles: contacts.map_or(0, |c| c.particle_count()),
+        contact_pairs: contacts.map_or(0, |c| c.pair_count()),
         ms_per_step: ms_on,
         ms_per_step_without_contacts: ms_off,
         contacts_over_without: ms_on / ms_off,
@@ -205,36 +223,45 @@ fn box_simulation(n: u32, config: &SimConfig) -> Result<Simulation> {
     Ok(sim)
 }
 
-/// One step of the bare kernel: the engine's predict and solve on dense arrays only
-/// (`velocities`: one per particle of `layout`).
-fn bare_step(
-    layout: &mut SolverLayout,
-    velocities: &mut [Vec3A],
-    config: &SimConfig,
-    kinds: &mut ConstraintKinds,
-) {
+/// Seconds the part `name` of `sim`'s solves (a term, or "clusters") has taken so far.
+pub fn kind_seconds(sim: &Simulation, name: &str) -> f64 {
+    let cache = sim.world().resource::<SolverCache>();
+    cache
+        .solver
+        .seconds()
+        .into_iter()
+        .find(|(n, _)| *n == name)
+        .map_or(0.0, |(_, s)| s)
+}
+
+/// One step of the bare kernel: the engine's prediction and solve on dense arrays only.
+fn bare_step(solver: &mut Solver, particles: &mut Particles, config: &SimConfig) {
     let dt = config.dt / config.substeps as f32;
-    let keep = (-config.damping * dt).exp();
-    let dv = Vec3A::from(config.gravity * dt);
-    for _ in 0..config.substeps {
-        for (((x, prev), v), inv_mass) in layout
-            .positions
-            .iter_mut()
-            .zip(layout.previous.iter_mut())
-            .zip(velocities.iter_mut())
-            .zip(&layout.inv_mass)
-        {
-            *prev = *x;
-            if *inv_mass == 0.0 {
-                *v = Vec3A::ZERO;
-                continue;
-            }
-            *v = (*v + dv) * keep;
-            *x += *v * dt;
-        }
-        layout.solve(config.iterations, dt, kinds);
-        layout.update_velocities(velocities, 1.0 / dt);
+    for index in 0..config.substeps {
+        particles.predict(dt, config.gravity, config.damping);
+        let count = config.substeps as f32;
+        let step = Substep {
+            dt,
+            iterations: config.iterations,
+            frame_span: [index as f32 / count, (index + 1) as f32 / count],
+        };
+        solver.solve(particles, &step);
+        particles.update_velocities(1.0 / dt);
     }
+}
+
+/// The time each part of `sim`'s solves took over `f`, ms.
+fn kind_ms(sim: &mut Simulation, f: impl FnOnce(&mut Simulation)) -> Vec<(String, f64)> {
+    let before = sim.world().resource::<SolverCache>().solver.seconds();
+    f(sim);
+    let after = sim.world().resource::<SolverCache>().solver.seconds();
+    after
+        .into_iter()
+        .map(|(name, s)| {
+            let was = before.iter().find(|(n, _)| *n == name).map_or(0.0, |b| b.1);
+            (name.to_string(), (s - was) * 1e3)
+        })
+        .collect()
 }
 
 /// Measures one box size; `steps` ≥ 1 timed steps after 3 warm-up steps.
@@ -250,32 +277,30 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
         .map(|m| m.0.len())
         .sum();
     let cache = world.resource::<SolverCache>();
-    let (particles, clusters) = (cache.layout.particle_count(), cache.layout.cluster_count());
+    let (particles, clusters) = (cache.particles.len(), cache.solver.clusters.cluster_count());
     // before the bare kernel's copy of the layout exists
     let bytes_per_particle = peak_resident_bytes().unwrap_or(0) as f64 / particles as f64;
-    let mut layout = cache.layout.clone();
-    let mut velocities: Vec<Vec3A> = cache
-        .particles
-        .iter()
-        .map(|e| {
-            world
-                .get::<Velocity>(*e)
-                .map_or(Vec3A::ZERO, |v| v.0.into())
-        })
-        .collect();
-    let mut kinds = ConstraintKinds {
-        colliders: Colliders::from_config(config, std::iter::empty()),
-        ..Default::default()
-    };
+    // the bare kernel: the same clusters and particles, the ground and no other term
+    let mut bare_terms = Terms::builtin();
+    if let Some(colliders) = bare_terms.get_mut::<Colliders>() {
+        *colliders = Colliders::from_config(config, std::iter::empty());
+    }
+    let mut solver = Solver::new(cache.solver.clusters.clone(), bare_terms);
+    let mut dense = cache.particles.clone();
     // Engine and bare steps alternate, so both see the same machine noise.
     let (mut engine, mut bare) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
+    let mut kinds: Vec<(String, f64)> = Vec::new();
     for _ in 0..steps {
-        engine.push(time_ms(1, || sim.step()));
-        bare.push(time_ms(1, || {
-            bare_step(&mut layout, &mut velocities, config, &mut kinds)
-        }));
+        let step_kinds = kind_ms(&mut sim, |sim| engine.push(time_ms(1, || sim.step())));
+        for (name, ms) in step_kinds {
+            match kinds.iter_mut().find(|(n, _)| *n == name) {
+                Some(k) => k.1 += ms / steps as f64,
+                None => kinds.push((name, ms / steps as f64)),
+            }
+        }
+        bare.push(time_ms(1, || bare_step(&mut solver, &mut dense, config)));
     }
-    drop((layout, velocities));
+    drop((solver, dense));
     let (ms_per_step, bare_ms_per_step) = (median(&mut engine), median(&mut bare));
     let (cut_event_ms, cut_frame_ms, recluster_ms) = slice_event(&mut sim, n, CutMode::Remove)?;
     sim.world_mut().resource_mut::<SolverCache>().last_update = None;
@@ -334,6 +359,10 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
         relayout_ms: update.map_or(f64::NAN, |u| u.ms),
         relayout_patched: update.is_some_and(|u| u.patched),
         rebuild_ms,
+        kinds: kinds
+            .into_iter()
+            .map(|(name, ms_per_step)| KindTime { name, ms_per_step })
+            .collect(),
     })
 }
 

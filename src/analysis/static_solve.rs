@@ -1,4 +1,4 @@
-//! Static solves on a bare solver layout: one implicit step whose time step is so long
+//! Static solves on a bare solver: one implicit step whose time step is so long
 //! that inertia no longer counts ([`STATIC_DT`]), iterated until it settles. This is the
 //! equilibrium a body reaches at rest, without running frames; `cleave bench
 //! --convergence` times the solvers on it and `cleave fidelity` compares the sag of a
@@ -8,9 +8,15 @@ use crate::analysis::stats::rigid_fit_error;
 use crate::body::lattice::Lattice;
 use crate::clusters::clustering::initial_clusters;
 use crate::config::SolverMode;
+use crate::cut::tool::Pose;
 use crate::ecs::desc::BodyDesc;
 use crate::error::Result;
-use crate::solver::{ClusterSpec, ConstraintKinds, SolverLayout};
+use crate::solver::clusters::term::{ClusterSpec, ClusterTerm};
+use crate::solver::particles::Particles;
+use crate::solver::registry::Terms;
+use crate::solver::solve::Solver;
+use crate::solver::term::{BodyTopology, ParticleKey, Substep, Topology};
+use crate::solver::terms::attachments::{Attachment, Attachments};
 use glam::{Quat, Vec3, Vec3A};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -23,9 +29,19 @@ pub const STATIC_DT: f32 = 10.0;
 /// Iterations between two measurements of a static solve.
 pub const BLOCK: u32 = 5;
 
-/// A static solve of one body on a bare solver layout.
+/// A static solve's substep of `iterations` iterations.
+fn static_step(iterations: u32) -> Substep {
+    Substep {
+        dt: STATIC_DT,
+        iterations,
+        frame_span: [0.0, 1.0],
+    }
+}
+
+/// A static solve of one body on a bare solver.
 pub struct StaticProblem {
-    layout: SolverLayout,
+    solver: Solver,
+    particles: Particles,
     rest: Vec<Vec3>,
     /// Particles (dense) whose mean height is the tip's: those at the largest lattice x.
     tip: Vec<usize>,
@@ -40,7 +56,7 @@ impl StaticProblem {
         desc: &BodyDesc,
         lattice: &Lattice,
         clusters: impl IntoIterator<Item = &'a [u32]>,
-        solver: SolverMode,
+        mode: SolverMode,
         gravity: Vec3,
         start: impl Fn(Vec3) -> Vec3,
     ) -> Self {
@@ -64,20 +80,56 @@ impl StaticProblem {
             compliance,
             rotation: Quat::IDENTITY,
         });
-        let mut layout = SolverLayout::new(&rest, specs, solver);
-        let inv_mass = 1.0 / desc.material.mass_at_spacing(desc.spacing);
-        for (w, x) in layout.inv_mass.iter_mut().zip(&rest) {
-            let pinned = desc.pins.iter().any(|r| r.contains(*x));
-            *w = if pinned { 0.0 } else { inv_mass };
+        let mut solver = Solver::new(ClusterTerm::new(&rest, specs, mode), Terms::builtin());
+        // the edges, and the pins as the engine spawns them: hard attachments
+        let body = BodyTopology {
+            id: 0,
+            lattice,
+            dense: &dense,
+            material: &desc.material,
+            pieces: lattice.piece_count(),
+            changed: true,
+        };
+        let topology = Topology {
+            bodies: &[body],
+            relaid: true,
+        };
+        solver.topology(&topology);
+        let pins = desc.pins.iter().map(|pin| {
+            let held: Vec<u32> = live
+                .iter()
+                .zip(&rest)
+                .filter(|(_, x)| pin.contains(**x))
+                .map(|(i, _)| *i)
+                .collect();
+            let key = |local| ParticleKey { body: 0, local };
+            Attachment {
+                particles: held.iter().map(|&i| key(i)).collect(),
+                offsets: held
+                    .iter()
+                    .map(|&i| rest[dense[i as usize] as usize])
+                    .collect(),
+                compliance: 0.0,
+                from: Pose::at(Vec3::ZERO),
+                to: Pose::at(Vec3::ZERO),
+                velocity: None,
+            }
+        });
+        if let Some(attachments) = solver.terms.get_mut::<Attachments>() {
+            attachments.set(pins.collect(), &topology);
         }
+        let mut particles = Particles::at_rest(&rest);
+        let inv_mass = 1.0 / desc.material.mass_at_spacing(desc.spacing);
+        particles.inv_mass.iter_mut().for_each(|w| *w = inv_mass);
+        solver.hold_kinematic(&mut particles.inv_mass);
         // the predictions: where gravity would take each free particle in one step
         let dt2 = STATIC_DT * STATIC_DT;
         let start: Vec<Vec3A> = rest.iter().map(|r| Vec3A::from(start(*r))).collect();
-        for ((p, s), w) in layout
+        for ((p, s), w) in particles
             .positions
             .iter_mut()
             .zip(&start)
-            .zip(&layout.inv_mass)
+            .zip(&particles.inv_mass)
         {
             *p = if *w == 0.0 {
                 *s
@@ -85,14 +137,15 @@ impl StaticProblem {
                 *s + Vec3A::from(gravity * dt2)
             };
         }
-        layout.solve(0, STATIC_DT, &mut ConstraintKinds::default());
-        layout.restart_from(&start);
+        solver.solve(&mut particles, &static_step(0));
+        solver.restart_from(&mut particles, &start);
         let end = live.iter().map(|&i| lattice.coord(i).x).max().unwrap_or(0);
         let tip = (0..live.len())
             .filter(|&d| lattice.coord(live[d]).x == end)
             .collect();
         StaticProblem {
-            layout,
+            solver,
+            particles,
             rest,
             tip,
             spacing: desc.spacing,
@@ -130,8 +183,8 @@ impl StaticProblem {
 
     /// [`BLOCK`] more iterations.
     pub fn iterate(&mut self) {
-        self.layout
-            .iterate(BLOCK, STATIC_DT, &mut ConstraintKinds::default());
+        self.solver
+            .iterate(&mut self.particles, &static_step(BLOCK), BLOCK);
     }
 
     /// Mean drop of the tip particles below their rest height, in spacings.
@@ -139,7 +192,7 @@ impl StaticProblem {
         let drop: f64 = self
             .tip
             .iter()
-            .map(|&d| (self.rest[d].y - self.layout.positions[d].y) as f64)
+            .map(|&d| (self.rest[d].y - self.particles.positions[d].y) as f64)
             .sum();
         drop / self.tip.len().max(1) as f64 / self.spacing as f64
     }
@@ -147,7 +200,7 @@ impl StaticProblem {
     /// Shape error (RMS distance to the best rigid fit of the rest shape), in spacings.
     pub fn shape_error(&self) -> f64 {
         let current: Vec<Vec3> = self
-            .layout
+            .particles
             .positions
             .iter()
             .map(|p| Vec3::from(*p))

@@ -1,9 +1,14 @@
-//! ECS components. Particle side: [`Particle`], [`Position`], [`PrevPosition`],
-//! [`Velocity`], [`InvMass`], and the body's [`BodyLattice`] (which holds what never
-//! changes: lattice coordinates and rest positions). Cluster side: [`ClusterMembers`],
-//! [`ClusterOf`], [`Compliance`], and the body's [`ParticleClusters`] index. Tools:
-//! [`Tool`], [`ToolPose`], [`ToolPath`]. Colliders: [`Collider`], [`ColliderPose`],
+//! ECS components. Particle side: [`Particle`], [`Position`], [`Velocity`], [`InvMass`],
+//! and the body's [`BodyLattice`] (which holds what never changes: lattice coordinates
+//! and rest positions). Cluster side: [`ClusterMembers`], [`ClusterOf`], [`Compliance`],
+//! and the body's [`ParticleClusters`] index. Attachments: [`Attachment`],
+//! [`AttachmentTarget`], [`AttachmentPath`], [`AttachmentVelocity`]. Tools: [`Tool`],
+//! [`ToolPose`], [`ToolPath`]. Colliders: [`Collider`], [`ColliderPose`],
 //! [`ColliderPath`].
+//!
+//! A particle's components hold its state between frames; within a frame the solver's
+//! dense arrays do (loaded at the frame's start, written back after its substeps), so a
+//! game reads and writes them between frames.
 
 use crate::body::lattice::Lattice;
 use crate::clusters::index::ClusterIndex;
@@ -26,19 +31,16 @@ pub struct Particle {
     pub index: u32,
 }
 
-/// Current (or, during a substep, predicted) position.
+/// Position.
 #[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Position(pub Vec3);
-
-/// Position at the start of the current substep.
-#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct PrevPosition(pub Vec3);
 
 /// Velocity.
 #[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Velocity(pub Vec3);
 
-/// Inverse mass; 0 pins the particle.
+/// Inverse mass. 0 makes the particle kinematic: it keeps its velocity whatever acts
+/// on it (an [`Attachment`] pins particles without changing their mass).
 #[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct InvMass(pub f32);
 
@@ -227,3 +229,49 @@ pub struct ColliderPose {
 /// paddle).
 #[derive(Component, Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ColliderPath(pub Path);
+
+/// An attachment: particles of one body held, each by its own spring of `compliance`,
+/// to targets that move with one pose ([`AttachmentTarget`]). Compliance 0 pins them
+/// (hard): they follow their targets exactly; a soft attachment pulls (a drag, a
+/// handle). See [`crate::solver::terms::attachments`].
+#[derive(Component, Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Attachment {
+    /// The body.
+    pub body: Entity,
+    /// The attached particles, body-local.
+    pub particles: Vec<u32>,
+    /// Each particle's target in the frame of the target pose.
+    pub offsets: Vec<Vec3>,
+    /// Compliance of each particle's spring, m/N (≥ 0; 0: hard).
+    pub compliance: f32,
+}
+
+/// Where an attachment pulls: its target pose at the end of the frame being simulated
+/// (set it from game code, or let an [`AttachmentPath`] or [`AttachmentVelocity`] move
+/// it), and the pose the last frame ended at (the engine's: each frame moves the targets
+/// from there to `pose`).
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AttachmentTarget {
+    /// The target pose at the end of the frame being simulated.
+    pub pose: Pose,
+    /// The target pose at the end of the last frame.
+    pub reached: Pose,
+}
+
+impl AttachmentTarget {
+    /// A target resting at `pose`.
+    pub fn at(pose: Pose) -> Self {
+        AttachmentTarget {
+            pose,
+            reached: pose,
+        }
+    }
+}
+
+/// A keyframed path that drives an attachment's target from the simulation clock.
+#[derive(Component, Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AttachmentPath(pub Path);
+
+/// A constant velocity (m/s) at which an attachment's target moves (a moving pin).
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AttachmentVelocity(pub Vec3);

@@ -1,16 +1,32 @@
-//! What a body, a tool and a collider are spawned from: plain descriptions, checked
-//! when spawned ([`crate::ecs::spawn`]).
+//! What a body (with its pins and attachments), a tool and a collider are spawned
+//! from: plain descriptions, checked when spawned ([`crate::ecs::spawn`]).
 
 use crate::body::shape::Shape;
-use crate::config::Material;
-use crate::config::SimConfig;
+use crate::config::{Material, SimConfig};
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::geometry::collider::ColliderShape;
 use glam::{Quat, Vec3};
 
-/// An axis-aligned world-space region whose particles are pinned (inverse mass 0): they
-/// move at the region's constant velocity whatever acts on them (zero: they stay), so
-/// pins can hold a body or pull it.
+/// An axis-aligned world-space box (bounds included).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Region {
+    /// Minimum corner.
+    pub min: Vec3,
+    /// Maximum corner.
+    pub max: Vec3,
+}
+
+impl Region {
+    /// Whether the world position `x` lies in the region (bounds included).
+    pub fn contains(&self, x: Vec3) -> bool {
+        x.cmpge(self.min).all() && x.cmple(self.max).all()
+    }
+}
+
+/// An axis-aligned world-space region whose particles are pinned: a hard attachment
+/// whose targets move at the region's constant velocity whatever acts on the body (zero:
+/// they stay), so pins can hold a body or pull it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PinRegion {
     /// Minimum corner.
@@ -25,8 +41,31 @@ pub struct PinRegion {
 impl PinRegion {
     /// Whether the world position `x` lies in the region (bounds included).
     pub fn contains(&self, x: Vec3) -> bool {
-        x.cmpge(self.min).all() && x.cmple(self.max).all()
+        self.region().contains(x)
     }
+
+    /// The region, without its velocity.
+    pub fn region(&self) -> Region {
+        Region {
+            min: self.min,
+            max: self.max,
+        }
+    }
+}
+
+/// Particles of a body (those in `region` when it is spawned) attached to a target
+/// pose, each by a spring of `compliance` (see
+/// [`crate::ecs::components::Attachment`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AttachmentDesc {
+    /// World-space region (after the body is placed) whose particles are attached; it
+    /// must hold at least one.
+    pub region: Region,
+    /// The target's keyframed path; its motion moves the particles' targets. Empty: the
+    /// target stays where the particles are (until game code moves it).
+    pub path: Path,
+    /// Compliance of each particle's spring, m/N (≥ 0; 0: hard, as a pin).
+    pub compliance: f32,
 }
 
 /// Everything needed to spawn a body.
@@ -47,6 +86,8 @@ pub struct BodyDesc {
     pub material: Material,
     /// Regions of pinned particles (world space, after placement).
     pub pins: Vec<PinRegion>,
+    /// Attachments of the body's particles (world space, after placement).
+    pub attachments: Vec<AttachmentDesc>,
 }
 
 impl BodyDesc {
@@ -60,6 +101,7 @@ impl BodyDesc {
             velocity: Vec3::ZERO,
             material: Material::default(),
             pins: Vec::new(),
+            attachments: Vec::new(),
         }
     }
 }

@@ -2,6 +2,7 @@
 //! what can be spawned and the spawning itself, the map between the particle table and
 //! the solver's dense arrays, and the invariant check over a world.
 
+pub mod attach;
 pub mod check;
 pub mod components;
 pub mod desc;

@@ -2,7 +2,9 @@
 //! hand-over buffers, the solver cache, statistics, and the messages sent to outside code.
 
 use crate::config::SimConfig;
-use crate::solver::SolverLayout;
+use crate::solver::particles::Particles;
+use crate::solver::registry::Terms;
+use crate::solver::solve::Solver;
 use bevy_ecs::prelude::*;
 use rand_chacha::ChaCha8Rng;
 
@@ -133,13 +135,18 @@ pub struct RebuiltBody {
     pub split_parts: Vec<u32>,
 }
 
-/// Dense solver state kept between steps; rebuilt only when topology changes.
-#[derive(Resource, Debug, Default)]
+/// The solver and the particles' dense state, and the maps between them and the ECS.
+/// The cluster layout is rebuilt only when bodies appear or vanish, and patched after a
+/// cut; within a frame the dense arrays hold the particles' state (see
+/// [`crate::solver::particles`]).
+#[derive(Resource, Debug)]
 pub struct SolverCache {
-    /// Dense arrays.
-    pub layout: SolverLayout,
+    /// The particles' dense state.
+    pub particles: Particles,
+    /// The clusters, the other terms and the schemes' state.
+    pub solver: Solver,
     /// Particle entity per dense index.
-    pub particles: Vec<Entity>,
+    pub entities: Vec<Entity>,
     /// Body-local particle index per dense index (the body: see [`SolverCache::owner`]).
     pub locals: Vec<u32>,
     /// Dense index per entity index (`u32::MAX` if none).
@@ -153,20 +160,48 @@ pub struct SolverCache {
     pub clusters: Vec<Entity>,
     /// Cluster slot per cluster entity.
     pub slot_of: ClusterSlots,
-    /// Solver slot ↔ row of the particle table, for the parallel gather and scatter.
+    /// Solver slot ↔ row of the particle table, for the parallel load and store.
     pub rows: crate::ecs::table_rows::TableRows,
     /// Whether the layout matches the current topology.
     pub valid: bool,
     /// How the layout was last brought up to date, and how long it took.
     pub last_update: Option<LayoutUpdate>,
-    /// The constraint kinds solved with the clusters (contacts, colliders).
-    pub kinds: crate::solver::ConstraintKinds,
-    /// The `contacts` setting the contact particles were built for with the current
-    /// layout (`None`: not built since the layout last changed).
-    pub contacts_built: Option<bool>,
     /// Set when a saved simulation is loaded: the layout matches the loaded entities,
     /// which the next layout update only takes note of instead of patching them in.
     pub adopt_changes: bool,
+    /// What changed in the layout since the terms last heard of it.
+    pub pending_topology: Option<PendingTopology>,
+}
+
+/// What changed in the solver layout since the terms last heard (they hear of it in
+/// [`crate::systems::term_sync`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PendingTopology {
+    /// Whether the layout was laid out afresh (every dense index moved).
+    pub relaid: bool,
+    /// The bodies whose particles or links changed.
+    pub bodies: Vec<Entity>,
+}
+
+impl Default for SolverCache {
+    fn default() -> Self {
+        SolverCache {
+            particles: Particles::default(),
+            solver: Solver::new(Default::default(), Terms::builtin()),
+            entities: Vec::new(),
+            locals: Vec::new(),
+            dense_of: Vec::new(),
+            live: Vec::new(),
+            body_dense: Vec::new(),
+            clusters: Vec::new(),
+            slot_of: ClusterSlots::default(),
+            rows: Default::default(),
+            valid: false,
+            last_update: None,
+            adopt_changes: false,
+            pending_topology: None,
+        }
+    }
 }
 
 /// The layout slot of each cluster entity, as a table by entity index: a lookup is two
@@ -254,7 +289,7 @@ impl BodyDense {
             .map(|d| *d as usize)
     }
 
-    /// The position of body-local particle `p` in the layout's `positions` (NaN when it
+    /// The position of body-local particle `p` in the dense `positions` (NaN when it
     /// has no slot).
     pub fn position(&self, positions: &[glam::Vec3A], p: u32) -> glam::Vec3 {
         self.slot(p)

@@ -1,21 +1,23 @@
 //! Spawning into any world prepared with [`crate::systems::install`]: bodies
-//! (voxelised, clustered, their particles and clusters as entities), cutting tools and
-//! colliders; and replacing a body's clusters by a fresh clustering.
+//! (voxelised, clustered, their particles, clusters and attachments as entities),
+//! cutting tools and colliders; and replacing a body's clusters by a fresh clustering.
 
 use crate::clusters::clustering::{clusters_on_grid, seed_grid_offset};
 use crate::clusters::index::ClusterIndex;
 use crate::clusters::store::ClusterTable;
 use crate::cut::tool::{Path, Pose};
+use crate::ecs::attach::{TargetMotion, centroid_pose, check_compliance, spawn_attachment};
 use crate::ecs::components::*;
-use crate::ecs::desc::{BodyDesc, ColliderDesc, ToolDesc};
+use crate::ecs::desc::{BodyDesc, ColliderDesc, Region, ToolDesc};
 use crate::ecs::resources::*;
 use crate::error::{
     CleaveError, MAX_COORDINATE, Result, check_finite_vec, check_positive, check_range,
     check_vec_within,
 };
 use crate::math::rotation::unit_quaternion;
-use crate::solver::MAX_SOLVER_PARTICLES;
+use crate::solver::clusters::term::MAX_SOLVER_PARTICLES;
 use bevy_ecs::prelude::*;
+use glam::Vec3;
 
 /// Spawns a cutting tool into any world prepared with [`crate::systems::install`].
 pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
@@ -154,6 +156,13 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             "|vx|, |vy|, |vz| ≤ 1e4 (m/s)",
         )?;
     }
+    for (i, a) in desc.attachments.iter().enumerate() {
+        let field = format!("body.attachments[{i}]");
+        check_finite_vec(&format!("{field}.region.min"), a.region.min)?;
+        check_finite_vec(&format!("{field}.region.max"), a.region.max)?;
+        check_compliance(&field, a.compliance)?;
+        a.path.validate(&field)?;
+    }
     check_range(
         "material.particle_mass",
         desc.material.mass_at_spacing(desc.spacing),
@@ -168,6 +177,38 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         });
     let lattice = desc.shape.voxelise_within(desc.spacing, budget)?;
     check_particle_budget(existing_particles(world), lattice.len() as u64)?;
+    let placed = |i: u32| desc.position + rotation * lattice.rest_position(i);
+    // each attachment's particles, and each pin's (a region that holds none is an error
+    // for an attachment, and nothing for a pin)
+    let in_region = |region: Region| -> Vec<u32> {
+        lattice
+            .live_particles()
+            .filter(|&i| region.contains(placed(i)))
+            .collect()
+    };
+    let attached: Vec<Vec<u32>> = desc
+        .attachments
+        .iter()
+        .map(|a| in_region(a.region))
+        .collect();
+    if let Some(i) = attached.iter().position(Vec::is_empty) {
+        return Err(crate::error::out_of_range(
+            &format!("body.attachments[{i}].region"),
+            (
+                desc.attachments[i].region.min,
+                desc.attachments[i].region.max,
+            ),
+            "a region holding at least one of the body's particles",
+        ));
+    }
+    let pinned: Vec<Vec<u32>> = desc.pins.iter().map(|p| in_region(p.region())).collect();
+    let positions_of = |lists: &[Vec<u32>]| -> Vec<Vec<Vec3>> {
+        lists
+            .iter()
+            .map(|list| list.iter().map(|&i| placed(i)).collect())
+            .collect()
+    };
+    let (pinned_at, attached_at) = (positions_of(&pinned), positions_of(&attached));
     let seed_grid = seed_grid_offset(&desc.material, &mut world.resource_mut::<SimRng>().0);
     let table = clusters_on_grid(&lattice, &desc.material, seed_grid);
     let body = world
@@ -182,14 +223,13 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     let order = lattice.live_in_morton_order();
     let inv_mass = 1.0 / desc.material.mass_at_spacing(desc.spacing);
     let spawned = world.spawn_batch(order.iter().map(|&i| {
-        let x = desc.position + rotation * lattice.rest_position(i);
+        let x = placed(i);
         let pin = desc.pins.iter().find(|r| r.contains(x));
         (
             Particle { body, index: i },
             Position(x),
-            PrevPosition(x),
             Velocity(pin.map_or(desc.velocity, |r| r.velocity)),
-            InvMass(if pin.is_some() { 0.0 } else { inv_mass }),
+            InvMass(inv_mass),
         )
     }));
     let mut particles = vec![Entity::PLACEHOLDER; lattice.len()];
@@ -207,6 +247,31 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         },
         clusters,
     ));
+    let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time) as f32;
+    for ((pin, particles), positions) in desc.pins.iter().zip(pinned).zip(pinned_at) {
+        if particles.is_empty() {
+            continue;
+        }
+        let pose = centroid_pose(&positions);
+        let motion = TargetMotion::Velocity(pin.velocity);
+        spawn_attachment(world, body, particles, &positions, 0.0, pose, motion);
+    }
+    for ((a, particles), positions) in desc.attachments.iter().zip(attached).zip(attached_at) {
+        let path = a.path.normalized();
+        let (pose, motion) = match path.sample(now) {
+            Some(pose) => (pose, TargetMotion::Path(path)),
+            None => (centroid_pose(&positions), TargetMotion::Still),
+        };
+        spawn_attachment(
+            world,
+            body,
+            particles,
+            &positions,
+            a.compliance,
+            pose,
+            motion,
+        );
+    }
     Ok(body)
 }
 

@@ -1,6 +1,7 @@
 //! The solver slot of every row of the particles' ECS table, and the row of every slot,
-//! so the shape-match stage copies particle state between the table's columns and the
-//! dense solver layout in parallel, without an entity lookup per particle.
+//! so that particle state is copied between the table's columns and the solver's dense
+//! arrays in parallel (loaded at the start of a frame, stored after its substeps),
+//! without an entity lookup per particle.
 //!
 //! The map is checked on every load — the table must have the length it had, each
 //! mapped slot's entity must still sit at its row, and each row that held no particle of
@@ -8,8 +9,8 @@
 //! rebuilt when the table changed: particles despawned by a cut, or entities spawned
 //! into the same table.
 
-use crate::ecs::components::{InvMass, Position, PrevPosition, Velocity};
-use crate::solver::SolverLayout;
+use crate::ecs::components::{InvMass, Position, Velocity};
+use crate::solver::particles::Particles;
 use bevy_ecs::prelude::Entity;
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
@@ -24,10 +25,10 @@ const CHUNK: usize = 4096;
 pub struct ParticleColumns<'a> {
     /// Entity of each row.
     pub entities: &'a [Entity],
-    /// Positions (the predicted positions while a substep runs).
+    /// Positions.
     pub positions: &'a [Position],
-    /// Positions at the start of the substep.
-    pub previous: &'a [PrevPosition],
+    /// Velocities.
+    pub velocities: &'a [Velocity],
     /// Inverse masses.
     pub inv_mass: &'a [InvMass],
 }
@@ -42,31 +43,30 @@ pub struct TableRows {
 }
 
 impl TableRows {
-    /// Copies the table's particle state into `layout`. `slots` is the particle entity of
+    /// Copies the table's particle state (positions, velocities, inverse masses) into
+    /// `particles`. `slots` is the particle entity of
     /// each solver slot, `slot_of_index` the slot of each entity index (`u32::MAX` for
     /// none). Rows of entities the layout does not hold are skipped; so are slots whose
     /// entity is not in the table (cut particles), which keep their state.
     pub fn load(
         &mut self,
-        layout: &mut SolverLayout,
+        particles: &mut Particles,
         slots: &[Entity],
         slot_of_index: &[u32],
         table: ParticleColumns,
     ) {
-        if !self.try_load(layout, slots, table) {
+        if !self.try_load(particles, slots, table) {
             self.rebuild(slots, slot_of_index, table.entities);
-            let loaded = self.try_load(layout, slots, table);
+            let loaded = self.try_load(particles, slots, table);
             debug_assert!(loaded, "a freshly built row map matches its table");
         }
     }
 
-    /// Writes the solved positions back into the table's columns (the rows of the last
-    /// [`TableRows::load`]) and adds the solve's corrections to the velocities,
-    /// `v += Σ Δp / dt` (see [`SolverLayout::update_velocities`]).
+    /// Writes the particles' positions and velocities into the table's columns (the
+    /// rows of the last [`TableRows::load`]).
     pub fn store(
         &self,
-        layout: &SolverLayout,
-        inv_dt: f32,
+        particles: &Particles,
         positions: &mut [Position],
         velocities: &mut [Velocity],
     ) {
@@ -79,18 +79,18 @@ impl TableRows {
             .for_each(|(x, v, slots)| {
                 for ((x, v), &slot) in x.iter_mut().zip(v).zip(slots) {
                     if slot != NONE {
-                        x.0 = Vec3::from(layout.positions[slot as usize]);
-                        v.0 += Vec3::from(layout.corrections[slot as usize] * inv_dt);
+                        x.0 = Vec3::from(particles.positions[slot as usize]);
+                        v.0 = Vec3::from(particles.velocities[slot as usize]);
                     }
                 }
             });
     }
 
-    /// Loads through the current map; false (with the layout partly loaded) when the
+    /// Loads through the current map; false (with the particles partly loaded) when the
     /// map no longer matches the table.
     fn try_load(
         &self,
-        layout: &mut SolverLayout,
+        particles: &mut Particles,
         slots: &[Entity],
         table: ParticleColumns,
     ) -> bool {
@@ -103,18 +103,18 @@ impl TableRows {
         {
             return false;
         }
-        // (zipped to the shortest: every layout array has one entry per slot)
+        // (zipped to the shortest: every particle array has one entry per slot)
         (
-            layout.positions.par_chunks_mut(CHUNK),
-            layout.previous.par_chunks_mut(CHUNK),
-            layout.inv_mass.par_chunks_mut(CHUNK),
+            particles.positions.par_chunks_mut(CHUNK),
+            particles.velocities.par_chunks_mut(CHUNK),
+            particles.inv_mass.par_chunks_mut(CHUNK),
             self.row_of_slot.par_chunks(CHUNK),
             slots.par_chunks(CHUNK),
         )
             .into_par_iter()
-            .all(|(x, prev, inv_mass, rows, entities)| {
-                let slots = x.iter_mut().zip(prev).zip(inv_mass).zip(rows).zip(entities);
-                for ((((x, prev), inv_mass), &row), entity) in slots {
+            .all(|(x, v, inv_mass, rows, entities)| {
+                let slots = x.iter_mut().zip(v).zip(inv_mass).zip(rows).zip(entities);
+                for ((((x, v), inv_mass), &row), entity) in slots {
                     if row == NONE {
                         continue;
                     }
@@ -123,7 +123,7 @@ impl TableRows {
                         return false;
                     }
                     *x = Vec3A::from(table.positions[row].0);
-                    *prev = Vec3A::from(table.previous[row].0);
+                    *v = Vec3A::from(table.velocities[row].0);
                     *inv_mass = table.inv_mass[row].0;
                 }
                 true
@@ -155,12 +155,11 @@ impl TableRows {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::SolverMode;
     use bevy_ecs::world::World;
 
-    /// A layout of `n` slots (no clusters) and the entity of each slot.
-    fn layout_and_slots(world: &mut World, n: usize) -> (SolverLayout, Vec<Entity>, Vec<u32>) {
-        let layout = SolverLayout::new(&vec![Vec3::ZERO; n], [], SolverMode::Jacobi);
+    /// Particles of `n` slots and the entity of each slot.
+    fn layout_and_slots(world: &mut World, n: usize) -> (Particles, Vec<Entity>, Vec<u32>) {
+        let layout = Particles::at_rest(&vec![Vec3::ZERO; n]);
         let slots: Vec<Entity> = (0..n).map(|_| world.spawn_empty().id()).collect();
         let max = slots
             .iter()
@@ -175,22 +174,12 @@ mod tests {
     }
 
     /// Table columns whose values name the entity they belong to (its index).
-    fn columns(
-        rows: &[Entity],
-    ) -> (
-        Vec<Position>,
-        Vec<PrevPosition>,
-        Vec<Velocity>,
-        Vec<InvMass>,
-    ) {
+    fn columns(rows: &[Entity]) -> (Vec<Position>, Vec<Velocity>, Vec<InvMass>) {
         let id = |e: &Entity| e.index_u32() as f32;
         (
             rows.iter().map(|e| Position(Vec3::splat(id(e)))).collect(),
             rows.iter()
-                .map(|e| PrevPosition(Vec3::splat(-id(e))))
-                .collect(),
-            rows.iter()
-                .map(|e| Velocity(Vec3::new(id(e), 0.0, 1.0)))
+                .map(|e| Velocity(Vec3::new(id(e), 0.0, -1.0)))
                 .collect(),
             rows.iter().map(|e| InvMass(id(e) + 0.5)).collect(),
         )
@@ -198,27 +187,27 @@ mod tests {
 
     fn load(
         rows: &mut TableRows,
-        layout: &mut SolverLayout,
+        layout: &mut Particles,
         slots: &[Entity],
         map: &[u32],
         table: &[Entity],
     ) {
-        let (x, prev, _, m) = columns(table);
+        let (x, v, m) = columns(table);
         let columns = ParticleColumns {
             entities: table,
             positions: &x,
-            previous: &prev,
+            velocities: &v,
             inv_mass: &m,
         };
         rows.load(layout, slots, map, columns);
     }
 
     /// Every slot holds its own entity's values.
-    fn assert_loaded(layout: &SolverLayout, slots: &[Entity]) {
+    fn assert_loaded(layout: &Particles, slots: &[Entity]) {
         for (s, e) in slots.iter().enumerate() {
             let id = e.index_u32() as f32;
             assert_eq!(layout.positions[s], Vec3A::splat(id), "slot {s}");
-            assert_eq!(layout.previous[s], Vec3A::splat(-id));
+            assert_eq!(layout.velocities[s], Vec3A::new(id, 0.0, -1.0));
             assert_eq!(layout.inv_mass[s], id + 0.5);
         }
     }
@@ -260,26 +249,23 @@ mod tests {
                 assert_eq!(Vec3::from(layout.positions[s]), x[row].0);
             }
         }
-        // store writes every mapped row's position from its slot and adds the slot's
-        // correction / dt to its velocity, and leaves the stranger alone
+        // store writes every mapped row's position and velocity from its slot, and
+        // leaves the stranger alone
         layout.positions.iter_mut().for_each(|p| *p *= 2.0);
-        for (s, c) in layout.corrections.iter_mut().enumerate() {
-            *c = Vec3A::new(s as f32, 1.0, 0.0);
+        for (s, v) in layout.velocities.iter_mut().enumerate() {
+            *v = Vec3A::new(s as f32, 1.0, 0.0);
         }
-        let (mut x, _, mut v, _) = columns(&table);
+        let (mut x, mut v, _) = columns(&table);
         let at = table.iter().position(|e| *e == stranger).unwrap();
         x[at] = Position(Vec3::splat(123.0));
         v[at] = Velocity(Vec3::splat(9.0));
-        rows.store(&layout, 4.0, &mut x, &mut v);
+        rows.store(&layout, &mut x, &mut v);
         for (row, e) in table.iter().enumerate() {
             let (position, velocity) = match slots.iter().position(|p| p == e) {
                 None => (Vec3::splat(123.0), Vec3::splat(9.0)),
                 Some(s) => {
                     let id = e.index_u32() as f32;
-                    (
-                        Vec3::splat(2.0 * id),
-                        Vec3::new(id + 4.0 * s as f32, 4.0, 1.0),
-                    )
+                    (Vec3::splat(2.0 * id), Vec3::new(s as f32, 1.0, 0.0))
                 }
             };
             assert_eq!((x[row].0, v[row].0), (position, velocity), "row {row}");
@@ -318,8 +304,8 @@ mod tests {
         layout.positions[2] = Vec3A::splat(-1.0);
         load(&mut rows, &mut layout, &slots, &map, &table);
         assert_eq!(layout.positions[2], Vec3A::splat(-1.0));
-        let (mut x, _, mut v, _) = columns(&table);
-        rows.store(&layout, 1.0, &mut x, &mut v);
+        let (mut x, mut v, _) = columns(&table);
+        rows.store(&layout, &mut x, &mut v);
         assert_eq!(
             x[2].0,
             Vec3::splat(reused.index_u32() as f32),

@@ -107,8 +107,8 @@ pub fn dump_body(world: &mut World, body: Entity) -> Option<DumpBody> {
             position: world
                 .get::<Position>(lattice.particles[i as usize])
                 .map_or([f32::NAN; 3], |p| p.0.to_array()),
-            // (a split particle's half has half the mass; a pinned one, whose inverse
-            // mass is 0, the material's)
+            // (a split particle's half has half the mass; one made kinematic by hand,
+            // inverse mass 0, the material's)
             mass: match world.get::<InvMass>(lattice.particles[i as usize]) {
                 Some(w) if w.0 > 0.0 => 1.0 / w.0,
                 _ => material.mass_at_spacing(l.spacing()),

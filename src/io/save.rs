@@ -1,7 +1,8 @@
 //! Saving a simulation and resuming it: everything that decides how a simulation goes
 //! on — settings, clock, random stream, bodies with their lattices and clusters,
-//! particles, tools, colliders, and the solver's own state (its layout, in the order a
-//! run's cuts left it, and its warm starts) — in a compact binary file. A run that is
+//! particles, attachments, tools, colliders, and the solver's own state (its cluster
+//! layout, in the order a run's cuts left it, and its warm starts) — in a compact binary
+//! file. A run that is
 //! saved, loaded and continued is bit for bit the run that was never interrupted.
 //!
 //! The file is a header — the magic bytes [`MAGIC`] and a little-endian `u32` format
@@ -12,8 +13,9 @@
 //! ([`crate::ecs::components::ClusterKeys`]), so nothing it decides depends on the ids the
 //! loading world hands out.
 //!
-//! Saved: what cleave spawned (bodies, particles, clusters, tools, colliders) and its
-//! resources. Not saved: other entities, components a game added to cleave's entities,
+//! Saved: what cleave spawned (bodies, particles, clusters, attachments, tools,
+//! colliders) and its resources; the terms besides the clusters are taken again from
+//! them, as after any change of the layout. Not saved: other entities, components a game added to cleave's entities,
 //! messages not yet read, and projective dynamics' factor (it is computed again from the
 //! same matrix).
 
@@ -21,10 +23,12 @@ use crate::config::SimConfig;
 use crate::ecs::check::check_invariants;
 use crate::ecs::components::*;
 use crate::ecs::resources::{
-    BodyDense, ClusterSlots, CutReport, SimClock, SimRng, SimSettings, SolverCache,
+    BodyDense, ClusterSlots, CutReport, PendingTopology, SimClock, SimRng, SimSettings, SolverCache,
 };
 use crate::error::{CleaveError, Result};
-use crate::solver::SolverLayout;
+use crate::solver::clusters::term::ClusterTerm;
+use crate::solver::particles::Particles;
+use crate::solver::schemes::gauss_seidel::GaussSeidel;
 use crate::systems::{SyncSchedule, install};
 use bevy_ecs::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -35,7 +39,7 @@ use std::io::{Read, Write};
 pub const MAGIC: [u8; 8] = *b"cleave\0s";
 
 /// The format version this build writes and reads.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 
 /// Largest saved simulation [`load`] reads, in bytes.
 pub const MAX_SAVE_BYTES: u64 = 4 << 30;
@@ -55,7 +59,6 @@ struct ParticleState {
     entity: Entity,
     particle: Particle,
     position: Position,
-    previous: PrevPosition,
     velocity: Velocity,
     inv_mass: InvMass,
 }
@@ -85,11 +88,23 @@ struct ColliderState {
     path: Option<ColliderPath>,
 }
 
-/// The solver cache without what is derived from it or from the ECS on the way.
+/// An attachment entity.
+#[derive(Serialize, Deserialize)]
+struct AttachmentState {
+    attachment: Attachment,
+    target: AttachmentTarget,
+    path: Option<AttachmentPath>,
+    velocity: Option<AttachmentVelocity>,
+}
+
+/// The solver cache without what is derived from it or from the ECS on the way (the
+/// terms other than the clusters are taken again from the ECS).
 #[derive(Serialize, Deserialize)]
 struct CacheState {
-    layout: SolverLayout,
-    particles: Vec<Entity>,
+    clusters_term: ClusterTerm,
+    gauss_seidel: GaussSeidel,
+    particles: Particles,
+    entities: Vec<Entity>,
     locals: Vec<u32>,
     live: Vec<bool>,
     body_dense: Vec<BodyDense>,
@@ -109,6 +124,7 @@ struct Snapshot {
     clusters: Vec<ClusterState>,
     tools: Vec<ToolState>,
     colliders: Vec<ColliderState>,
+    attachments: Vec<AttachmentState>,
     cache: CacheState,
     cut: CutReport,
 }
@@ -145,20 +161,12 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
         .collect();
     bodies.sort_unstable_by_key(|b| b.entity);
     let particles = world
-        .query::<(
-            Entity,
-            &Particle,
-            &Position,
-            &PrevPosition,
-            &Velocity,
-            &InvMass,
-        )>()
+        .query::<(Entity, &Particle, &Position, &Velocity, &InvMass)>()
         .iter(world)
-        .map(|(entity, p, x, prev, v, w)| ParticleState {
+        .map(|(entity, p, x, v, w)| ParticleState {
             entity,
             particle: *p,
             position: *x,
-            previous: *prev,
             velocity: *v,
             inv_mass: *w,
         })
@@ -191,6 +199,29 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
             path: path.cloned(),
         })
         .collect();
+    let attachments = world
+        .query::<(
+            Entity,
+            &Attachment,
+            &AttachmentTarget,
+            Option<&AttachmentPath>,
+            Option<&AttachmentVelocity>,
+        )>()
+        .iter(world)
+        .map(|(entity, a, target, path, velocity)| {
+            (
+                entity,
+                AttachmentState {
+                    attachment: a.clone(),
+                    target: *target,
+                    path: path.cloned(),
+                    velocity: velocity.copied(),
+                },
+            )
+        })
+        .collect::<std::collections::BTreeMap<_, _>>()
+        .into_values()
+        .collect();
     let cache = world.resource::<SolverCache>();
     if !cache.valid {
         return Err(invalid("the solver layout could not be brought up to date"));
@@ -204,9 +235,12 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
         clusters,
         tools,
         colliders,
+        attachments,
         cache: CacheState {
-            layout: cache.layout.clone(),
+            clusters_term: cache.solver.clusters.clone(),
+            gauss_seidel: cache.solver.gauss_seidel.clone(),
             particles: cache.particles.clone(),
+            entities: cache.entities.clone(),
             locals: cache.locals.clone(),
             live: cache.live.clone(),
             body_dense: cache.body_dense.clone(),
@@ -272,6 +306,7 @@ fn restore(snapshot: Snapshot) -> Result<World> {
         clusters,
         tools,
         colliders,
+        attachments,
         cache,
         cut,
     } = snapshot;
@@ -290,7 +325,7 @@ fn restore(snapshot: Snapshot) -> Result<World> {
             ..p.particle
         };
         let e = world
-            .spawn((particle, p.position, p.previous, p.velocity, p.inv_mass))
+            .spawn((particle, p.position, p.velocity, p.inv_mass))
             .id();
         map.0.insert(p.entity, e);
     }
@@ -312,6 +347,19 @@ fn restore(snapshot: Snapshot) -> Result<World> {
         let mut e = world.spawn((c.collider, c.pose));
         if let Some(path) = c.path {
             e.insert(path);
+        }
+    }
+    for a in attachments {
+        let attachment = Attachment {
+            body: map.required(a.attachment.body, "an attachment")?,
+            ..a.attachment
+        };
+        let mut e = world.spawn((attachment, a.target));
+        if let Some(path) = a.path {
+            e.insert(path);
+        }
+        if let Some(velocity) = a.velocity {
+            e.insert(velocity);
         }
     }
     for b in bodies {
@@ -351,11 +399,17 @@ fn restore(snapshot: Snapshot) -> Result<World> {
 
 /// Puts the saved solver state in `world`'s cache, with its entities mapped.
 fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Result<()> {
-    let slots = saved.layout.positions.len();
-    if [saved.particles.len(), saved.locals.len(), saved.live.len()] != [slots; 3] {
+    let slots = saved.particles.len();
+    if [
+        saved.clusters_term.particle_count(),
+        saved.entities.len(),
+        saved.locals.len(),
+        saved.live.len(),
+    ] != [slots; 4]
+    {
         return Err(invalid("the solver's particle tables disagree in length"));
     }
-    let particles: Vec<Entity> = saved.particles.iter().map(|e| map.get(*e)).collect();
+    let particles: Vec<Entity> = saved.entities.iter().map(|e| map.get(*e)).collect();
     let clusters: Vec<Entity> = saved.clusters.iter().map(|e| map.get(*e)).collect();
     let mut body_dense = saved.body_dense;
     for b in &mut body_dense {
@@ -374,15 +428,21 @@ fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Resul
         }
     }
     let mut cache = world.resource_mut::<SolverCache>();
-    cache.layout = saved.layout;
+    cache.solver.clusters = saved.clusters_term;
+    cache.solver.gauss_seidel = saved.gauss_seidel;
+    cache.particles = saved.particles;
     cache.slot_of = ClusterSlots::from_clusters(&clusters);
-    cache.particles = particles;
+    cache.entities = particles;
     cache.clusters = clusters;
     cache.locals = saved.locals;
     cache.live = saved.live;
     cache.body_dense = body_dense;
     cache.dense_of = dense_of;
     cache.valid = true;
-    cache.contacts_built = None;
+    // every term takes its particles again from the loaded entities
+    cache.pending_topology = Some(PendingTopology {
+        relaid: true,
+        bodies: Vec::new(),
+    });
     Ok(())
 }

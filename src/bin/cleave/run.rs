@@ -250,7 +250,12 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         sim.step();
         step_ms.push(t.elapsed().as_secs_f64() * 1e3);
         // (a layout built afresh starts its count at zero)
-        let seconds = sim.world().resource::<SolverCache>().layout.factor_seconds;
+        let seconds = sim
+            .world()
+            .resource::<SolverCache>()
+            .solver
+            .projective
+            .factor_seconds;
         if seconds != factor_seconds {
             factor_ms.push(
                 1e3 * (seconds

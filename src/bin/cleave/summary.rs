@@ -5,7 +5,8 @@ use bevy_ecs::prelude::*;
 use cleave::analysis::stats::{
     BodyStats, body_stats, labelled_positions, min_distance_between_labels,
 };
-use cleave::ecs::components::{BodyLattice, InvMass, Position};
+use cleave::ecs::attach::pinned_particles;
+use cleave::ecs::components::{BodyLattice, Position};
 use cleave::sim::simulation::Simulation;
 use serde::Serialize;
 use std::path::Path;
@@ -103,12 +104,8 @@ impl Tracked {
             lattice,
         };
         tracked.tip_start = tracked.position(sim, tip);
-        tracked.pinned = (0..tracked.lattice.lattice.len() as u32)
-            .filter(|i| {
-                sim.world()
-                    .get::<InvMass>(tracked.lattice.particles[*i as usize])
-                    .is_some_and(|m| m.0 == 0.0)
-            })
+        tracked.pinned = pinned_particles(sim.world_mut(), body)
+            .into_iter()
             .filter_map(|i| Some((i, tracked.position(sim, i)?)))
             .collect();
         tracked.start_positions = tracked.all_positions(sim);

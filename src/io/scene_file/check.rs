@@ -5,7 +5,7 @@
 use super::{BodyFile, ColliderShapeFile, PoseFile};
 use crate::config::{GroundPlane, StaticBox};
 use crate::cut::tool::ToolShape;
-use crate::ecs::desc::PinRegion;
+use crate::ecs::desc::{PinRegion, Region};
 use glam::{Quat, UVec3, Vec3};
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer};
@@ -95,6 +95,32 @@ pub fn particle_mass<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::
 pub fn compliance<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;
     range::<D>(v, (0.0..=1.0).contains(&v), "0 ≤ compliance ≤ 1 (1/Pa)")
+}
+pub fn edge_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
+    let v = Option::<f32>::deserialize(d)?;
+    match v {
+        Some(c) => range::<D>(
+            c,
+            (0.0..=1.0).contains(&c),
+            "0 ≤ edge_compliance ≤ 1 (1/Pa)",
+        )
+        .map(Some),
+        None => Ok(None),
+    }
+}
+pub fn attachment_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, v >= 0.0, "finite and ≥ 0 (m/N; 0: hard)")
+}
+pub fn region<'de, D: Deserializer<'de>>(d: D) -> Result<Region, D::Error> {
+    let r = Region::deserialize(d)?;
+    if !(r.min.is_finite() && r.max.is_finite()) {
+        return Err(D::Error::custom(format!(
+            "({}, {}) is out of range (allowed: finite corners)",
+            r.min, r.max
+        )));
+    }
+    Ok(r)
 }
 pub fn density<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;

@@ -6,7 +6,7 @@ use crate::body::shape::Shape;
 use crate::config::{Material, SimConfig};
 use crate::cut::tool::{Path as ToolPath, Pose};
 use crate::ecs::desc::Scene;
-use crate::ecs::desc::{BodyDesc, ColliderDesc, ToolDesc};
+use crate::ecs::desc::{AttachmentDesc, BodyDesc, ColliderDesc, ToolDesc};
 use crate::geometry::collider::ColliderShape;
 use crate::geometry::mesh::TriangleMesh;
 use glam::Vec3;
@@ -118,6 +118,7 @@ impl MaterialFile {
             tear_stretch: m.tear_stretch,
             tear_budget: m.tear_budget,
             tear_min_piece: m.tear_min_piece,
+            edge_compliance: m.edge_compliance,
         }
     }
 
@@ -137,6 +138,7 @@ impl MaterialFile {
             tear_stretch: self.tear_stretch,
             tear_budget: self.tear_budget,
             tear_min_piece: self.tear_min_piece,
+            edge_compliance: self.edge_compliance,
         }
     }
 }
@@ -172,6 +174,15 @@ impl SceneFile {
                     velocity: b.velocity,
                     material: MaterialFile::from_material(&b.material),
                     pins: b.pins.clone(),
+                    attachments: b
+                        .attachments
+                        .iter()
+                        .map(|a| AttachmentFile {
+                            region: a.region,
+                            path: a.path.keys.iter().map(|(k, p)| (*k, (*p).into())).collect(),
+                            compliance: a.compliance,
+                        })
+                        .collect(),
                 })
             })
             .collect::<Option<Vec<_>>>()?;
@@ -244,6 +255,15 @@ impl SceneFile {
                 velocity: b.velocity,
                 material,
                 pins: b.pins.clone(),
+                attachments: b
+                    .attachments
+                    .iter()
+                    .map(|a| AttachmentDesc {
+                        region: a.region,
+                        path: path_and_pose(&a.path, None).0,
+                        compliance: a.compliance,
+                    })
+                    .collect(),
             });
         }
         let tools = self

@@ -3,7 +3,7 @@
 
 use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
 use crate::cut::tool::{CutMode, Pose, ToolShape};
-use crate::ecs::desc::PinRegion;
+use crate::ecs::desc::{PinRegion, Region};
 use glam::{Quat, UVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -101,6 +101,27 @@ pub struct BodyFile {
     /// Pinned regions (world space).
     #[serde(default, deserialize_with = "super::check::pins")]
     pub pins: Vec<PinRegion>,
+    /// Attachments of the body's particles: `(region: (min: …, max: …), path: […],
+    /// compliance: …)`.
+    #[serde(default)]
+    pub attachments: Vec<AttachmentFile>,
+}
+
+/// An attachment: the particles in a world-space region (after placement), each held
+/// by a spring of `compliance` (m/N; 0: hard) to a target that follows `path` (empty:
+/// stays).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AttachmentFile {
+    /// The region whose particles are attached (it must hold at least one).
+    #[serde(deserialize_with = "super::check::region")]
+    pub region: Region,
+    /// Keyframes `(time, pose)` of the target, ascending times.
+    #[serde(default, deserialize_with = "super::check::keys")]
+    pub path: Vec<(f32, PoseFile)>,
+    /// Compliance of each particle's spring, m/N (≥ 0; 0: hard).
+    #[serde(deserialize_with = "super::check::attachment_compliance")]
+    pub compliance: f32,
 }
 
 /// A shape.
@@ -181,6 +202,9 @@ pub struct MaterialFile {
     pub tear_budget: u32,
     /// Smallest piece (particles) tearing may cut off.
     pub tear_min_piece: u32,
+    /// Compliance of the lattice edges' distance constraints, 1/Pa; `None`: none.
+    #[serde(deserialize_with = "super::check::edge_compliance")]
+    pub edge_compliance: Option<f32>,
 }
 
 impl Default for MaterialFile {

@@ -9,74 +9,21 @@
 //! from the origin): lattice clusters differ by a few ulps, the rounding their rest
 //! positions already carry, and a cluster of another shape by a good part of a spacing.
 
-use super::SolverLayout;
-use super::batch::MomentRow;
-use crate::math::lanes::Vec3x8;
+use super::rows::{Canonical, Template};
+use super::term::ClusterTerm;
 use glam::Vec3A;
 use smallvec::SmallVec;
-use wide::f32x8;
 
 /// Match tolerance, relative to the size of the cluster's rest coordinates.
-pub(super) const TOLERANCE: f32 = 64.0 * f32::EPSILON;
+pub(in crate::solver) const TOLERANCE: f32 = 64.0 * f32::EPSILON;
 
 /// Clusters sampled to choose the template.
 const SAMPLES: usize = 64;
 
-/// One cluster's members with their rest offsets and weights, in canonical order.
-type Canonical = SmallVec<[(u32, Vec3A, f32); 32]>;
-
 /// A cluster's particles in the template's member order.
-pub(super) type Order = SmallVec<[u32; 32]>;
+pub(in crate::solver) type Order = SmallVec<[u32; 32]>;
 
-/// The shared rest shape (see the module docs).
-#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
-pub(super) struct Template {
-    /// Member `j`'s rest offset and weight, the same in every lane.
-    pub(super) rows: Vec<MomentRow>,
-    /// `Σ w q` over the rows (the fit's bias, as [`SolverLayout::fill_constants`]).
-    pub(super) bias: Vec3A,
-    /// `1 / Σ w`.
-    pub(super) inv_weight_sum: f32,
-}
-
-impl Template {
-    /// The template of one cluster's canonical members.
-    fn of(members: &Canonical) -> Self {
-        let total: f32 = members.iter().map(|(_, _, w)| w).sum();
-        let bias = members.iter().map(|(_, q, w)| *q * *w).sum();
-        let rows = members
-            .iter()
-            .map(|(_, q, w)| MomentRow {
-                offset: Vec3x8 {
-                    x: f32x8::splat(q.x),
-                    y: f32x8::splat(q.y),
-                    z: f32x8::splat(q.z),
-                },
-                weight: f32x8::splat(*w),
-            })
-            .collect();
-        Template {
-            rows,
-            bias,
-            inv_weight_sum: 1.0 / total,
-        }
-    }
-
-    /// Number of members.
-    pub(super) fn len(&self) -> usize {
-        self.rows.len()
-    }
-
-    /// Offset and weight of member `j` (lane 0 of its row).
-    pub(super) fn member(&self, j: usize) -> (Vec3A, f32) {
-        let row = &self.rows[j];
-        let x = |v: f32x8| v.as_array()[0];
-        let offset = Vec3A::new(x(row.offset.x), x(row.offset.y), x(row.offset.z));
-        (offset, x(row.weight))
-    }
-}
-
-impl SolverLayout {
+impl ClusterTerm {
     /// The members of cluster slot `k` with their rest offsets and weights, ordered by
     /// offset (z, then y, then x, on a grid of 1/64 of the largest offset, so rounding
     /// cannot reorder a lattice cluster's members), ties by particle.
@@ -125,7 +72,7 @@ impl SolverLayout {
     /// Chooses the template: of up to [`SAMPLES`] clusters spread over the slots, the
     /// shape that most of them match (the first on a tie), with the offsets of the
     /// matching one nearest the origin. `None` when no sampled cluster matches another.
-    pub(super) fn choose_template(&self) -> Option<Template> {
+    pub(in crate::solver) fn choose_template(&self) -> Option<Template> {
         let live: Vec<usize> = self.clusters().map(|(k, _)| k).collect();
         // a golden-ratio (Weyl) sequence of slots: a fixed stride could alias with the
         // lattice's period and see boundary clusters only
@@ -157,7 +104,7 @@ impl SolverLayout {
 
     /// The particles of cluster slot `k` in the template's member order, when it
     /// matches `template`.
-    pub(super) fn template_order(&self, k: usize, template: &Template) -> Option<Order> {
+    pub(in crate::solver) fn template_order(&self, k: usize, template: &Template) -> Option<Order> {
         if template.len() == 0 || self.cluster_size(k) != template.len() {
             return None;
         }

@@ -1,16 +1,16 @@
 //! Updating a built layout in place after a cut, instead of building it again: removed
 //! clusters free their slots, new clusters take slots and the lowest colour none of their
-//! particles' clusters has, retired particles stop moving, and only the clusters whose
+//! particles' clusters has, and only the clusters whose
 //! weights changed get new rest offsets. The cost follows the clusters that changed,
 //! not the body, when the caller names the clusters whose weights change
-//! ([`SolverLayout::patch_with_neighbours`]); otherwise one pass over the membership list
+//! ([`ClusterTerm::patch_with_neighbours`]); otherwise one pass over the membership list
 //! finds them.
 
-use super::{ClusterSpec, FREE_SLOT, SolverLayout};
+use super::term::{ClusterSpec, ClusterTerm, FREE_SLOT};
 use rayon::prelude::*;
 
-impl SolverLayout {
-    /// Whether [`SolverLayout::patch`] can update this layout (its colouring fits the
+impl ClusterTerm {
+    /// Whether [`ClusterTerm::patch`] can update this layout (its colouring fits the
     /// 64 colour bits kept per particle).
     pub fn can_patch(&self) -> bool {
         !self.particle_colours.is_empty() || self.rest.is_empty()
@@ -33,19 +33,13 @@ impl SolverLayout {
             .map(|k| (k, self.cluster_members(k)))
     }
 
-    /// Removes the clusters in slots `removed`, adds `added` (members are particle
-    /// indices of this layout), and freezes the `retired` particles (inverse mass 0; the
-    /// caller guarantees no remaining cluster holds them). Returns the slot of each added
+    /// Removes the clusters in slots `removed` and adds `added` (members are particle
+    /// indices of this layout). Returns the slot of each added
     /// cluster (`u32::MAX` for one without members), or `None` when the layout cannot be
-    /// patched (see [`SolverLayout::can_patch`], or a new cluster needs a 65th colour);
-    /// the layout must then be built again with [`SolverLayout::new`].
-    pub fn patch(
-        &mut self,
-        removed: &[u32],
-        added: &[ClusterSpec],
-        retired: &[u32],
-    ) -> Option<Vec<u32>> {
-        self.patch_inner(removed, added, retired, None::<fn(&[u32]) -> Vec<u32>>)
+    /// patched (see [`ClusterTerm::can_patch`], or a new cluster needs a 65th colour);
+    /// the layout must then be built again with [`ClusterTerm::new`].
+    pub fn patch(&mut self, removed: &[u32], added: &[ClusterSpec]) -> Option<Vec<u32>> {
+        self.patch_inner(removed, added, None::<fn(&[u32]) -> Vec<u32>>)
     }
 
     /// [`Self::patch`], told which kept clusters hold a given particle: `neighbours`
@@ -57,17 +51,15 @@ impl SolverLayout {
         &mut self,
         removed: &[u32],
         added: &[ClusterSpec],
-        retired: &[u32],
         neighbours: impl FnOnce(&[u32]) -> Vec<u32>,
     ) -> Option<Vec<u32>> {
-        self.patch_inner(removed, added, retired, Some(neighbours))
+        self.patch_inner(removed, added, Some(neighbours))
     }
 
     fn patch_inner(
         &mut self,
         removed: &[u32],
         added: &[ClusterSpec],
-        retired: &[u32],
         neighbours: Option<impl FnOnce(&[u32]) -> Vec<u32>>,
     ) -> Option<Vec<u32>> {
         if !self.can_patch() {
@@ -78,9 +70,6 @@ impl SolverLayout {
         // before the patch: only those whose count ends different get new weights.
         let mut changed = vec![false; self.rest.len()];
         let mut touched: Vec<(u32, u32)> = Vec::new();
-        for &p in retired {
-            self.inv_mass[p as usize] = 0.0;
-        }
         for &k in removed {
             let k = k as usize;
             if self.colour_of.get(k).is_none_or(|c| *c == FREE_SLOT) {
@@ -215,8 +204,11 @@ mod tests {
     use super::*;
     use crate::config::SolverMode;
     use crate::math::lanes::LANES;
-    use crate::solver::colouring::order_by_colour;
-    use crate::solver::{ConstraintKinds, unit_specs as specs};
+    use crate::solver::clusters::colouring::order_by_colour;
+    use crate::solver::particles::Particles;
+    use crate::solver::registry::Terms;
+    use crate::solver::solve::Solver;
+    use crate::solver::testing::{step, unit_specs as specs};
     use glam::Vec3;
 
     /// A 200-particle bar with clusters of three consecutive particles (enough batches
@@ -228,7 +220,7 @@ mod tests {
     }
 
     /// Each cluster's members with its rest offsets and weights, sorted by members.
-    fn moments(l: &SolverLayout) -> Vec<(Vec<u32>, Vec<glam::Vec4>)> {
+    fn moments(l: &ClusterTerm) -> Vec<(Vec<u32>, Vec<glam::Vec4>)> {
         let mut out: Vec<_> = l
             .clusters()
             .map(|(k, m)| (m.to_vec(), l.member_moments(k)))
@@ -242,11 +234,11 @@ mod tests {
         let (rest, clusters) = bar_clusters();
         let pieces = vec![vec![3, 4], vec![6, 7]];
         let removed = [3u32, 4, 5];
-        let mut scanned = SolverLayout::new(&rest, specs(&clusters), SolverMode::Jacobi);
+        let mut scanned = ClusterTerm::new(&rest, specs(&clusters), SolverMode::Jacobi);
         let mut told = scanned.clone();
         // counts before → after: 3: 3 → 3, 4: 3 → 2, 5: 3 → 0 (retired), 6: 3 → 2,
         // 7: 3 → 3; so only the kept clusters holding 4, 5 or 6 get new weights
-        let kept_holding = |layout: &SolverLayout, particles: &[u32]| -> Vec<u32> {
+        let kept_holding = |layout: &ClusterTerm, particles: &[u32]| -> Vec<u32> {
             layout
                 .clusters()
                 .filter(|(k, m)| {
@@ -257,11 +249,9 @@ mod tests {
         };
         let neighbours = kept_holding(&told, &[4, 5, 6]);
         assert_eq!(neighbours, [2, 6]);
-        scanned
-            .patch(&removed, &specs(&pieces), &[5])
-            .expect("patchable");
+        scanned.patch(&removed, &specs(&pieces)).expect("patchable");
         let mut asked = Vec::new();
-        told.patch_with_neighbours(&removed, &specs(&pieces), &[5], |recounted| {
+        told.patch_with_neighbours(&removed, &specs(&pieces), |recounted| {
             asked = recounted.to_vec();
             neighbours.clone()
         })
@@ -270,9 +260,9 @@ mod tests {
         assert_eq!(moments(&told), moments(&scanned));
         // leaving out cluster 2 ({2, 3, 4}: particle 4 lost a cluster) leaves its old
         // weights: the hint matters
-        let mut short = SolverLayout::new(&rest, specs(&clusters), SolverMode::Jacobi);
+        let mut short = ClusterTerm::new(&rest, specs(&clusters), SolverMode::Jacobi);
         short
-            .patch_with_neighbours(&removed, &specs(&pieces), &[5], |_| vec![6])
+            .patch_with_neighbours(&removed, &specs(&pieces), |_| vec![6])
             .expect("patchable");
         assert!(
             moments(&short) != moments(&scanned),
@@ -284,12 +274,12 @@ mod tests {
     fn a_patched_layout_matches_a_rebuilt_one() {
         for mode in [SolverMode::Jacobi, SolverMode::GaussSeidel] {
             let (rest, clusters) = bar_clusters();
-            let mut patched = SolverLayout::new(&rest, specs(&clusters), mode);
+            let mut patched = ClusterTerm::new(&rest, specs(&clusters), mode);
             let before = (patched.batches.len(), patched.batches.empty_lanes());
             // cut particle 5: clusters 3, 4, 5 hold it; replace them by their pieces
             let pieces = vec![vec![3, 4], vec![6, 7]];
             let slots = patched
-                .patch(&[3, 4, 5], &specs(&pieces), &[5])
+                .patch(&[3, 4, 5], &specs(&pieces))
                 .expect("patchable");
             assert_eq!(slots.len(), 2);
             assert_eq!(patched.cluster_count(), 197);
@@ -301,8 +291,7 @@ mod tests {
                 .map(|(_, m)| m.clone())
                 .collect();
             kept.extend(pieces);
-            let mut rebuilt = SolverLayout::new(&rest, specs(&kept), mode);
-            rebuilt.inv_mass[5] = 0.0;
+            let rebuilt = ClusterTerm::new(&rest, specs(&kept), mode);
             // the patch emptied three lanes and appended batches for the two pieces (one,
             // or one per colour) instead of laying out all batches again
             let appended = patched.batches.len() - before.0;
@@ -326,13 +315,16 @@ mod tests {
             assert_eq!(patched.inv_count, rebuilt.inv_count);
             if mode == SolverMode::Jacobi {
                 // Jacobi does not depend on cluster order: the two move alike
-                for l in [&mut patched, &mut rebuilt] {
-                    l.inv_mass[0] = 0.0;
-                    for (i, p) in l.positions.iter_mut().enumerate() {
+                let [patched, rebuilt] = [patched, rebuilt].map(|clusters| {
+                    let mut particles = Particles::at_rest(&rest);
+                    particles.inv_mass[0] = 0.0;
+                    particles.inv_mass[5] = 0.0;
+                    for (i, p) in particles.positions.iter_mut().enumerate() {
                         p.y -= 0.01 * i as f32;
                     }
-                    l.solve(20, crate::solver::TEST_DT, &mut ConstraintKinds::default());
-                }
+                    Solver::new(clusters, Terms::default()).solve(&mut particles, &step(20));
+                    particles
+                });
                 for (p, q) in patched.positions.iter().zip(&rebuilt.positions) {
                     assert!((*p - *q).length() < 1e-5, "{p} vs {q}");
                 }
@@ -343,13 +335,11 @@ mod tests {
     #[test]
     fn colours_stay_proper_and_garbage_is_compacted() {
         let (rest, clusters) = bar_clusters();
-        let mut l = SolverLayout::new(&rest, specs(&clusters), SolverMode::GaussSeidel);
+        let mut l = ClusterTerm::new(&rest, specs(&clusters), SolverMode::GaussSeidel);
         // replace every cluster by itself many times: slots are reused, garbage compacted
         for round in 0..20 {
             let k = round % 8;
-            let slots = l
-                .patch(&[k as u32], &specs(&clusters[k..k + 1]), &[])
-                .unwrap();
+            let slots = l.patch(&[k as u32], &specs(&clusters[k..k + 1])).unwrap();
             assert_eq!(slots, vec![k as u32], "the freed slot is reused");
             assert!(l.member_particle.len() <= 2 * l.membership_count());
         }

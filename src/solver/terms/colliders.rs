@@ -11,11 +11,11 @@
 //! substep started (a fast body, or a fast collider) is put back at the entry point. So
 //! neither side tunnels, whatever the speed.
 
-use super::PARTICLES_PER_TASK;
-use super::kinds::{ConstraintKind, ParticleState};
 use crate::config::{GroundPlane, SimConfig, StaticBox};
 use crate::cut::tool::Pose;
 use crate::geometry::collider::ColliderShape;
+use crate::solver::particles::PARTICLES_PER_TASK;
+use crate::solver::term::{ParticleState, Substep, Term};
 use glam::{Affine3A, Vec3A};
 use rayon::prelude::*;
 
@@ -257,7 +257,7 @@ fn bounds(points: &[Vec3A]) -> (Vec3A, Vec3A) {
     }
 }
 
-impl ConstraintKind for Colliders {
+impl Term for Colliders {
     fn name(&self) -> &'static str {
         "colliders"
     }
@@ -266,7 +266,7 @@ impl ConstraintKind for Colliders {
         self.ground.is_none() && self.shapes.is_empty()
     }
 
-    fn begin_substep(&mut self, state: &ParticleState) {
+    fn begin_substep(&mut self, _step: &Substep, state: &mut ParticleState) {
         self.previous_bounds = state
             .previous
             .par_chunks(PARTICLES_PER_TASK)
@@ -274,7 +274,7 @@ impl ConstraintKind for Colliders {
             .collect();
     }
 
-    fn project(&mut self, state: &mut ParticleState) {
+    fn project(&mut self, _step: &Substep, state: &mut ParticleState) {
         let this = &*self;
         state
             .positions

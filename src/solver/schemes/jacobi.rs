@@ -1,42 +1,58 @@
 //! The Jacobi scheme: every cluster is fitted to the same positions and adds its pull
-//! `gᵢ − pᵢ` to each member's accumulator (spatial groups of clusters, the groups
-//! of one colour in parallel, so no two tasks write the same accumulator and each
-//! particle sums its pulls in a fixed order for any thread count); then every particle
-//! moves by its step (see [`step_coefficients`]).
+//! `gᵢ − pᵢ` to each member's accumulator (spatial groups of clusters, the groups of one
+//! colour in parallel, so no two tasks write the same accumulator and each particle sums
+//! its pulls in a fixed order for any thread count); then every particle moves by its
+//! step (see `ClusterTerm`'s `step_coefficients`). With matching weights `1/nᵢ` (FastLSM) every
+//! cluster's pull has zero momentum, so the scheme conserves linear momentum.
+//! Projective dynamics uses the same pull pass as its local step.
 
-use super::batch::{BatchKernel, FitRow};
-use super::sweep::Disjoint;
-use super::{PARTICLES_PER_TASK, SolverLayout};
 use crate::math::simd::Lane;
+use crate::solver::clusters::fit::BatchKernel;
+use crate::solver::clusters::rows::FitRow;
+use crate::solver::clusters::term::ClusterTerm;
+#[cfg(doc)]
+use crate::solver::clusters::term::step_coefficients;
+use crate::solver::disjoint::Disjoint;
+use crate::solver::particles::{PARTICLES_PER_TASK, Particles};
 use glam::{Quat, Vec3A};
 use rayon::prelude::*;
 
-impl SolverLayout {
-    /// Cluster pass: fit every cluster (eight at a time) to the positions, which no task
-    /// writes in this pass, and add `s (g − p)` to each member's pull.
-    pub(super) fn accumulate_pulls(&mut self) {
+/// The Jacobi scheme's scratch: the clusters' pulls of the current iteration.
+#[derive(Clone, Debug, Default)]
+pub struct Jacobi {
+    /// Per particle, the sum of its clusters' pulls in this iteration.
+    pub(in crate::solver) pulls: Vec<Vec3A>,
+}
+
+impl Jacobi {
+    /// Cluster pass: fits every cluster (eight at a time) to `positions`, which no task
+    /// writes in this pass, and adds `g − p` to each member's pull.
+    pub fn pull_pass(&mut self, clusters: &mut ClusterTerm, positions: &[Vec3A]) {
+        self.pulls.resize(positions.len(), Vec3A::ZERO);
         let pulls = Disjoint::new(&mut self.pulls);
-        let rotations = Disjoint::new(&mut self.rotations);
-        let this = &*self;
-        this.for_each_batch_by_colour(&PullKernel {
-            layout: this,
+        let rotations = Disjoint::new(&mut clusters.rotations);
+        let clusters = &*clusters;
+        clusters.for_each_batch_by_colour(&PullKernel {
+            clusters,
+            positions,
             pulls,
             rotations,
         });
     }
 
     /// Particle pass: `pᵢ += σᵢ Σₖ (gᵢₖ − pᵢ) + aᵢ (sᵢ + kᵢ − pᵢ)` with the coefficients
-    /// of [`step_coefficients`] (pinned particles stay), where `kᵢ` is what the other
-    /// constraint kinds (contacts, colliders) have moved the particle so far this
-    /// substep: their pushes count as impulses that move the particle's inertial
-    /// target, so that the pull toward it does not undo them. Clears the accumulators.
-    pub(super) fn move_particles_jacobi(&mut self) {
-        let (scale, anchor) = (&self.step_scale, &self.anchor);
-        let (predicted, corrections) = (&self.predicted, &self.corrections);
-        let compliant = self.compliant;
-        self.positions
+    /// of `step_coefficients` (particles of inverse mass 0 stay), where `kᵢ` is what
+    /// the other terms have moved the particle so far this substep: their pushes count as
+    /// impulses that move the particle's inertial target, so that the pull toward it does
+    /// not undo them. The clusters' share goes to their carry. Clears the pulls.
+    pub fn move_particles(&mut self, clusters: &mut ClusterTerm, particles: &mut Particles) {
+        let (scale, anchor) = (&clusters.step_scale, &clusters.anchor);
+        let (predicted, corrections) = (&particles.predicted, &particles.corrections);
+        let compliant = clusters.compliant;
+        particles
+            .positions
             .par_chunks_mut(PARTICLES_PER_TASK)
-            .zip(self.carry.par_chunks_mut(PARTICLES_PER_TASK))
+            .zip(clusters.carry.par_chunks_mut(PARTICLES_PER_TASK))
             .zip(self.pulls.par_chunks_mut(PARTICLES_PER_TASK))
             .enumerate()
             .for_each(|(task, ((positions, carry), pulls))| {
@@ -59,35 +75,6 @@ impl SolverLayout {
                     move_block::<false>(moving, c);
                 }
             });
-    }
-}
-
-/// A particle's step coefficients `(σ, a)`: its step is `σ Σₖ (gₖ − p) + a (s + k − p)`
-/// (see [`SolverLayout::move_particles_jacobi`]).
-///
-/// Setting the gradient of the substep's objective to zero for particle `i` alone,
-/// with its clusters' goals held, gives `(mᵢ/dt²)(pᵢ − sᵢ) + Σₖ κ wᵢ (pᵢ − gᵢₖ) = 0`
-/// (wᵢ = 1/nᵢ); with `γ = mᵢ/(dt² κ wᵢ)` = `nᵢ · compliance · mᵢ / dt²` (the argument
-/// `inertia_per_cluster` is `compliance · mᵢ / dt²`) the step is
-/// `σ = 1/(nᵢ + γ)`, `a = γ σ`. A rigid cluster (compliance 0) gives `σ = 1/nᵢ`,
-/// `a = 0`: the average of the goals. A pinned particle, or one in no cluster, does not
-/// move.
-#[inline]
-pub(super) fn step_coefficients(
-    inv_count: f32,
-    inertia_per_cluster: f32,
-    inv_mass: f32,
-) -> (f32, f32) {
-    if inv_mass == 0.0 || inv_count == 0.0 {
-        return (0.0, 0.0);
-    }
-    let count = 1.0 / inv_count;
-    let inertia = count * inertia_per_cluster;
-    if inertia == 0.0 {
-        (inv_count, 0.0)
-    } else {
-        let scale = 1.0 / (count + inertia);
-        (scale, inertia * scale)
     }
 }
 
@@ -135,9 +122,11 @@ fn move_block<const ANCHORED: bool>(moving: Moving, c: Coefficients) {
     }
 }
 
-/// The cluster pass's work on one batch (see [`SolverLayout::accumulate_pulls`]).
+/// The cluster pass's work on one batch (see [`Jacobi::pull_pass`]).
 struct PullKernel<'a> {
-    layout: &'a SolverLayout,
+    clusters: &'a ClusterTerm,
+    /// The positions the clusters are fitted to.
+    positions: &'a [Vec3A],
     /// Per particle: the sum of its clusters' pulls.
     pulls: Disjoint<Vec3A>,
     /// Per cluster: its warm-start rotation.
@@ -147,7 +136,7 @@ struct PullKernel<'a> {
 impl BatchKernel for PullKernel<'_> {
     #[inline(always)]
     fn batch<L: Lane>(&self, b: usize, fit_rows: &mut Vec<FitRow>) {
-        let (this, pulls) = (self.layout, self.pulls);
+        let (this, pulls) = (self.clusters, self.pulls);
         // A lane in use adds every row, padding too: a padding row's pull is zero and
         // its particle the lane's own first member. An unused lane's particles may
         // belong to other tasks' clusters: it adds nothing. Lanes may share a particle:
@@ -161,7 +150,7 @@ impl BatchKernel for PullKernel<'_> {
         let add = move |at: u32, pull| unsafe {
             pulls.write_at(at, pulls.read_at(at) + pull);
         };
-        let positions = this.positions.as_ptr();
+        let positions = self.positions.as_ptr();
         // (two calls rather than a test per lane: most batches are full)
         if used.iter().all(|u| *u) {
             unsafe {
@@ -229,19 +218,5 @@ mod tests {
             (p, k)
         };
         assert_eq!(run(true), run(false));
-    }
-
-    #[test]
-    fn step_coefficients_average_the_goals_when_rigid_and_weigh_inertia_when_compliant() {
-        assert_eq!(step_coefficients(0.25, 0.0, 1.0), (0.25, 0.0));
-        assert_eq!(step_coefficients(0.25, 1.0, 0.0), (0.0, 0.0), "pinned");
-        assert_eq!(
-            step_coefficients(0.0, 1.0, 1.0),
-            (0.0, 0.0),
-            "in no cluster"
-        );
-        // 4 clusters, inertia 2 per cluster: σ = 1/(4 + 8), a = 8/12
-        let (scale, anchor) = step_coefficients(0.25, 2.0, 1.0);
-        assert!((scale - 1.0 / 12.0).abs() < 1e-7 && (anchor - 8.0 / 12.0).abs() < 1e-7);
     }
 }

@@ -1,5 +1,5 @@
-//! Colour sweeps: the clusters of one colour share no particle, so their tasks may write
-//! their members' entries in parallel. [`Disjoint`] carries those writes.
+//! Colour sweeps: the clusters (or edges) of one colour share no particle, so their tasks
+//! may write their particles' entries in parallel. [`Disjoint`] carries those writes.
 
 /// A per-particle or per-cluster array written by the tasks of one colour.
 ///
@@ -8,7 +8,7 @@
 /// members, so no entry is written by two tasks, nor read by one task while another
 /// writes it. No reference to the array is alive while a colour runs.
 #[derive(Clone, Copy)]
-pub(super) struct Disjoint<T>(*mut T);
+pub(in crate::solver) struct Disjoint<T>(*mut T);
 
 // SAFETY: see the type's docs; tasks of one colour touch pairwise disjoint entries.
 unsafe impl<T> Send for Disjoint<T> {}
@@ -16,12 +16,12 @@ unsafe impl<T> Send for Disjoint<T> {}
 unsafe impl<T> Sync for Disjoint<T> {}
 
 impl<T: Copy> Disjoint<T> {
-    pub(super) fn new(v: &mut [T]) -> Self {
+    pub(in crate::solver) fn new(v: &mut [T]) -> Self {
         Self(v.as_mut_ptr())
     }
 
     /// The array's first entry.
-    pub(super) fn as_ptr(self) -> *const T {
+    pub(in crate::solver) fn as_ptr(self) -> *const T {
         self.0
     }
 
@@ -30,7 +30,7 @@ impl<T: Copy> Disjoint<T> {
     /// # Safety
     /// `i` is in bounds and no other task writes entry `i` during this colour.
     #[inline(always)]
-    pub(super) unsafe fn read(self, i: usize) -> T {
+    pub(in crate::solver) unsafe fn read(self, i: usize) -> T {
         // SAFETY: guaranteed by the caller.
         unsafe { self.0.add(i).read() }
     }
@@ -40,7 +40,7 @@ impl<T: Copy> Disjoint<T> {
     /// # Safety
     /// As [`Disjoint::read`] for the entry's index.
     #[inline(always)]
-    pub(super) unsafe fn read_at(self, at: u32) -> T {
+    pub(in crate::solver) unsafe fn read_at(self, at: u32) -> T {
         // SAFETY: guaranteed by the caller.
         unsafe { self.0.byte_add(at as usize).read() }
     }
@@ -50,7 +50,7 @@ impl<T: Copy> Disjoint<T> {
     /// # Safety
     /// As [`Disjoint::write`] for the entry's index.
     #[inline(always)]
-    pub(super) unsafe fn write_at(self, at: u32, value: T) {
+    pub(in crate::solver) unsafe fn write_at(self, at: u32, value: T) {
         // SAFETY: guaranteed by the caller.
         unsafe { self.0.byte_add(at as usize).write(value) }
     }
@@ -60,7 +60,7 @@ impl<T: Copy> Disjoint<T> {
     /// # Safety
     /// `i` is in bounds and belongs to the calling task during this colour.
     #[inline(always)]
-    pub(super) unsafe fn write(self, i: usize, value: T) {
+    pub(in crate::solver) unsafe fn write(self, i: usize, value: T) {
         // SAFETY: guaranteed by the caller.
         unsafe { self.0.add(i).write(value) }
     }

@@ -3,23 +3,7 @@
 //! Position-based, with Coulomb friction (Macklin et al. 2014, "Unified particle
 //! physics for real-time applications", §6–7).
 //!
-//! **Who takes part.** Only particles on a piece's surface (fewer than six live lattice
-//! neighbours): balls of radius h/2 on a lattice of spacing h touch, so a surface is a
-//! closed wall of balls and nothing reaches an inner particle without first meeting the
-//! surface. This skips most particles of a large body.
-//!
-//! **Pairs (once per substep).** Sorted cells: each taking-part particle gets the key of
-//! its cell (cells of side `2.5 r_max`, the key linear in the cell coordinates, x
-//! fastest), the particles are sorted by key, and each cell meets the particles of its
-//! forward half of neighbour cells (x + 1 in its row, three cells in each of the four
-//! rows after it: each pair once) as five runs of consecutive keys. Because the key of
-//! each run is the cell's key plus a constant, the cells are visited in key order with
-//! one cursor per run that only moves forward: no hashing, no search, cost linear in
-//! particles. Each pair is then listed under both its particles by a counting sort.
-//! A pair is kept when its balls are closer than the sum of their radii plus a margin of
-//! `r_max / 2` (the iterations move particles), and when the particles are in different
-//! groups (pieces), or in one group with self-contact on and more than two lattice cells
-//! apart along some axis (closer ones are the material's own neighbours).
+//! Who takes part and how pairs are found: [`super::contact_pairs`].
 //!
 //! **Projection (every iteration).** Jacobi-style, reading only positions: each pair,
 //! once, computes the correction along its normal (the overlap) and against its slip
@@ -31,12 +15,11 @@
 //! overlaps persist (an average per particle would not keep it, and a persistent overlap
 //! would then accelerate the bodies).
 
-use super::kinds::{ConstraintKind, ParticleState};
-use glam::{IVec3, Vec3A, Vec4};
+use super::contact_pairs::{ContactGroup, ContactParticles};
+use crate::body::pieces::body_pieces;
+use crate::solver::term::{NO_DENSE, ParticleState, Substep, Term, Topology};
+use glam::Vec3A;
 use rayon::prelude::*;
-
-/// Contact particles per parallel task.
-const PER_TASK: usize = 1024;
 
 /// Particles with pairs per parallel task of the projection.
 const OWNERS_PER_TASK: usize = 512;
@@ -44,33 +27,10 @@ const OWNERS_PER_TASK: usize = 512;
 /// Pairs per parallel task of the projection.
 const PAIRS_PER_TASK: usize = 512;
 
-/// Offset that makes cell coordinates non-negative in a key (21 bits per axis).
-const CELL_BIAS: i64 = 1 << 20;
-
-/// Margin, in units of the largest radius, by which a pair may be apart when the pairs
-/// are found and still be kept for the substep's iterations (which move particles). A
-/// pair that closes faster than this within one substep is found in the next one.
-const PAIR_MARGIN: f32 = 0.5;
-
 /// Over-relaxation of the pair corrections (as in Macklin et al. 2014, §4.2.2): a pair's
 /// correction is divided by the larger load of its particles over this factor (at least
 /// by 1), so that particles in a few contacts converge in fewer iterations.
 pub const RELAXATION: f32 = 2.0;
-
-/// Lattice distance (cells, largest axis) up to which two particles of one piece are
-/// neighbours in the material and never a contact pair.
-pub const SELF_CONTACT_EXCLUSION: i32 = 2;
-
-/// Contact properties of one group (a piece of a body).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ContactGroup {
-    /// Whether particles of this group collide with each other (far apart in the lattice).
-    pub self_contact: bool,
-    /// Static friction coefficient: a tangential slip below `static × depth` is cancelled.
-    pub static_friction: f32,
-    /// Dynamic friction coefficient: a larger slip is shortened by `dynamic × depth`.
-    pub dynamic_friction: f32,
-}
 
 /// A pair as the projection reads it: everything it needs in one place.
 #[derive(Clone, Copy, Debug, Default)]
@@ -91,39 +51,11 @@ struct Pair {
 /// Marks a reference to a pair from its second particle (`b`).
 const SECOND: u32 = 1 << 31;
 
-/// The particles that take part in contacts, in the solver's dense order.
-#[derive(Clone, Debug, Default)]
-pub struct ContactParticles {
-    dense: Vec<u32>,
-    group: Vec<u32>,
-    coord: Vec<IVec3>,
-    radius: Vec<f32>,
-}
-
-impl ContactParticles {
-    /// Adds dense particle `dense` of `group`, at lattice coordinate `coord`, a ball of
-    /// `radius`.
-    pub fn push(&mut self, dense: u32, group: u32, coord: IVec3, radius: f32) {
-        self.dense.push(dense);
-        self.group.push(group);
-        self.coord.push(coord);
-        self.radius.push(radius);
-    }
-
-    /// Number of particles.
-    pub fn len(&self) -> usize {
-        self.dense.len()
-    }
-
-    /// Whether there are none.
-    pub fn is_empty(&self) -> bool {
-        self.dense.is_empty()
-    }
-}
-
 /// The contact kind: its particles, its groups, and this substep's pairs.
 #[derive(Clone, Debug, Default)]
 pub struct Contacts {
+    /// Whether particles collide at all (the simulation's `contacts` setting).
+    enabled: bool,
     particles: ContactParticles,
     groups: Vec<ContactGroup>,
     /// Largest radius.
@@ -159,6 +91,47 @@ impl Contacts {
         self.refs.clear();
     }
 
+    /// Turns contacts on or off (the simulation's `contacts` setting); returns whether
+    /// that changed anything (the particles are then chosen again at the next topology
+    /// change).
+    pub fn set_enabled(&mut self, enabled: bool) -> bool {
+        std::mem::replace(&mut self.enabled, enabled) != enabled
+    }
+
+    /// The surface particles of `change`'s bodies, each labelled with its piece (a group
+    /// per piece of each body), in dense order within each body.
+    fn surface(change: &Topology) -> (ContactParticles, Vec<ContactGroup>) {
+        let (mut particles, mut groups) = (ContactParticles::default(), Vec::new());
+        for body in change.bodies {
+            let (lattice, material) = (body.lattice, body.material);
+            let radius = material.contact_radius.unwrap_or(0.5 * lattice.spacing());
+            let group = ContactGroup {
+                self_contact: material.self_contact,
+                static_friction: material.static_friction,
+                dynamic_friction: material.dynamic_friction,
+            };
+            let first_group = groups.len() as u32;
+            // labels only where the body is in more than one piece
+            let labels = (body.pieces > 1).then(|| body_pieces(lattice));
+            let pieces = labels.as_ref().map_or(1, |(_, n)| *n).max(1);
+            groups.extend(std::iter::repeat_n(group, pieces));
+            let mut taking_part: Vec<(u32, u32)> = lattice
+                .live_particles()
+                .filter(|i| lattice.is_surface(*i))
+                .filter_map(|i| {
+                    let d = *body.dense.get(i as usize)?;
+                    (d != NO_DENSE).then_some((d, i))
+                })
+                .collect();
+            taking_part.sort_unstable();
+            for (d, i) in taking_part {
+                let piece = labels.as_ref().map_or(0, |(l, _)| l[i as usize]);
+                particles.push(d, first_group + piece, lattice.coord(i), radius);
+            }
+        }
+        (particles, groups)
+    }
+
     /// Number of pairs found in the current substep (each pair counted from both sides).
     pub fn pair_count(&self) -> usize {
         self.refs.len()
@@ -169,130 +142,12 @@ impl Contacts {
         self.particles.len()
     }
 
-    /// Whether contact particles `a` and `b` may form a pair (ignoring distance).
-    #[inline]
-    fn may_pair(&self, a: usize, b: usize) -> bool {
-        let p = &self.particles;
-        if a == b {
-            return false;
-        }
-        let group = p.group[a];
-        if group != p.group[b] {
-            return true;
-        }
-        self.groups[group as usize].self_contact
-            && (p.coord[a] - p.coord[b]).abs().max_element() > SELF_CONTACT_EXCLUSION
-    }
-
     /// Finds this substep's pairs from `positions` (see the module docs).
     fn find_pairs(&mut self, positions: &[Vec3A]) {
+        let found = self
+            .particles
+            .close_pairs(&self.groups, self.max_radius, positions);
         let p = &self.particles;
-        let margin = PAIR_MARGIN * self.max_radius;
-        let cell = 2.0 * self.max_radius + margin;
-        let inv_cell = 1.0 / cell;
-        let key_of = |x: Vec3A| -> u64 {
-            if !x.is_finite() {
-                return u64::MAX;
-            }
-            let c = (x * inv_cell).floor();
-            let axis = |v: f32| (v as i64 + CELL_BIAS).clamp(1, 2 * CELL_BIAS - 2) as u64;
-            axis(c.x) | axis(c.y) << 21 | axis(c.z) << 42
-        };
-        let mut sorted: Vec<(u64, u32)> = p
-            .dense
-            .par_iter()
-            .enumerate()
-            .map(|(k, d)| (key_of(positions[*d as usize]), k as u32))
-            .collect();
-        sorted.sort_unstable();
-        // non-finite positions sort last and take no part
-        let usable = sorted.partition_point(|(key, _)| *key != u64::MAX);
-        let sorted = &sorted[..usable];
-        // tasks start on a cell boundary, so each cell is handled by one task
-        let mut task_starts = vec![0usize];
-        while let Some(&last) = task_starts.last() {
-            let mut next = (last + PER_TASK).min(sorted.len());
-            while next < sorted.len() && sorted[next].0 == sorted[next - 1].0 {
-                next += 1;
-            }
-            if next >= sorted.len() {
-                break;
-            }
-            task_starts.push(next);
-        }
-        task_starts.push(sorted.len());
-        // each particle's position and radius in sorted order, read in sequence below
-        let ball: Vec<Vec4> = sorted
-            .par_iter()
-            .map(|(_, k)| positions[p.dense[*k as usize] as usize].extend(p.radius[*k as usize]))
-            .collect();
-        // the forward half of the 26 neighbour cells, so that each pair is met once:
-        // x + 1 in the cell's own row, and x − 1 … x + 1 in the four rows after it
-        let forward: [(i64, i64); 5] = [
-            (1, 1),
-            ((1 << 21) - 1, 3),
-            ((1 << 42) - (1 << 21) - 1, 3),
-            ((1 << 42) - 1, 3),
-            ((1 << 42) + (1 << 21) - 1, 3),
-        ];
-        let this = &*self;
-        let found: Vec<Vec<(u32, u32)>> = task_starts
-            .par_windows(2)
-            .map(|w| {
-                let mut pairs = Vec::new();
-                let mut cursors: Vec<usize> = Vec::new();
-                let mut i = w[0];
-                // sorted entries i and j
-                let check = |i: usize, j: usize, pairs: &mut Vec<(u32, u32)>| {
-                    let (x, y) = (ball[i], ball[j]);
-                    let reach = x.w + y.w + margin;
-                    let apart = x.truncate() - y.truncate();
-                    let (a, b) = (sorted[i].1, sorted[j].1);
-                    if apart.length_squared() < reach * reach
-                        && this.may_pair(a as usize, b as usize)
-                    {
-                        pairs.push((a, b));
-                    }
-                };
-                while i < w[1] {
-                    let key = sorted[i].0;
-                    let mut end = i + 1;
-                    while end < w[1] && sorted[end].0 == key {
-                        end += 1;
-                    }
-                    if cursors.is_empty() {
-                        cursors = forward
-                            .iter()
-                            .map(|(o, _)| sorted.partition_point(|e| e.0 < key + *o as u64))
-                            .collect();
-                    }
-                    // pairs inside the cell
-                    for a in i..end {
-                        for b in a + 1..end {
-                            check(a, b, &mut pairs);
-                        }
-                    }
-                    // pairs with the forward cells, as runs of consecutive keys
-                    for (cursor, &(offset, span)) in cursors.iter_mut().zip(&forward) {
-                        let lo = key + offset as u64;
-                        while *cursor < sorted.len() && sorted[*cursor].0 < lo {
-                            *cursor += 1;
-                        }
-                        let mut stop = *cursor;
-                        while stop < sorted.len() && sorted[stop].0 < lo + span as u64 {
-                            stop += 1;
-                        }
-                        for a in i..end {
-                            for b in *cursor..stop {
-                                check(a, b, &mut pairs);
-                            }
-                        }
-                    }
-                    i = end;
-                }
-                pairs
-            })
-            .collect();
         // each pair once, then listed under both its particles (a counting sort: the
         // pairs of a particle keep the order in which the tasks met them, fixed for any
         // thread count)
@@ -346,7 +201,7 @@ impl Contacts {
     }
 }
 
-impl ConstraintKind for Contacts {
+impl Term for Contacts {
     fn name(&self) -> &'static str {
         "contacts"
     }
@@ -355,11 +210,21 @@ impl ConstraintKind for Contacts {
         self.particles.is_empty()
     }
 
-    fn begin_substep(&mut self, state: &ParticleState) {
+    /// Takes the surface particles of every body again, each labelled with its piece.
+    fn topology(&mut self, change: &Topology) {
+        let (particles, groups) = if self.enabled {
+            Self::surface(change)
+        } else {
+            Default::default()
+        };
+        self.set(particles, groups);
+    }
+
+    fn begin_substep(&mut self, _step: &Substep, state: &mut ParticleState) {
         self.find_pairs(state.positions);
     }
 
-    fn project(&mut self, state: &mut ParticleState) {
+    fn project(&mut self, _step: &Substep, state: &mut ParticleState) {
         if self.pairs.is_empty() {
             return;
         }
@@ -433,6 +298,8 @@ impl ConstraintKind for Contacts {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::solver::testing::step;
+    use glam::IVec3;
 
     const FREE: ContactGroup = ContactGroup {
         self_contact: true,
@@ -463,9 +330,9 @@ mod tests {
             inv_mass: &inv_mass,
             corrections: &mut corrections,
         };
-        c.begin_substep(&state);
+        c.begin_substep(&step(1), &mut state);
         for _ in 0..iterations {
-            c.project(&mut state);
+            c.project(&step(1), &mut state);
         }
         corrections
     }
@@ -476,7 +343,9 @@ mod tests {
         let mut out = vec![];
         for a in 0..n {
             for b in 0..n {
-                if c.may_pair(a, b) && (positions[a] - positions[b]).length() < reach {
+                if c.particles.may_pair(&c.groups, a, b)
+                    && (positions[a] - positions[b]).length() < reach
+                {
                     out.push((a as u32, b as u32));
                 }
             }
@@ -563,7 +432,7 @@ mod tests {
         let coords = [IVec3::ZERO, IVec3::X, IVec3::new(0, 9, 0)];
         let mut c = contacts(&[0, 0, 0], &coords);
         c.find_pairs(&positions);
-        assert!(!c.may_pair(0, 1) && c.may_pair(0, 2));
+        assert!(!c.particles.may_pair(&c.groups, 0, 1) && c.particles.may_pair(&c.groups, 0, 2));
         assert_eq!(c.pair_count(), 4, "0–2 and 1–2, from both sides");
         // without self-contact, none
         c.groups[0].self_contact = false;
@@ -589,8 +458,8 @@ mod tests {
                 inv_mass: &[0.0, 1.0],
                 corrections: &mut corrections,
             };
-            c.begin_substep(&state);
-            c.project(&mut state);
+            c.begin_substep(&step(1), &mut state);
+            c.project(&step(1), &mut state);
             assert_eq!(positions[0], Vec3A::ZERO, "a pinned ball never moves");
             positions[1].x
         };

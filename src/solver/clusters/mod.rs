@@ -1,0 +1,11 @@
+//! Cluster shape matching, the solver's dense SIMD core: the term itself ([`term`]),
+//! the rows and batches the kernel reads, the batched fit, the shared rest shape, the
+//! colouring, and the patch after a cut.
+
+pub mod batches;
+pub mod colouring;
+pub mod fit;
+pub mod patch;
+pub mod rows;
+pub mod template;
+pub mod term;

@@ -1,0 +1,188 @@
+//! The particles' state in the solver's dense order: positions, velocities and inverse
+//! masses, and what a substep derives from them. The ECS components hold a particle's
+//! state between frames; within a frame these arrays do — loaded once at its start,
+//! advanced by every substep (prediction, solve, velocities), written back after the
+//! substeps.
+
+use super::term::ParticleState;
+use glam::{Vec3, Vec3A};
+use rayon::prelude::*;
+
+/// Particles per parallel task.
+pub const PARTICLES_PER_TASK: usize = 2048;
+
+/// Particles per parallel task of the non-finite scan.
+const SCAN_PER_TASK: usize = 8192;
+
+/// Dense particle state (see the module docs).
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct Particles {
+    /// Positions (predicted, then solved, during a substep).
+    pub positions: Vec<Vec3A>,
+    /// Positions at the start of the substep.
+    pub previous: Vec<Vec3A>,
+    /// Velocities.
+    pub velocities: Vec<Vec3A>,
+    /// Inverse masses as the solver takes them: 0 for a particle held kinematic (by a
+    /// hard attachment, or pinned by hand) or cut away.
+    pub inv_mass: Vec<f32>,
+    /// Total position correction of each particle in the last solve.
+    pub corrections: Vec<Vec3A>,
+    /// The predictions the last solve started from.
+    pub predicted: Vec<Vec3A>,
+}
+
+impl Particles {
+    /// Particles at rest at `positions`, of unit inverse mass.
+    pub fn at_rest(positions: &[Vec3]) -> Self {
+        let positions: Vec<Vec3A> = positions.iter().map(|r| Vec3A::from(*r)).collect();
+        let n = positions.len();
+        Particles {
+            previous: positions.clone(),
+            velocities: vec![Vec3A::ZERO; n],
+            inv_mass: vec![1.0; n],
+            corrections: vec![Vec3A::ZERO; n],
+            predicted: positions.clone(),
+            positions,
+        }
+    }
+
+    /// Number of particles.
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// The prediction of a substep of `dt`: `v ← (v + g·dt)·e^(−damping·dt)`,
+    /// `x_prev ← x`, `x ← x + v·dt`; a particle of inverse mass 0 keeps its velocity.
+    pub fn predict(&mut self, dt: f32, gravity: Vec3, damping: f32) {
+        let keep = (-damping * dt).exp();
+        let dv = Vec3A::from(gravity * dt);
+        self.positions
+            .par_iter_mut()
+            .zip(self.previous.par_iter_mut())
+            .zip(self.velocities.par_iter_mut())
+            .zip(self.inv_mass.par_iter())
+            .with_min_len(PARTICLES_PER_TASK)
+            .for_each(|(((x, prev), v), inv_mass)| {
+                *prev = *x;
+                if *inv_mass != 0.0 {
+                    *v = (*v + dv) * keep;
+                }
+                *x += *v * dt;
+            });
+    }
+
+    /// Adds the last solve's corrections to the velocities: `v += Σ Δp / dt`.
+    ///
+    /// Deriving velocity from the corrections rather than from `(p − p_prev) / dt` keeps
+    /// the rounding of large absolute positions out of the velocities, so momentum is
+    /// conserved to the precision of the (small) corrections.
+    pub fn update_velocities(&mut self, inv_dt: f32) {
+        self.velocities
+            .par_iter_mut()
+            .zip(&self.corrections)
+            .with_min_len(PARTICLES_PER_TASK)
+            .for_each(|(v, c)| *v += *c * inv_dt);
+    }
+
+    /// The arrays as a term sees them.
+    pub fn state(&mut self) -> ParticleState<'_> {
+        ParticleState {
+            positions: &mut self.positions,
+            previous: &self.previous,
+            inv_mass: &self.inv_mass,
+            corrections: &mut self.corrections,
+        }
+    }
+
+    /// The guard against non-finite positions: one NaN in a cluster's fit turns the
+    /// whole cluster NaN, and the next iterations carry it across the body. Every live
+    /// particle (`live[d]`) whose position is not finite goes back to its substep-start
+    /// position if that is finite, else to `fallback(d, positions)`, with zero velocity.
+    /// Returns their dense indices, ascending (empty on the usual path, which costs one
+    /// multiply-add per particle).
+    pub fn repair_non_finite(
+        &mut self,
+        live: &[bool],
+        fallback: impl Fn(usize, &[Vec3A]) -> Vec3A,
+    ) -> Vec<u32> {
+        let bad: Vec<u32> = self
+            .positions
+            .par_chunks(SCAN_PER_TASK)
+            .enumerate()
+            .flat_map_iter(|(task, chunk)| {
+                // Σ 0·p stays zero while every point is finite
+                let probe = chunk
+                    .iter()
+                    .fold(Vec3A::ZERO, |probe, p| probe + *p * Vec3A::ZERO);
+                let first = task * SCAN_PER_TASK;
+                let found: Vec<u32> = if probe.is_nan() {
+                    (0..chunk.len())
+                        .filter(|i| !chunk[*i].is_finite() && live.get(first + i) == Some(&true))
+                        .map(|i| (first + i) as u32)
+                        .collect()
+                } else {
+                    Vec::new()
+                };
+                found
+            })
+            .collect();
+        for &d in &bad {
+            let d = d as usize;
+            let back = self.previous[d];
+            let at = if back.is_finite() {
+                back
+            } else {
+                fallback(d, &self.positions)
+            };
+            self.positions[d] = at;
+            self.previous[d] = at;
+            self.velocities[d] = Vec3A::ZERO;
+        }
+        bad
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_nan_particle_is_put_back_with_zero_velocity() {
+        let rest: Vec<Vec3> = (0..10).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
+        let mut p = Particles::at_rest(&rest);
+        let live = vec![true; 10];
+        assert!(p.repair_non_finite(&live, |_, _| Vec3A::ZERO).is_empty());
+        // particle 3 NaN with a finite start; particle 7 NaN from the start too
+        p.positions[3] = Vec3A::NAN;
+        p.velocities[3] = Vec3A::NAN;
+        p.positions[7] = Vec3A::new(f32::INFINITY, 0.0, 0.0);
+        p.previous[7] = Vec3A::NAN;
+        let repaired = p.repair_non_finite(&live, |d, x| (x[d - 1] + x[d + 1]) * 0.5);
+        assert_eq!(repaired, vec![3, 7]);
+        assert_eq!(p.positions[3], Vec3A::new(3.0, 0.0, 0.0));
+        assert_eq!(p.velocities[3], Vec3A::ZERO);
+        assert_eq!(p.positions[7], Vec3A::new(7.0, 0.0, 0.0));
+        // a dead particle's slot is left alone
+        p.positions[5] = Vec3A::NAN;
+        let mut dead = live.clone();
+        dead[5] = false;
+        assert!(p.repair_non_finite(&dead, |_, _| Vec3A::ZERO).is_empty());
+    }
+
+    #[test]
+    fn prediction_holds_particles_of_inverse_mass_zero_at_their_velocity() {
+        let mut p = Particles::at_rest(&[Vec3::ZERO, Vec3::X]);
+        p.velocities[1] = Vec3A::new(0.0, 0.0, 2.0);
+        p.inv_mass[1] = 0.0;
+        p.predict(0.5, Vec3::new(0.0, -10.0, 0.0), 0.0);
+        assert_eq!(p.positions[0], Vec3A::new(0.0, -2.5, 0.0));
+        assert_eq!(p.positions[1], Vec3A::new(1.0, 0.0, 1.0));
+        assert_eq!(p.previous[1], Vec3A::X);
+    }
+}

@@ -1,0 +1,212 @@
+//! Finding contact pairs, once per substep.
+//!
+//! **Who takes part.** Only particles on a piece's surface (fewer than six live lattice
+//! neighbours): balls of radius h/2 on a lattice of spacing h touch, so a surface is a
+//! closed wall of balls and nothing reaches an inner particle without first meeting the
+//! surface. This skips most particles of a large body.
+//!
+//! **Pairs (once per substep).** Sorted cells: each taking-part particle gets the key of
+//! its cell (cells of side `2.5 r_max`, the key linear in the cell coordinates, x
+//! fastest), the particles are sorted by key, and each cell meets the particles of its
+//! forward half of neighbour cells (x + 1 in its row, three cells in each of the four
+//! rows after it: each pair once) as five runs of consecutive keys. Because the key of
+//! each run is the cell's key plus a constant, the cells are visited in key order with
+//! one cursor per run that only moves forward: no hashing, no search, cost linear in
+//! particles. Each pair is then listed under both its particles by a counting sort.
+//! A pair is kept when its balls are closer than the sum of their radii plus a margin of
+//! `r_max / 2` (the iterations move particles), and when the particles are in different
+//! groups (pieces), or in one group with self-contact on and more than two lattice cells
+//! apart along some axis (closer ones are the material's own neighbours).
+
+use glam::{IVec3, Vec3A, Vec4};
+use rayon::prelude::*;
+
+/// Contact particles per parallel task.
+const PER_TASK: usize = 1024;
+
+/// Offset that makes cell coordinates non-negative in a key (21 bits per axis).
+const CELL_BIAS: i64 = 1 << 20;
+
+/// Margin, in units of the largest radius, by which a pair may be apart when the pairs
+/// are found and still be kept for the substep's iterations (which move particles). A
+/// pair that closes faster than this within one substep is found in the next one.
+pub(super) const PAIR_MARGIN: f32 = 0.5;
+
+/// Lattice distance (cells, largest axis) up to which two particles of one piece are
+/// neighbours in the material and never a contact pair.
+pub const SELF_CONTACT_EXCLUSION: i32 = 2;
+
+/// Contact properties of one group (a piece of a body).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactGroup {
+    /// Whether particles of this group collide with each other (far apart in the lattice).
+    pub self_contact: bool,
+    /// Static friction coefficient: a tangential slip below `static × depth` is cancelled.
+    pub static_friction: f32,
+    /// Dynamic friction coefficient: a larger slip is shortened by `dynamic × depth`.
+    pub dynamic_friction: f32,
+}
+
+/// The particles that take part in contacts, in the solver's dense order.
+#[derive(Clone, Debug, Default)]
+pub struct ContactParticles {
+    pub(super) dense: Vec<u32>,
+    pub(super) group: Vec<u32>,
+    pub(super) coord: Vec<IVec3>,
+    pub(super) radius: Vec<f32>,
+}
+
+impl ContactParticles {
+    /// Adds dense particle `dense` of `group`, at lattice coordinate `coord`, a ball of
+    /// `radius`.
+    pub fn push(&mut self, dense: u32, group: u32, coord: IVec3, radius: f32) {
+        self.dense.push(dense);
+        self.group.push(group);
+        self.coord.push(coord);
+        self.radius.push(radius);
+    }
+
+    /// Number of particles.
+    pub fn len(&self) -> usize {
+        self.dense.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.dense.is_empty()
+    }
+
+    /// Whether contact particles `a` and `b` may form a pair (ignoring distance).
+    #[inline]
+    pub(super) fn may_pair(&self, groups: &[ContactGroup], a: usize, b: usize) -> bool {
+        let p = self;
+        if a == b {
+            return false;
+        }
+        let group = p.group[a];
+        if group != p.group[b] {
+            return true;
+        }
+        groups[group as usize].self_contact
+            && (p.coord[a] - p.coord[b]).abs().max_element() > SELF_CONTACT_EXCLUSION
+    }
+
+    /// Every pair of particles that may touch and whose balls at `positions` are closer
+    /// than their radii plus the margin, each once, in an order fixed for any thread
+    /// count (per task, in the order the task met them); `max_radius` is the largest
+    /// radius.
+    pub(super) fn close_pairs(
+        &self,
+        groups: &[ContactGroup],
+        max_radius: f32,
+        positions: &[Vec3A],
+    ) -> Vec<Vec<(u32, u32)>> {
+        let p = self;
+        let margin = PAIR_MARGIN * max_radius;
+        let cell = 2.0 * max_radius + margin;
+        let inv_cell = 1.0 / cell;
+        let key_of = |x: Vec3A| -> u64 {
+            if !x.is_finite() {
+                return u64::MAX;
+            }
+            let c = (x * inv_cell).floor();
+            let axis = |v: f32| (v as i64 + CELL_BIAS).clamp(1, 2 * CELL_BIAS - 2) as u64;
+            axis(c.x) | axis(c.y) << 21 | axis(c.z) << 42
+        };
+        let mut sorted: Vec<(u64, u32)> = p
+            .dense
+            .par_iter()
+            .enumerate()
+            .map(|(k, d)| (key_of(positions[*d as usize]), k as u32))
+            .collect();
+        sorted.sort_unstable();
+        // non-finite positions sort last and take no part
+        let usable = sorted.partition_point(|(key, _)| *key != u64::MAX);
+        let sorted = &sorted[..usable];
+        // tasks start on a cell boundary, so each cell is handled by one task
+        let mut task_starts = vec![0usize];
+        while let Some(&last) = task_starts.last() {
+            let mut next = (last + PER_TASK).min(sorted.len());
+            while next < sorted.len() && sorted[next].0 == sorted[next - 1].0 {
+                next += 1;
+            }
+            if next >= sorted.len() {
+                break;
+            }
+            task_starts.push(next);
+        }
+        task_starts.push(sorted.len());
+        // each particle's position and radius in sorted order, read in sequence below
+        let ball: Vec<Vec4> = sorted
+            .par_iter()
+            .map(|(_, k)| positions[p.dense[*k as usize] as usize].extend(p.radius[*k as usize]))
+            .collect();
+        // the forward half of the 26 neighbour cells, so that each pair is met once:
+        // x + 1 in the cell's own row, and x − 1 … x + 1 in the four rows after it
+        let forward: [(i64, i64); 5] = [
+            (1, 1),
+            ((1 << 21) - 1, 3),
+            ((1 << 42) - (1 << 21) - 1, 3),
+            ((1 << 42) - 1, 3),
+            ((1 << 42) + (1 << 21) - 1, 3),
+        ];
+        let this = self;
+        task_starts
+            .par_windows(2)
+            .map(|w| {
+                let mut pairs = Vec::new();
+                let mut cursors: Vec<usize> = Vec::new();
+                let mut i = w[0];
+                // sorted entries i and j
+                let check = |i: usize, j: usize, pairs: &mut Vec<(u32, u32)>| {
+                    let (x, y) = (ball[i], ball[j]);
+                    let reach = x.w + y.w + margin;
+                    let apart = x.truncate() - y.truncate();
+                    let (a, b) = (sorted[i].1, sorted[j].1);
+                    if apart.length_squared() < reach * reach
+                        && this.may_pair(groups, a as usize, b as usize)
+                    {
+                        pairs.push((a, b));
+                    }
+                };
+                while i < w[1] {
+                    let key = sorted[i].0;
+                    let mut end = i + 1;
+                    while end < w[1] && sorted[end].0 == key {
+                        end += 1;
+                    }
+                    if cursors.is_empty() {
+                        cursors = forward
+                            .iter()
+                            .map(|(o, _)| sorted.partition_point(|e| e.0 < key + *o as u64))
+                            .collect();
+                    }
+                    // pairs inside the cell
+                    for a in i..end {
+                        for b in a + 1..end {
+                            check(a, b, &mut pairs);
+                        }
+                    }
+                    // pairs with the forward cells, as runs of consecutive keys
+                    for (cursor, &(offset, span)) in cursors.iter_mut().zip(&forward) {
+                        let lo = key + offset as u64;
+                        while *cursor < sorted.len() && sorted[*cursor].0 < lo {
+                            *cursor += 1;
+                        }
+                        let mut stop = *cursor;
+                        while stop < sorted.len() && sorted[stop].0 < lo + span as u64 {
+                            stop += 1;
+                        }
+                        for a in i..end {
+                            for b in *cursor..stop {
+                                check(a, b, &mut pairs);
+                            }
+                        }
+                    }
+                    i = end;
+                }
+                pairs
+            })
+            .collect()
+    }
+}

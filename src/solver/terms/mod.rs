@@ -1,0 +1,8 @@
+//! The terms besides the clusters, one module each; each is registered by one line in
+//! [`super::registry::Terms::builtin`].
+
+pub mod attachments;
+pub mod colliders;
+pub mod contact_pairs;
+pub mod contacts;
+pub mod edges;

@@ -1,0 +1,59 @@
+//! Stage load (the end of [`crate::systems::SyncSchedule`]): copies every particle's
+//! position, velocity and inverse mass from its components into the solver's dense
+//! arrays, where they stay for the frame's substeps, and gives the particles a term
+//! holds kinematic (a hard attachment's) inverse mass 0 there. Writes the solver cache
+//! only.
+
+use crate::ecs::components::{InvMass, Position, Velocity};
+use crate::ecs::resources::SolverCache;
+use crate::ecs::table_rows::ParticleColumns;
+use bevy_ecs::prelude::*;
+use glam::Vec3A;
+
+/// Particle data the stage reads.
+type ParticleData = (
+    Entity,
+    &'static Position,
+    &'static Velocity,
+    &'static InvMass,
+);
+
+/// Loads the particles' state into the dense arrays.
+pub fn load_particles(mut cache: ResMut<SolverCache>, particles: Query<ParticleData>) {
+    let cache = &mut *cache;
+    // Usually every particle sits in one table: its columns are copied in parallel.
+    let mut tables = particles
+        .contiguous_iter()
+        .expect("particle components are stored in tables")
+        .filter(|(entities, ..)| !entities.is_empty());
+    match (tables.next(), tables.next()) {
+        (Some((entities, positions, velocities, inv_mass)), None) => {
+            let table = ParticleColumns {
+                entities,
+                positions,
+                velocities,
+                inv_mass,
+            };
+            cache.rows.load(
+                &mut cache.particles,
+                &cache.entities,
+                &cache.dense_of,
+                table,
+            );
+        }
+        _ => {
+            for (e, x, v, inv_mass) in &particles {
+                if let Some(&d) = cache.dense_of.get(e.index_u32() as usize)
+                    && d != u32::MAX
+                    && cache.entities[d as usize] == e
+                {
+                    let d = d as usize;
+                    cache.particles.positions[d] = Vec3A::from(x.0);
+                    cache.particles.velocities[d] = Vec3A::from(v.0);
+                    cache.particles.inv_mass[d] = inv_mass.0;
+                }
+            }
+        }
+    }
+    cache.solver.hold_kinematic(&mut cache.particles.inv_mass);
+}
