@@ -85,7 +85,9 @@ pub mod prelude {
     pub use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
     pub use crate::ecs::check::check_invariants;
     pub use crate::ecs::components::*;
-    pub use crate::ecs::desc::{BodyDesc, ColliderDesc, PinRegion, ToolDesc};
+    pub use crate::ecs::desc::{
+        AttachmentDesc, BodyDesc, ColliderDesc, PinRegion, Region, ToolDesc,
+    };
     pub use crate::ecs::resources::{
         BodySplit, ClustersRebuilt, EdgesSevered, ParticlesCut, ParticlesRepaired,
     };

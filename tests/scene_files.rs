@@ -436,3 +436,95 @@ fn the_readme_scene_file_parses() {
         (240, 1, 1)
     );
 }
+
+#[test]
+fn attachments_and_edge_compliance_are_read_from_files_and_checked() {
+    let text = GOOD.replace(
+        "spacing: 0.1,",
+        "spacing: 0.1, material: (compliance: 1e-5, edge_compliance: Some(1e-7)), \
+         attachments: [(region: (min: (-1.0, 0.6, -1.0), max: (1.0, 2.0, 1.0)), \
+         path: [(0.0, (position: (0.0, 1.0, 0.0))), (0.5, (position: (1.0, 1.0, 0.0)))], \
+         compliance: 1e-4)],",
+    );
+    let scene = SceneFile::parse(&text)
+        .unwrap()
+        .to_scene(Path::new("."))
+        .unwrap();
+    let body = &scene.bodies[0];
+    assert_eq!(body.material.edge_compliance, Some(1e-7));
+    assert_eq!(body.attachments.len(), 1);
+    assert_eq!(body.attachments[0].compliance, 1e-4);
+    assert_eq!(body.attachments[0].path.keys.len(), 2);
+    let (code, err) = run_file("attached.ron", &text);
+    assert_eq!(code, Some(0), "{err}");
+    for (name, good, bad, expected) in [
+        (
+            "edgeneg.ron",
+            "Some(1e-7)",
+            "Some(-1.0)",
+            "bodies[0].material.edge_compliance",
+        ),
+        (
+            "edgenan.ron",
+            "Some(1e-7)",
+            "Some(NaN)",
+            "bodies[0].material.edge_compliance",
+        ),
+        (
+            "edgeinf.ron",
+            "Some(1e-7)",
+            "Some(inf)",
+            "bodies[0].material.edge_compliance",
+        ),
+        (
+            "attneg.ron",
+            "compliance: 1e-4)",
+            "compliance: -1e-4)",
+            "bodies[0].attachments[0].compliance",
+        ),
+        (
+            "attnan.ron",
+            "compliance: 1e-4)",
+            "compliance: NaN)",
+            "bodies[0].attachments[0].compliance",
+        ),
+        (
+            "attinf.ron",
+            "compliance: 1e-4)",
+            "compliance: inf)",
+            "bodies[0].attachments[0].compliance",
+        ),
+        (
+            "attorder.ron",
+            "(0.5, (position: (1.0",
+            "(-0.5, (position: (1.0",
+            "bodies[0].attachments[0].path",
+        ),
+        (
+            "atttime.ron",
+            "(0.5, (position: (1.0",
+            "(NaN, (position: (1.0",
+            "bodies[0].attachments[0].path",
+        ),
+        (
+            "attregion.ron",
+            "min: (-1.0, 0.6, -1.0)",
+            "min: (5.0, 0.6, -1.0)",
+            "attachments[0].region",
+        ),
+    ] {
+        let text = text.replace(good, bad);
+        assert_ne!(text, GOOD, "{name}: replaced");
+        let (code, err) = run_file(name, &text);
+        assert_eq!(code, Some(2), "{name}: {err}");
+        assert_eq!(
+            err.trim_end().lines().count(),
+            1,
+            "{name}: not one line: {err}"
+        );
+        assert!(
+            err.contains(expected) && err.contains(name),
+            "{name}: {err}"
+        );
+    }
+}

@@ -1,6 +1,7 @@
 //! Measurements of a world: counts, shape error against the best rigid fit of the rest
 //! shape, lowest particle, piece centroids.
 
+use crate::body::lattice::Lattice;
 use crate::body::pieces::body_pieces;
 use crate::ecs::components::*;
 use crate::math::rotation::extract_rotation;
@@ -34,6 +35,23 @@ pub struct BodyStats {
     pub finite: bool,
     /// The largest speed of a live particle (m/s).
     pub max_speed: f64,
+    /// The largest strain of a live lattice edge, `| |xₐ − x_b| / L − 1 |` with `L` its
+    /// rest length.
+    pub max_edge_strain: f64,
+}
+
+/// The largest strain `| |xₐ − x_b| / L − 1 |` over the live edges of `lattice` at
+/// `positions` (by particle index), `L` each edge's rest length; 0 without edges.
+pub fn max_edge_strain(lattice: &Lattice, positions: &[Vec3]) -> f64 {
+    lattice
+        .edges()
+        .into_iter()
+        .map(|(a, b)| {
+            let rest = lattice.rest_position(a).distance(lattice.rest_position(b));
+            let now = positions[a as usize].distance(positions[b as usize]);
+            (now / rest - 1.0).abs() as f64
+        })
+        .fold(0.0, f64::max)
 }
 
 /// RMS distance between `current` and the best rigid transform of `rest`.
@@ -182,6 +200,7 @@ pub fn body_stats(world: &mut World, body: Entity) -> Option<BodyStats> {
             .filter_map(|i| world.get::<Velocity>(lattice.particles[i as usize]))
             .map(|v| v.0.length() as f64)
             .fold(0.0, f64::max),
+        max_edge_strain: max_edge_strain(l, &positions),
     })
 }
 

@@ -12,7 +12,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// Names and one-line descriptions of the built-in scenes.
-pub const BUILTIN_SCENES: [(&str, &str); 13] = [
+pub const BUILTIN_SCENES: [(&str, &str); 14] = [
     ("drop", "a 16×8×8 box falls on the ground and settles"),
     (
         "cantilever",
@@ -62,12 +62,51 @@ pub const BUILTIN_SCENES: [(&str, &str); 13] = [
         "scooped",
         "the cantilever with 20 sphere scoops near the middle of its top and sides",
     ),
+    (
+        "soft_beam",
+        "a 32×3×3 bar of very soft clusters and stiff edges, pinned at one end: it bends like a chain and barely stretches",
+    ),
 ];
 
 const H: f32 = 0.1;
 
 /// Where the `notch` scene's notch lies along the bar (x, metres): 30 % of the length.
 pub const NOTCH_X: f32 = -1.6 + 0.3 * 3.2;
+
+/// The `soft_beam` scene: a 32×3×3 bar pinned by its first two columns, under gravity,
+/// of clusters so soft (compliance 1e-4 1/Pa, E = 10 kPa) that alone they let it stretch
+/// to several times its length, with stiff edge distance constraints (edge compliance
+/// 7e-8 1/Pa): it bends down like a chain, its edges stretched well under 1 %. 8
+/// substeps × 20 iterations; every solver gives the same sag (the edges are in
+/// projective dynamics' matrix; much stiffer edges than these need more iterations
+/// there).
+fn soft_beam(config: SimConfig) -> Scene {
+    let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(32, 3, 3), H), H);
+    body.position = Vec3::new(0.0, 1.0, 0.0);
+    body.pins = vec![PinRegion {
+        min: Vec3::splat(-9.0),
+        max: Vec3::new(-1.6 + 2.0 * H, 9.0, 9.0),
+        ..PinRegion::default()
+    }];
+    body.material = Material {
+        compliance: 1e-4,
+        edge_compliance: Some(7e-8),
+        ..Material::default()
+    };
+    Scene {
+        config: SimConfig {
+            ground: None,
+            substeps: 8,
+            iterations: 20,
+            damping: 2.0,
+            ..config
+        },
+        bodies: vec![body],
+        tools: vec![],
+        colliders: vec![],
+        frames: 300,
+    }
+}
 
 /// The `tear` and `notch` scenes: a 32×6×6 rubber bar (E ≈ 0.83 MPa, wave speed
 /// √(E/ρ) ≈ 29 m/s) that tears past a principal stretch of 1.1, gravity off, its two
@@ -233,6 +272,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
                 frames: 600,
             }
         }
+        "soft_beam" => soft_beam(config),
         "slice" => {
             let (body, pedestal) =
                 block_on_pedestal(UVec3::new(24, 12, 12), Vec3::new(0.4, 0.0, 0.8));

@@ -1,11 +1,13 @@
 //! `Simulation`: a World plus the cleave schedules, for headless use.
 
 use crate::config::SimConfig;
+use crate::cut::tool::Pose;
 use crate::ecs::components::*;
 use crate::ecs::desc::{BodyDesc, ColliderDesc, ToolDesc};
-use crate::ecs::resources::SimSettings;
+use crate::ecs::resources::{SimSettings, SolverCache};
 use crate::ecs::spawn::{recluster, spawn_body, spawn_collider, spawn_tool};
 use crate::error::{CleaveError, Result};
+use crate::solver::term::Term;
 use crate::systems::{CleaveSchedule, install};
 use bevy_ecs::message::message_update_system;
 use bevy_ecs::prelude::*;
@@ -100,6 +102,37 @@ impl Simulation {
     /// (see [`recluster`]); returns the new cluster entities.
     pub fn recluster(&mut self, body: Entity) -> Result<Vec<Entity>> {
         recluster(&mut self.world, body)
+    }
+
+    /// Attaches `body`'s live particles `particles` (body-local) where they are now, each
+    /// by a spring of `compliance` (m/N; 0: hard, a pin), to a target at their centroid;
+    /// returns the attachment. Move it with [`Simulation::move_attachment`]; despawn it to
+    /// let go.
+    pub fn attach(&mut self, body: Entity, particles: &[u32], compliance: f32) -> Result<Entity> {
+        crate::ecs::attach::attach(&mut self.world, body, particles, compliance)
+    }
+
+    /// Sets where attachment `attachment` pulls at the end of the next frame (its target
+    /// moves there over the frame).
+    pub fn move_attachment(&mut self, attachment: Entity, pose: Pose) -> Result<()> {
+        let mut target = self
+            .world
+            .get_mut::<AttachmentTarget>(attachment)
+            .ok_or_else(|| {
+                CleaveError::InvalidEntity(format!("{attachment} is not an attachment"))
+            })?;
+        target.pose = pose;
+        Ok(())
+    }
+
+    /// Adds a term of your own to the solver, after the built-in ones: it is solved with
+    /// them under every scheme (see [`crate::solver::term`]). Not saved: add it again
+    /// after [`Simulation::load`].
+    pub fn add_term(&mut self, term: impl Term) {
+        let mut cache = self.world.resource_mut::<SolverCache>();
+        cache.solver.terms.register(term);
+        // every term hears of the bodies again at the next frame, the new one with them
+        cache.pending_topology.get_or_insert_default().relaid = true;
     }
 
     /// Every body entity, in entity order.
