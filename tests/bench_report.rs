@@ -56,6 +56,26 @@ fn bench_json_has_one_consistent_line_per_size() {
     assert!(inside > 0.0 && inside < step, "{pile}");
     let share = inside / (step - inside);
     assert!((share - number("contact_share")).abs() < 1e-9 * share);
+    // before it, the edge row: the largest size with edge constraints
+    let edges = lines.pop().expect("an edge row");
+    assert_eq!(edges["row"], "edges");
+    let number = |key: &str| {
+        edges[key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("missing or non-numeric `{key}` in {edges}"))
+    };
+    assert_eq!(number("size"), 8.0);
+    // the live edges of an 8³ box
+    assert_eq!(number("edges"), 3.0 * 8.0 * 8.0 * 7.0);
+    let ns = number("edge_ms_per_step") * 1e6 / (number("edges") * number("iterations"));
+    assert!(
+        ns > 0.0 && (ns - number("ns_per_edge_iteration")).abs() < 1e-6 * ns,
+        "{edges}"
+    );
+    assert!(
+        number("edge_ms_per_step") < number("ms_per_step"),
+        "{edges}"
+    );
     assert_eq!(lines.len(), 2);
     // ascending sizes
     assert_eq!(lines[0]["size"], 6);
@@ -99,6 +119,28 @@ fn bench_json_has_one_consistent_line_per_size() {
             );
             assert!(frame >= event, "{mode}: {row}");
         }
+        // every part of the solve, timed by name: the clusters and each registered term
+        let kinds: Vec<(&str, f64)> = row["kinds"]
+            .as_array()
+            .unwrap_or_else(|| panic!("no kinds in {row}"))
+            .iter()
+            .map(|k| {
+                (
+                    k["name"].as_str().unwrap(),
+                    k["ms_per_step"].as_f64().unwrap(),
+                )
+            })
+            .collect();
+        let names: Vec<&str> = kinds.iter().map(|k| k.0).collect();
+        assert_eq!(
+            names,
+            ["clusters", "attachments", "edges", "contacts", "colliders"]
+        );
+        assert!(
+            kinds[0].1 > 0.0 && kinds[0].1 < number("ms_per_step"),
+            "{row}"
+        );
+        assert!(kinds.iter().all(|k| k.1 >= 0.0), "{row}");
         // the cut is patched into the solver layout, not rebuilt
         assert_eq!(
             row["relayout_patched"],

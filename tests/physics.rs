@@ -186,6 +186,12 @@ fn bit_identical_across_thread_counts_and_runs() {
         assert!(one == two, "{solver:?}: 1 vs 2 threads differ");
         assert!(two == again, "{solver:?}: two runs differ");
     }
+    // with attachments and edge constraints (in projective dynamics' matrix, too)
+    for solver in SolverMode::ALL {
+        let one = run_scene_bits("soft_beam", 20, 1, solver);
+        let two = run_scene_bits("soft_beam", 20, 2, solver);
+        assert!(one == two, "soft_beam {solver:?}: 1 vs 2 threads differ");
+    }
 }
 
 #[test]

@@ -30,6 +30,17 @@ fn drop_rests_on_the_ground_undeformed() {
 }
 
 #[test]
+fn soft_beam_hangs_like_a_chain_with_its_edges_barely_stretched() {
+    let (s, dump) = run("soft_beam", None);
+    let body = &s["bodies"][0];
+    assert!(f(&body["tip_drop_h_end"]) >= 5.0, "{body}");
+    assert!(f(&body["after"]["max_edge_strain"]) < 0.01, "{body}");
+    // the pins held
+    assert_eq!(f(&body["pinned_max_displacement_h"]), 0.0, "{body}");
+    assert_eq!(check_dump(&dump), 1);
+}
+
+#[test]
 fn cantilever_stiffness_belongs_to_the_material_not_the_solver_settings() {
     // the corners of substeps {2, 4, 8} × iterations {5, 10, 20} (the sag is monotone
     // in each between them)

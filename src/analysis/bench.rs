@@ -19,6 +19,7 @@ use crate::solver::solve::Solver;
 use crate::solver::term::Substep;
 use crate::solver::terms::colliders::Colliders;
 use crate::solver::terms::contacts::Contacts;
+use crate::solver::terms::edges::Edges;
 use crate::systems::layout_sync::rebuild_cache;
 use bevy_ecs::prelude::Entity;
 use glam::{Quat, UVec3, Vec3};
@@ -129,6 +130,59 @@ pub struct PileRow {
     pub contact_share: f64,
     /// What contacts add, per particle (all of them) and solver iteration, ns.
     pub contact_ns_per_particle_iteration: f64,
+}
+
+/// The edge row of the bench: an n³ box whose material has edge distance constraints,
+/// stepped as a size row is.
+#[derive(Clone, Debug, Serialize)]
+pub struct EdgeRow {
+    /// Always `"edges"` (tells this row from the others in JSON lines).
+    pub row: &'static str,
+    /// Edge length of the box in particles.
+    pub size: u32,
+    /// Particles.
+    pub particles: usize,
+    /// Edge constraints (live lattice edges).
+    pub edges: usize,
+    /// Solver iterations per step (substeps × iterations).
+    pub iterations: u32,
+    /// Median wall time of one engine step, ms.
+    pub ms_per_step: f64,
+    /// Mean time the edge term took per step, ms.
+    pub edge_ms_per_step: f64,
+    /// `edge_ms_per_step / (edges × iterations)`, ns.
+    pub ns_per_edge_iteration: f64,
+}
+
+/// Steps an n³ box with edge constraints (`edge_compliance` 1e-7) `steps` times after
+/// three warm-up steps, and times the edge term.
+pub fn bench_edges(n: u32, steps: usize, config: &SimConfig) -> Result<EdgeRow> {
+    let mut sim = Simulation::new(config.clone())?;
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(n), H), H);
+    desc.position = Vec3::new(0.0, n as f32 * H * 0.5 + 0.05, 0.0);
+    desc.material.edge_compliance = Some(1e-7);
+    sim.spawn_body(&desc)?;
+    for _ in 0..3 {
+        sim.step();
+    }
+    let before = kind_seconds(&sim, "edges");
+    let mut samples: Vec<f64> = (0..steps.max(1))
+        .map(|_| time_ms(1, || sim.step()))
+        .collect();
+    let edge_ms_per_step = (kind_seconds(&sim, "edges") - before) * 1e3 / steps.max(1) as f64;
+    let cache = sim.world().resource::<SolverCache>();
+    let edges = cache.solver.terms.get::<Edges>().map_or(0, |e| e.len());
+    let iterations = config.substeps * config.iterations;
+    Ok(EdgeRow {
+        row: "edges",
+        size: n,
+        particles: cache.particles.len(),
+        edges,
+        iterations,
+        ms_per_step: median(&mut samples),
+        edge_ms_per_step,
+        ns_per_edge_iteration: edge_ms_per_step * 1e6 / (edges as f64 * iterations as f64),
+    })
 }
 
 /// Runs the `pile` scene at `spacing` for `frames` frames twice, with and without

@@ -114,3 +114,20 @@ impl StageProfile {
         out
     }
 }
+
+/// The parts of the solver's time (seconds each, as
+/// [`crate::solver::solve::Solver::seconds`] gives them) as rows of the profile table:
+/// `shape-match: NAME`, total ms and ms per frame over `frames` frames.
+pub fn solver_table(parts: &[(&'static str, f64)], frames: u32) -> String {
+    let mut out = String::new();
+    for (name, seconds) in parts {
+        let ms = seconds * 1e3;
+        let _ = writeln!(
+            out,
+            "{:<26} {ms:>10.2} {:>12.4}",
+            format!("  shape-match: {name}"),
+            ms / frames.max(1) as f64
+        );
+    }
+    out
+}

@@ -1,6 +1,8 @@
 //! `cleave bench`: the report of [`cleave::analysis::bench`] as a table or as JSON lines.
 
-use cleave::analysis::bench::{ConvergenceOptions, bench_pile, bench_size, convergence};
+use cleave::analysis::bench::{
+    ConvergenceOptions, bench_edges, bench_pile, bench_size, convergence,
+};
 use cleave::config::SimConfig;
 
 /// The contact row: the `pile` scene at this spacing (or none).
@@ -13,13 +15,15 @@ pub struct PileOptions {
 }
 
 /// Benchmarks every size (ascending, so peak memory belongs to the current size), then
-/// the pile with and without contacts.
+/// edge constraints on the largest size (unless `no_edges`), then the pile with and
+/// without contacts.
 pub fn bench(
     sizes: &[u32],
     steps: usize,
     config: SimConfig,
     json: bool,
     pile: PileOptions,
+    no_edges: bool,
 ) -> Result<(), String> {
     if let Some(h) = pile.spacing
         && !(h.is_finite() && (0.02..=0.5).contains(&h))
@@ -72,7 +76,7 @@ pub fn bench(
             "rebuild"
         );
     }
-    for n in sizes {
+    for &n in &sizes {
         let row = bench_size(n, steps, &config).map_err(|e| e.to_string())?;
         if json {
             print_json(&row)?;
@@ -99,6 +103,28 @@ pub fn bench(
                 row.relayout_ms,
                 if row.relayout_patched { "p" } else { "r" },
                 row.rebuild_ms
+            );
+            let kinds: Vec<String> = row
+                .kinds
+                .iter()
+                .map(|k| format!("{} {:.3}", k.name, k.ms_per_step))
+                .collect();
+            println!("      ms/step by part: {}", kinds.join(", "));
+        }
+    }
+    if let (false, Some(&n)) = (no_edges, sizes.last()) {
+        let row = bench_edges(n, steps, &config).map_err(|e| e.to_string())?;
+        if json {
+            print_json(&row)?;
+        } else {
+            println!(
+                "edges: {}³ box, {} edge constraints; {:.3} ms/step, edges {:.3} ms/step, \
+                 {:.2} ns per edge-iteration",
+                row.size,
+                row.edges,
+                row.ms_per_step,
+                row.edge_ms_per_step,
+                row.ns_per_edge_iteration
             );
         }
     }

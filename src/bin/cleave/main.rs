@@ -168,6 +168,9 @@ enum Command {
         /// Skip the contact row.
         #[arg(long)]
         no_pile: bool,
+        /// Skip the edge-constraint row (a box of the largest size with edge constraints).
+        #[arg(long)]
+        no_edges: bool,
     },
 }
 
@@ -326,6 +329,7 @@ fn main() -> ExitCode {
             pile_spacing,
             pile_frames,
             no_pile,
+            no_edges,
         } => with_threads(threads, |_| {
             let config = SimConfig {
                 solver,
@@ -345,7 +349,7 @@ fn main() -> ExitCode {
                 spacing: (!no_pile).then_some(pile_spacing),
                 frames: pile_frames,
             };
-            bench::bench(&sizes, steps, config, json, pile)
+            bench::bench(&sizes, steps, config, json, pile, no_edges)
         }),
     };
     match result {

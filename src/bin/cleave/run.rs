@@ -5,7 +5,7 @@ use crate::pictures::{PictureOptions, Pictures};
 use crate::summary::*;
 use bevy_ecs::prelude::*;
 use cleave::analysis::bench::median;
-use cleave::analysis::profile::StageProfile;
+use cleave::analysis::profile::{StageProfile, solver_table};
 use cleave::analysis::stats::BodyStats;
 use cleave::config::{SimConfig, SolverMode};
 use cleave::cut::tool::CutMode;
@@ -359,6 +359,8 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     }
     if args.profile {
         print!("{}", profile.table(frames));
+        let parts = sim.world().resource::<SolverCache>().solver.seconds();
+        print!("{}", solver_table(&parts, frames));
     }
     if !summary.finite {
         return Err("non-finite particle positions".into());

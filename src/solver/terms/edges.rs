@@ -117,7 +117,9 @@ fn body_edges(body: &crate::solver::term::BodyTopology) -> Option<BodyEdges> {
             edges.colours[2 * axis + parity].push(Edge { a: da, b: db, rest });
         }
     }
-    for (lambda, colour) in edges.lambda.iter_mut().zip(&edges.colours) {
+    for (lambda, colour) in edges.lambda.iter_mut().zip(&mut edges.colours) {
+        // in the particles' dense (spatial) order, so that a sweep walks memory in order
+        colour.sort_unstable_by_key(|e| (e.a, e.b));
         *lambda = vec![0.0; colour.len()];
     }
     Some(edges)
