@@ -12,12 +12,16 @@
 //! connected through the edges — are shape-matching constraints (Müller et al. 2005):
 //! each pulls its members toward the best rigid placement of their rest shape, with the
 //! stiffness of its material, so the body is elastic ([`clusters::clustering`] builds them).
+//! The body's energy is a sum of such terms ([`solver::term`]): the clusters, distance
+//! constraints on the edges, attachments that pin or drag particles, contacts and
+//! colliders — and whatever a user registers.
 //!
 //! ## One frame
 //!
-//! The stages run as ordered ECS systems ([`systems`]): `substeps` times, **predict**
+//! The stages run as ordered ECS systems ([`systems`]): the solver is brought up to date
+//! and the particles' state loaded into its dense arrays; `substeps` times, **predict**
 //! (forces, damping, inertial prediction) and **shape-match** (the solver's iterations
-//! over clusters, contacts and colliders, [`solver`]); then **detect** (read-only: which
+//! over every term, [`solver`]); the state is written back; then **detect** (read-only: which
 //! particles and edges the tools reach, which voxels tear, [`cut::detection`]), **cut**
 //! (particle data only), and **regroup**, **split**, **expand** (cluster data only): the
 //! cut clusters rebuilt by graph algorithms ([`reconstruct`]) so that pieces separate
@@ -49,9 +53,11 @@
 //! # }
 //! ```
 //!
-//! Pure algorithms live in plain modules ([`body::lattice`], [`clusters::clustering`], [`reconstruct`],
-//! [`solver`], [`math::rotation`]); [`systems`] holds the thin ECS stages; [`sim::simulation::Simulation`]
-//! is the headless facade; [`io::save`] writes and resumes a simulation.
+//! The folders are the layers, each importing only those below it: [`util`], [`math`],
+//! [`geometry`], [`body`], [`clusters`], [`cut`], [`reconstruct`], [`solver`] hold pure
+//! algorithms on plain data; [`ecs`] the components and resources, [`systems`] the thin
+//! ECS stages; [`io`] scenes, saves and pictures; [`sim`] the headless facade
+//! ([`sim::simulation::Simulation`]) and the Bevy plugin; [`analysis`] the measurements.
 #![warn(missing_docs)]
 
 pub mod analysis;
