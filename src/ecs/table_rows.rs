@@ -158,8 +158,8 @@ mod tests {
     use bevy_ecs::world::World;
 
     /// Particles of `n` slots and the entity of each slot.
-    fn layout_and_slots(world: &mut World, n: usize) -> (Particles, Vec<Entity>, Vec<u32>) {
-        let layout = Particles::at_rest(&vec![Vec3::ZERO; n]);
+    fn particles_and_slots(world: &mut World, n: usize) -> (Particles, Vec<Entity>, Vec<u32>) {
+        let particles = Particles::at_rest(&vec![Vec3::ZERO; n]);
         let slots: Vec<Entity> = (0..n).map(|_| world.spawn_empty().id()).collect();
         let max = slots
             .iter()
@@ -170,7 +170,7 @@ mod tests {
         for (s, e) in slots.iter().enumerate() {
             slot_of_index[e.index_u32() as usize] = s as u32;
         }
-        (layout, slots, slot_of_index)
+        (particles, slots, slot_of_index)
     }
 
     /// Table columns whose values name the entity they belong to (its index).
@@ -187,7 +187,7 @@ mod tests {
 
     fn load(
         rows: &mut TableRows,
-        layout: &mut Particles,
+        particles: &mut Particles,
         slots: &[Entity],
         map: &[u32],
         table: &[Entity],
@@ -199,16 +199,16 @@ mod tests {
             velocities: &v,
             inv_mass: &m,
         };
-        rows.load(layout, slots, map, columns);
+        rows.load(particles, slots, map, columns);
     }
 
     /// Every slot holds its own entity's values.
-    fn assert_loaded(layout: &Particles, slots: &[Entity]) {
+    fn assert_loaded(particles: &Particles, slots: &[Entity]) {
         for (s, e) in slots.iter().enumerate() {
             let id = e.index_u32() as f32;
-            assert_eq!(layout.positions[s], Vec3A::splat(id), "slot {s}");
-            assert_eq!(layout.velocities[s], Vec3A::new(id, 0.0, -1.0));
-            assert_eq!(layout.inv_mass[s], id + 0.5);
+            assert_eq!(particles.positions[s], Vec3A::splat(id), "slot {s}");
+            assert_eq!(particles.velocities[s], Vec3A::new(id, 0.0, -1.0));
+            assert_eq!(particles.inv_mass[s], id + 0.5);
         }
     }
 
@@ -216,50 +216,50 @@ mod tests {
     fn rows_follow_the_table_through_reorders() {
         let mut world = World::new();
         let n = 3 * CHUNK + 17; // several parallel chunks
-        let (mut layout, slots, map) = layout_and_slots(&mut world, n);
+        let (mut particles, slots, map) = particles_and_slots(&mut world, n);
         let mut rows = TableRows::default();
         // the table in another order than the slots, with a stranger entity in it
         let stranger = world.spawn_empty().id();
         let mut table: Vec<Entity> = slots.iter().rev().copied().collect();
         table.insert(5, stranger);
-        load(&mut rows, &mut layout, &slots, &map, &table);
-        assert_loaded(&layout, &slots);
+        load(&mut rows, &mut particles, &slots, &map, &table);
+        assert_loaded(&particles, &slots);
         // a swap-remove (what a despawn does to a table) moves the last row
         table.swap_remove(9);
         let gone = slots.iter().position(|e| !table.contains(e)).unwrap();
-        layout.positions[gone] = Vec3A::splat(-7.0);
-        load(&mut rows, &mut layout, &slots, &map, &table);
+        particles.positions[gone] = Vec3A::splat(-7.0);
+        load(&mut rows, &mut particles, &slots, &map, &table);
         for (s, e) in slots.iter().enumerate() {
             if s == gone {
                 assert_eq!(
-                    layout.positions[s],
+                    particles.positions[s],
                     Vec3A::splat(-7.0),
                     "a missing particle keeps its state"
                 );
             } else {
-                assert_eq!(layout.positions[s], Vec3A::splat(e.index_u32() as f32));
+                assert_eq!(particles.positions[s], Vec3A::splat(e.index_u32() as f32));
             }
         }
         // rows trading places (same length) are noticed too
         table.swap(0, n / 2);
-        load(&mut rows, &mut layout, &slots, &map, &table);
+        load(&mut rows, &mut particles, &slots, &map, &table);
         let (x, ..) = columns(&table);
         for (row, e) in table.iter().enumerate() {
             if let Some(s) = slots.iter().position(|p| p == e) {
-                assert_eq!(Vec3::from(layout.positions[s]), x[row].0);
+                assert_eq!(Vec3::from(particles.positions[s]), x[row].0);
             }
         }
         // store writes every mapped row's position and velocity from its slot, and
         // leaves the stranger alone
-        layout.positions.iter_mut().for_each(|p| *p *= 2.0);
-        for (s, v) in layout.velocities.iter_mut().enumerate() {
+        particles.positions.iter_mut().for_each(|p| *p *= 2.0);
+        for (s, v) in particles.velocities.iter_mut().enumerate() {
             *v = Vec3A::new(s as f32, 1.0, 0.0);
         }
         let (mut x, mut v, _) = columns(&table);
         let at = table.iter().position(|e| *e == stranger).unwrap();
         x[at] = Position(Vec3::splat(123.0));
         v[at] = Velocity(Vec3::splat(9.0));
-        rows.store(&layout, &mut x, &mut v);
+        rows.store(&particles, &mut x, &mut v);
         for (row, e) in table.iter().enumerate() {
             let (position, velocity) = match slots.iter().position(|p| p == e) {
                 None => (Vec3::splat(123.0), Vec3::splat(9.0)),
@@ -275,37 +275,37 @@ mod tests {
     #[test]
     fn a_particle_entering_in_a_strangers_place_is_found() {
         let mut world = World::new();
-        let (mut layout, slots, map) = layout_and_slots(&mut world, 3);
+        let (mut particles, slots, map) = particles_and_slots(&mut world, 3);
         let mut rows = TableRows::default();
         // slot 1's particle is elsewhere (another table) when the map is built
         let stranger = world.spawn_empty().id();
         let table = vec![slots[0], stranger, slots[2]];
-        load(&mut rows, &mut layout, &slots, &map, &table);
-        layout.positions[1] = Vec3A::splat(-1.0);
+        load(&mut rows, &mut particles, &slots, &map, &table);
+        particles.positions[1] = Vec3A::splat(-1.0);
         // it comes back where the stranger was: same length, mapped rows unmoved
         let table = vec![slots[0], slots[1], slots[2]];
-        load(&mut rows, &mut layout, &slots, &map, &table);
-        assert_loaded(&layout, &slots);
+        load(&mut rows, &mut particles, &slots, &map, &table);
+        assert_loaded(&particles, &slots);
     }
 
     #[test]
     fn a_recycled_entity_index_is_not_taken_for_the_old_particle() {
         let mut world = World::new();
-        let (mut layout, slots, map) = layout_and_slots(&mut world, 4);
+        let (mut particles, slots, map) = particles_and_slots(&mut world, 4);
         let mut rows = TableRows::default();
-        load(&mut rows, &mut layout, &slots, &map, &slots);
-        assert_loaded(&layout, &slots);
+        load(&mut rows, &mut particles, &slots, &map, &slots);
+        assert_loaded(&particles, &slots);
         // slot 2's entity is despawned; a new entity reuses its index
         let old = slots[2];
         let reused =
             Entity::from_index_and_generation(old.index(), old.generation().after_versions(1));
         assert_ne!(reused, old);
         let table = vec![slots[0], slots[1], reused, slots[3]];
-        layout.positions[2] = Vec3A::splat(-1.0);
-        load(&mut rows, &mut layout, &slots, &map, &table);
-        assert_eq!(layout.positions[2], Vec3A::splat(-1.0));
+        particles.positions[2] = Vec3A::splat(-1.0);
+        load(&mut rows, &mut particles, &slots, &map, &table);
+        assert_eq!(particles.positions[2], Vec3A::splat(-1.0));
         let (mut x, mut v, _) = columns(&table);
-        rows.store(&layout, &mut x, &mut v);
+        rows.store(&particles, &mut x, &mut v);
         assert_eq!(
             x[2].0,
             Vec3::splat(reused.index_u32() as f32),

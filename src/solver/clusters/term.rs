@@ -71,7 +71,7 @@ pub(in crate::solver) fn weighted_by_count(mode: SolverMode) -> bool {
 /// a little; projective dynamics' global step corrects every mode at once, so it takes
 /// the whole correction.
 fn warm_start_weight(anchor: f32, iterations: u32, global: bool) -> f32 {
-    if global && std::env::var("PDW").is_err() {
+    if global {
         return 1.0;
     }
     if anchor == 0.0 {
@@ -366,21 +366,6 @@ impl ClusterTerm {
         self.member_particle.len() - self.garbage
     }
 
-    /// Number of cluster colours.
-    pub fn colour_count(&self) -> usize {
-        self.colour_of
-            .iter()
-            .filter(|c| **c != FREE_SLOT)
-            .map(|c| *c as usize + 1)
-            .max()
-            .unwrap_or(0)
-    }
-
-    /// Whether any cluster is compliant.
-    pub fn compliant(&self) -> bool {
-        self.compliant
-    }
-
     /// Warm-start rotation of every cluster slot (free slots included).
     pub fn rotations(&self) -> &[Quat] {
         &self.rotations
@@ -409,52 +394,58 @@ impl ClusterTerm {
         }
         let inv_dt2 = 1.0 / (dt * dt);
         let n = positions.len();
-        self.step_scale.resize(n, 0.0);
-        self.anchor.resize(n, 0.0);
-        let coefficients = self
-            .inv_count
-            .par_iter()
-            .zip(&self.particle_compliance)
-            .zip(inv_mass)
-            .zip(self.step_scale.par_iter_mut().zip(&mut self.anchor))
-            .with_min_len(PARTICLES_PER_TASK);
-        coefficients.for_each(
-            |(((&inv_count, &compliance), &inv_mass), (scale, anchor))| {
-                (*scale, *anchor) = step_coefficients(
-                    inv_count,
-                    compliance * inv_dt2 / inv_mass.max(f32::MIN_POSITIVE),
-                    inv_mass,
-                );
-            },
-        );
-        let weight = |i: usize| {
-            let (inv_mass, carry) = (inv_mass[i], self.carry[i]);
-            // (a particle held still, or a carry a repaired particle left, starts afresh)
-            if inv_mass == 0.0 || !carry.is_finite() {
-                0.0
-            } else {
-                warm_start_weight(self.anchor[i], iterations, global)
-            }
-        };
-        let mut weights = std::mem::take(&mut self.warm_weight);
-        weights.resize(n, 0.0);
-        weights
-            .par_iter_mut()
-            .enumerate()
-            .with_min_len(PARTICLES_PER_TASK)
-            .for_each(|(i, w)| *w = weight(i));
+        for scratch in [
+            &mut self.step_scale,
+            &mut self.anchor,
+            &mut self.warm_weight,
+        ] {
+            scratch.resize(n, 0.0);
+        }
+        let (inv_count, compliance) = (&self.inv_count, &self.particle_compliance);
+        // one pass: each particle's step coefficients, its warm-start weight, and its
+        // start at the prediction plus the weighted carry
         positions
-            .par_iter_mut()
-            .zip(self.carry.par_iter_mut())
-            .zip(corrections.par_iter_mut())
-            .zip(weights.par_iter())
-            .with_min_len(PARTICLES_PER_TASK)
-            .for_each(|(((p, carry), correction), &weight)| {
-                *carry *= weight;
-                *p += *carry;
-                *correction = Vec3A::ZERO;
-            });
-        self.warm_weight = weights;
+            .par_chunks_mut(PARTICLES_PER_TASK)
+            .zip(self.carry.par_chunks_mut(PARTICLES_PER_TASK))
+            .zip(corrections.par_chunks_mut(PARTICLES_PER_TASK))
+            .zip(self.step_scale.par_chunks_mut(PARTICLES_PER_TASK))
+            .zip(self.anchor.par_chunks_mut(PARTICLES_PER_TASK))
+            .zip(self.warm_weight.par_chunks_mut(PARTICLES_PER_TASK))
+            .enumerate()
+            .for_each(
+                |(task, (((((p, carry), correction), scale), anchor), weight))| {
+                    let range = task * PARTICLES_PER_TASK..task * PARTICLES_PER_TASK + p.len();
+                    let read = inv_count[range.clone()]
+                        .iter()
+                        .zip(&compliance[range.clone()])
+                        .zip(&inv_mass[range]);
+                    let write = p
+                        .iter_mut()
+                        .zip(carry)
+                        .zip(correction)
+                        .zip(scale.iter_mut().zip(anchor).zip(weight));
+                    for (((&inv_count, &compliance), &inv_mass), (((p, carry), correction), s)) in
+                        read.zip(write)
+                    {
+                        let ((scale, anchor), weight) = s;
+                        (*scale, *anchor) = step_coefficients(
+                            inv_count,
+                            compliance * inv_dt2 / inv_mass.max(f32::MIN_POSITIVE),
+                            inv_mass,
+                        );
+                        // (a particle held still, or a carry a repaired particle left, starts
+                        // afresh)
+                        *weight = if inv_mass == 0.0 || !carry.is_finite() {
+                            0.0
+                        } else {
+                            warm_start_weight(*anchor, iterations, global)
+                        };
+                        *carry *= *weight;
+                        *p += *carry;
+                        *correction = Vec3A::ZERO;
+                    }
+                },
+            );
     }
 
     /// Recomputes each particle's mean cluster compliance from the current clusters;

@@ -78,11 +78,6 @@ impl Attachments {
         self.resolve(topology);
     }
 
-    /// The attachments, in the order they were set.
-    pub fn list(&self) -> &[Attachment] {
-        &self.list
-    }
-
     /// Moves attachment `i` from pose `from` (the frame's start) to `to` (its end).
     pub fn set_poses(&mut self, i: usize, from: Pose, to: Pose) {
         if let Some(a) = self.list.get_mut(i) {
