@@ -14,7 +14,7 @@ use rand_chacha::ChaCha8Rng;
 
 /// A body and its clusters before the cut, the slab of particles to cut, and the cut lattice.
 fn prepared(n: u32) -> (Lattice, ClusterTable, Vec<u32>, Lattice) {
-    let lattice = Shape::cuboid(UVec3::splat(n), 1.0).voxelise(1.0).unwrap();
+    let lattice = Shape::cuboid(UVec3::splat(n)).voxelise(1.0).unwrap();
     let table = initial_clusters(
         &lattice,
         &Material::default(),

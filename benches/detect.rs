@@ -16,7 +16,7 @@ const H: f32 = 0.1;
 
 fn detect(c: &mut Criterion) {
     let n = 64;
-    let lattice = Shape::cuboid(UVec3::splat(n), H).voxelise(H).unwrap();
+    let lattice = Shape::cuboid(UVec3::splat(n)).voxelise(H).unwrap();
     // the solver layout's order: Morton order of the lattice
     let positions: Vec<Vec3A> = lattice
         .live_in_morton_order()

@@ -12,7 +12,7 @@ fn step(c: &mut Criterion) {
     for n in [16u32, 32, 48] {
         let config = SimConfig::default();
         let mut sim = Simulation::new(config.clone()).unwrap();
-        let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(n), 0.1), 0.1);
+        let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(n)), 0.1);
         desc.position = Vec3::new(0.0, n as f32 * 0.05 + 0.2, 0.0);
         sim.spawn_body(&desc).unwrap();
         sim.step();

@@ -217,8 +217,10 @@ pub struct Material {
     pub max_cluster_size: u32,
     /// Particles added to each part of a split cluster by the expand stage.
     pub expand_count: u32,
-    /// Radius of each particle's contact ball; `None`: half the lattice spacing, so
-    /// that neighbouring balls touch.
+    /// Radius of each particle's contact ball, with which it meets other particles, the
+    /// ground and colliders; `None`: half the lattice spacing, so that neighbouring balls
+    /// touch and a body rests on the ground with its lowest particle centres half a
+    /// spacing above it.
     pub contact_radius: Option<f32>,
     /// Static friction coefficient of particle contacts (≥ 0).
     pub static_friction: f32,
@@ -268,6 +270,41 @@ impl Default for Material {
 }
 
 impl Material {
+    /// Rigid: every cluster keeps its rest shape (compliance 0), density 1000 kg/m³ —
+    /// pieces that move as stones do.
+    pub fn rigid() -> Self {
+        Self {
+            compliance: 0.0,
+            ..Self::default()
+        }
+    }
+
+    /// Rubber: Young's modulus 1 MPa (compliance 1e-6 1/Pa), density 1100 kg/m³ — a
+    /// block squashes as it lands and springs back. The default.
+    pub fn rubber() -> Self {
+        Self {
+            compliance: 1e-6,
+            density: 1100.0,
+            ..Self::default()
+        }
+    }
+
+    /// Gel: Young's modulus 30 kPa (compliance 3.3e-5 1/Pa), density 1000 kg/m³ — it
+    /// wobbles and sags under its own weight.
+    pub fn gel() -> Self {
+        Self {
+            compliance: 3.3e-5,
+            density: 1000.0,
+            ..Self::default()
+        }
+    }
+
+    /// The contact radius of a particle of a lattice with this spacing (see
+    /// [`Material::contact_radius`]).
+    pub fn contact_radius_at(&self, spacing: f32) -> f32 {
+        self.contact_radius.unwrap_or(0.5 * spacing)
+    }
+
     /// The mass of one particle of a lattice with this spacing (metres).
     pub fn mass_at_spacing(&self, spacing: f32) -> f32 {
         self.particle_mass

@@ -76,6 +76,17 @@ pub enum CleaveError {
     Save(String),
 }
 
+impl CleaveError {
+    /// `entity` is not `what` (with its article: "a body") of this world: despawned,
+    /// something else, or an entity of another world (one from before a load names
+    /// nothing after it).
+    pub fn not_a(what: impl std::fmt::Display, entity: bevy_ecs::entity::Entity) -> Self {
+        CleaveError::InvalidEntity(format!(
+            "{entity} is not {what} of this simulation (despawned, or an entity from before a load: map it with Simulation::loaded_entity)"
+        ))
+    }
+}
+
 /// Short alias used across the crate.
 pub type Result<T> = std::result::Result<T, CleaveError>;
 

@@ -34,7 +34,7 @@
 //!
 //! # fn main() -> cleave::error::Result<()> {
 //! let mut sim = Simulation::new(SimConfig::default())?;
-//! let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(12, 6, 6), 0.1), 0.1);
+//! let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(12, 6, 6)), 0.1);
 //! desc.position = Vec3::new(0.0, 0.5, 0.0);
 //! let body = sim.spawn_body(&desc)?;
 //! // a blade through the middle, moving down
@@ -81,10 +81,17 @@ pub mod util;
 /// depend on a matching version themselves.
 pub use glam;
 
-/// The bevy_ecs version cleave's systems and components use.
+/// The bevy_ecs version cleave's systems and components use. Its derive macros
+/// (`#[derive(Component)]`, `#[derive(Resource)]`) name the `bevy_ecs` crate, so a crate
+/// deriving its own components depends on `bevy_ecs` directly, at this version.
 pub use bevy_ecs;
 
-/// The types most users need.
+/// The bevy_app version [`sim::plugin::CleavePlugin`] plugs into.
+#[cfg(feature = "bevy_app")]
+pub use bevy_app;
+
+/// The types most users need. It names no `Result` (cleave's is
+/// [`error::Result`]), so it can be glob-imported beside bevy's prelude.
 pub mod prelude {
     pub use crate::body::shape::{SdfShape, Shape};
     pub use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
@@ -97,11 +104,14 @@ pub mod prelude {
     pub use crate::ecs::resources::{
         BodySplit, ClustersRebuilt, EdgesSevered, ParticlesCut, ParticlesRepaired,
     };
-    pub use crate::error::{CleaveError, Result};
+    pub use crate::error::CleaveError;
     pub use crate::geometry::collider::ColliderShape;
+    #[cfg(feature = "bevy_app")]
+    pub use crate::sim::plugin::{CleaveFrame, CleavePlugin};
     pub use crate::sim::simulation::Simulation;
     pub use crate::systems::{CleaveSchedule, SimStage, SubstepSchedule, SyncSchedule, install};
-    pub use bevy_ecs::message::MessageReader;
+    pub use bevy_ecs::entity::Entity;
+    pub use bevy_ecs::message::{MessageReader, Messages};
     pub use glam::{Quat, UVec3, Vec3};
 }
 

@@ -12,8 +12,11 @@
 //! 4. [`SimStage::Substeps`]: an exclusive system that runs [`SubstepSchedule`] —
 //!    predict → shape-match — `substeps` times;
 //! 5. [`SimStage::Store`]: the particles' state written back to their components;
-//! 6. `MoveTools → Detect → Cut → Regroup → Split → Expand`, then the optional invariant
-//!    check ([`SimStage::Verify`]).
+//! 6. `MoveTools → Detect → Cut → Regroup → Split → Expand`;
+//! 7. [`SimStage::Settle`]: where tools, colliders and attachment targets ended the
+//!    frame becomes where the next frame moves them from (so a pose game code writes
+//!    between frames is swept like a keyframed one); then the optional invariant check
+//!    ([`SimStage::Verify`]).
 //!
 //! Access contract (tested in `tests/schedule_access.rs`): predict and shape-match write
 //! particle data only; detect writes only its `CutList`; cut writes no cluster data;
@@ -30,6 +33,7 @@ pub mod move_colliders;
 pub mod move_tools;
 pub mod predict;
 pub mod regroup;
+pub mod settle_poses;
 pub mod shape_match;
 pub mod split;
 pub mod store;
@@ -73,6 +77,9 @@ pub enum SimStage {
     Split,
     /// Reconstruction steps 3 and 4.
     Expand,
+    /// The poses tools, colliders and attachment targets reached become the next
+    /// frame's start.
+    Settle,
     /// Optional invariant check (debug / tests).
     Verify,
 }
@@ -141,6 +148,7 @@ pub fn build_schedule() -> Schedule {
             SimStage::Regroup,
             SimStage::Split,
             SimStage::Expand,
+            SimStage::Settle,
             SimStage::Verify,
         )
             .chain(),
@@ -156,6 +164,7 @@ pub fn build_schedule() -> Schedule {
     s.add_systems(regroup::regroup.in_set(SimStage::Regroup));
     s.add_systems(split::split.in_set(SimStage::Split));
     s.add_systems(expand::expand.in_set(SimStage::Expand));
+    s.add_systems(settle_poses::settle_poses.in_set(SimStage::Settle));
     s.add_systems(
         verify
             .in_set(SimStage::Verify)

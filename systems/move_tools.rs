@@ -1,16 +1,15 @@
-//! Advances keyframed tools: the last pose becomes the previous one, the path gives the
-//! new one. Tools without a path keep whatever game code wrote (and the last pose follows).
+//! Advances keyframed tools: the path gives the pose at the frame's end. A tool without
+//! a path keeps whatever game code wrote; either way detection sweeps it from where the
+//! last frame left it ([`super::settle_poses`]).
 
 use crate::ecs::components::{ToolPath, ToolPose};
 use crate::ecs::resources::SimClock;
 use bevy_ecs::prelude::*;
 
-/// Updates every tool pose for this frame. Writes tool data only.
-pub fn move_tools(clock: Res<SimClock>, mut tools: Query<(&mut ToolPose, Option<&ToolPath>)>) {
+/// Updates every keyframed tool's pose for this frame. Writes tool data only.
+pub fn move_tools(clock: Res<SimClock>, mut tools: Query<(&mut ToolPose, &ToolPath)>) {
     for (mut pose, path) in &mut tools {
-        let now = pose.current;
-        pose.last = now;
-        if let Some(p) = path.and_then(|p| p.0.sample(clock.time as f32)) {
+        if let Some(p) = path.0.sample(clock.time as f32) {
             pose.current = p;
         }
     }

@@ -28,7 +28,7 @@ pub fn shape_match(
     let cache = &mut *cache;
     let repaired = repair_non_finite(cache, &bodies);
     if let Some(term) = cache.solver.terms.get_mut::<Colliders>() {
-        *term = substep_colliders(config, &substep, &colliders);
+        term.place(substep_colliders(config, &substep, &colliders));
     }
     let count = substep.count.max(1) as f32;
     let step = Substep {

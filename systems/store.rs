@@ -1,9 +1,8 @@
 //! Stage store (after the substeps): writes the solved positions and velocities from the
-//! solver's dense arrays back into the particles' components, and records where each
-//! attachment's target ended the frame (the next frame moves it on from there). Writes
-//! particle data and attachment targets only.
+//! solver's dense arrays back into the particles' components. Writes particle data
+//! only.
 
-use crate::ecs::components::{AttachmentTarget, Position, Velocity};
+use crate::ecs::components::{Position, Velocity};
 use crate::ecs::resources::SolverCache;
 use bevy_ecs::prelude::*;
 use glam::Vec3;
@@ -12,11 +11,7 @@ use glam::Vec3;
 pub fn store_particles(
     cache: Res<SolverCache>,
     mut particles: Query<(Entity, &mut Position, &mut Velocity)>,
-    mut targets: Query<&mut AttachmentTarget>,
 ) {
-    for mut target in &mut targets {
-        target.reached = target.pose;
-    }
     let one_table = particles
         .contiguous_iter()
         .expect("particle components are stored in tables")

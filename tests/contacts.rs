@@ -68,7 +68,7 @@ fn a_body_at_100_m_per_s_stops_outside_a_06_m_box() -> cleave::error::Result<()>
         pose,
         path: Path::default(),
     })?;
-    let mut body = BodyDesc::new(Shape::cuboid(UVec3::splat(4), H), H);
+    let mut body = BodyDesc::new(Shape::cuboid(UVec3::splat(4)), H);
     body.velocity = Vec3::new(100.0, 0.0, 0.0);
     let body = sim.spawn_body(&body)?;
     // one substep moves the body 0.83 m: more than the box is deep
@@ -84,31 +84,51 @@ fn a_body_at_100_m_per_s_stops_outside_a_06_m_box() -> cleave::error::Result<()>
     Ok(())
 }
 
-#[test]
-fn a_plate_at_20_m_per_s_pushes_a_body_instead_of_passing_through() -> cleave::error::Result<()> {
+/// A thin plate swept at 20 m/s from x = −1 to 1 in 0.1 s into a resting block, moved by
+/// its keyframed path or, with `by_code`, by game code setting the path's pose before
+/// each frame; the block's positions after 12 frames.
+fn plate_push(by_code: bool) -> cleave::error::Result<Vec<Vec3>> {
     let mut sim = Simulation::new(SimConfig::default())?;
     let plate = ColliderShape::Box {
         half_extents: Vec3::new(0.02, 1.0, 1.0),
     };
     let at = |x: f32| Pose::at(Vec3::new(x, 0.5, 0.0));
-    sim.spawn_collider(&ColliderDesc {
+    let path = Path {
+        keys: vec![(0.0, at(-1.0)), (0.1, at(1.0))],
+    };
+    let collider = sim.spawn_collider(&ColliderDesc {
         shape: plate,
         friction: 0.2,
         pose: at(-1.0),
-        path: Path {
-            keys: vec![(0.0, at(-1.0)), (0.1, at(1.0))],
+        path: if by_code {
+            Path::default()
+        } else {
+            path.clone()
         },
     })?;
-    let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(4, 4, 4), H), H);
+    let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(4, 4, 4)), H);
     body.position = Vec3::new(0.0, 0.16, 0.0);
     let body = sim.spawn_body(&body)?;
-    for _ in 0..12 {
+    let dt = sim.config().dt;
+    for frame in 0..12 {
+        if by_code {
+            let end = path.sample((frame + 1) as f32 * dt).expect("a path");
+            sim.set_collider_pose(collider, end)?;
+        }
         sim.step();
     }
+    Ok(positions(&mut sim, &[body]).remove(0))
+}
+
+#[test]
+fn a_plate_at_20_m_per_s_pushes_a_body_instead_of_passing_through() -> cleave::error::Result<()> {
+    let keyframed = plate_push(false)?;
     // the plate stopped at x = 1 (front face 1.02): every particle is in front of it
-    for p in &positions(&mut sim, &[body])[0] {
+    for p in &keyframed {
         assert!(p.x > 1.02 - 1e-3, "{p} is behind the plate");
     }
+    // moved by game code frame by frame, it sweeps the same way
+    assert_eq!(plate_push(true)?, keyframed);
     Ok(())
 }
 
@@ -146,7 +166,7 @@ fn bodies_rest_on_and_do_not_tunnel_into_a_mesh_collider() -> cleave::error::Res
         path: Path::default(),
     })?;
     // one dropped gently on top, one thrown at it at 60 m/s
-    let mut gentle = BodyDesc::new(Shape::cuboid(UVec3::splat(4), H), H);
+    let mut gentle = BodyDesc::new(Shape::cuboid(UVec3::splat(4)), H);
     gentle.position = Vec3::new(0.05, 1.3, 0.0);
     let mut thrown = gentle.clone();
     thrown.position = Vec3::new(-3.0, 0.35, 0.1);
@@ -191,8 +211,9 @@ fn overlapping_spawns_are_resolved_without_an_explosion() -> cleave::error::Resu
     let mut sim = Simulation::new(SimConfig::default())?;
     // a, b: faces 0.04 apart (their balls overlap by 60 %); c: two thirds inside a
     // collider box; d, e: lattices interleaved half a layer deep (faces crossed)
-    let mut a = BodyDesc::new(Shape::cuboid(UVec3::splat(6), H), H);
-    a.position = Vec3::new(0.0, 0.26, 0.0);
+    let mut a = BodyDesc::new(Shape::cuboid(UVec3::splat(6)), H);
+    // resting on the ground on its contact balls (its lowest centres 0.05 up)
+    a.position = Vec3::new(0.0, 0.3, 0.0);
     let at = |x: f32, z: f32| {
         let mut d = a.clone();
         d.position += Vec3::new(x, 0.0, z);

@@ -18,7 +18,7 @@ use rand_chacha::ChaCha8Rng;
 
 fn shape_strategy() -> impl Strategy<Value = Shape> {
     prop_oneof![
-        (2u32..9, 1u32..7, 1u32..7).prop_map(|(x, y, z)| Shape::cuboid(UVec3::new(x, y, z), 1.0)),
+        (2u32..9, 1u32..7, 1u32..7).prop_map(|(x, y, z)| Shape::cuboid(UVec3::new(x, y, z))),
         (1.0f32..4.5).prop_map(|radius| Shape::Sphere { radius }),
         (1.0f32..2.5, 0.0f32..3.0).prop_map(|(radius, half_length)| Shape::Capsule {
             radius,
@@ -187,7 +187,7 @@ fn run_ecs_case(
     };
     let mut sim = Simulation::new(config).unwrap();
     let h = 0.1;
-    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(cells.0, cells.1, cells.2), h), h);
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(cells.0, cells.1, cells.2)), h);
     desc.position = Vec3::new(0.0, 0.5, 0.0);
     desc.material.max_cluster_size = 30;
     desc.material.compliance = if seed & 4 == 0 { 0.0 } else { 1e-6 };
@@ -298,9 +298,7 @@ fn ecs_cuts_keep_invariants_in(mode: CutMode) {
 #[test]
 fn a_block_stays_legal_through_three_hundred_cuts() {
     use rand::Rng as _;
-    let mut lattice = Shape::cuboid(UVec3::new(24, 12, 12), 1.0)
-        .voxelise(1.0)
-        .unwrap();
+    let mut lattice = Shape::cuboid(UVec3::new(24, 12, 12)).voxelise(1.0).unwrap();
     let material = Material::default();
     let mut rng = ChaCha8Rng::seed_from_u64(300);
     let mut table = initial_clusters(&lattice, &material, &mut rng);
@@ -351,7 +349,7 @@ fn a_cut_that_removes_everything_leaves_a_legal_empty_body() {
         ..SimConfig::default()
     })
     .unwrap();
-    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(4, 4, 4), 0.1), 0.1);
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(4, 4, 4)), 0.1);
     desc.position = Vec3::new(0.0, 1.0, 0.0);
     let body = sim.spawn_body(&desc).unwrap();
     let pose = Pose::at(desc.position);
@@ -371,9 +369,7 @@ fn a_cut_that_removes_everything_leaves_a_legal_empty_body() {
 
 #[test]
 fn severing_every_edge_twice_leaves_legal_single_particle_pieces() {
-    let mut lattice = Shape::cuboid(UVec3::new(4, 3, 3), 1.0)
-        .voxelise(1.0)
-        .unwrap();
+    let mut lattice = Shape::cuboid(UVec3::new(4, 3, 3)).voxelise(1.0).unwrap();
     let material = Material::default();
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let mut table = initial_clusters(&lattice, &material, &mut rng);

@@ -114,7 +114,7 @@ fn cuts_on_plain_data_keep_the_clusters_a_fresh_clustering_makes() {
     let material = Material::default();
     for seed in 0..4 {
         let cells = UVec3::new(32, 16, 16);
-        let mut lattice = Shape::cuboid(cells, 1.0).voxelise(1.0).unwrap();
+        let mut lattice = Shape::cuboid(cells).voxelise(1.0).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let grid = seed_grid_offset(&material, &mut rng);
         let mut table = clusters_on_grid(&lattice, &material, grid);

@@ -118,7 +118,7 @@ fn particles_lost_outside_a_cut_report_are_still_frozen() {
     let mut sim = Simulation::new(SimConfig::default()).unwrap();
     let body = sim
         .spawn_body(&BodyDesc::new(
-            Shape::cuboid(glam::UVec3::new(6, 4, 4), 0.1),
+            Shape::cuboid(glam::UVec3::new(6, 4, 4)),
             0.1,
         ))
         .unwrap();

@@ -48,7 +48,7 @@ fn config_for(solver: SolverMode) -> SimConfig {
 fn body_without_forces_stays_at_rest() {
     for (solver, compliance) in solvers_and_materials() {
         let mut sim = Simulation::new(config_for(solver)).unwrap();
-        let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(8, 6, 5), 0.1), 0.1);
+        let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(8, 6, 5)), 0.1);
         desc.position = Vec3::new(1.0, 2.0, 3.0);
         desc.material.compliance = compliance;
         let body = sim.spawn_body(&desc).unwrap();
@@ -72,7 +72,7 @@ fn body_without_forces_stays_at_rest() {
 fn rotated_body_keeps_its_rotated_rest_shape() {
     for (solver, compliance) in solvers_and_materials() {
         let mut sim = Simulation::new(config_for(solver)).unwrap();
-        let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(10, 4, 4), 0.1), 0.1);
+        let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(10, 4, 4)), 0.1);
         desc.rotation = Quat::from_euler(glam::EulerRot::XYZ, 0.7, -1.1, 2.3);
         desc.material.compliance = compliance;
         let body = sim.spawn_body(&desc).unwrap();
@@ -259,7 +259,7 @@ fn bad_input_is_an_error_naming_the_field() {
         assert!(e.contains(field), "{e}");
     }
     let mut sim = Simulation::new(SimConfig::default()).unwrap();
-    let shape = Shape::cuboid(UVec3::new(3, 3, 3), 0.1);
+    let shape = Shape::cuboid(UVec3::new(3, 3, 3));
     assert!(err(sim.spawn_body(&BodyDesc::new(shape.clone(), 0.0))).contains("spacing"));
     assert!(err(sim.spawn_body(&BodyDesc::new(shape.clone(), -1.0))).contains("spacing"));
     let e = err(sim.spawn_body(&BodyDesc::new(Shape::Sphere { radius: 0.01 }, 1.0)));
@@ -467,7 +467,7 @@ fn clusters_despawned_from_outside_are_forgotten_and_their_particles_covered_aga
 #[test]
 fn a_nan_written_into_one_particle_is_repaired_and_does_not_spread() {
     let mut sim = Simulation::new(SimConfig::default()).unwrap();
-    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(8, 4, 4), 0.1), 0.1);
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(8, 4, 4)), 0.1);
     desc.position = Vec3::new(0.0, 0.3, 0.0);
     let body = sim.spawn_body(&desc).unwrap();
     sim.run(10);

@@ -23,8 +23,11 @@ fn slice_makes_two_pieces_that_move_apart() {
     assert_eq!(s["invariant_violations"], 0);
     // the halves never came closer than 0.8 h, by the summary and by the final dump
     let h = f(&dump["bodies"][0]["spacing"]);
+    // (null: they never came within 2 h)
     assert!(
-        f(&s["min_gap_between_pieces_h"]) >= 0.8,
+        s["min_gap_between_pieces_h"]
+            .as_f64()
+            .is_none_or(|gap| gap >= 0.8),
         "{}",
         s["min_gap_between_pieces_h"]
     );

@@ -1,7 +1,7 @@
 //! The access contract of every stage, read from the systems' own access sets: predict
 //! and shape-match (with every term) write only the solver's dense particle state; load
-//! and the term sync write only the solver; store writes only particle positions,
-//! velocities and attachment targets; the collider and attachment movers write their
+//! and the term sync write only the solver; store writes only particle positions and
+//! velocities; the tool, collider and attachment movers and the settle stage write their
 //! poses only; detect writes only its CutList and spawns nothing; cut writes no cluster
 //! data; regroup/split/expand write no particle data.
 
@@ -95,29 +95,38 @@ fn predict_shape_match_load_and_the_term_sync_write_only_the_solver() {
 }
 
 #[test]
-fn store_writes_positions_velocities_and_attachment_targets_only() {
+fn store_writes_positions_and_velocities_only() {
     let mut w = world();
     let (particle, _) = ids(&mut w);
-    let target = w.register_component::<AttachmentTarget>();
     let mut access = access_of(&mut w, store::store_particles);
     access.writes.sort();
-    let mut expected = vec![particle[1], particle[2], target];
+    let mut expected = vec![particle[1], particle[2]];
     expected.sort();
     assert_eq!(access.writes, expected);
     assert!(!access.deferred);
 }
 
 #[test]
-fn moving_colliders_and_attachments_writes_their_poses_only() {
+fn moving_and_settling_kinematic_things_writes_their_poses_only() {
     let mut w = world();
     ids(&mut w);
+    let tool = w.register_component::<ToolPose>();
+    let collider = w.register_component::<ColliderPose>();
+    let target = w.register_component::<AttachmentTarget>();
+    let access = access_of(&mut w, move_tools::move_tools);
+    assert_eq!(access.writes, vec![tool]);
+    assert!(!access.deferred);
     let access = access_of(&mut w, move_colliders::move_colliders);
-    let pose = w.register_component::<ColliderPose>();
-    assert_eq!(access.writes, vec![pose]);
+    assert_eq!(access.writes, vec![collider]);
     assert!(!access.deferred);
     let access = access_of(&mut w, move_attachments::move_attachments);
-    let target = w.register_component::<AttachmentTarget>();
     assert_eq!(access.writes, vec![target]);
+    assert!(!access.deferred);
+    let mut access = access_of(&mut w, settle_poses::settle_poses);
+    access.writes.sort();
+    let mut expected = vec![tool, collider, target];
+    expected.sort();
+    assert_eq!(access.writes, expected);
     assert!(!access.deferred);
 }
 

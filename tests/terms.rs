@@ -113,7 +113,7 @@ impl ProjectiveTerm for Tether {
 }
 
 fn block(sim: &mut Simulation, cells: UVec3, y: f32) -> Entity {
-    let mut desc = BodyDesc::new(Shape::cuboid(cells, 0.1), 0.1);
+    let mut desc = BodyDesc::new(Shape::cuboid(cells), 0.1);
     desc.position = Vec3::new(0.0, y, 0.0);
     sim.spawn_body(&desc).expect("a block")
 }
@@ -217,7 +217,7 @@ fn a_block_dragged_by_a_soft_attachment_follows_and_stretches_it_as_its_complian
         // a rigid 8×4×4 block of 128 kg held by its top layer (32 particles), each on a
         // spring of 1e-4 m/N, whose target moves 1 m along x at 2 m/s
         let at = |x: f32| Pose::at(Vec3::new(x, 1.2, 0.0));
-        let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(8, 4, 4), 0.1), 0.1);
+        let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(8, 4, 4)), 0.1);
         desc.position = Vec3::new(0.0, 1.0, 0.0);
         desc.attachments = vec![AttachmentDesc {
             region: Region {
@@ -412,9 +412,9 @@ fn severed_edges_lose_their_constraint_at_once() {
 
 #[test]
 fn bad_attachments_and_edge_compliances_are_errors_naming_the_field() {
-    let err = |r: Result<Entity>| r.expect_err("refused").to_string();
+    let err = |r: cleave::error::Result<Entity>| r.expect_err("refused").to_string();
     let mut sim = Simulation::new(SimConfig::default()).expect("a simulation");
-    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(4, 4, 4), 0.1), 0.1);
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(4, 4, 4)), 0.1);
     desc.position = Vec3::new(0.0, 0.5, 0.0);
     for bad in [-1e-6, f32::NAN, f32::INFINITY] {
         let mut d = desc.clone();

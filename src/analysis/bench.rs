@@ -158,7 +158,7 @@ pub struct EdgeRow {
 /// three warm-up steps, and times the edge term.
 pub fn bench_edges(n: u32, steps: usize, config: &SimConfig) -> Result<EdgeRow> {
     let mut sim = Simulation::new(config.clone())?;
-    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(n), H), H);
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(n)), H);
     desc.position = Vec3::new(0.0, n as f32 * H * 0.5 + 0.05, 0.0);
     desc.material.edge_compliance = Some(1e-7);
     sim.spawn_body(&desc)?;
@@ -271,7 +271,7 @@ pub fn peak_resident_bytes() -> Option<u64> {
 /// A simulation with one n³ box resting just above the ground.
 fn box_simulation(n: u32, config: &SimConfig) -> Result<Simulation> {
     let mut sim = Simulation::new(config.clone())?;
-    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(n), H), H);
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(n)), H);
     desc.position = Vec3::new(0.0, n as f32 * H * 0.5 + 0.05, 0.0);
     sim.spawn_body(&desc)?;
     Ok(sim)
@@ -526,7 +526,7 @@ pub fn convergence(options: ConvergenceOptions) -> Result<Vec<ConvergenceRow>> {
     let n = options.box_size;
     let cube = BodyDesc {
         material: material.clone(),
-        ..BodyDesc::new(Shape::cuboid(UVec3::splat(n), H), H)
+        ..BodyDesc::new(Shape::cuboid(UVec3::splat(n)), H)
     };
     // the static sag: projective dynamics until the sag moves less than 1e-6 h a block
     let reference = StaticProblem::fresh(beam, SolverMode::Projective, scene.config.gravity)?

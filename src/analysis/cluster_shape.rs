@@ -101,9 +101,7 @@ mod tests {
 
     #[test]
     fn a_cube_and_a_bar_measure_as_counted_by_hand() {
-        let l = Shape::cuboid(UVec3::new(3, 3, 4), 1.0)
-            .voxelise(1.0)
-            .unwrap();
+        let l = Shape::cuboid(UVec3::new(3, 3, 4)).voxelise(1.0).unwrap();
         let all: Vec<u32> = l.live_particles().collect();
         let cube: Vec<u32> = all
             .iter()

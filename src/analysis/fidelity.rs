@@ -132,7 +132,7 @@ impl Clusterings {
         let rebuilt = sim.clusters(body)?.into_iter().map(|(_, m)| m).collect();
         let world = sim.world();
         let (Some(b), Some(l)) = (world.get::<Body>(body), world.get::<BodyLattice>(body)) else {
-            return Err(CleaveError::InvalidEntity(format!("{body} is not a body")));
+            return Err(CleaveError::not_a("a body", body));
         };
         let fresh = clusters_on_grid(&l.lattice, &b.material, b.seed_grid).into_clusters();
         Ok(Self {

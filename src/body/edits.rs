@@ -144,9 +144,7 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
         let mut counts = std::collections::BTreeSet::new();
         for case in 0..200 {
-            let mut l = Shape::cuboid(UVec3::new(5, 4, 3), 1.0)
-                .voxelise(1.0)
-                .unwrap();
+            let mut l = Shape::cuboid(UVec3::new(5, 4, 3)).voxelise(1.0).unwrap();
             for _ in 0..rng.random_range(1..30) {
                 let live: Vec<u32> = l.live_particles().collect();
                 let p = live[rng.random_range(0..live.len())];

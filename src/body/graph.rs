@@ -133,9 +133,7 @@ mod tests {
 
     #[test]
     fn components_of_a_cut_bar() {
-        let mut l = Shape::cuboid(UVec3::new(5, 1, 1), 1.0)
-            .voxelise(1.0)
-            .unwrap();
+        let mut l = Shape::cuboid(UVec3::new(5, 1, 1)).voxelise(1.0).unwrap();
         let all: Vec<u32> = l.live_particles().collect();
         assert!(is_connected(&all, &l));
         let mid = l.at(IVec3::new(0, 0, 0)).unwrap();

@@ -85,8 +85,9 @@ pub enum Shape {
 }
 
 impl Shape {
-    /// A box holding exactly `cells.x × cells.y × cells.z` particles at spacing `h`.
-    pub fn cuboid(cells: UVec3, _h: f32) -> Self {
+    /// A box holding exactly `cells.x × cells.y × cells.z` particles, at the spacing
+    /// its body is voxelised with ([`Shape::Cells`]).
+    pub fn cuboid(cells: UVec3) -> Self {
         Shape::Cells { cells }
     }
 
@@ -296,9 +297,7 @@ mod tests {
 
     #[test]
     fn cuboid_has_exact_counts_and_edges() {
-        let l = Shape::cuboid(UVec3::new(4, 3, 2), 0.1)
-            .voxelise(0.1)
-            .unwrap();
+        let l = Shape::cuboid(UVec3::new(4, 3, 2)).voxelise(0.1).unwrap();
         assert_eq!(l.live_count(), 24);
         // edges of a 4×3×2 grid: 3·3·2 + 4·2·2 + 4·3·1
         assert_eq!(l.edges().len(), 18 + 16 + 12);

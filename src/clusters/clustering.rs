@@ -244,9 +244,7 @@ mod tests {
 
     #[test]
     fn box_clusters_are_27_cubes_in_the_interior() {
-        let l = Shape::cuboid(UVec3::new(8, 8, 8), 1.0)
-            .voxelise(1.0)
-            .unwrap();
+        let l = Shape::cuboid(UVec3::new(8, 8, 8)).voxelise(1.0).unwrap();
         let t = initial_clusters(&l, &Material::default(), &mut ChaCha8Rng::seed_from_u64(1));
         let sizes: Vec<usize> = t.iter().map(|(_, m)| m.len()).collect();
         assert!(sizes.contains(&27));
@@ -258,9 +256,7 @@ mod tests {
 
     #[test]
     fn covering_bridges_uncovered_edges() {
-        let l = Shape::cuboid(UVec3::new(4, 1, 1), 1.0)
-            .voxelise(1.0)
-            .unwrap();
+        let l = Shape::cuboid(UVec3::new(4, 1, 1)).voxelise(1.0).unwrap();
         let mut t = ClusterTable::from_clusters(4, vec![vec![0, 1], vec![2, 3]]);
         assert_eq!(cover_edges(&mut t, &l, 0..4, 3), [0]);
         assert_eq!(t.members(0), &[0, 1, 2]);

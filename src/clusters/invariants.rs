@@ -236,9 +236,7 @@ mod tests {
 
     #[test]
     fn each_violation_is_detected() {
-        let mut l = Shape::cuboid(UVec3::new(4, 1, 1), 1.0)
-            .voxelise(1.0)
-            .unwrap();
+        let mut l = Shape::cuboid(UVec3::new(4, 1, 1)).voxelise(1.0).unwrap();
         let ok: Vec<Vec<u32>> = vec![vec![0, 1, 2], vec![2, 3]];
         assert!(
             check_body(

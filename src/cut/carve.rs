@@ -52,9 +52,7 @@ mod tests {
 
     #[test]
     fn carving_in_steps_cuts_what_carving_at_once_cuts() {
-        let bar = Shape::cuboid(UVec3::new(10, 3, 3), 1.0)
-            .voxelise(1.0)
-            .unwrap();
+        let bar = Shape::cuboid(UVec3::new(10, 3, 3)).voxelise(1.0).unwrap();
         // a slot along x through the middle row, carved at once or cell by cell
         let mut once = bar.clone();
         let all = cells(&once, -3..3);

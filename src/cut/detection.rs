@@ -418,9 +418,7 @@ mod tests {
     #[test]
     fn edges_found_by_blocks_are_the_edges_that_cross_the_blade() {
         use crate::body::shape::Shape;
-        let lattice = Shape::cuboid(glam::UVec3::splat(8), 0.1)
-            .voxelise(0.1)
-            .unwrap();
+        let lattice = Shape::cuboid(glam::UVec3::splat(8)).voxelise(0.1).unwrap();
         let order = lattice.live_in_morton_order();
         let mut dense = vec![u32::MAX; lattice.len()];
         for (d, &p) in order.iter().enumerate() {

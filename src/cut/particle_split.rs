@@ -138,9 +138,7 @@ mod tests {
     /// A 6×2×2 bar, a blade across x = 0.4 (through the layer of cells whose centres lie
     /// at 0.5), that layer as candidates, and the rest positions.
     fn bar_and_layer() -> (Lattice, BladePlane, Vec<(u32, BladePlane)>, Vec<Vec3>) {
-        let lattice = Shape::cuboid(UVec3::new(6, 2, 2), 1.0)
-            .voxelise(1.0)
-            .unwrap();
+        let lattice = Shape::cuboid(UVec3::new(6, 2, 2)).voxelise(1.0).unwrap();
         let plane = BladePlane {
             normal: Vec3::X,
             offset: 0.4,

@@ -279,7 +279,7 @@ mod tests {
 
     #[test]
     fn a_pulled_bar_tears_across_the_pull_and_small_pieces_are_kept() {
-        let mut lattice = crate::body::shape::Shape::cuboid(UVec3::new(8, 3, 3), 1.0)
+        let mut lattice = crate::body::shape::Shape::cuboid(UVec3::new(8, 3, 3))
             .voxelise(1.0)
             .unwrap();
         // the cells at x ≥ 0 moved 0.8 further along x: the voxels between x = −1 and 0

@@ -87,7 +87,7 @@ pub fn attach(
     check_compliance("attachment", compliance)?;
     let lattice = world
         .get::<BodyLattice>(body)
-        .ok_or_else(|| CleaveError::InvalidEntity(format!("{body} is not a body")))?;
+        .ok_or_else(|| CleaveError::not_a("a body", body))?;
     if particles.is_empty() {
         return Err(CleaveError::InvalidEntity(
             "an attachment needs at least one particle".into(),

@@ -192,12 +192,16 @@ pub struct Tool {
     pub mode: CutMode,
 }
 
-/// The tool's pose now and at the previous frame (for the swept test).
+/// The tool's pose at the end of the frame being simulated and where the last frame
+/// left it: detection tests everything the tool sweeps between the two. Set `current`
+/// from game code between frames (or with
+/// [`Simulation::set_tool_pose`](crate::sim::simulation::Simulation::set_tool_pose)) to
+/// move a tool without a [`ToolPath`]; `last` is the engine's.
 #[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ToolPose {
-    /// Current pose.
+    /// The pose at the end of the frame being simulated.
     pub current: Pose,
-    /// Pose at the previous frame.
+    /// The pose the last frame ended at.
     pub last: Pose,
 }
 
@@ -215,13 +219,16 @@ pub struct Collider {
     pub friction: f32,
 }
 
-/// The collider's pose at the end of the current frame and at its start; the substeps
-/// move it from one to the other.
+/// The collider's pose at the end of the frame being simulated and where the last frame
+/// left it; the substeps move it from one to the other, so it does not pass through a
+/// body however far it moves. Set `current` from game code between frames (or with
+/// [`Simulation::set_collider_pose`](crate::sim::simulation::Simulation::set_collider_pose))
+/// to move a collider without a [`ColliderPath`]; `last` is the engine's.
 #[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ColliderPose {
-    /// Pose at the end of the frame being simulated.
+    /// The pose at the end of the frame being simulated.
     pub current: Pose,
-    /// Pose at its start.
+    /// The pose the last frame ended at.
     pub last: Pose,
 }
 

@@ -1,11 +1,12 @@
 //! The ECS data of a simulation: components, resources and messages, descriptions of
-//! what can be spawned and the spawning itself, the map between the particle table and
+//! what can be spawned and the spawning itself, poses set from game code, the map between the particle table and
 //! the solver's dense arrays, and the invariant check over a world.
 
 pub mod attach;
 pub mod check;
 pub mod components;
 pub mod desc;
+pub mod poses;
 pub mod resources;
 pub mod spawn;
 pub mod table_rows;

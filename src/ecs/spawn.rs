@@ -55,23 +55,30 @@ fn spawn_keyframed<C: Component>(
 /// with unit rotations.
 fn starting_pose(world: &World, what: &str, path: &Path, pose: Pose) -> Result<(Pose, Path)> {
     path.validate(what)?;
+    let pose = checked_pose(&format!("{what}.pose"), pose)?;
+    let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time);
+    let path = path.normalized();
+    let pose = path.sample(now as f32).unwrap_or(pose);
+    Ok((pose, path))
+}
+
+/// `pose` with a unit rotation, if its position is within the world's bounds and its
+/// rotation a finite, non-zero quaternion; errors name `field`.
+pub fn checked_pose(field: &str, pose: Pose) -> Result<Pose> {
     check_vec_within(
-        &format!("{what}.pose.position"),
+        &format!("{field}.position"),
         pose.position,
         MAX_COORDINATE,
         "|x|, |y|, |z| ≤ 1e6 (metres)",
     )?;
     let rotation = unit_quaternion(pose.rotation).ok_or_else(|| {
         crate::error::out_of_range(
-            &format!("{what}.pose.rotation"),
+            &format!("{field}.rotation"),
             pose.rotation,
             "finite, non-zero quaternion",
         )
     })?;
-    let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time);
-    let path = path.normalized();
-    let pose = path.sample(now as f32).unwrap_or(Pose { rotation, ..pose });
-    Ok((pose, path))
+    Ok(Pose { rotation, ..pose })
 }
 
 /// Spawns a collider into any world prepared with [`crate::systems::install`].
@@ -314,7 +321,7 @@ fn spawn_clusters(
 /// against (`cleave fidelity`). Particles keep their positions and velocities; the
 /// solver layout is rebuilt at the next step. Returns the new cluster entities.
 pub fn recluster(world: &mut World, body: Entity) -> Result<Vec<Entity>> {
-    let not_a_body = || CleaveError::InvalidEntity(format!("{body} is not a body"));
+    let not_a_body = || CleaveError::not_a("a body", body);
     let (table, particles, compliance) = {
         let b = world.get::<Body>(body).ok_or_else(not_a_body)?;
         let lattice = &world

@@ -125,47 +125,91 @@ impl ColliderShape {
     /// The smallest `t ∈ [0, 1]` at which the segment `a → b` enters the shape, for an `a`
     /// outside it; `None` if the segment does not reach the shape.
     pub fn segment_entry(&self, a: Vec3A, b: Vec3A) -> Option<f32> {
+        self.segment_entry_within(a, b, 0.0)
+    }
+
+    /// [`ColliderShape::segment_entry`] of the shape grown by `margin ≥ 0` (the points
+    /// within `margin` of it: a ball's centre touching the shape). Its signed distance
+    /// is the shape's less `margin`, with the same normal, so only this test needs the
+    /// margin.
+    pub fn segment_entry_within(&self, a: Vec3A, b: Vec3A, margin: f32) -> Option<f32> {
         let d = b - a;
         let t = match *self {
             ColliderShape::Box { half_extents } => {
                 let h = Vec3A::from(half_extents);
-                let (mut enter, mut exit) = (0.0f32, 1.0f32);
-                for axis in 0..3 {
-                    if d[axis].abs() < 1e-12 {
-                        if a[axis].abs() > h[axis] {
-                            return None;
-                        }
-                        continue;
-                    }
-                    let (t0, t1) = (
-                        (-h[axis] - a[axis]) / d[axis],
-                        (h[axis] - a[axis]) / d[axis],
-                    );
-                    enter = enter.max(t0.min(t1));
-                    exit = exit.min(t0.max(t1));
+                if margin > 0.0 {
+                    rounded_box_entry(a, d, h, margin)?
+                } else {
+                    slab_entry(a, d, h)?
                 }
-                (enter <= exit).then_some(enter)?
             }
-            ColliderShape::Sphere { radius } => ray_ball(a, d, radius)?,
+            ColliderShape::Sphere { radius } => ray_ball(a, d, radius + margin)?,
             ColliderShape::Capsule {
                 radius,
                 half_length,
-            } => {
-                let ends = [-half_length, half_length]
-                    .map(|x| ray_ball(a - Vec3A::new(x, 0.0, 0.0), d, radius));
-                // the shaft: the infinite cylinder about X, where it lies along the shaft
-                let shaft = ray_ball(
-                    a * Vec3A::new(0.0, 1.0, 1.0),
-                    d * Vec3A::new(0.0, 1.0, 1.0),
-                    radius,
-                )
-                .filter(|t| (a.x + d.x * t).abs() <= half_length);
-                ends.into_iter().chain([shaft]).flatten().reduce(f32::min)?
-            }
-            ColliderShape::Mesh(ref sdf) => sdf.segment_entry(a, b)?,
+            } => capsule_entry(a, d, half_length, radius + margin)?,
+            ColliderShape::Mesh(ref sdf) => sdf.segment_entry_within(a, b, margin)?,
         };
         (0.0..=1.0).contains(&t).then_some(t)
     }
+}
+
+/// The first `t` at which `a + t·d` (`t ∈ [0, 1]`) is in the box of half size `h`.
+fn slab_entry(a: Vec3A, d: Vec3A, h: Vec3A) -> Option<f32> {
+    let (mut enter, mut exit) = (0.0f32, 1.0f32);
+    for axis in 0..3 {
+        if d[axis].abs() < 1e-12 {
+            if a[axis].abs() > h[axis] {
+                return None;
+            }
+            continue;
+        }
+        let (t0, t1) = (
+            (-h[axis] - a[axis]) / d[axis],
+            (h[axis] - a[axis]) / d[axis],
+        );
+        enter = enter.max(t0.min(t1));
+        exit = exit.min(t0.max(t1));
+    }
+    (enter <= exit).then_some(enter)
+}
+
+/// The first `t ≥ 0` at which `a + t·d` is in the capsule of `radius` about the X axis
+/// from `−half_length` to `half_length`.
+fn capsule_entry(a: Vec3A, d: Vec3A, half_length: f32, radius: f32) -> Option<f32> {
+    let ends =
+        [-half_length, half_length].map(|x| ray_ball(a - Vec3A::new(x, 0.0, 0.0), d, radius));
+    // the shaft: the infinite cylinder about X, where it lies along the shaft
+    let shaft = ray_ball(
+        a * Vec3A::new(0.0, 1.0, 1.0),
+        d * Vec3A::new(0.0, 1.0, 1.0),
+        radius,
+    )
+    .filter(|t| (a.x + d.x * t).abs() <= half_length);
+    ends.into_iter().chain([shaft]).flatten().reduce(f32::min)
+}
+
+/// The first `t ∈ [0, 1]` at which `a + t·d` is within `margin` of the box of half size
+/// `h`: the rounded box is the union of the box grown by `margin` along one axis at a
+/// time and the capsules of radius `margin` about its 12 edges.
+fn rounded_box_entry(a: Vec3A, d: Vec3A, h: Vec3A, margin: f32) -> Option<f32> {
+    let slabs = (0..3).filter_map(|axis| {
+        let mut grown = h;
+        grown[axis] += margin;
+        slab_entry(a, d, grown)
+    });
+    // each edge along `axis`, in coordinates where that axis is X
+    let edges = (0..3).flat_map(|axis| {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        let swizzle = move |p: Vec3A| Vec3A::new(p[axis], p[u], p[v]);
+        [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)]
+            .into_iter()
+            .filter_map(move |(su, sv)| {
+                let centre = Vec3A::new(0.0, su * h[u], sv * h[v]);
+                capsule_entry(swizzle(a) - centre, swizzle(d), h[axis], margin)
+            })
+    });
+    slabs.chain(edges).reduce(f32::min)
 }
 
 /// Distance and outward normal of `v` to a ball of `radius` about the origin.
@@ -268,5 +312,53 @@ mod tests {
                 "{shape:?}: {hits} hits, {misses} misses"
             );
         }
+    }
+
+    #[test]
+    fn a_grown_segment_entry_is_where_the_distance_first_falls_to_the_margin() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut entered = 0;
+        for shape in SHAPES {
+            for _ in 0..300 {
+                let mut point = || {
+                    Vec3A::new(
+                        rng.random_range(-1.2..1.2),
+                        rng.random_range(-1.2..1.2),
+                        rng.random_range(-1.2..1.2),
+                    )
+                };
+                let (a, b, margin) = (point(), point(), rng.random_range(0.01..0.3));
+                if shape.signed_distance(a) <= margin {
+                    continue;
+                }
+                // the first of 20,000 samples within the margin, against the test
+                let steps = 20_000;
+                let sampled = (0..=steps)
+                    .map(|k| k as f32 / steps as f32)
+                    .find(|t| shape.signed_distance(a + (b - a) * *t) <= margin);
+                let found = shape.segment_entry_within(a, b, margin);
+                match (sampled, found) {
+                    (None, None) => {}
+                    (Some(s), Some(t)) => {
+                        entered += 1;
+                        assert!(
+                            (s - t).abs() < 2e-3,
+                            "{shape:?} {a} → {b} ({margin}): {t} vs {s}"
+                        );
+                    }
+                    // a chord that only grazes the grown shape between samples
+                    (None, Some(t)) => {
+                        let at = a + (b - a) * t;
+                        assert!(
+                            (shape.signed_distance(at) - margin).abs() < 1e-4,
+                            "{shape:?}"
+                        );
+                    }
+                    (Some(s), None) => panic!("{shape:?} {a} → {b} ({margin}): missed at {s}"),
+                }
+            }
+        }
+        assert!(entered > 200, "only {entered} segments entered");
     }
 }

@@ -234,13 +234,19 @@ impl MeshSdf {
     /// The first `t ∈ [0, 1]` where `a + t (b − a)` reaches the surface, for `a` outside,
     /// by sphere tracing (steps of the distance, at least a hundredth of a cell).
     pub fn segment_entry(&self, a: Vec3A, b: Vec3A) -> Option<f32> {
+        self.segment_entry_within(a, b, 0.0)
+    }
+
+    /// [`MeshSdf::segment_entry`] of the surface grown by `margin` (its distance less
+    /// `margin`).
+    pub fn segment_entry_within(&self, a: Vec3A, b: Vec3A, margin: f32) -> Option<f32> {
         let length = (b - a).length();
         if length == 0.0 {
-            return (self.distance(a) <= 0.0).then_some(0.0);
+            return (self.distance(a) - margin <= 0.0).then_some(0.0);
         }
         let mut t = 0.0f32;
         for _ in 0..512 {
-            let d = self.distance(a + (b - a) * (t / length));
+            let d = self.distance(a + (b - a) * (t / length)) - margin;
             if d <= 1e-4 * self.cell {
                 return Some(t / length);
             }

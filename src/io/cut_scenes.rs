@@ -67,7 +67,7 @@ pub fn cut_block_scene(seed: u64, cuts: u32) -> Scene {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xf1de_117e);
     let cells = UVec3::new(32, 16, 16);
     let half = cells.as_vec3() * (0.5 * H);
-    let mut body = BodyDesc::new(Shape::cuboid(cells, H), H);
+    let mut body = BodyDesc::new(Shape::cuboid(cells), H);
     body.position = Vec3::new(0.0, 1.0, 0.0);
     let config = SimConfig {
         seed,

@@ -39,7 +39,7 @@ use std::io::{Read, Write};
 pub const MAGIC: [u8; 8] = *b"cleave\0s";
 
 /// The format version this build writes and reads.
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 
 /// Largest saved simulation [`load`] reads, in bytes.
 pub const MAX_SAVE_BYTES: u64 = 4 << 30;
@@ -75,6 +75,7 @@ struct ClusterState {
 /// A tool entity.
 #[derive(Serialize, Deserialize)]
 struct ToolState {
+    entity: Entity,
     tool: Tool,
     pose: ToolPose,
     path: Option<ToolPath>,
@@ -83,6 +84,7 @@ struct ToolState {
 /// A collider entity.
 #[derive(Serialize, Deserialize)]
 struct ColliderState {
+    entity: Entity,
     collider: Collider,
     pose: ColliderPose,
     path: Option<ColliderPath>,
@@ -91,6 +93,7 @@ struct ColliderState {
 /// An attachment entity.
 #[derive(Serialize, Deserialize)]
 struct AttachmentState {
+    entity: Entity,
     attachment: Attachment,
     target: AttachmentTarget,
     path: Option<AttachmentPath>,
@@ -114,6 +117,8 @@ struct CacheState {
 /// Everything saved.
 #[derive(Serialize, Deserialize)]
 struct Snapshot {
+    /// Entity indices the saving world had handed out (every one it ever gave is below).
+    entity_bound: u32,
     config: SimConfig,
     clock: SimClock,
     rng: SimRng,
@@ -182,24 +187,27 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
         })
         .collect();
     let tools = world
-        .query::<(&Tool, &ToolPose, Option<&ToolPath>)>()
+        .query::<(Entity, &Tool, &ToolPose, Option<&ToolPath>)>()
         .iter(world)
-        .map(|(tool, pose, path)| ToolState {
+        .map(|(entity, tool, pose, path)| ToolState {
+            entity,
             tool: *tool,
             pose: *pose,
             path: path.cloned(),
         })
         .collect();
     let colliders = world
-        .query::<(&Collider, &ColliderPose, Option<&ColliderPath>)>()
+        .query::<(Entity, &Collider, &ColliderPose, Option<&ColliderPath>)>()
         .iter(world)
-        .map(|(collider, pose, path)| ColliderState {
+        .map(|(entity, collider, pose, path)| ColliderState {
+            entity,
             collider: collider.clone(),
             pose: *pose,
             path: path.cloned(),
         })
         .collect();
-    let attachments = world
+
+    let mut attachments: Vec<AttachmentState> = world
         .query::<(
             Entity,
             &Attachment,
@@ -208,25 +216,21 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
             Option<&AttachmentVelocity>,
         )>()
         .iter(world)
-        .map(|(entity, a, target, path, velocity)| {
-            (
-                entity,
-                AttachmentState {
-                    attachment: a.clone(),
-                    target: *target,
-                    path: path.cloned(),
-                    velocity: velocity.copied(),
-                },
-            )
+        .map(|(entity, a, target, path, velocity)| AttachmentState {
+            entity,
+            attachment: a.clone(),
+            target: *target,
+            path: path.cloned(),
+            velocity: velocity.copied(),
         })
-        .collect::<std::collections::BTreeMap<_, _>>()
-        .into_values()
         .collect();
+    attachments.sort_unstable_by_key(|a| a.entity);
     let cache = world.resource::<SolverCache>();
     if !cache.valid {
         return Err(invalid("the solver layout could not be brought up to date"));
     }
     Ok(Snapshot {
+        entity_bound: world.entities().len(),
         config: world.resource::<SimSettings>().0.clone(),
         clock: *world.resource::<SimClock>(),
         rng: world.resource::<SimRng>().clone(),
@@ -277,6 +281,27 @@ pub fn load(reader: impl Read) -> Result<World> {
     restore(snapshot)
 }
 
+/// The entities a loaded simulation's bodies, tools, colliders and attachments had in the
+/// saving world, each with its entity in the loaded one (a resource of the loaded world;
+/// [`crate::sim::simulation::Simulation::loaded_entity`] reads it).
+#[derive(Resource, Clone, Debug, Default)]
+pub struct LoadedEntities(Vec<(Entity, Entity)>);
+
+impl LoadedEntities {
+    /// The loaded entity of `saved`, a body, tool, collider or attachment of the saved
+    /// simulation.
+    pub fn get(&self, saved: Entity) -> Result<Entity> {
+        self.0
+            .binary_search_by_key(&saved, |(old, _)| *old)
+            .map(|i| self.0[i].1)
+            .map_err(|_| {
+                CleaveError::InvalidEntity(format!(
+                    "{saved} was not a body, tool, collider or attachment of the saved simulation"
+                ))
+            })
+    }
+}
+
 /// Old entity → new entity, for the entities the snapshot spawns.
 struct EntityMap(HashMap<Entity, Entity>);
 
@@ -298,6 +323,7 @@ impl EntityMap {
 
 fn restore(snapshot: Snapshot) -> Result<World> {
     let Snapshot {
+        entity_bound,
         config,
         clock,
         rng,
@@ -312,6 +338,20 @@ fn restore(snapshot: Snapshot) -> Result<World> {
     } = snapshot;
     config.validate()?;
     let mut loaded = World::new();
+    // The saving world's entity indices are never handed out here (reserved, never
+    // spawned), so an entity kept from before the save names nothing in the loaded world
+    // and is refused, instead of silently naming whatever took its index. The file's
+    // bound is trusted only as far as the entities it holds make plausible (a world that
+    // cut most of its particles away has freed many indices), so a corrupt bound cannot
+    // make the loaded world's entity table huge.
+    let saved = bodies.len() + particles.len() + clusters.len();
+    let saved = saved + tools.len() + colliders.len() + attachments.len();
+    let plausible = (4 * saved as u64 + (1 << 20)).min(u32::MAX as u64 / 2) as u32;
+    drop(
+        loaded
+            .entity_allocator()
+            .alloc_many(entity_bound.min(plausible)),
+    );
     install(&mut loaded, config);
     let world = &mut loaded;
     let mut map = EntityMap(HashMap::new());
@@ -337,17 +377,20 @@ fn restore(snapshot: Snapshot) -> Result<World> {
         let e = world.spawn((c.members, of, c.compliance)).id();
         map.0.insert(c.entity, e);
     }
+    let mut handles = LoadedEntities::default();
     for t in tools {
         let mut e = world.spawn((t.tool, t.pose));
         if let Some(path) = t.path {
             e.insert(path);
         }
+        handles.0.push((t.entity, e.id()));
     }
     for c in colliders {
         let mut e = world.spawn((c.collider, c.pose));
         if let Some(path) = c.path {
             e.insert(path);
         }
+        handles.0.push((c.entity, e.id()));
     }
     for a in attachments {
         let attachment = Attachment {
@@ -361,6 +404,7 @@ fn restore(snapshot: Snapshot) -> Result<World> {
         if let Some(velocity) = a.velocity {
             e.insert(velocity);
         }
+        handles.0.push((a.entity, e.id()));
     }
     for b in bodies {
         let mut lattice = b.lattice;
@@ -378,7 +422,10 @@ fn restore(snapshot: Snapshot) -> Result<World> {
         };
         let body = map.get(b.entity);
         world.entity_mut(body).insert((b.body, lattice, clusters));
+        handles.0.push((b.entity, body));
     }
+    handles.0.sort_unstable();
+    world.insert_resource(handles);
     *world.resource_mut::<SimClock>() = clock;
     *world.resource_mut::<SimRng>() = rng;
     let mut cut = cut;

@@ -81,7 +81,7 @@ pub const NOTCH_X: f32 = -1.6 + 0.3 * 3.2;
 /// projective dynamics' matrix; much stiffer edges than these need more iterations
 /// there).
 fn soft_beam(config: SimConfig) -> Scene {
-    let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(32, 3, 3), H), H);
+    let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(32, 3, 3)), H);
     body.position = Vec3::new(0.0, 1.0, 0.0);
     body.pins = vec![PinRegion {
         min: Vec3::splat(-9.0),
@@ -123,7 +123,7 @@ fn soft_beam(config: SimConfig) -> Scene {
 fn pulled_bar(config: SimConfig, notch: bool) -> Scene {
     // (the notched bar is pulled slower: its waves alone do not tear the middle)
     let (half, pull) = (1.6, if notch { 1.0 } else { 2.0 });
-    let shape = Shape::cuboid(UVec3::new(32, 6, 6), H);
+    let shape = Shape::cuboid(UVec3::new(32, 6, 6));
     let mut body = BodyDesc::new(shape, H);
     body.position = Vec3::new(0.0, 1.0, 0.0);
     let end = |sign: f32| PinRegion {
@@ -209,7 +209,7 @@ fn blade_vertical_cut(
 
 fn block_on_pedestal(cells: UVec3, pedestal: Vec3) -> (BodyDesc, StaticBox) {
     let height = 0.6;
-    let mut body = BodyDesc::new(Shape::cuboid(cells, H), H);
+    let mut body = BodyDesc::new(Shape::cuboid(cells), H);
     body.position = Vec3::new(0.0, height + cells.y as f32 * H * 0.5, 0.0);
     let pedestal = StaticBox {
         min: Vec3::new(-pedestal.x, 0.0, -pedestal.z),
@@ -234,7 +234,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
     };
     Some(match name {
         "drop" => {
-            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(16, 8, 8), H), H);
+            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(16, 8, 8)), H);
             body.position = Vec3::new(0.0, 0.4 + 0.5, 0.0);
             Scene {
                 config,
@@ -246,7 +246,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
         }
         "tear" | "notch" => pulled_bar(config, name == "notch"),
         "cantilever" => {
-            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(24, 6, 6), H), H);
+            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(24, 6, 6)), H);
             body.position = Vec3::new(0.0, 1.0, 0.0);
             body.pins = vec![PinRegion {
                 min: Vec3::new(-1.3, 0.0, -1.0),
@@ -311,7 +311,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
             }
         }
         "scoop" => {
-            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(24, 12, 12), H), H);
+            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(24, 12, 12)), H);
             body.position = Vec3::new(0.0, 0.6, 0.0);
             let y = body.position.y + 0.6;
             let at = |x: f32| Pose::at(Vec3::new(x, y, 0.0));
@@ -345,7 +345,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
 /// A seeded sequence of random blade and sphere cuts through a block on the ground.
 fn random_scene(seed: u64) -> Scene {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
-    let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(20, 10, 10), H), H);
+    let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(20, 10, 10)), H);
     body.position = Vec3::new(0.0, 0.5, 0.0);
     let mut tools = Vec::new();
     for i in 0..8 {
@@ -427,9 +427,11 @@ fn random_scene(seed: u64) -> Scene {
 }
 
 /// A box of `cells` lattice points whose lowest layer is at height `bottom`.
+/// A block of `cells` resting on its contact balls (radius h/2) on a floor at height
+/// `bottom`.
 fn box_at(cells: UVec3, x: f32, bottom: f32, z: f32) -> BodyDesc {
-    let mut body = BodyDesc::new(Shape::cuboid(cells, H), H);
-    body.position = Vec3::new(x, bottom + (cells.y - 1) as f32 * H * 0.5, z);
+    let mut body = BodyDesc::new(Shape::cuboid(cells), H);
+    body.position = Vec3::new(x, bottom + cells.y as f32 * H * 0.5, z);
     body
 }
 
@@ -522,8 +524,8 @@ fn press_scene(config: SimConfig) -> Scene {
         path: Path {
             keys: vec![
                 (0.2, plate_at(1.2)),
-                (0.8, plate_at(top - 0.2)),
-                (2.6, plate_at(top - 0.2)),
+                (0.8, plate_at(top - 0.1)),
+                (2.6, plate_at(top - 0.1)),
                 (3.2, plate_at(1.5)),
             ],
         },

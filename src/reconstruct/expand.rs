@@ -118,9 +118,7 @@ mod tests {
 
     #[test]
     fn expansion_adds_adjacent_particles_up_to_max() {
-        let l = Shape::cuboid(UVec3::new(5, 5, 1), 1.0)
-            .voxelise(1.0)
-            .unwrap();
+        let l = Shape::cuboid(UVec3::new(5, 5, 1)).voxelise(1.0).unwrap();
         let centre = l.at(glam::IVec3::new(0, 0, 0)).unwrap();
         let mut t = ClusterTable::from_clusters(l.len(), vec![vec![centre]]);
         let added = expand_clusters(&mut t, &l, &[0], 3, 10, &mut ChaCha8Rng::seed_from_u64(2));
@@ -133,9 +131,7 @@ mod tests {
 
     #[test]
     fn draws_are_distinct_adjacent_particles_and_a_short_supply_falls_back_to_the_list() {
-        let mut l = Shape::cuboid(UVec3::new(6, 6, 6), 1.0)
-            .voxelise(1.0)
-            .unwrap();
+        let mut l = Shape::cuboid(UVec3::new(6, 6, 6)).voxelise(1.0).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         // a 3×3×3 block inside, some of its surroundings cut away
         let block: Vec<u32> = l

@@ -207,9 +207,7 @@ mod tests {
 
     #[test]
     fn rows_name_the_member_in_each_direction_or_the_sentinel() {
-        let mut lattice = Shape::cuboid(UVec3::new(4, 3, 3), 1.0)
-            .voxelise(1.0)
-            .unwrap();
+        let mut lattice = Shape::cuboid(UVec3::new(4, 3, 3)).voxelise(1.0).unwrap();
         lattice.remove(5);
         // every third particle is a member (5 is dead, so not one)
         let members: Vec<u32> = (0..lattice.len() as u32)

@@ -207,9 +207,7 @@ mod tests {
     #[test]
     fn fragments_merge_redundant_pieces_go_and_the_rest_stay() {
         // A 6×1×1 bar, clusters {0,1,2,3} and {3,4,5}; cut particle 1
-        let mut l = Shape::cuboid(UVec3::new(6, 1, 1), 1.0)
-            .voxelise(1.0)
-            .unwrap();
+        let mut l = Shape::cuboid(UVec3::new(6, 1, 1)).voxelise(1.0).unwrap();
         let p: Vec<u32> = (0..6)
             .map(|x| l.at(IVec3::new(x - 3, 0, 0)).unwrap())
             .collect();
@@ -226,9 +224,7 @@ mod tests {
 
         // the same bar, clusters {0,1,2}, {2,3,4}, {4,5}: the piece {p2} lies in
         // {p2, p3, p4} (redundant) and goes
-        let mut l = Shape::cuboid(UVec3::new(6, 1, 1), 1.0)
-            .voxelise(1.0)
-            .unwrap();
+        let mut l = Shape::cuboid(UVec3::new(6, 1, 1)).voxelise(1.0).unwrap();
         let mut t = ClusterTable::from_clusters(
             6,
             vec![
@@ -253,9 +249,7 @@ mod tests {
     fn a_piece_that_spans_a_plane_stays_a_cluster() {
         // a 4×3 plate: a 3×3 cluster on the left overlapping a 2×3 one on the right;
         // cutting the left cluster's corner leaves it 8 particles that stay together
-        let mut l = Shape::cuboid(UVec3::new(4, 3, 1), 1.0)
-            .voxelise(1.0)
-            .unwrap();
+        let mut l = Shape::cuboid(UVec3::new(4, 3, 1)).voxelise(1.0).unwrap();
         let column =
             |x: i32| -> Vec<u32> { l.live_particles().filter(|q| l.coord(*q).x == x).collect() };
         let x0 = l.live_particles().map(|q| l.coord(q).x).min().unwrap();

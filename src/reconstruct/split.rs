@@ -382,7 +382,7 @@ mod tests {
             UVec3::new(7, 5, 2),
             UVec3::new(9, 2, 2),
         ] {
-            let lattice = Shape::cuboid(dims, 1.0).voxelise(1.0).unwrap();
+            let lattice = Shape::cuboid(dims).voxelise(1.0).unwrap();
             let members: Vec<u32> = lattice.live_particles().collect();
             let points: Vec<Vec3> = members
                 .iter()
@@ -412,9 +412,7 @@ mod tests {
 
     #[test]
     fn split_oversized_respects_max() {
-        let lattice = Shape::cuboid(UVec3::new(10, 6, 3), 1.0)
-            .voxelise(1.0)
-            .unwrap();
+        let lattice = Shape::cuboid(UVec3::new(10, 6, 3)).voxelise(1.0).unwrap();
         let mut table = crate::clusters::store::ClusterTable::from_clusters(
             lattice.len(),
             vec![lattice.live_particles().collect()],

@@ -7,6 +7,10 @@
 //! choose them only in an app with `TimePlugin` (and set `SimConfig::dt` to the fixed
 //! step). Messages (`ParticlesCut`, `ClustersRebuilt`, `BodySplit`) are registered
 //! with the app's message update, so ordinary `MessageReader`s see them.
+//!
+//! The frame runs in the system set [`CleaveFrame`]: order a system that moves tools,
+//! colliders or attachment targets for the coming frame `.before(CleaveFrame)`, and one
+//! that reads the frame's positions or messages `.after(CleaveFrame)`.
 
 use crate::config::SimConfig;
 use crate::error::Result;
@@ -14,6 +18,10 @@ use crate::systems::{CleaveSchedule, install};
 use bevy_app::{App, Plugin, Update};
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::ScheduleLabel;
+
+/// The system set the plugin's simulation frame runs in (see the module docs).
+#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct CleaveFrame;
 
 /// Adds cleave to an [`App`]; see the module docs.
 #[derive(Clone, Debug)]
@@ -46,7 +54,7 @@ impl<L: ScheduleLabel + Clone> CleavePlugin<L> {
 impl<L: ScheduleLabel + Clone> Plugin for CleavePlugin<L> {
     fn build(&self, app: &mut App) {
         install(app.world_mut(), self.config.clone());
-        app.add_systems(self.schedule.clone(), run_cleave_frame);
+        app.add_systems(self.schedule.clone(), run_cleave_frame.in_set(CleaveFrame));
     }
 }
 

@@ -9,7 +9,7 @@ use crate::ecs::spawn::{recluster, spawn_body, spawn_collider, spawn_tool};
 use crate::error::{CleaveError, Result};
 use crate::solver::term::Term;
 use crate::systems::{CleaveSchedule, install};
-use bevy_ecs::message::message_update_system;
+use bevy_ecs::message::{Message, Messages, message_update_system};
 use bevy_ecs::prelude::*;
 use glam::Vec3;
 
@@ -93,9 +93,21 @@ impl Simulation {
     }
 
     /// Reads a simulation written by [`Simulation::save`]: it goes on bit for bit as the
-    /// saved one would have.
+    /// saved one would have. Its entities are new: [`Simulation::loaded_entity`] maps the
+    /// saved ones, and an entity kept from before is refused by every call.
     pub fn load(reader: impl std::io::Read) -> Result<Self> {
         crate::io::save::load(reader).map(|world| Self { world })
+    }
+
+    /// The entity that `saved` — a body, tool, collider or attachment of the simulation
+    /// this one was loaded from — has here. Entities kept from before a save name nothing
+    /// in the loaded simulation (every call given one is refused): map them with this.
+    /// An error if this simulation was not loaded or `saved` was none of those.
+    pub fn loaded_entity(&self, saved: Entity) -> Result<Entity> {
+        self.world
+            .get_resource::<crate::io::save::LoadedEntities>()
+            .ok_or_else(|| CleaveError::InvalidEntity("this simulation was not loaded".into()))?
+            .get(saved)
     }
 
     /// Replaces the clusters of `body` by a fresh clustering of its current geometry
@@ -113,16 +125,48 @@ impl Simulation {
     }
 
     /// Sets where attachment `attachment` pulls at the end of the next frame (its target
-    /// moves there over the frame).
+    /// moves there over the frame). An error if it is not an attachment, the pose is not
+    /// finite or beyond ±1e6 m, or a path or a velocity moves it.
     pub fn move_attachment(&mut self, attachment: Entity, pose: Pose) -> Result<()> {
-        let mut target = self
+        crate::ecs::poses::set_attachment_pose(&mut self.world, attachment, pose)
+    }
+
+    /// Lets go of attachment `attachment`: its particles move freely from the next frame.
+    pub fn detach(&mut self, attachment: Entity) -> Result<()> {
+        let holds = self
             .world
-            .get_mut::<AttachmentTarget>(attachment)
-            .ok_or_else(|| {
-                CleaveError::InvalidEntity(format!("{attachment} is not an attachment"))
-            })?;
-        target.pose = pose;
+            .get_entity(attachment)
+            .is_ok_and(|e| e.contains::<Attachment>());
+        if !holds {
+            return Err(CleaveError::not_a("an attachment", attachment));
+        }
+        self.world.despawn(attachment);
         Ok(())
+    }
+
+    /// Sets where tool `tool` is at the end of the next frame: the frame cuts along all
+    /// it sweeps from where the last frame left it, at any speed, as a keyframed path
+    /// does. An error if it is not a tool, follows a path, or the pose is not finite or
+    /// beyond ±1e6 m.
+    pub fn set_tool_pose(&mut self, tool: Entity, pose: Pose) -> Result<()> {
+        crate::ecs::poses::set_tool_pose(&mut self.world, tool, pose)
+    }
+
+    /// Sets where collider `collider` is at the end of the next frame: the substeps move
+    /// it there from where the last frame left it, so it does not pass through bodies.
+    /// Errors as [`Simulation::set_tool_pose`]'s.
+    pub fn set_collider_pose(&mut self, collider: Entity, pose: Pose) -> Result<()> {
+        crate::ecs::poses::set_collider_pose(&mut self.world, collider, pose)
+    }
+
+    /// The messages of type `M` the last frame sent ([`BodySplit`](crate::ecs::resources::BodySplit),
+    /// [`ParticlesCut`](crate::ecs::resources::ParticlesCut), …), oldest first; each
+    /// frame's are readable until the next [`Simulation::step`].
+    pub fn messages<M: Message + Clone>(&self) -> Vec<M> {
+        self.world
+            .get_resource::<Messages<M>>()
+            .map(|m| m.iter_current_update_messages().cloned().collect())
+            .unwrap_or_default()
     }
 
     /// Adds a term of your own to the solver, after the built-in ones: it is solved with
@@ -156,7 +200,7 @@ impl Simulation {
         let lattice = self
             .world
             .get::<BodyLattice>(body)
-            .ok_or_else(|| CleaveError::InvalidEntity(format!("{body} is not a body")))?;
+            .ok_or_else(|| CleaveError::not_a("a body", body))?;
         lattice
             .lattice
             .live_particles()
@@ -195,7 +239,7 @@ impl Simulation {
         let lattice = &self
             .world
             .get::<BodyLattice>(body)
-            .ok_or_else(|| CleaveError::InvalidEntity(format!("{body} is not a body")))?
+            .ok_or_else(|| CleaveError::not_a("a body", body))?
             .lattice;
         let (labels, count) = crate::body::pieces::body_pieces(lattice);
         let mut pieces = vec![Vec::new(); count];
@@ -205,11 +249,56 @@ impl Simulation {
         Ok(pieces)
     }
 
+    /// The centre of mass of `body`'s live particles (a kinematic particle, of inverse
+    /// mass 0, weighs nothing unless every particle is kinematic: then the mean).
+    pub fn centroid(&self, body: Entity) -> Result<Vec3> {
+        let all = self.pieces(body)?.concat();
+        Ok(self.centroids_of(body, &[all])?[0])
+    }
+
+    /// The centre of mass of each piece of `body`, in the order of
+    /// [`Simulation::pieces`] (weighted as in [`Simulation::centroid`]).
+    pub fn piece_centroids(&self, body: Entity) -> Result<Vec<Vec3>> {
+        let pieces = self.pieces(body)?;
+        self.centroids_of(body, &pieces)
+    }
+
+    /// The centre of mass of each set of `body`'s live particles in `sets`.
+    fn centroids_of(&self, body: Entity, sets: &[Vec<u32>]) -> Result<Vec<Vec3>> {
+        let state = self.read_particles(body, |e| {
+            Some((e.get::<Position>()?.0, e.get::<InvMass>()?.0))
+        })?;
+        let mut of_particle =
+            vec![(Vec3::ZERO, 0.0f32); state.last().map_or(0, |(i, _)| *i as usize + 1)];
+        for (i, x) in state {
+            of_particle[i as usize] = x;
+        }
+        Ok(sets
+            .iter()
+            .map(|set| {
+                let (mut sum, mut mass, mut plain) = (glam::DVec3::ZERO, 0.0f64, glam::DVec3::ZERO);
+                for &i in set {
+                    let (x, w) = of_particle[i as usize];
+                    let m = if w > 0.0 { 1.0 / w as f64 } else { 0.0 };
+                    sum += x.as_dvec3() * m;
+                    mass += m;
+                    plain += x.as_dvec3();
+                }
+                let centre = if mass > 0.0 {
+                    sum / mass
+                } else {
+                    plain / set.len().max(1) as f64
+                };
+                centre.as_vec3()
+            })
+            .collect())
+    }
+
     /// The clusters of `body` as `(cluster entity, sorted body-local members)`, by
     /// entity.
     pub fn clusters(&mut self, body: Entity) -> Result<Vec<(Entity, Vec<u32>)>> {
         if self.world.get::<BodyLattice>(body).is_none() {
-            return Err(CleaveError::InvalidEntity(format!("{body} is not a body")));
+            return Err(CleaveError::not_a("a body", body));
         }
         let mut clusters: Vec<(Entity, Vec<u32>)> = self
             .world
@@ -232,7 +321,7 @@ mod tests {
     #[test]
     fn a_simulation_reads_out_positions_velocities_pieces_and_clusters() -> Result<()> {
         let mut sim = Simulation::new(SimConfig::default())?;
-        let shape = crate::body::shape::Shape::cuboid(glam::UVec3::new(6, 3, 3), 0.1);
+        let shape = crate::body::shape::Shape::cuboid(glam::UVec3::new(6, 3, 3));
         let mut desc = BodyDesc::new(shape, 0.1);
         desc.position = Vec3::new(0.0, 1.0, 0.0);
         let body = sim.spawn_body(&desc)?;
@@ -298,7 +387,7 @@ mod tests {
         for e in scratch {
             sim.world_mut().despawn(e);
         }
-        let shape = crate::body::shape::Shape::cuboid(glam::UVec3::new(5, 4, 3), 0.1);
+        let shape = crate::body::shape::Shape::cuboid(glam::UVec3::new(5, 4, 3));
         let body = sim.spawn_body(&BodyDesc::new(shape, 0.1))?;
         let world = sim.world_mut();
         let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf)>();

@@ -346,7 +346,7 @@ mod tests {
     /// A 4×3×3 lattice block (dense index = lattice index) with 2×2×2 clusters at every
     /// cell, compliant; particle 0 held still.
     fn block() -> (crate::body::lattice::Lattice, ClusterTerm, Vec<f32>) {
-        let lattice = Shape::cuboid(UVec3::new(4, 3, 3), 0.1)
+        let lattice = Shape::cuboid(UVec3::new(4, 3, 3))
             .voxelise(0.1)
             .expect("a block");
         let rest: Vec<Vec3> = (0..lattice.len() as u32)

@@ -15,7 +15,7 @@ use crate::config::{GroundPlane, SimConfig, StaticBox};
 use crate::cut::tool::Pose;
 use crate::geometry::collider::ColliderShape;
 use crate::solver::particles::PARTICLES_PER_TASK;
-use crate::solver::term::{ParticleState, Substep, Term};
+use crate::solver::term::{NO_DENSE, ParticleState, Substep, Term, Topology};
 use glam::{Affine3A, Vec3A};
 use rayon::prelude::*;
 
@@ -73,15 +73,15 @@ impl PosedCollider {
         Self::new(shape, friction, pose, pose)
     }
 
-    /// Whether the collider's swept bounds meet the box `[lo, hi]`.
-    fn reaches(&self, lo: Vec3A, hi: Vec3A) -> bool {
-        hi.cmpge(self.lo).all() && lo.cmple(self.hi).all()
+    /// Whether the collider's swept bounds, grown by `margin`, meet the box `[lo, hi]`.
+    fn reaches(&self, lo: Vec3A, hi: Vec3A, margin: f32) -> bool {
+        hi.cmpge(self.lo - margin).all() && lo.cmple(self.hi + margin).all()
     }
 
-    /// The position `p` (which started the substep at `previous`) resolved against this
-    /// collider, and how deep inside it the particle started the substep (0 outside);
-    /// `None` when the collider does not touch it.
-    pub fn resolve(&self, p: Vec3A, previous: Vec3A) -> Option<(Vec3A, f32)> {
+    /// The position `p` of a ball of radius `margin` (which started the substep at
+    /// `previous`) resolved against this collider, and how deep inside it the ball
+    /// started the substep (0 outside); `None` when the collider does not touch it.
+    pub fn resolve(&self, p: Vec3A, previous: Vec3A, margin: f32) -> Option<(Vec3A, f32)> {
         let (from, to) = (
             self.start_inverse.transform_point3a(previous),
             self.end_inverse.transform_point3a(p),
@@ -89,12 +89,13 @@ impl PosedCollider {
         let shape = &self.shape;
         let moved = to - from;
         let (distance, normal) = shape.nearest_surface(to);
+        let distance = distance - margin;
         let entry = || {
-            let t = shape.segment_entry(from, to)?;
+            let t = shape.segment_entry_within(from, to, margin)?;
             let at = from + moved * t;
             Some((at, shape.nearest_surface(at).1))
         };
-        let start = shape.signed_distance(from);
+        let start = shape.signed_distance(from) - margin;
         let (target, normal) = if distance < 0.0 {
             let nearest = to - normal * distance;
             // pushing it out forward would carry it through the shape: it came in behind
@@ -111,10 +112,11 @@ impl PosedCollider {
             if start < 0.0 || moved.length_squared() <= reach * reach {
                 return None;
             }
-            let enter = shape.segment_entry(from, to)?;
-            let exit = 1.0 - shape.segment_entry(to, from)?;
+            let enter = shape.segment_entry_within(from, to, margin)?;
+            let exit = 1.0 - shape.segment_entry_within(to, from, margin)?;
             let middle = from + moved * (0.5 * (enter + exit));
-            if shape.signed_distance(middle) >= -GRAZE * (1.0 + middle.abs().max_element()) {
+            if shape.signed_distance(middle) - margin >= -GRAZE * (1.0 + middle.abs().max_element())
+            {
                 return None;
             }
             entry()?
@@ -172,6 +174,12 @@ pub struct Colliders {
     pub depenetration_step: f32,
     /// Bounds of each block's substep-start positions (see `begin_substep`).
     previous_bounds: Vec<(Vec3A, Vec3A)>,
+    /// Each particle's contact radius, by dense index (its material's
+    /// `contact_radius`): particles rest on the ground and on colliders with their
+    /// balls, not their centres, as they do on each other.
+    margins: Vec<f32>,
+    /// The largest of `margins`.
+    largest_margin: f32,
 }
 
 impl Default for Colliders {
@@ -188,7 +196,17 @@ impl Colliders {
             shapes,
             depenetration_step: f32::INFINITY,
             previous_bounds: Vec::new(),
+            margins: Vec::new(),
+            largest_margin: 0.0,
         }
+    }
+
+    /// Takes the ground, shapes and depenetration step of `placed` (this substep's
+    /// placement), keeping the particles' contact radii.
+    pub fn place(&mut self, placed: Colliders) {
+        self.ground = placed.ground;
+        self.shapes = placed.shapes;
+        self.depenetration_step = placed.depenetration_step;
     }
 
     /// The config's ground and static boxes, and the `moving` colliders.
@@ -197,29 +215,33 @@ impl Colliders {
         Self::new(config.ground, boxes.chain(moving).collect())
     }
 
-    /// Whether a collider may move a particle whose substep ran inside `[lo, hi]`.
-    fn reaches(&self, lo: Vec3A, hi: Vec3A) -> bool {
-        self.ground.is_some_and(|g| lo.y < g.height)
-            || self.shapes.iter().any(|s| s.reaches(lo, hi))
+    /// Whether a collider may move a ball of radius `margin` whose centre's substep ran
+    /// inside `[lo, hi]`.
+    fn reaches(&self, lo: Vec3A, hi: Vec3A, margin: f32) -> bool {
+        self.ground.is_some_and(|g| lo.y < g.height + margin)
+            || self.shapes.iter().any(|s| s.reaches(lo, hi, margin))
     }
 
-    /// Pushes `p` out of the ground and every collider, with friction against its
-    /// displacement since `previous`; pure, so the kernel's blocks run it in parallel.
-    /// Returns the new position and the part of the move that is not to become velocity
-    /// (see [`Colliders::depenetration_step`]).
-    pub fn resolve(&self, p: Vec3A, previous: Vec3A) -> (Vec3A, Vec3A) {
+    /// Pushes a ball of radius `margin` centred at `p` out of the ground and every
+    /// collider, with friction against its displacement since `previous`; pure, so the
+    /// kernel's blocks run it in parallel. Returns the new centre and the part of the
+    /// move that is not to become velocity (see [`Colliders::depenetration_step`]).
+    pub fn resolve(&self, p: Vec3A, previous: Vec3A, margin: f32) -> (Vec3A, Vec3A) {
         let (mut p, mut quiet) = (p, Vec3A::ZERO);
         if let Some(g) = &self.ground
-            && p.y < g.height
+            && p.y < g.height + margin
         {
-            let depth = g.height - p.y;
-            p.y = g.height;
+            let depth = g.height + margin - p.y;
+            p.y = g.height + margin;
             p = with_friction(p, previous, Vec3A::Y, depth, g.friction);
+            // as for a collider below: what it was already in undone quietly
+            let depth_before = g.height + margin - previous.y;
+            quiet.y += (depth.min(depth_before) - self.depenetration_step).max(0.0);
         }
         let (lo, hi) = (p.min(previous), p.max(previous));
         for shape in &self.shapes {
-            if shape.reaches(lo, hi)
-                && let Some((q, depth_before)) = shape.resolve(p, previous)
+            if shape.reaches(lo, hi, margin)
+                && let Some((q, depth_before)) = shape.resolve(p, previous, margin)
             {
                 // only the depth it already had is undone quietly, and only beyond the
                 // allowance: what this substep's motion carried in (a particle resting
@@ -266,7 +288,27 @@ impl Term for Colliders {
         self.ground.is_none() && self.shapes.is_empty()
     }
 
+    fn topology(&mut self, change: &Topology) {
+        let count = change
+            .bodies
+            .iter()
+            .flat_map(|b| b.dense.iter().filter(|d| **d != NO_DENSE))
+            .map(|d| *d as usize + 1)
+            .max()
+            .unwrap_or(0);
+        self.margins = vec![0.0; count];
+        for body in change.bodies {
+            let radius = body.material.contact_radius_at(body.lattice.spacing());
+            for d in body.dense.iter().filter(|d| **d != NO_DENSE) {
+                self.margins[*d as usize] = radius;
+            }
+        }
+        self.largest_margin = self.margins.iter().copied().fold(0.0, f32::max);
+    }
+
     fn begin_substep(&mut self, _step: &Substep, state: &mut ParticleState) {
+        // (a particle the layout holds but no body names has no ball)
+        self.margins.resize(state.positions.len(), 0.0);
         self.previous_bounds = state
             .previous
             .par_chunks(PARTICLES_PER_TASK)
@@ -282,18 +324,19 @@ impl Term for Colliders {
             .zip(state.corrections.par_chunks_mut(PARTICLES_PER_TASK))
             .zip(state.previous.par_chunks(PARTICLES_PER_TASK))
             .zip(state.inv_mass.par_chunks(PARTICLES_PER_TASK))
+            .zip(this.margins.par_chunks(PARTICLES_PER_TASK))
             .zip(this.previous_bounds.par_iter())
             .for_each(
-                |((((positions, corrections), previous), inv_mass), before)| {
+                |(((((positions, corrections), previous), inv_mass), margins), before)| {
                     let (lo, hi) = bounds(positions);
-                    if !this.reaches(lo.min(before.0), hi.max(before.1)) {
+                    if !this.reaches(lo.min(before.0), hi.max(before.1), this.largest_margin) {
                         return;
                     }
                     for (i, p) in positions.iter_mut().enumerate() {
                         if inv_mass[i] == 0.0 {
                             continue;
                         }
-                        let (resolved, quiet) = this.resolve(*p, previous[i]);
+                        let (resolved, quiet) = this.resolve(*p, previous[i], margins[i]);
                         corrections[i] += resolved - *p - quiet;
                         *p = resolved;
                     }
@@ -327,9 +370,9 @@ mod tests {
             Pose::at(Vec3::splat(1.5)),
         );
         let colliders = Colliders::new(ground(0.0).ground, vec![block]);
-        let (p, _) = colliders.resolve(Vec3A::new(0.0, -0.5, 0.0), Vec3A::ZERO);
+        let (p, _) = colliders.resolve(Vec3A::new(0.0, -0.5, 0.0), Vec3A::ZERO, 0.0);
         assert_eq!(p.y, 0.0);
-        let (p, _) = colliders.resolve(Vec3A::new(1.5, 1.9, 1.5), Vec3A::new(1.5, 2.5, 1.5));
+        let (p, _) = colliders.resolve(Vec3A::new(1.5, 1.9, 1.5), Vec3A::new(1.5, 2.5, 1.5), 0.0);
         assert!((p - Vec3A::new(1.5, 2.0, 1.5)).length() < 1e-6, "{p}");
     }
 
@@ -337,10 +380,10 @@ mod tests {
     fn friction_stops_small_slides() {
         let colliders = ground(1.0);
         // slid 0.05 sideways while sinking 0.1: the friction cone holds it
-        let (p, _) = colliders.resolve(Vec3A::new(0.05, -0.1, 0.0), Vec3A::ZERO);
+        let (p, _) = colliders.resolve(Vec3A::new(0.05, -0.1, 0.0), Vec3A::ZERO, 0.0);
         assert_eq!(p, Vec3A::ZERO);
         // slid 0.5 sideways while sinking 0.1: kinetic friction removes 0.1 of it
-        let (p, _) = colliders.resolve(Vec3A::new(0.5, -0.1, 0.0), Vec3A::ZERO);
+        let (p, _) = colliders.resolve(Vec3A::new(0.5, -0.1, 0.0), Vec3A::ZERO, 0.0);
         assert!((p.x - 0.4).abs() < 1e-6 && p.y == 0.0, "{p}");
     }
 
@@ -362,7 +405,7 @@ mod tests {
         let colliders = Colliders::new(None, vec![block.clone()]);
         for end_x in [2.0, 0.25] {
             let (from, to) = (Vec3A::new(-2.0, 0.05, 0.0), Vec3A::new(end_x, 0.05, 0.0));
-            let (p, _) = colliders.resolve(to, from);
+            let (p, _) = colliders.resolve(to, from, 0.0);
             assert!(p.x < -0.29, "ended at {p} (end {end_x})");
             assert!(
                 block
@@ -386,11 +429,11 @@ mod tests {
         );
         let from = Vec3A::new(0.0, 0.5, 0.0);
         for to in [Vec3A::new(0.1, 0.5, 0.0), Vec3A::new(0.1, 0.5001, 0.0)] {
-            assert_eq!(block.resolve(to, from), None, "{to}");
+            assert_eq!(block.resolve(to, from, 0.0), None, "{to}");
         }
         // sinking a little while it slides: kinetic friction, not a stop
         let (p, depth_before) = block
-            .resolve(Vec3A::new(0.1, 0.49, 0.0), from)
+            .resolve(Vec3A::new(0.1, 0.49, 0.0), from, 0.0)
             .expect("a contact");
         assert_eq!(depth_before, 0.0);
         assert!((p.y - 0.5).abs() < 1e-6 && p.x > 0.09, "{p}");
@@ -410,7 +453,7 @@ mod tests {
         );
         let at = Vec3A::new(0.2, 0.3, 0.0);
         let (p, depth_before) = moving
-            .resolve(at, at)
+            .resolve(at, at, 0.0)
             .expect("the plate reaches the particle");
         assert_eq!(depth_before, 0.0, "the plate came to it");
         assert!(
@@ -419,7 +462,7 @@ mod tests {
         );
         // a particle behind the plate is left alone
         let behind = Vec3A::new(-0.2, 0.3, 0.0);
-        assert_eq!(moving.resolve(behind, behind), None);
+        assert_eq!(moving.resolve(behind, behind, 0.0), None);
     }
 
     #[test]
@@ -438,11 +481,11 @@ mod tests {
         );
         colliders.depenetration_step = 0.01;
         let inside = Vec3A::new(0.0, 0.2, 0.0);
-        let (p, quiet) = colliders.resolve(inside, inside);
+        let (p, quiet) = colliders.resolve(inside, inside, 0.0);
         assert!((p.y - 0.5).abs() < 1e-6, "{p}");
         assert!((quiet.y - 0.29).abs() < 1e-5 && quiet.x == 0.0, "{quiet}");
         // one that entered during the substep keeps its whole push as velocity
-        let (p, quiet) = colliders.resolve(inside, Vec3A::new(0.0, 0.6, 0.0));
+        let (p, quiet) = colliders.resolve(inside, Vec3A::new(0.0, 0.6, 0.0), 0.0);
         assert!(
             (p.y - 0.5).abs() < 1e-6 && quiet == Vec3A::ZERO,
             "{p} {quiet}"
@@ -459,13 +502,56 @@ mod tests {
                 Pose::at(Vec3::new(2.0, 1.0, 0.0)),
             )],
         );
-        assert!(!colliders.reaches(Vec3A::new(-1.0, 0.1, -1.0), Vec3A::new(1.0, 2.0, 1.0)));
-        assert!(colliders.reaches(Vec3A::new(-1.0, -0.1, -1.0), Vec3A::new(1.0, 2.0, 1.0)));
-        assert!(colliders.reaches(Vec3A::new(1.0, 0.1, -1.0), Vec3A::new(1.6, 2.0, 1.0)));
+        assert!(!colliders.reaches(Vec3A::new(-1.0, 0.1, -1.0), Vec3A::new(1.0, 2.0, 1.0), 0.0));
+        assert!(colliders.reaches(Vec3A::new(-1.0, -0.1, -1.0), Vec3A::new(1.0, 2.0, 1.0), 0.0));
+        assert!(colliders.reaches(Vec3A::new(1.0, 0.1, -1.0), Vec3A::new(1.6, 2.0, 1.0), 0.0));
+        // a ball of radius 0.2 reaches the ground from 0.1 above it
+        assert!(colliders.reaches(Vec3A::new(-1.0, 0.1, -1.0), Vec3A::new(1.0, 2.0, 1.0), 0.2));
         let (lo, hi) = bounds(&[Vec3A::ZERO, Vec3A::new(f32::NAN, 0.0, 0.0)]);
         assert!(
-            colliders.reaches(lo, hi),
+            colliders.reaches(lo, hi, 0.0),
             "a NaN point is never skipped over"
         );
+    }
+
+    #[test]
+    fn balls_rest_with_their_radius_on_the_ground_and_on_colliders() {
+        let r = 0.05;
+        let (p, _) = ground(0.0).resolve(Vec3A::new(0.0, 0.01, 0.0), Vec3A::new(0.0, 0.2, 0.0), r);
+        assert_eq!(p.y, r);
+        // a fast ball crossing a turned box stops a radius short of the face it came
+        // through
+        let block = PosedCollider::fixed(
+            ColliderShape::Box {
+                half_extents: Vec3::splat(0.3),
+            },
+            0.0,
+            Pose {
+                position: Vec3::ZERO,
+                rotation: Quat::from_rotation_y(0.5),
+            },
+        );
+        let colliders = Colliders::new(None, vec![block.clone()]);
+        for end_x in [2.0, 0.25, -0.3] {
+            let (from, to) = (Vec3A::new(-2.0, 0.05, 0.0), Vec3A::new(end_x, 0.05, 0.0));
+            let (p, _) = colliders.resolve(to, from, r);
+            let local = block.end_inverse.transform_point3a(p);
+            let gap = block.shape.signed_distance(local);
+            assert!(
+                (gap - r).abs() < 1e-4,
+                "ended {gap} from the box (end {end_x})"
+            );
+            assert!(p.x < -0.29, "{p}");
+        }
+        // resting on the top face a radius above it is a graze, not a contact
+        let flat = PosedCollider::fixed(
+            ColliderShape::Box {
+                half_extents: Vec3::splat(0.5),
+            },
+            0.3,
+            Pose::at(Vec3::ZERO),
+        );
+        let from = Vec3A::new(0.0, 0.5 + r, 0.0);
+        assert_eq!(flat.resolve(Vec3A::new(0.1, 0.5 + r, 0.0), from, r), None);
     }
 }

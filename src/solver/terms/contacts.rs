@@ -104,7 +104,7 @@ impl Contacts {
         let (mut particles, mut groups) = (ContactParticles::default(), Vec::new());
         for body in change.bodies {
             let (lattice, material) = (body.lattice, body.material);
-            let radius = material.contact_radius.unwrap_or(0.5 * lattice.spacing());
+            let radius = material.contact_radius_at(lattice.spacing());
             let group = ContactGroup {
                 self_contact: material.self_contact,
                 static_friction: material.static_friction,
