@@ -195,7 +195,7 @@ impl SimConfig {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Material {
     /// Compliance of the material, `1/E` in 1/Pa (E: Young's modulus, Poisson's ratio
-    /// 0); 0 makes every cluster rigid. Each cluster stores the elastic energy
+    /// 0); 0 makes every cluster rigid; default 1e-6 (rubber, see [`Material::rubber`]). Each cluster stores the elastic energy
     /// `(κ/2) Σᵢ wᵢ |xᵢ − gᵢ|²` of its members' distances to their goals (weights
     /// `wᵢ = 1/nᵢ`, nᵢ the particle's cluster count), with `κ = E·V/σ²` (V a particle's
     /// volume, σ² a full cluster's per-axis spread of rest offsets), which approximates
@@ -203,8 +203,8 @@ pub struct Material {
     /// into one implicit step the way XPBD does (Macklin et al. 2016), so the stiffness
     /// does not depend on the time step or the iteration count.
     pub compliance: f32,
-    /// Density in kg/m³: a particle's mass is `density · spacing³` unless
-    /// [`Material::particle_mass`] overrides it.
+    /// Density in kg/m³ (default 1100): a particle's mass is `density · spacing³`
+    /// unless [`Material::particle_mass`] overrides it.
     pub density: f32,
     /// Mass of one particle in kg, overriding the density (`None`: from the density).
     pub particle_mass: Option<f32>,
@@ -247,11 +247,12 @@ pub struct Material {
     pub edge_compliance: Option<f32>,
 }
 
+/// Rubber ([`Material::rubber`]): a body a newcomer spawns deforms where it lands.
 impl Default for Material {
     fn default() -> Self {
         Self {
-            compliance: 0.0,
-            density: 1000.0,
+            compliance: 1e-6,
+            density: 1100.0,
             particle_mass: None,
             cluster_radius: 1,
             cluster_overlap: 1,
@@ -275,6 +276,7 @@ impl Material {
     pub fn rigid() -> Self {
         Self {
             compliance: 0.0,
+            density: 1000.0,
             ..Self::default()
         }
     }
@@ -282,11 +284,7 @@ impl Material {
     /// Rubber: Young's modulus 1 MPa (compliance 1e-6 1/Pa), density 1100 kg/m³ — a
     /// block squashes as it lands and springs back. The default.
     pub fn rubber() -> Self {
-        Self {
-            compliance: 1e-6,
-            density: 1100.0,
-            ..Self::default()
-        }
+        Self::default()
     }
 
     /// Gel: Young's modulus 30 kPa (compliance 3.3e-5 1/Pa), density 1000 kg/m³ — it

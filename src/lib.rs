@@ -25,7 +25,9 @@
 //! particles and edges the tools reach, which voxels tear, [`cut::detection`]), **cut**
 //! (particle data only), and **regroup**, **split**, **expand** (cluster data only): the
 //! cut clusters rebuilt by graph algorithms ([`reconstruct`]) so that pieces separate
-//! while the body keeps the clusters, and the stiffness, of its shape built fresh.
+//! while the body keeps the clusters, and the stiffness, of its shape built fresh; last,
+//! **settle** records where the tools, colliders and attachment targets ended, so that
+//! the next frame sweeps them on from there whether a path or game code moves them.
 //!
 //! ## Example
 //!

@@ -2,7 +2,7 @@
 //! simulation map to the same bodies, tools, colliders and attachments after a load
 //! while the old entities are refused; poses set from code are checked; attachments are
 //! made, moved and released at run time; the last frame's messages are read without
-//! Bevy.
+//! Bevy; centroids of a body and of its pieces.
 
 use cleave::prelude::*;
 
@@ -183,13 +183,13 @@ fn the_last_frames_messages_are_read_without_bevy() -> cleave::error::Result<()>
         cut_width: 0.05,
         cut_mode: CutMode::Sever,
         path: Path::default(),
-        pose: Pose::at(Vec3::new(0.03, 2.0, 0.0)),
+        pose: Pose::at(Vec3::new(0.0, 2.0, 0.0)),
     })?;
     assert!(sim.messages::<BodySplit>().is_empty());
     sim.step();
     assert!(sim.messages::<BodySplit>().is_empty(), "nothing cut yet");
     // one frame's move from above the block to below it, set from code
-    sim.set_tool_pose(tool, Pose::at(Vec3::new(0.03, -2.0, 0.0)))?;
+    sim.set_tool_pose(tool, Pose::at(Vec3::new(0.0, -2.0, 0.0)))?;
     sim.step();
     let splits = sim.messages::<BodySplit>();
     assert_eq!(splits.len(), 1, "{splits:?}");
@@ -203,6 +203,20 @@ fn the_last_frames_messages_are_read_without_bevy() -> cleave::error::Result<()>
     );
     assert!(!sim.messages::<EdgesSevered>().is_empty());
     assert_eq!(sim.pieces(body)?.len(), 2);
+    // gravity off, nothing moved: the block's centre, and each half's (the blade lies
+    // in the XY plane: 2 layers of 0.1 m on each side of z = 0, centres 0.1 m out),
+    // ordered as the pieces
+    assert!(sim.centroid(body)?.length() < 1e-5);
+    let halves = sim.piece_centroids(body)?;
+    let first_behind = sim.positions(body)?[0].1.z < 0.0;
+    let expected = if first_behind {
+        [-0.1, 0.1]
+    } else {
+        [0.1, -0.1]
+    };
+    for (c, z) in halves.iter().zip(expected) {
+        assert!((*c - Vec3::new(0.0, 0.0, z)).length() < 1e-5, "{halves:?}");
+    }
     sim.step();
     assert!(
         sim.messages::<BodySplit>().is_empty(),

@@ -45,7 +45,8 @@ fn every_builtin_round_trips_through_ron() {
     }
 }
 
-/// Runs `cleave run FILE` on `text`; returns (exit code, stderr).
+/// Runs `cleave run` on `text` written to a file `name` (unique across the tests, which
+/// run in parallel and share the directory); returns (exit code, stderr).
 fn run_file(name: &str, text: &str) -> (Option<i32>, String) {
     let dir = std::env::temp_dir().join(format!("cleave-scene-files-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -201,9 +202,9 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
             ],
         ),
         (
-            "budget.ron",
+            "memory.ron",
             GOOD.replace("frames: 2,", "frames: 2, settings: (memory_budget_gb: 0),"),
-            &["budget.ron:2:", "settings.memory_budget_gb", "0.001 ≤ memory_budget_gb"],
+            &["memory.ron:2:", "settings.memory_budget_gb", "0.001 ≤ memory_budget_gb"],
         ),
         (
             "ball.ron",
@@ -221,12 +222,12 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
             &["meshcollider.ron", "colliders[0].shape.path", "nowhere.obj"],
         ),
         (
-            "pin.ron",
+            "pinregion.ron",
             GOOD.replace(
                 "position: (0.0, 0.5, 0.0))],",
                 "position: (0.0, 0.5, 0.0), pins: [(min: (inf, 0.0, 0.0), max: (1.0, 1.0, 1.0))])],",
             ),
-            &["pin.ron:3:", "bodies[0].pins", "allowed: finite"],
+            &["pinregion.ron:3:", "bodies[0].pins", "allowed: finite"],
         ),
         (
             "syntax.ron",

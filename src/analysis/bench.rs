@@ -160,7 +160,10 @@ pub fn bench_edges(n: u32, steps: usize, config: &SimConfig) -> Result<EdgeRow> 
     let mut sim = Simulation::new(config.clone())?;
     let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(n)), H);
     desc.position = Vec3::new(0.0, n as f32 * H * 0.5 + 0.05, 0.0);
-    desc.material.edge_compliance = Some(1e-7);
+    desc.material = Material {
+        edge_compliance: Some(1e-7),
+        ..Material::rigid()
+    };
     sim.spawn_body(&desc)?;
     for _ in 0..3 {
         sim.step();
@@ -268,10 +271,11 @@ pub fn peak_resident_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
-/// A simulation with one n³ box resting just above the ground.
+/// A simulation with one rigid n³ box resting just above the ground.
 fn box_simulation(n: u32, config: &SimConfig) -> Result<Simulation> {
     let mut sim = Simulation::new(config.clone())?;
     let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(n)), H);
+    desc.material = Material::rigid();
     desc.position = Vec3::new(0.0, n as f32 * H * 0.5 + 0.05, 0.0);
     sim.spawn_body(&desc)?;
     Ok(sim)

@@ -3,12 +3,21 @@
 //! `scooped`). `cleave fidelity` compares their rebuilt clusters with fresh ones.
 
 use crate::body::shape::Shape;
-use crate::config::SimConfig;
+use crate::config::{Material, SimConfig};
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::ecs::desc::{BodyDesc, Scene, ToolDesc};
 use glam::{Mat3, Quat, UVec3, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+
+/// A body of `shape` at spacing `h`, of rigid clusters (the built-in scenes name their
+/// material; the library's default is rubber).
+pub(crate) fn rigid_body(shape: Shape, h: f32) -> BodyDesc {
+    BodyDesc {
+        material: Material::rigid(),
+        ..BodyDesc::new(shape, h)
+    }
+}
 
 /// Lattice spacing of the fidelity scenes (metres).
 const H: f32 = 0.1;
@@ -67,7 +76,7 @@ pub fn cut_block_scene(seed: u64, cuts: u32) -> Scene {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xf1de_117e);
     let cells = UVec3::new(32, 16, 16);
     let half = cells.as_vec3() * (0.5 * H);
-    let mut body = BodyDesc::new(Shape::cuboid(cells), H);
+    let mut body = rigid_body(Shape::cuboid(cells), H);
     body.position = Vec3::new(0.0, 1.0, 0.0);
     let config = SimConfig {
         seed,

@@ -6,7 +6,7 @@ use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::ecs::desc::Scene;
 use crate::ecs::desc::{BodyDesc, ColliderDesc, PinRegion, ToolDesc};
 use crate::geometry::collider::ColliderShape;
-use crate::io::cut_scenes::{cut_block_scene, scooped_cantilever_scene};
+use crate::io::cut_scenes::{cut_block_scene, rigid_body, scooped_cantilever_scene};
 use glam::{Quat, UVec3, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -81,7 +81,7 @@ pub const NOTCH_X: f32 = -1.6 + 0.3 * 3.2;
 /// projective dynamics' matrix; much stiffer edges than these need more iterations
 /// there).
 fn soft_beam(config: SimConfig) -> Scene {
-    let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(32, 3, 3)), H);
+    let mut body = rigid_body(Shape::cuboid(UVec3::new(32, 3, 3)), H);
     body.position = Vec3::new(0.0, 1.0, 0.0);
     body.pins = vec![PinRegion {
         min: Vec3::splat(-9.0),
@@ -91,7 +91,7 @@ fn soft_beam(config: SimConfig) -> Scene {
     body.material = Material {
         compliance: 1e-4,
         edge_compliance: Some(7e-8),
-        ..Material::default()
+        ..Material::rigid()
     };
     Scene {
         config: SimConfig {
@@ -124,7 +124,7 @@ fn pulled_bar(config: SimConfig, notch: bool) -> Scene {
     // (the notched bar is pulled slower: its waves alone do not tear the middle)
     let (half, pull) = (1.6, if notch { 1.0 } else { 2.0 });
     let shape = Shape::cuboid(UVec3::new(32, 6, 6));
-    let mut body = BodyDesc::new(shape, H);
+    let mut body = rigid_body(shape, H);
     body.position = Vec3::new(0.0, 1.0, 0.0);
     let end = |sign: f32| PinRegion {
         min: Vec3::new(if sign < 0.0 { -9.0 } else { half - 2.0 * H }, -9.0, -9.0),
@@ -136,7 +136,7 @@ fn pulled_bar(config: SimConfig, notch: bool) -> Scene {
         compliance: 1.2e-6,
         tear_stretch: Some(1.1),
         tear_min_piece: 300,
-        ..Material::default()
+        ..Material::rigid()
     };
     // the notch: a blade across the bar at NOTCH_X, its lower edge between the second
     // and third rows from the bottom, there at the first frame and gone up the next
@@ -209,7 +209,7 @@ fn blade_vertical_cut(
 
 fn block_on_pedestal(cells: UVec3, pedestal: Vec3) -> (BodyDesc, StaticBox) {
     let height = 0.6;
-    let mut body = BodyDesc::new(Shape::cuboid(cells), H);
+    let mut body = rigid_body(Shape::cuboid(cells), H);
     body.position = Vec3::new(0.0, height + cells.y as f32 * H * 0.5, 0.0);
     let pedestal = StaticBox {
         min: Vec3::new(-pedestal.x, 0.0, -pedestal.z),
@@ -234,7 +234,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
     };
     Some(match name {
         "drop" => {
-            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(16, 8, 8)), H);
+            let mut body = rigid_body(Shape::cuboid(UVec3::new(16, 8, 8)), H);
             body.position = Vec3::new(0.0, 0.4 + 0.5, 0.0);
             Scene {
                 config,
@@ -246,7 +246,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
         }
         "tear" | "notch" => pulled_bar(config, name == "notch"),
         "cantilever" => {
-            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(24, 6, 6)), H);
+            let mut body = rigid_body(Shape::cuboid(UVec3::new(24, 6, 6)), H);
             body.position = Vec3::new(0.0, 1.0, 0.0);
             body.pins = vec![PinRegion {
                 min: Vec3::new(-1.3, 0.0, -1.0),
@@ -256,7 +256,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
             // rubber-like: E ≈ 0.83 MPa (Euler–Bernoulli tip sag ≈ 11.5 h)
             body.material = Material {
                 compliance: 1.2e-6,
-                ..Material::default()
+                ..Material::rigid()
             };
             let config = SimConfig {
                 ground: None,
@@ -311,7 +311,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
             }
         }
         "scoop" => {
-            let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(24, 12, 12)), H);
+            let mut body = rigid_body(Shape::cuboid(UVec3::new(24, 12, 12)), H);
             body.position = Vec3::new(0.0, 0.6, 0.0);
             let y = body.position.y + 0.6;
             let at = |x: f32| Pose::at(Vec3::new(x, y, 0.0));
@@ -345,7 +345,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
 /// A seeded sequence of random blade and sphere cuts through a block on the ground.
 fn random_scene(seed: u64) -> Scene {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
-    let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(20, 10, 10)), H);
+    let mut body = rigid_body(Shape::cuboid(UVec3::new(20, 10, 10)), H);
     body.position = Vec3::new(0.0, 0.5, 0.0);
     let mut tools = Vec::new();
     for i in 0..8 {
@@ -430,7 +430,7 @@ fn random_scene(seed: u64) -> Scene {
 /// A block of `cells` resting on its contact balls (radius h/2) on a floor at height
 /// `bottom`.
 fn box_at(cells: UVec3, x: f32, bottom: f32, z: f32) -> BodyDesc {
-    let mut body = BodyDesc::new(Shape::cuboid(cells), H);
+    let mut body = rigid_body(Shape::cuboid(cells), H);
     body.position = Vec3::new(x, bottom + cells.y as f32 * H * 0.5, z);
     body
 }
@@ -495,7 +495,7 @@ pub fn pile_scene(config: SimConfig, h: f32) -> Scene {
         .into_iter()
         .enumerate()
         .map(|(i, shape)| {
-            let mut body = BodyDesc::new(shape, h);
+            let mut body = rigid_body(shape, h);
             let a = i as f32 * 2.4;
             body.position = Vec3::new(0.35 * a.cos(), 0.6 + 0.75 * i as f32, 0.35 * a.sin());
             body.rotation = Quat::from_rotation_y(0.7 * i as f32);
