@@ -112,6 +112,10 @@ pub fn check_positive(field: &str, value: f32) -> Result<()> {
 /// far below where single precision loses the lattice spacing.
 pub const MAX_COORDINATE: f32 = 1e6;
 
+/// Largest speed (m/s) a body, a pin or a keyframed path may be given: each component of
+/// a velocity, and a path's mean speed between two keys.
+pub const MAX_SPEED: f32 = 1e4;
+
 /// Checks that every component of a vector lies within `±max` (and so is finite).
 pub fn check_vec_within(
     field: &str,

@@ -179,6 +179,7 @@ pub fn install(world: &mut World, config: crate::config::SimConfig) {
     world.insert_resource(SimRng(rand_chacha::ChaCha8Rng::seed_from_u64(config.seed)));
     world.insert_resource(SimSettings(config));
     world.init_resource::<SimClock>();
+    world.init_resource::<SceneLabel>();
     world.init_resource::<SubstepClock>();
     world.init_resource::<CutList>();
     world.init_resource::<CutReport>();

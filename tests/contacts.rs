@@ -312,12 +312,58 @@ fn bad_colliders_are_refused_with_the_field_named() {
             },
             "collider.path[0].time",
         ),
+        // two keys at one time: a jump of infinite speed
+        (
+            ColliderDesc {
+                path: Path {
+                    keys: vec![(0.5, Pose::at(Vec3::ZERO)), (0.5, Pose::at(Vec3::X))],
+                },
+                ..good.clone()
+            },
+            "collider.path[1].time",
+        ),
+        // 2e6 m in 0.02 s
+        (
+            ColliderDesc {
+                path: Path {
+                    keys: vec![(0.0, Pose::at(Vec3::ZERO)), (0.02, Pose::at(Vec3::X * 2e5))],
+                },
+                ..good.clone()
+            },
+            "invalid `collider.path[1]`: 10000000 m/s from the key before (allowed: ≤ 1e4 m/s",
+        ),
+        (
+            ColliderDesc {
+                path: Path {
+                    keys: vec![(0.0, Pose::at(Vec3::Y * 2e6))],
+                },
+                ..good.clone()
+            },
+            "collider.path[0].position",
+        ),
+        (
+            ColliderDesc {
+                shape: ColliderShape::Sphere { radius: 1e30 },
+                ..good.clone()
+            },
+            "collider.shape.radius",
+        ),
     ];
     for (desc, field) in cases {
         let e = sim.spawn_collider(&desc).unwrap_err().to_string();
         assert!(e.contains(field), "{e}");
     }
     assert!(sim.spawn_collider(&good).is_ok());
+    // a contact ball wider than two spacings
+    let mut body = BodyDesc::new(Shape::cuboid(UVec3::splat(3)), H);
+    body.material.contact_radius = Some(1e3);
+    let e = sim.spawn_body(&body).unwrap_err().to_string();
+    assert!(
+        e.contains("material.contact_radius") && e.contains("2 × spacing"),
+        "{e}"
+    );
+    body.material.contact_radius = Some(2.0 * H);
+    assert!(sim.spawn_body(&body).is_ok());
 }
 
 /// A random small body shape.

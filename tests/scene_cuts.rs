@@ -198,20 +198,31 @@ fn a_run_saved_and_loaded_from_the_command_line_goes_on_as_one_run() {
     let quiet = ["--png-every", "0", "--gif-every", "0", "--quiet"];
     let file = std::env::temp_dir().join(format!("cleave-save-{}.bin", std::process::id()));
     let file = file.to_str().unwrap();
-    let (_, straight) = run_with("random", Some(300), &quiet);
-    run_with(
-        "random",
-        Some(100),
-        &[&quiet[..], &["--save-state", file]].concat(),
-    );
-    let (summary, resumed) = run_with(
-        "random",
-        Some(200),
-        &[&quiet[..], &["--load-state", file]].concat(),
-    );
-    assert_eq!(resumed["frame"], 300);
-    assert_eq!(summary["invariant_violations"], 0);
-    assert_eq!(particles_of(&resumed), particles_of(&straight));
+    // the same state dumps to the same bytes, straight or saved and resumed (ids are
+    // derived from the state, not from entities)
+    for (scene, mode) in [
+        ("slice", "remove"),
+        ("random", "remove"),
+        ("random", "sever"),
+        ("random", "split"),
+    ] {
+        let moded = [&quiet[..], &["--cut-mode", mode]].concat();
+        let (_, straight) = run_with(scene, Some(300), &moded);
+        run_with(
+            scene,
+            Some(100),
+            &[&moded[..], &["--save-state", file]].concat(),
+        );
+        let (summary, resumed) = run_with(
+            scene,
+            Some(200),
+            &[&quiet[..], &["--load-state", file]].concat(),
+        );
+        assert_eq!(resumed["frame"], 300);
+        assert_eq!(summary["invariant_violations"], 0);
+        assert_eq!(particles_of(&resumed), particles_of(&straight));
+        assert!(resumed == straight, "{scene} {mode}: the dumps differ");
+    }
     let cleave = |args: &[&str]| {
         Command::new(env!("CARGO_BIN_EXE_cleave"))
             .args(args)
@@ -237,6 +248,14 @@ fn a_run_saved_and_loaded_from_the_command_line_goes_on_as_one_run() {
         (
             vec!["run", "random", "--load-state", "Cargo.toml"],
             "not a saved cleave simulation",
+        ),
+        (
+            vec!["run", "random", "--load-state", "/dev/zero"],
+            "/dev/zero: saved simulation: not a saved cleave simulation",
+        ),
+        (
+            vec!["run", "slice", "--load-state", file],
+            "holds a run of scene `random`, not `slice`",
         ),
     ] {
         let out = cleave(&args);

@@ -2,7 +2,9 @@
 //! paths, and the swept test that detection uses: exact for a translating tool, so a fast
 //! tool cannot skip particles and cuts what a slow one cuts along the same path.
 
-use crate::error::{Result, check_finite_vec, check_positive, out_of_range};
+use crate::error::{
+    MAX_COORDINATE, MAX_SPEED, Result, check_positive, check_vec_within, out_of_range,
+};
 use crate::geometry::convex::{self, Convex};
 use crate::math::rotation::unit_quaternion;
 use glam::{Quat, Vec3};
@@ -209,9 +211,10 @@ pub struct Path {
 }
 
 impl Path {
-    /// Checks that times increase and every key is finite (a rotation: finite and
-    /// non-zero); the error names the key as `{owner}.path[i]` (`owner`: `tool`,
-    /// `collider`).
+    /// Checks that times strictly increase, every key is finite and within the world's
+    /// bounds (a rotation: finite and non-zero) and no stretch between two keys is faster
+    /// than [`MAX_SPEED`]; the error names the key as `{owner}.path[i]` (`owner`: `tool`,
+    /// `collider`, …).
     pub fn validate(&self, owner: &str) -> Result<()> {
         for (i, (t, pose)) in self.keys.iter().enumerate() {
             if !t.is_finite() {
@@ -221,7 +224,12 @@ impl Path {
                     "finite",
                 ));
             }
-            check_finite_vec(&format!("{owner}.path[{i}].position"), pose.position)?;
+            check_vec_within(
+                &format!("{owner}.path[{i}].position"),
+                pose.position,
+                MAX_COORDINATE,
+                "|x|, |y|, |z| ≤ 1e6 (metres)",
+            )?;
             if unit_quaternion(pose.rotation).is_none() {
                 return Err(out_of_range(
                     &format!("{owner}.path[{i}].rotation"),
@@ -229,12 +237,22 @@ impl Path {
                     "finite, non-zero quaternion",
                 ));
             }
-            if i > 0 && *t < self.keys[i - 1].0 {
-                return Err(out_of_range(
-                    &format!("{owner}.path[{i}].time"),
-                    t,
-                    "times in increasing order",
-                ));
+            if let Some((before, from)) = i.checked_sub(1).map(|j| self.keys[j]) {
+                if *t <= before {
+                    return Err(out_of_range(
+                        &format!("{owner}.path[{i}].time"),
+                        t,
+                        "times strictly increasing (no two keys at one time)",
+                    ));
+                }
+                let speed = (pose.position - from.position).length() / (t - before);
+                if speed.is_nan() || speed > MAX_SPEED {
+                    return Err(out_of_range(
+                        &format!("{owner}.path[{i}]"),
+                        format_args!("{speed} m/s from the key before"),
+                        "≤ 1e4 m/s between keys",
+                    ));
+                }
             }
         }
         Ok(())

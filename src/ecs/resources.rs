@@ -16,6 +16,11 @@ pub struct SimSettings(pub SimConfig);
 #[derive(Resource, Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct SimRng(pub ChaCha8Rng);
 
+/// What the simulation is a run of (a scene's name or file, say), as its maker labelled
+/// it: kept in saves, so that a resumed run can say what it resumes.
+#[derive(Resource, Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SceneLabel(pub Option<String>);
+
 /// Frame counter and simulated time.
 #[derive(Resource, Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct SimClock {

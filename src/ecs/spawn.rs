@@ -11,7 +11,7 @@ use crate::ecs::components::*;
 use crate::ecs::desc::{BodyDesc, ColliderDesc, Region, ToolDesc};
 use crate::ecs::resources::*;
 use crate::error::{
-    CleaveError, MAX_COORDINATE, Result, check_finite_vec, check_positive, check_range,
+    CleaveError, MAX_COORDINATE, MAX_SPEED, Result, check_finite_vec, check_positive, check_range,
     check_vec_within,
 };
 use crate::math::rotation::unit_quaternion;
@@ -134,6 +134,17 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         100.0,
         "1e-4 ≤ spacing ≤ 100 (metres)",
     )?;
+    // a ball wider than two spacings would overlap balls two cells away at rest, and
+    // makes every particle's neighbourhood search grow as its cube
+    if let Some(r) = desc.material.contact_radius
+        && r > 2.0 * desc.spacing
+    {
+        return Err(crate::error::out_of_range(
+            "material.contact_radius",
+            r,
+            "≤ 2 × spacing (metres)",
+        ));
+    }
     check_vec_within(
         "body.position",
         desc.position,
@@ -143,7 +154,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     check_vec_within(
         "body.velocity",
         desc.velocity,
-        1e4,
+        MAX_SPEED,
         "|vx|, |vy|, |vz| ≤ 1e4 (m/s)",
     )?;
     let rotation = unit_quaternion(desc.rotation).ok_or_else(|| {
@@ -159,7 +170,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         check_vec_within(
             &format!("body.pins[{i}].velocity"),
             pin.velocity,
-            1e4,
+            MAX_SPEED,
             "|vx|, |vy|, |vz| ≤ 1e4 (m/s)",
         )?;
     }

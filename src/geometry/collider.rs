@@ -2,7 +2,7 @@
 //! nearest surface point, and the first point where a segment enters the shape (the
 //! swept test that keeps fast particles and fast colliders from tunnelling).
 
-use crate::error::{Result, check_positive, out_of_range};
+use crate::error::{MAX_COORDINATE, Result, out_of_range};
 use crate::geometry::mesh_sdf::MeshSdf;
 use glam::{Vec3, Vec3A};
 use serde::{Deserialize, Serialize};
@@ -36,33 +36,43 @@ pub enum ColliderShape {
 }
 
 impl ColliderShape {
-    /// Checks that every size is finite and positive (a capsule's shaft may be 0).
+    /// Checks that every size is positive (a capsule's shaft may be 0) and at most the
+    /// world's bound, [`MAX_COORDINATE`].
     pub fn validate(&self, field: &str) -> Result<()> {
+        let size = |name: &str, value: f32, zero: bool| {
+            if value.is_finite() && (value > 0.0 || zero && value == 0.0) && value <= MAX_COORDINATE
+            {
+                Ok(())
+            } else {
+                let allowed = if zero {
+                    "0 ≤ size ≤ 1e6 (metres)"
+                } else {
+                    "0 < size ≤ 1e6 (metres)"
+                };
+                Err(out_of_range(&format!("{field}.{name}"), value, allowed))
+            }
+        };
         match *self {
             ColliderShape::Box { half_extents } => {
-                if !(half_extents.is_finite() && half_extents.cmpgt(Vec3::ZERO).all()) {
+                let within = half_extents.is_finite()
+                    && half_extents.cmpgt(Vec3::ZERO).all()
+                    && half_extents.max_element() <= MAX_COORDINATE;
+                if !within {
                     return Err(out_of_range(
                         &format!("{field}.half_extents"),
                         half_extents,
-                        "finite and > 0 on every axis",
+                        "0 < size ≤ 1e6 (metres) on every axis",
                     ));
                 }
                 Ok(())
             }
-            ColliderShape::Sphere { radius } => check_positive(&format!("{field}.radius"), radius),
+            ColliderShape::Sphere { radius } => size("radius", radius, false),
             ColliderShape::Capsule {
                 radius,
                 half_length,
             } => {
-                check_positive(&format!("{field}.radius"), radius)?;
-                if !(half_length.is_finite() && half_length >= 0.0) {
-                    return Err(out_of_range(
-                        &format!("{field}.half_length"),
-                        half_length,
-                        "finite and ≥ 0",
-                    ));
-                }
-                Ok(())
+                size("radius", radius, false)?;
+                size("half_length", half_length, true)
             }
             ColliderShape::Mesh(_) => Ok(()),
         }

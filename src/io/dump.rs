@@ -1,8 +1,12 @@
 //! The state dump (`cleave-state/2`, JSON), the format other tools check the engine
 //! with: the frame and time, then per body its spacing, the configuration an invariant
 //! checker needs, its live particles (lattice coordinate, position, mass), its live
-//! lattice edges and its clusters. Ids are entity bits: unique across the whole dump and
-//! stable within a run.
+//! lattice edges and its clusters. Ids are derived from the state, not from entities, so
+//! that the same state dumps to the same bytes however it was reached (straight, or
+//! saved and loaded): a body's id is its rank among the bodies (entity order), a
+//! particle's is [`particle_id`] of its body and body-local index (a split particle's
+//! new half has an index of its own), a cluster's [`cluster_id`] of its body and key.
+//! They are unique across the whole dump.
 
 use crate::ecs::components::*;
 use crate::ecs::resources::SimClock;
@@ -11,6 +15,22 @@ use serde::{Deserialize, Serialize};
 
 /// The dump's format tag.
 pub const FORMAT: &str = "cleave-state/2";
+
+/// Bits of an id above the body's rank.
+const BODY_SHIFT: u32 = 40;
+
+/// The bit that marks a cluster's id.
+const CLUSTER_BIT: u64 = 1 << 39;
+
+/// The dump id of particle `local` of the body of rank `body`.
+pub fn particle_id(body: u64, local: u32) -> u64 {
+    (body << BODY_SHIFT) | local as u64
+}
+
+/// The dump id of the cluster of key `key` of the body of rank `body`.
+pub fn cluster_id(body: u64, key: u32) -> u64 {
+    (body << BODY_SHIFT) | CLUSTER_BIT | key as u64
+}
 
 /// One particle in the dump.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -44,7 +64,7 @@ pub struct DumpConfig {
 /// One body in the dump.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct DumpBody {
-    /// Stable id (the body entity's bits).
+    /// Stable id (the body's rank).
     pub id: u64,
     /// Lattice spacing h.
     pub spacing: f32,
@@ -88,17 +108,19 @@ pub fn dump_world(world: &mut World) -> StateDump {
         time: clock.time,
         bodies: bodies
             .into_iter()
-            .filter_map(|b| dump_body(world, b))
+            .enumerate()
+            .filter_map(|(rank, b)| dump_body(world, b, rank as u64))
             .collect(),
     }
 }
 
-/// Dumps one body, or `None` if `body` is not a body.
-pub fn dump_body(world: &mut World, body: Entity) -> Option<DumpBody> {
+/// Dumps one body, of rank `rank` among the dump's bodies, or `None` if `body` is not a
+/// body.
+pub fn dump_body(world: &mut World, body: Entity, rank: u64) -> Option<DumpBody> {
     let material = world.get::<Body>(body)?.material.clone();
     let lattice = world.get::<BodyLattice>(body)?.clone();
     let l = &lattice.lattice;
-    let id = |i: u32| lattice.particles[i as usize].to_bits();
+    let id = |i: u32| particle_id(rank, i);
     let particles = l
         .live_particles()
         .map(|i| DumpParticle {
@@ -117,17 +139,17 @@ pub fn dump_body(world: &mut World, body: Entity) -> Option<DumpBody> {
         .collect();
     let edges = l.edges().into_iter().map(|(a, b)| [id(a), id(b)]).collect();
     let mut clusters: Vec<DumpCluster> = world
-        .query::<(Entity, &ClusterMembers, &ClusterOf)>()
+        .query::<(&ClusterMembers, &ClusterOf)>()
         .iter(world)
-        .filter(|(_, _, of)| of.body == body)
-        .map(|(e, m, _)| DumpCluster {
-            id: e.to_bits(),
+        .filter(|(_, of)| of.body == body)
+        .map(|(m, of)| DumpCluster {
+            id: cluster_id(rank, of.key),
             members: m.0.iter().map(|i| id(*i)).collect(),
         })
         .collect();
     clusters.sort_by_key(|c| c.id);
     Some(DumpBody {
-        id: body.to_bits(),
+        id: rank,
         spacing: l.spacing(),
         config: DumpConfig {
             max_cluster_size: material.max_cluster_size,

@@ -8,5 +8,6 @@ pub mod export;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod save;
+pub mod save_file;
 pub mod scene;
 pub mod scene_file;

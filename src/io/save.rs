@@ -5,13 +5,15 @@
 //! file. A run that is
 //! saved, loaded and continued is bit for bit the run that was never interrupted.
 //!
-//! The file is a header — the magic bytes [`MAGIC`] and a little-endian `u32` format
-//! version, [`VERSION`] — then the state, encoded with postcard. Entities are written
+//! The file ([`crate::io::save_file`]) is a header and one checksummed section per
+//! part of the state below. Entities are written
 //! with their ids in the saving world and given new ones when loaded; everything that
 //! names them (a particle's body, a cluster's body, a body's particles and cluster keys,
 //! the solver's tables) is mapped. Cleave names clusters by keys of its own
 //! ([`crate::ecs::components::ClusterKeys`]), so nothing it decides depends on the ids the
-//! loading world hands out.
+//! loading world hands out. What the file claims is checked before it is used: lengths
+//! against each other, indices against their tables, values finite, and the invariants
+//! of the loaded world; a save is loaded whole or refused.
 //!
 //! Saved: what cleave spawned (bodies, particles, clusters, attachments, tools,
 //! colliders) and its resources; the terms besides the clusters are taken again from
@@ -23,9 +25,11 @@ use crate::config::SimConfig;
 use crate::ecs::check::check_invariants;
 use crate::ecs::components::*;
 use crate::ecs::resources::{
-    BodyDense, ClusterSlots, CutReport, PendingTopology, SimClock, SimRng, SimSettings, SolverCache,
+    BodyDense, ClusterSlots, CutReport, PendingTopology, SceneLabel, SimClock, SimRng, SimSettings,
+    SolverCache,
 };
 use crate::error::{CleaveError, Result};
+use crate::io::save_file::{SaveReader, SaveWriter};
 use crate::solver::clusters::term::ClusterTerm;
 use crate::solver::particles::Particles;
 use crate::solver::schemes::gauss_seidel::GaussSeidel;
@@ -34,15 +38,6 @@ use bevy_ecs::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use std::io::{Read, Write};
-
-/// The first bytes of a saved simulation.
-pub const MAGIC: [u8; 8] = *b"cleave\0s";
-
-/// The format version this build writes and reads.
-pub const VERSION: u32 = 3;
-
-/// Largest saved simulation [`load`] reads, in bytes.
-pub const MAX_SAVE_BYTES: u64 = 4 << 30;
 
 /// A body and what it owns besides its entities.
 #[derive(Serialize, Deserialize)]
@@ -132,6 +127,7 @@ struct Snapshot {
     attachments: Vec<AttachmentState>,
     cache: CacheState,
     cut: CutReport,
+    label: SceneLabel,
 }
 
 fn invalid(what: impl std::fmt::Display) -> CleaveError {
@@ -142,16 +138,40 @@ fn invalid(what: impl std::fmt::Display) -> CleaveError {
 /// brought up to date first, as the next frame would.
 pub fn save(world: &mut World, writer: impl Write) -> Result<()> {
     world.run_schedule(SyncSchedule);
-    let snapshot = snapshot(world)?;
-    let bytes = postcard::to_stdvec(&snapshot).map_err(invalid)?;
-    let mut writer = writer;
-    writer
-        .write_all(&MAGIC)
-        .and_then(|()| writer.write_all(&VERSION.to_le_bytes()))
-        .and_then(|()| writer.write_all(&bytes))
-        .and_then(|()| writer.flush())
-        .map_err(|e| invalid(format!("cannot write: {e}")))
+    let s = snapshot(world)?;
+    let mut file = SaveWriter::new(writer)?;
+    file.section(SECTIONS[0], &s.entity_bound)?;
+    file.section(SECTIONS[1], &s.config)?;
+    file.section(SECTIONS[2], &s.clock)?;
+    file.section(SECTIONS[3], &s.rng)?;
+    file.section(SECTIONS[4], &s.bodies)?;
+    file.section(SECTIONS[5], &s.particles)?;
+    file.section(SECTIONS[6], &s.clusters)?;
+    file.section(SECTIONS[7], &s.tools)?;
+    file.section(SECTIONS[8], &s.colliders)?;
+    file.section(SECTIONS[9], &s.attachments)?;
+    file.section(SECTIONS[10], &s.cache)?;
+    file.section(SECTIONS[11], &s.cut)?;
+    file.section(SECTIONS[12], &s.label)?;
+    file.finish()
 }
+
+/// The sections of a saved simulation, in their order in the file.
+const SECTIONS: [&str; 13] = [
+    "entity bound",
+    "settings",
+    "clock",
+    "random stream",
+    "bodies",
+    "particles",
+    "clusters",
+    "tools",
+    "colliders",
+    "attachments",
+    "solver layout",
+    "cut report",
+    "scene label",
+];
 
 fn snapshot(world: &mut World) -> Result<Snapshot> {
     let mut bodies: Vec<BodyState> = world
@@ -251,6 +271,7 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
             clusters: cache.clusters.clone(),
         },
         cut: world.resource::<CutReport>().clone(),
+        label: world.resource::<SceneLabel>().clone(),
     })
 }
 
@@ -258,26 +279,23 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
 /// [`crate::systems::install`] prepares one, that goes on exactly as the saved one would
 /// have.
 pub fn load(reader: impl Read) -> Result<World> {
-    let mut bytes = Vec::new();
-    reader
-        .take(MAX_SAVE_BYTES + 1)
-        .read_to_end(&mut bytes)
-        .map_err(|e| invalid(format!("cannot read: {e}")))?;
-    if bytes.len() as u64 > MAX_SAVE_BYTES {
-        return Err(invalid(format!("larger than {} GiB", MAX_SAVE_BYTES >> 30)));
-    }
-    let header = MAGIC.len() + 4;
-    if bytes.len() < header || bytes[..MAGIC.len()] != MAGIC {
-        return Err(invalid("not a saved cleave simulation"));
-    }
-    let version = u32::from_le_bytes(bytes[MAGIC.len()..header].try_into().unwrap_or_default());
-    if version != VERSION {
-        return Err(invalid(format!(
-            "format version {version}, but this build reads version {VERSION}"
-        )));
-    }
-    let snapshot: Snapshot =
-        postcard::from_bytes(&bytes[header..]).map_err(|e| invalid(format!("corrupt: {e}")))?;
+    let mut file = SaveReader::new(reader)?;
+    let snapshot = Snapshot {
+        entity_bound: file.section(SECTIONS[0])?,
+        config: file.section(SECTIONS[1])?,
+        clock: file.section(SECTIONS[2])?,
+        rng: file.section(SECTIONS[3])?,
+        bodies: file.section(SECTIONS[4])?,
+        particles: file.section(SECTIONS[5])?,
+        clusters: file.section(SECTIONS[6])?,
+        tools: file.section(SECTIONS[7])?,
+        colliders: file.section(SECTIONS[8])?,
+        attachments: file.section(SECTIONS[9])?,
+        cache: file.section(SECTIONS[10])?,
+        cut: file.section(SECTIONS[11])?,
+        label: file.section(SECTIONS[12])?,
+    };
+    file.finish()?;
     restore(snapshot)
 }
 
@@ -335,6 +353,7 @@ fn restore(snapshot: Snapshot) -> Result<World> {
         attachments,
         cache,
         cut,
+        label,
     } = snapshot;
     config.validate()?;
     let mut loaded = World::new();
@@ -360,6 +379,13 @@ fn restore(snapshot: Snapshot) -> Result<World> {
         map.0.insert(b.entity, world.spawn_empty().id());
     }
     for p in particles {
+        let finite = p.position.0.is_finite() && p.velocity.0.is_finite();
+        if !(finite && p.inv_mass.0.is_finite() && p.inv_mass.0 >= 0.0) {
+            return Err(invalid(format!(
+                "particles: particle {} of its body has a non-finite state",
+                p.particle.index
+            )));
+        }
         let particle = Particle {
             body: map.required(p.particle.body, "a particle")?,
             ..p.particle
@@ -428,6 +454,7 @@ fn restore(snapshot: Snapshot) -> Result<World> {
     world.insert_resource(handles);
     *world.resource_mut::<SimClock>() = clock;
     *world.resource_mut::<SimRng>() = rng;
+    world.insert_resource(label);
     let mut cut = cut;
     for b in &mut cut.bodies {
         b.body = map.get(b.body);
@@ -455,6 +482,13 @@ fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Resul
     ] != [slots; 4]
     {
         return Err(invalid("the solver's particle tables disagree in length"));
+    }
+    let state = &saved.particles;
+    let finite = |v: &[glam::Vec3A]| v.iter().all(|x| x.is_finite());
+    let masses = state.inv_mass.iter().all(|w| w.is_finite() && *w >= 0.0);
+    if !(masses && finite(&state.positions) && finite(&state.previous) && finite(&state.velocities))
+    {
+        return Err(invalid("solver layout: non-finite particle state"));
     }
     let particles: Vec<Entity> = saved.entities.iter().map(|e| map.get(*e)).collect();
     let clusters: Vec<Entity> = saved.clusters.iter().map(|e| map.get(*e)).collect();

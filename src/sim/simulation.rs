@@ -4,7 +4,7 @@ use crate::config::SimConfig;
 use crate::cut::tool::Pose;
 use crate::ecs::components::*;
 use crate::ecs::desc::{BodyDesc, ColliderDesc, ToolDesc};
-use crate::ecs::resources::{SimSettings, SolverCache};
+use crate::ecs::resources::{SceneLabel, SimSettings, SolverCache};
 use crate::ecs::spawn::{recluster, spawn_body, spawn_collider, spawn_tool};
 use crate::error::{CleaveError, Result};
 use crate::solver::term::Term;
@@ -56,6 +56,17 @@ impl Simulation {
     /// The settings in force.
     pub fn config(&self) -> &SimConfig {
         &self.world.resource::<SimSettings>().0
+    }
+
+    /// Labels what this simulation is a run of (a scene's name, say); saves keep it.
+    pub fn set_label(&mut self, label: impl Into<String>) {
+        self.world.insert_resource(SceneLabel(Some(label.into())));
+    }
+
+    /// The label [`Simulation::set_label`] gave, here or in the simulation this one was
+    /// loaded from.
+    pub fn label(&self) -> Option<&str> {
+        self.world.get_resource::<SceneLabel>()?.0.as_deref()
     }
 
     /// Voxelises, clusters and spawns a body; returns the body entity.

@@ -121,6 +121,7 @@ pub struct RunArgs {
 /// scene file, and the entry); returns it and its bodies.
 fn start(scene: &Scene, scene_name: &str) -> Result<(Simulation, Vec<Entity>), String> {
     let mut sim = Simulation::new(scene.config.clone()).map_err(|e| e.to_string())?;
+    sim.set_label(scene_name);
     let fail = |what: &str, i: usize, e: cleave::error::CleaveError| {
         let at = std::fs::read_to_string(scene_name)
             .ok()
@@ -165,6 +166,15 @@ fn resume(
         .map_err(|e| format!("{}: cannot be opened: {e}", path.display()))?;
     let mut sim = Simulation::load(std::io::BufReader::new(file))
         .map_err(|e| format!("{}: {e}", path.display()))?;
+    if let Some(saved) = sim.label()
+        && saved != args.scene
+    {
+        return Err(format!(
+            "--load-state: {} holds a run of scene `{saved}`, not `{}`",
+            path.display(),
+            args.scene
+        ));
+    }
     let bodies = sim.bodies();
     Ok((sim, bodies))
 }

@@ -293,9 +293,9 @@ pub fn keys<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(f32, PoseFile)>, D::
                 "key {i}: time {t} is out of range (allowed: a finite number)"
             )));
         }
-        if i > 0 && *t < keys[i - 1].0 {
+        if i > 0 && *t <= keys[i - 1].0 {
             return Err(D::Error::custom(format!(
-                "key {i}: time {t} is before the previous key (allowed: ascending times)"
+                "key {i}: time {t} is not after the previous key (allowed: strictly ascending times)"
             )));
         }
     }

@@ -116,7 +116,7 @@ pub struct AttachmentFile {
     /// The region whose particles are attached (it must hold at least one).
     #[serde(deserialize_with = "super::check::region")]
     pub region: Region,
-    /// Keyframes `(time, pose)` of the target, ascending times.
+    /// Keyframes `(time, pose)` of the target, strictly ascending times.
     #[serde(default, deserialize_with = "super::check::keys")]
     pub path: Vec<(f32, PoseFile)>,
     /// Compliance of each particle's spring, m/N (≥ 0; 0: hard).
@@ -228,7 +228,8 @@ pub struct ToolFile {
     /// `"split"`.
     #[serde(default)]
     pub cut_mode: CutMode,
-    /// Keyframes `(time in seconds, pose)`, ascending; empty: the tool stays at `pose`.
+    /// Keyframes `(time in seconds, pose)`, strictly ascending, at most 1e4 m/s between
+    /// keys; empty: the tool stays at `pose`.
     #[serde(default, deserialize_with = "super::check::keys")]
     pub path: Vec<(f32, PoseFile)>,
     /// Pose before the path starts (default: the first key's).
@@ -250,7 +251,8 @@ pub struct ColliderFile {
         deserialize_with = "super::check::friction"
     )]
     pub friction: f32,
-    /// Keyframes `(time in seconds, pose)`, ascending; empty: the collider is static.
+    /// Keyframes `(time in seconds, pose)`, strictly ascending, at most 1e4 m/s between
+    /// keys; empty: the collider is static.
     #[serde(default, deserialize_with = "super::check::keys")]
     pub path: Vec<(f32, PoseFile)>,
     /// Pose before the path starts (default: the first key's).
