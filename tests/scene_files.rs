@@ -529,3 +529,57 @@ fn attachments_and_edge_compliance_are_read_from_files_and_checked() {
         );
     }
 }
+
+#[test]
+fn numbers_that_are_not_whole_or_out_of_range_name_the_field_and_its_range() {
+    let collider = |shape: &str| {
+        GOOD.replace(
+            "frames: 2,",
+            &format!("frames: 2, colliders: [(shape: {shape})],"),
+        )
+    };
+    for (name, text, expected) in [
+        (
+            "fraction.ron",
+            GOOD.replace("frames: 2,", "frames: 2, settings: (substeps: 2.5),"),
+            "fraction.ron:2:40: settings.substeps: 2.5 is out of range (allowed: a whole number, 1 ≤ substeps ≤ 1000)",
+        ),
+        (
+            "seed.ron",
+            GOOD.replace("frames: 2,", "frames: 2, seed: 18446744073709551616,"),
+            "seed: 18446744073709552000 is out of range (allowed: a whole number, 0 ≤ seed ≤ 18446744073709551615)",
+        ),
+        (
+            "resolution.ron",
+            collider(r#"Mesh(path: "x.obj", resolution: -4)"#),
+            "-4 is out of range (allowed: a whole number, 4 ≤ resolution ≤ 256)",
+        ),
+    ] {
+        let (code, err) = run_file(name, &text);
+        assert_eq!(code, Some(2), "{name}: {err}");
+        assert!(err.contains(expected), "{name}: {err}");
+    }
+    // flags: a negative, a fraction, a size beyond the memory budget
+    for (args, expected) in [
+        (
+            &["run", "drop", "--frames", "-1"][..],
+            "'--frames <FRAMES>': -1 is out of range (allowed: a whole number, 0 to 4294967295)",
+        ),
+        (
+            &["run", "drop", "--substeps", "2.5"][..],
+            "'--substeps <SUBSTEPS>': 2.5 is out of range",
+        ),
+        (
+            &["bench", "--sizes", "256"][..],
+            "--sizes: 256 is out of range (allowed 2 ≤ size ≤ 149",
+        ),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_cleave"))
+            .args(args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(expected), "{args:?}: {err}");
+    }
+}

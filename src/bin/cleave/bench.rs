@@ -35,9 +35,14 @@ pub fn bench(
     if steps == 0 {
         return Err("--steps must be at least 1".into());
     }
-    if let Some(bad) = sizes.iter().find(|n| !(2..=256).contains(*n)) {
+    // the largest box one body's memory budget allows
+    let budget =
+        config.memory_budget_gb as f64 * 1e9 / cleave::body::shape::BYTES_PER_PARTICLE as f64;
+    let largest = (budget.cbrt().floor() as u32).clamp(2, 256);
+    if let Some(bad) = sizes.iter().find(|n| !(2..=largest).contains(*n)) {
         return Err(format!(
-            "--sizes: {bad} is out of range (allowed 2 ≤ size ≤ 256)"
+            "--sizes: {bad} is out of range (allowed 2 ≤ size ≤ {largest}: a {largest}³ box is the largest the memory budget of {} GB allows)",
+            config.memory_budget_gb
         ));
     }
     let mut sizes = sizes.to_vec();

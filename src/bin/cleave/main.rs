@@ -33,16 +33,16 @@ enum Command {
         /// Built-in scene name (see `cleave scenes`) or a `.ron` scene file.
         scene: String,
         /// Frames to simulate (default: the scene's).
-        #[arg(long)]
+        #[arg(long, value_parser = whole::<u32>, allow_negative_numbers = true)]
         frames: Option<u32>,
         /// Output directory for summary.json.
         #[arg(long, default_value = "out")]
         out: PathBuf,
         /// Random seed (default: the scene's; 0 for built-ins).
-        #[arg(long)]
+        #[arg(long, value_parser = whole::<u64>, allow_negative_numbers = true)]
         seed: Option<u64>,
         /// Worker threads (default: all cores).
-        #[arg(long)]
+        #[arg(long, value_parser = whole::<usize>, allow_negative_numbers = true)]
         threads: Option<usize>,
         /// Write the final state (cleave-state/2 JSON) to this file.
         #[arg(long)]
@@ -55,25 +55,25 @@ enum Command {
         #[arg(long)]
         load_state: Option<PathBuf>,
         /// Write a PNG every N frames (0: none).
-        #[arg(long, default_value_t = 30)]
+        #[arg(long, default_value_t = 30, value_parser = whole::<u32>, allow_negative_numbers = true)]
         png_every: u32,
         /// Add a frame to `run.gif` every N frames (0: no GIF).
-        #[arg(long, default_value_t = 3)]
+        #[arg(long, default_value_t = 3, value_parser = whole::<u32>, allow_negative_numbers = true)]
         gif_every: u32,
         /// Colour particles by piece or by cluster.
         #[arg(long, value_enum, default_value = "pieces")]
         color: ColorArg,
         /// Image width in pixels.
-        #[arg(long, default_value_t = 640)]
+        #[arg(long, default_value_t = 640, value_parser = whole::<u32>, allow_negative_numbers = true)]
         width: u32,
         /// Image height in pixels.
-        #[arg(long, default_value_t = 480)]
+        #[arg(long, default_value_t = 480, value_parser = whole::<u32>, allow_negative_numbers = true)]
         height: u32,
         /// Also export point clouds (`ply`: DIR/ply/frame_NNNNN.ply).
         #[arg(long, value_enum)]
         export: Option<ExportArg>,
         /// With `--export ply`: a point cloud every N frames.
-        #[arg(long, default_value_t = 10)]
+        #[arg(long, default_value_t = 10, value_parser = whole::<u32>, allow_negative_numbers = true)]
         ply_every: u32,
         /// Print milliseconds per stage (predict, shape-match, detect, cut, regroup,
         /// split, expand).
@@ -86,10 +86,10 @@ enum Command {
         #[arg(long)]
         solver: Option<SolverMode>,
         /// Substeps per frame, overriding the scene's (1–1000).
-        #[arg(long)]
+        #[arg(long, value_parser = whole::<u32>, allow_negative_numbers = true)]
         substeps: Option<u32>,
         /// Solver iterations per substep, overriding the scene's (1–10000).
-        #[arg(long)]
+        #[arg(long, value_parser = whole::<u32>, allow_negative_numbers = true)]
         iterations: Option<u32>,
         /// What every tool of the scene does where it passes: remove (particles), sever
         /// (edges; no mass is lost) or split (particles in two, by the blade's side).
@@ -98,7 +98,7 @@ enum Command {
         /// After this frame (0: before the first), replace every body's clusters by a
         /// fresh clustering of its geometry, to compare a cut body with the same shape
         /// built fresh.
-        #[arg(long)]
+        #[arg(long, value_parser = whole::<u32>, allow_negative_numbers = true)]
         recluster_at: Option<u32>,
     },
     /// Compare cut bodies' rebuilt clusters with fresh clusterings of the same geometry:
@@ -106,10 +106,10 @@ enum Command {
     /// cantilever with 20 scoops (static tip sag).
     Fidelity {
         /// Random cuts of the block (1–1000).
-        #[arg(long, default_value_t = 50)]
+        #[arg(long, default_value_t = 50, value_parser = whole::<u32>, allow_negative_numbers = true)]
         cuts: u32,
         /// Seed of the cuts and scoops.
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, value_parser = whole::<u64>, allow_negative_numbers = true)]
         seed: u64,
         /// What the tools do: remove, sever or split.
         #[arg(long, default_value = "remove")]
@@ -118,7 +118,7 @@ enum Command {
         #[arg(long)]
         json: bool,
         /// Worker threads (default: all cores).
-        #[arg(long)]
+        #[arg(long, value_parser = whole::<usize>, allow_negative_numbers = true)]
         threads: Option<usize>,
     },
     /// List the built-in scenes, or print one as a scene file.
@@ -132,13 +132,13 @@ enum Command {
         #[arg(long)]
         json: bool,
         /// Box edge lengths in particles.
-        #[arg(long, value_delimiter = ',', default_value = "16,32,48,64")]
+        #[arg(long, value_delimiter = ',', default_value = "16,32,48,64", value_parser = whole::<u32>, allow_negative_numbers = true)]
         sizes: Vec<u32>,
         /// Worker threads (default: all cores).
-        #[arg(long)]
+        #[arg(long, value_parser = whole::<usize>, allow_negative_numbers = true)]
         threads: Option<usize>,
         /// Timed steps per size (median reported).
-        #[arg(long, default_value_t = 30)]
+        #[arg(long, default_value_t = 30, value_parser = whole::<usize>, allow_negative_numbers = true)]
         steps: usize,
         /// Solver scheme: jacobi, gauss-seidel or projective.
         #[arg(long, default_value = "jacobi")]
@@ -148,22 +148,22 @@ enum Command {
         #[arg(long)]
         convergence: bool,
         /// With `--convergence`: edge of the twisted box in particles.
-        #[arg(long, default_value_t = 32)]
+        #[arg(long, default_value_t = 32, value_parser = whole::<u32>, allow_negative_numbers = true)]
         convergence_size: u32,
         /// With `--convergence`: wall-clock budget of each run, in seconds.
         #[arg(long, default_value_t = 120.0)]
         budget: f64,
         /// Substeps per frame (step).
-        #[arg(long, default_value_t = 2)]
+        #[arg(long, default_value_t = 2, value_parser = whole::<u32>, allow_negative_numbers = true)]
         substeps: u32,
         /// Solver iterations per substep.
-        #[arg(long, default_value_t = 10)]
+        #[arg(long, default_value_t = 10, value_parser = whole::<u32>, allow_negative_numbers = true)]
         iterations: u32,
         /// Lattice spacing of the contact row's `pile` scene (0.025: about 40k particles).
         #[arg(long, default_value_t = 0.025)]
         pile_spacing: f32,
         /// Frames of the contact row.
-        #[arg(long, default_value_t = 160)]
+        #[arg(long, default_value_t = 160, value_parser = whole::<u32>, allow_negative_numbers = true)]
         pile_frames: u32,
         /// Skip the contact row.
         #[arg(long)]
@@ -359,4 +359,22 @@ fn main() -> ExitCode {
             ExitCode::from(2)
         }
     }
+}
+
+/// A whole number of type `T` from a flag's text; refuses a fraction, a negative number
+/// or one too large with the range allowed (clap names the flag).
+fn whole<T: TryFrom<u64>>(text: &str) -> Result<T, String> {
+    let range = || {
+        let max = (0..=u64::MAX.count_ones())
+            .rev()
+            .map(|bits| u64::MAX >> (64 - bits.max(1)))
+            .find(|m| T::try_from(*m).is_ok())
+            .unwrap_or(0);
+        format!("allowed: a whole number, 0 to {max}")
+    };
+    let value: u64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("{text} is out of range ({})", range()))?;
+    T::try_from(value).map_err(|_| format!("{text} is out of range ({})", range()))
 }

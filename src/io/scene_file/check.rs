@@ -149,15 +149,53 @@ pub fn memory_budget_gb<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error
         "0.001 ≤ memory_budget_gb ≤ 1024",
     )
 }
+/// A whole number within `lo..=hi` (errors name `name` and the range).
 fn count<'de, D: Deserializer<'de>>(d: D, lo: u32, hi: u32, name: &str) -> Result<u32, D::Error> {
-    let v = u32::deserialize(d)?;
-    if (lo..=hi).contains(&v) {
-        Ok(v)
-    } else {
-        Err(D::Error::custom(format!(
-            "{v} is out of range (allowed: {lo} ≤ {name} ≤ {hi})"
-        )))
+    whole(d, lo as u64, hi as u64, name).map(|v| v as u32)
+}
+
+/// A whole number within `lo..=hi`, read from any number the file holds, so that a
+/// fraction, a negative number or one out of range is refused with the field's range
+/// rather than a parser's complaint.
+fn whole<'de, D: Deserializer<'de>>(d: D, lo: u64, hi: u64, name: &str) -> Result<u64, D::Error> {
+    struct Whole;
+    impl serde::de::Visitor<'_> for Whole {
+        type Value = Result<u64, String>;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("a whole number")
+        }
+        fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Self::Value, E> {
+            Ok(Ok(v))
+        }
+        fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Self::Value, E> {
+            Ok(u64::try_from(v).map_err(|_| v.to_string()))
+        }
+        fn visit_u128<E: serde::de::Error>(self, v: u128) -> Result<Self::Value, E> {
+            Ok(u64::try_from(v).map_err(|_| v.to_string()))
+        }
+        fn visit_i128<E: serde::de::Error>(self, v: i128) -> Result<Self::Value, E> {
+            Ok(u64::try_from(v).map_err(|_| v.to_string()))
+        }
+        fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Self::Value, E> {
+            Ok(Err(v.to_string()))
+        }
     }
+    let range = format!("allowed: a whole number, {lo} ≤ {name} ≤ {hi}");
+    match d.deserialize_any(Whole)? {
+        Ok(v) if (lo..=hi).contains(&v) => Ok(v),
+        Ok(v) => Err(D::Error::custom(format!("{v} is out of range ({range})"))),
+        Err(v) => Err(D::Error::custom(format!("{v} is out of range ({range})"))),
+    }
+}
+
+/// The random seed: any whole number a `u64` holds.
+pub fn seed<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
+    whole(d, 0, u64::MAX, "seed")
+}
+
+/// A mesh's sampling resolution.
+pub fn mesh_resolution<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    count(d, 4, 256, "resolution")
 }
 pub fn substeps<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
     count(d, 1, 1000, "substeps")

@@ -16,7 +16,7 @@ fn default_frames() -> u32 {
 #[serde(deny_unknown_fields)]
 pub struct SceneFile {
     /// Random seed (cluster offsets, reconstruction choices).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "super::check::seed")]
     pub seed: u64,
     /// Frames to simulate.
     #[serde(default = "default_frames", deserialize_with = "super::check::frames")]
@@ -295,7 +295,10 @@ pub enum ColliderShapeFile {
         /// The OBJ file.
         path: String,
         /// Cells of its sampled distance along its longest axis (4–256).
-        #[serde(default = "default_mesh_resolution")]
+        #[serde(
+            default = "default_mesh_resolution",
+            deserialize_with = "super::check::mesh_resolution"
+        )]
         resolution: u32,
     },
 }
