@@ -33,6 +33,12 @@ impl TriangleMesh {
         if let Some(v) = vertices.iter().find(|v| !v.is_finite()) {
             return Err(fail(format!("non-finite vertex {v}")));
         }
+        let bound = crate::error::MAX_COORDINATE;
+        if let Some(v) = vertices.iter().find(|v| v.abs().max_element() > bound) {
+            return Err(fail(format!(
+                "vertex {v} is beyond the world's bounds (allowed: |x|, |y|, |z| ≤ 1e6 metres)"
+            )));
+        }
         let mut edge_uses: HashMap<(u32, u32), u32> = HashMap::new();
         for t in &triangles {
             if t.iter().any(|&i| i as usize >= vertices.len()) {
@@ -321,5 +327,18 @@ mod tests {
                 .to_string();
             assert!(e.contains(path) && e.contains("not a regular file"), "{e}");
         }
+    }
+
+    #[test]
+    fn a_mesh_beyond_the_worlds_bounds_is_refused_naming_its_file() {
+        let (mut v, t) = cube();
+        v[7] = Vec3::new(1e30, 1.0, 1.0);
+        let e = TriangleMesh::new(v, t, Path::new("huge.obj"))
+            .expect_err("refused")
+            .to_string();
+        assert!(
+            e.contains("huge.obj") && e.contains("beyond the world's bounds"),
+            "{e}"
+        );
     }
 }
