@@ -391,12 +391,21 @@ fn a_memory_budget_refuses_bodies_it_cannot_hold_and_a_fine_mesh_is_refused_at_o
     assert_eq!(code, Some(2), "{err}");
     for e in [
         "fine.ron:3:14: bodies[0]",
+        "shape (mesh ",
+        "ball.obj)",
         "particles",
         "memory budget of 2 GB",
     ] {
         assert!(err.contains(e), "`{e}` missing from: {err}");
     }
     assert!(start.elapsed().as_secs_f64() < 10.0);
+    // at a spacing wider than the ball, nothing: the OBJ is named too
+    let (code, err) = run_file("wide.ron", &text.replace("spacing: 0.005", "spacing: 5.0"));
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("empty shape") && err.contains("ball.obj"),
+        "{err}"
+    );
     // and at a spacing the budget allows, it runs
     let (code, err) = run_file(
         "coarse.ron",

@@ -91,6 +91,14 @@ impl Shape {
         Shape::Cells { cells }
     }
 
+    /// How errors name the shape: `shape`, or for a mesh `shape (mesh FILE)`.
+    fn field(&self) -> String {
+        match self {
+            Shape::Mesh(mesh) => format!("shape (mesh {})", mesh.source.display()),
+            _ => "shape".into(),
+        }
+    }
+
     /// Lattice coordinate range `[lo, hi)` of a [`Shape::Cells`] block.
     fn cells_range(cells: UVec3) -> (IVec3, IVec3) {
         let lo = -(cells / 2).as_ivec3();
@@ -209,12 +217,13 @@ impl Shape {
         let kmax = (hi / h - Vec3::splat(0.5)).ceil();
         let extent = (kmax - kmin + Vec3::ONE).max(Vec3::ZERO);
         let cells = extent.x as f64 * extent.y as f64 * extent.z as f64;
+        let field = self.field();
         if cells.is_finite() {
-            check_budget("shape", cells as u64, budget_gb)?;
+            check_budget(&field, cells as u64, budget_gb)?;
         }
         if !cells.is_finite() || cells > MAX_LATTICE_CELLS as f64 {
             return Err(CleaveError::TooLarge {
-                field: "shape".into(),
+                field,
                 cells: if cells.is_finite() {
                     cells as u64
                 } else {
@@ -256,7 +265,7 @@ impl Shape {
         };
         if coords.is_empty() {
             return Err(CleaveError::EmptyShape {
-                field: "shape".into(),
+                field: self.field(),
                 spacing: h,
             });
         }

@@ -17,6 +17,9 @@ pub struct TriangleMesh {
     pub vertices: Vec<Vec3>,
     /// Triangles as vertex index triples.
     pub triangles: Vec<[u32; 3]>,
+    /// Where it came from (its file, or a name), for errors about it.
+    #[serde(default)]
+    pub source: std::path::PathBuf,
 }
 
 impl TriangleMesh {
@@ -64,6 +67,7 @@ impl TriangleMesh {
         Ok(Self {
             vertices,
             triangles,
+            source: name.to_path_buf(),
         })
     }
 
