@@ -9,41 +9,47 @@ use crate::cut::tool::Pose;
 use crate::ecs::components::*;
 use crate::ecs::spawn::checked_pose;
 use crate::error::{CleaveError, Result};
+use bevy_ecs::component::Mutable;
 use bevy_ecs::prelude::*;
 
 /// Sets where `tool` is at the end of the next frame.
 pub fn set_tool_pose(world: &mut World, tool: Entity, pose: Pose) -> Result<()> {
-    let pose = checked_pose("tool pose", pose)?;
-    let entity = kinematic::<ToolPose, ToolPath>(world, tool, "tool")?;
-    if let Some(mut at) = world.get_mut::<ToolPose>(entity) {
-        at.current = pose;
-    }
-    Ok(())
+    set_current::<ToolPose, ToolPath>(world, tool, "tool", pose, |at| &mut at.current)
 }
 
 /// Sets where `collider` is at the end of the next frame.
 pub fn set_collider_pose(world: &mut World, collider: Entity, pose: Pose) -> Result<()> {
-    let pose = checked_pose("collider pose", pose)?;
-    let entity = kinematic::<ColliderPose, ColliderPath>(world, collider, "collider")?;
-    if let Some(mut at) = world.get_mut::<ColliderPose>(entity) {
-        at.current = pose;
+    set_current::<ColliderPose, ColliderPath>(world, collider, "collider", pose, |at| {
+        &mut at.current
+    })
+}
+
+/// Writes the checked `pose` into the pose `P` of `entity`, a `what` no path `D` drives.
+fn set_current<P: Component<Mutability = Mutable>, D: Component>(
+    world: &mut World,
+    entity: Entity,
+    what: &str,
+    pose: Pose,
+    current: impl FnOnce(&mut P) -> &mut Pose,
+) -> Result<()> {
+    let pose = checked_pose(&format!("{what} pose"), pose)?;
+    let entity = kinematic::<P, D>(world, entity, what)?;
+    if let Some(mut at) = world.get_mut::<P>(entity) {
+        *current(&mut at) = pose;
     }
     Ok(())
 }
 
 /// Sets where `attachment`'s target is at the end of the next frame.
 pub fn set_attachment_pose(world: &mut World, attachment: Entity, pose: Pose) -> Result<()> {
-    let pose = checked_pose("attachment pose", pose)?;
-    let entity = kinematic::<AttachmentTarget, AttachmentPath>(world, attachment, "attachment")?;
-    if world.get::<AttachmentVelocity>(entity).is_some() {
+    if world.get::<AttachmentVelocity>(attachment).is_some() {
         return Err(CleaveError::InvalidEntity(format!(
-            "attachment {entity} moves with a velocity; remove its AttachmentVelocity to move it from code"
+            "attachment {attachment} moves with a velocity; remove its AttachmentVelocity to move it from code"
         )));
     }
-    if let Some(mut target) = world.get_mut::<AttachmentTarget>(entity) {
-        target.pose = pose;
-    }
-    Ok(())
+    set_current::<AttachmentTarget, AttachmentPath>(world, attachment, "attachment", pose, |t| {
+        &mut t.pose
+    })
 }
 
 /// `entity`, if it is a live `what` (it has `P`) that no path (`D`) drives.

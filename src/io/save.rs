@@ -140,38 +140,44 @@ pub fn save(world: &mut World, writer: impl Write) -> Result<()> {
     world.run_schedule(SyncSchedule);
     let s = snapshot(world)?;
     let mut file = SaveWriter::new(writer)?;
-    file.section(SECTIONS[0], &s.entity_bound)?;
-    file.section(SECTIONS[1], &s.config)?;
-    file.section(SECTIONS[2], &s.clock)?;
-    file.section(SECTIONS[3], &s.rng)?;
-    file.section(SECTIONS[4], &s.bodies)?;
-    file.section(SECTIONS[5], &s.particles)?;
-    file.section(SECTIONS[6], &s.clusters)?;
-    file.section(SECTIONS[7], &s.tools)?;
-    file.section(SECTIONS[8], &s.colliders)?;
-    file.section(SECTIONS[9], &s.attachments)?;
-    file.section(SECTIONS[10], &s.cache)?;
-    file.section(SECTIONS[11], &s.cut)?;
-    file.section(SECTIONS[12], &s.label)?;
+    write_sections(&mut file, &s)?;
     file.finish()
 }
 
-/// The sections of a saved simulation, in their order in the file.
-const SECTIONS: [&str; 13] = [
-    "entity bound",
-    "settings",
-    "clock",
-    "random stream",
-    "bodies",
-    "particles",
-    "clusters",
-    "tools",
-    "colliders",
-    "attachments",
-    "solver layout",
-    "cut report",
-    "scene label",
-];
+/// The parts of the state, each a field of [`Snapshot`] and a section of the file (its
+/// name in errors), in file order: one table, so that saving and loading cannot disagree.
+macro_rules! sections {
+    ($($field:ident: $name:literal),* $(,)?) => {
+        /// The sections of a saved simulation, in their order in the file.
+        pub const SECTIONS: &[&str] = &[$($name),*];
+
+        fn write_sections<W: Write>(file: &mut SaveWriter<W>, s: &Snapshot) -> Result<()> {
+            $(file.section($name, &s.$field)?;)*
+            Ok(())
+        }
+
+        // (a struct literal's fields are evaluated in the order written: file order)
+        fn read_sections<R: Read>(file: &mut SaveReader<R>) -> Result<Snapshot> {
+            Ok(Snapshot { $($field: file.section($name)?),* })
+        }
+    };
+}
+
+sections!(
+    entity_bound: "entity bound",
+    config: "settings",
+    clock: "clock",
+    rng: "random stream",
+    bodies: "bodies",
+    particles: "particles",
+    clusters: "clusters",
+    tools: "tools",
+    colliders: "colliders",
+    attachments: "attachments",
+    cache: "solver layout",
+    cut: "cut report",
+    label: "scene label",
+);
 
 fn snapshot(world: &mut World) -> Result<Snapshot> {
     let mut bodies: Vec<BodyState> = world
@@ -280,21 +286,7 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
 /// have.
 pub fn load(reader: impl Read) -> Result<World> {
     let mut file = SaveReader::new(reader)?;
-    let snapshot = Snapshot {
-        entity_bound: file.section(SECTIONS[0])?,
-        config: file.section(SECTIONS[1])?,
-        clock: file.section(SECTIONS[2])?,
-        rng: file.section(SECTIONS[3])?,
-        bodies: file.section(SECTIONS[4])?,
-        particles: file.section(SECTIONS[5])?,
-        clusters: file.section(SECTIONS[6])?,
-        tools: file.section(SECTIONS[7])?,
-        colliders: file.section(SECTIONS[8])?,
-        attachments: file.section(SECTIONS[9])?,
-        cache: file.section(SECTIONS[10])?,
-        cut: file.section(SECTIONS[11])?,
-        label: file.section(SECTIONS[12])?,
-    };
+    let snapshot = read_sections(&mut file)?;
     file.finish()?;
     restore(snapshot)
 }

@@ -387,21 +387,25 @@ mod tests {
         assert!((p.x - 0.4).abs() < 1e-6 && p.y == 0.0, "{p}");
     }
 
-    #[test]
-    fn a_fast_particle_stops_at_the_face_it_came_through() {
-        // a 0.6 m box turned 30° about Y; a particle crossing it in one substep, ending
-        // beyond it or just inside its far face
-        let rotation = Quat::from_rotation_y(0.5);
-        let block = PosedCollider::fixed(
+    /// A 0.6 m box turned about Y (0.5 rad), without friction.
+    fn turned_block() -> PosedCollider {
+        PosedCollider::fixed(
             ColliderShape::Box {
                 half_extents: Vec3::splat(0.3),
             },
             0.0,
             Pose {
                 position: Vec3::ZERO,
-                rotation,
+                rotation: Quat::from_rotation_y(0.5),
             },
-        );
+        )
+    }
+
+    #[test]
+    fn a_fast_particle_stops_at_the_face_it_came_through() {
+        // a particle crossing the turned box in one substep, ending beyond it or just
+        // inside its far face
+        let block = turned_block();
         let colliders = Colliders::new(None, vec![block.clone()]);
         for end_x in [2.0, 0.25] {
             let (from, to) = (Vec3A::new(-2.0, 0.05, 0.0), Vec3A::new(end_x, 0.05, 0.0));
@@ -519,18 +523,9 @@ mod tests {
         let r = 0.05;
         let (p, _) = ground(0.0).resolve(Vec3A::new(0.0, 0.01, 0.0), Vec3A::new(0.0, 0.2, 0.0), r);
         assert_eq!(p.y, r);
-        // a fast ball crossing a turned box stops a radius short of the face it came
+        // a fast ball crossing the turned box stops a radius short of the face it came
         // through
-        let block = PosedCollider::fixed(
-            ColliderShape::Box {
-                half_extents: Vec3::splat(0.3),
-            },
-            0.0,
-            Pose {
-                position: Vec3::ZERO,
-                rotation: Quat::from_rotation_y(0.5),
-            },
-        );
+        let block = turned_block();
         let colliders = Colliders::new(None, vec![block.clone()]);
         for end_x in [2.0, 0.25, -0.3] {
             let (from, to) = (Vec3A::new(-2.0, 0.05, 0.0), Vec3A::new(end_x, 0.05, 0.0));
