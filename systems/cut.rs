@@ -9,7 +9,7 @@
 //! listing a particle that no longer exists.
 
 use crate::cut::carve::carve;
-use crate::cut::particle_split::{Pairs, apply_splits, split_positions};
+use crate::cut::particle_split::{Pairs, SPLIT_GAP, apply_splits, split_positions};
 use crate::cut::tear::sever_keeping_pieces;
 use crate::ecs::components::{
     Body, BodyLattice, InvMass, Particle, ParticleClusters, Position, Velocity,
@@ -19,6 +19,7 @@ use crate::ecs::resources::{
     ParticlesSplit,
 };
 use bevy_ecs::prelude::*;
+use glam::Vec3;
 use std::borrow::Cow;
 
 /// Particle data the stage reads, and the positions it moves and masses it halves when
@@ -145,10 +146,9 @@ pub fn cut(
     }
 }
 
-/// Splits the cut's split particles of `body` ([`split_particles`]): puts each
-/// particle on the side of the blade it keeps and spawns its new half at its mirror
-/// image (at least a tenth of a cell beyond the blade; see [`split_positions`]), with the
-/// same velocity, and halves both masses. Returns the
+/// Splits the cut's split particles of `body` ([`split_particles`]): puts each half at
+/// its rest place on its side of the blade ([`split_positions`], from the positions
+/// before the cut) with the particle's velocity, and halves both masses. Returns the
 /// `(particle, new half)` pairs and the edges severed between split particles.
 fn split(
     commands: &mut Commands,
@@ -160,21 +160,41 @@ fn split(
         return (Vec::new(), Vec::new());
     }
     let (pairs, severed) = apply_splits(&mut body.lattice, &cut.splits);
-    let gap = 0.1 * body.lattice.spacing();
+    let gap = SPLIT_GAP * body.lattice.spacing();
+    // (a half split off this frame has no entity yet: its place is not known)
+    let position = |p: u32| {
+        let entity = *body.particles.get(p as usize)?;
+        particles.get(entity).map(|(x, ..)| x.0).ok()
+    };
+    let placed: Vec<Option<(Vec3, Vec3)>> = pairs
+        .iter()
+        .map(|&(old, new)| {
+            let plane = cut
+                .splits
+                .splits
+                .binary_search_by_key(&old, |(p, ..)| *p)
+                .map(|k| cut.splits.splits[k].2)
+                .expect("a split particle has its plane");
+            let x = position(old)?;
+            let taken: Vec<Vec3> = body
+                .lattice
+                .neighbours(new)
+                .filter_map(&position)
+                .map(|y| y - x)
+                .collect();
+            let toward = taken.iter().sum::<Vec3>() / taken.len().max(1) as f32;
+            Some(split_positions(x, toward, &plane, gap))
+        })
+        .collect();
     let owner = cut.body;
-    for &(old, new) in &pairs {
-        let plane = cut
-            .splits
-            .splits
-            .binary_search_by_key(&old, |(p, ..)| *p)
-            .map(|k| cut.splits.splits[k].2)
-            .expect("a split particle has its plane");
-        let Ok((mut x, v, mut inv_mass)) = particles.get_mut(body.particles[old as usize]) else {
+    for (&(old, new), placed) in pairs.iter().zip(placed) {
+        let (Some((kept, far)), Ok((mut x, v, mut inv_mass))) =
+            (placed, particles.get_mut(body.particles[old as usize]))
+        else {
             continue;
         };
         inv_mass.0 *= 2.0;
         // (moved without velocity: a particle's velocity is its own, not its position's)
-        let (kept, far) = split_positions(x.0, &plane, gap);
         x.0 = kept;
         let entity = commands
             .spawn((

@@ -49,37 +49,19 @@ pub fn detect(
             BodyCut::entry(&mut out.cuts, body).carved.push(local);
         }
     }
-    // a split blade splits the particles it passes through, by its plane's sides
-    for tool in slicing.iter().filter(|t| t.mode() == CutMode::Split) {
-        let Some(plane) = tool.blade_plane() else {
-            continue;
-        };
-        let mut candidates: Vec<(Entity, u32)> =
-            particles_hit(positions, &cache.live, std::slice::from_ref(tool))
-                .into_iter()
-                .filter_map(|i| cache.owner(i))
-                .collect();
-        candidates.sort_unstable();
-        for run in candidates.chunk_by(|a, b| a.0 == b.0) {
-            let body = run[0].0;
-            let (Ok((_, lattice)), Some(b)) = (
-                bodies.get(body),
-                cache.body_dense.iter().find(|b| b.body == body),
-            ) else {
-                continue;
-            };
-            let position = |p: u32| b.position(positions, p);
-            let on_plane: Vec<(u32, BladePlane)> = run.iter().map(|&(_, p)| (p, plane)).collect();
-            let plan = plan_splits(&lattice.lattice, &on_plane, position, |p, q| {
-                tool.reaches_segment(position(p), position(q))
-            });
-            let cut = BodyCut::entry(&mut out.cuts, body);
-            cut.splits.splits.extend(plan.splits);
-            cut.splits.sever.extend(plan.sever);
-        }
-    }
-    for (tools, grazed) in [(&slicing, false), (&carving, true)] {
-        let tools: Vec<&ToolSweep> = tools.iter().collect();
+    // a split blade's separated edges go to its plan (each body's, each tool's plane),
+    // the others' to the lists they sever from
+    let (splitting, severing): (Vec<ToolSweep>, Vec<ToolSweep>) = slicing
+        .into_iter()
+        .partition(|t| t.mode() == CutMode::Split && t.blade_plane().is_some());
+    let groups = std::iter::once((severing.iter().collect::<Vec<_>>(), Severed::Edges))
+        .chain(
+            splitting
+                .iter()
+                .filter_map(|t| Some((vec![t], Severed::Split(t.blade_plane()?)))),
+        )
+        .chain(std::iter::once((carving.iter().collect(), Severed::Grazed)));
+    for (tools, kind) in groups {
         if tools.is_empty() {
             continue;
         }
@@ -87,29 +69,38 @@ pub fn detect(
             let Ok((_, lattice)) = bodies.get(b.body) else {
                 continue;
             };
+            let lattice = &lattice.lattice;
             let first = b.first as usize;
             let range = first..first + b.dense.len().min(positions.len() - first);
             let partners = |i: usize| {
                 let local = cache.locals[i];
-                [1, 3, 5].map(|d| match lattice.lattice.link(local, d) {
+                [1, 3, 5].map(|d| match lattice.link(local, d) {
                     NO_PARTICLE => u32::MAX,
                     n => b.slot(n).map_or(u32::MAX, |s| s as u32),
                 })
             };
-            let edges = edges_separated(positions, &cache.live, range, partners, &tools);
+            let mut edges: Vec<(u32, u32)> =
+                edges_separated(positions, &cache.live, range, partners, &tools)
+                    .into_iter()
+                    .map(|(i, j)| {
+                        let (a, b) = (cache.locals[i], cache.locals[j]);
+                        (a.min(b), a.max(b))
+                    })
+                    .collect();
             if edges.is_empty() {
                 continue;
             }
             let cut = BodyCut::entry(&mut out.cuts, b.body);
-            let list = if grazed {
-                &mut cut.grazed
-            } else {
-                &mut cut.edges
-            };
-            list.extend(edges.into_iter().map(|(i, j)| {
-                let (a, b) = (cache.locals[i], cache.locals[j]);
-                (a.min(b), a.max(b))
-            }));
+            match kind {
+                Severed::Edges => cut.edges.append(&mut edges),
+                Severed::Grazed => cut.grazed.append(&mut edges),
+                Severed::Split(plane) => {
+                    edges.sort_unstable();
+                    let plan = plan_splits(lattice, &edges, |p| b.position(positions, p), plane);
+                    cut.splits.splits.extend(plan.splits);
+                    cut.splits.sever.extend(plan.sever);
+                }
+            }
         }
     }
     out.cuts.sort_by_key(|c| c.body);
@@ -118,12 +109,21 @@ pub fn detect(
         c.edges.sort_unstable();
         c.grazed.sort_unstable();
         c.carved.sort_unstable();
-        // (one plan per particle: the first split tool's)
-        c.splits.splits.sort_by_key(|(p, ..)| *p);
-        c.splits.splits.dedup_by_key(|(p, ..)| *p);
-        c.splits.sever.sort_unstable();
-        c.splits.sever.dedup();
+        if let Ok((_, lattice)) = bodies.get(c.body) {
+            c.splits.merge_tools(&lattice.lattice);
+        }
     }
+}
+
+/// What a group of tools does with the edges it separates.
+#[derive(Clone, Copy)]
+enum Severed {
+    /// Severs them (`sever` blades).
+    Edges,
+    /// Splits the particles at them or severs them, by its plan (one `split` blade).
+    Split(BladePlane),
+    /// Severs them unless both ends are carved (spheres and capsules).
+    Grazed,
 }
 
 /// Lists the torn edges of every body whose material tears.

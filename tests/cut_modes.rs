@@ -310,10 +310,11 @@ fn a_split_blade_through_a_layer_halves_its_particles_and_keeps_the_mass() {
             .sum()
     };
     let before = mass(&mut sim);
-    // the layer of cells centred at x = 0.05 (its 16 particles), cut 0.02 from their
-    // centres: each splits in two
+    // the layer of cells centred at x = 0.05 (its 16 particles), cut 0.01 from their
+    // centres: each splits in two (the halves rest a quarter cell either side of the
+    // centres, each on its own side of the blade)
     sim.spawn_tool(&through_blade(
-        desc.position + Vec3::X * 0.03,
+        desc.position + Vec3::X * 0.04,
         Vec3::X,
         0.6,
         1.01 * H,
@@ -333,11 +334,11 @@ fn a_split_blade_through_a_layer_halves_its_particles_and_keeps_the_mass() {
     assert_eq!(lattice.live_count(), 96 + 16);
     assert!((mass(&mut sim) / before - 1.0).abs() < 1e-6);
     // each half keeps the edges on its side: one piece holds every particle whose rest
-    // position lies beyond the blade (x > 0.03 in the body frame), the other the rest
+    // position lies beyond the blade (x > 0.04 in the body frame), the other the rest
     // (the old halves rest a quarter cell beyond their cells' centres, the new a
     // quarter cell short of them)
     let (labels, _) = cleave::body::pieces::body_pieces(&lattice);
-    let side = |p: u32| lattice.rest_position(p).x > 0.03;
+    let side = |p: u32| lattice.rest_position(p).x > 0.04;
     let beyond = lattice.live_particles().find(|&p| side(p)).unwrap();
     for p in lattice.live_particles() {
         assert_eq!(
@@ -346,4 +347,41 @@ fn a_split_blade_through_a_layer_halves_its_particles_and_keeps_the_mass() {
             "particle {p}"
         );
     }
+}
+
+#[test]
+fn a_split_blade_through_particle_centres_and_back_leaves_two_pieces_at_rest() {
+    // a rigid block (a stiff body shows any strain a split leaves at once), cut through
+    // the centres of its layer at x = 0.05, to and fro: the halves must rest on their
+    // sides (no single half left behind when the blade passes again) and where they
+    // were (not pushed apart by clusters or contacts)
+    let mut sim = still_world(4);
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(8, 4, 4)), H);
+    desc.material = Material::rigid();
+    desc.position = Vec3::new(0.0, 1.0, 0.0);
+    let body = sim.spawn_body(&desc).unwrap();
+    let centre = desc.position + Vec3::X * 0.05;
+    let mut blade = through_blade(centre, Vec3::X, 0.6, 1.01 * H, CutMode::Split, 0.05, 0.1);
+    let (start, _) = blade.path.keys[0];
+    let outside = blade.pose;
+    blade.path.keys.push((start + 0.2, outside));
+    sim.spawn_tool(&blade).unwrap();
+    let mut fastest = 0.0f32;
+    for _ in 0..40 {
+        sim.step();
+        let speeds = sim.velocities(body).unwrap();
+        fastest = speeds
+            .iter()
+            .map(|(_, v)| v.length())
+            .fold(fastest, f32::max);
+    }
+    let lattice = sim
+        .world()
+        .get::<BodyLattice>(body)
+        .unwrap()
+        .lattice
+        .clone();
+    assert_eq!(lattice.piece_count(), 2);
+    assert_eq!(lattice.live_count(), 8 * 16 + 16, "the layer split once");
+    assert!(fastest < 0.1, "the pieces moved at {fastest} m/s");
 }

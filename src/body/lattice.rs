@@ -144,14 +144,24 @@ impl Lattice {
     }
 
     /// Rest position of particle `i` in the body frame: `(coord + ½) × h`, shifted for
-    /// the new half of a split particle (see [`Lattice::split`]).
+    /// the halves of a split particle (see [`Lattice::split`]).
     pub fn rest_position(&self, i: u32) -> Vec3 {
-        let shift = self
-            .rest_shift
+        (self.coords[i as usize].as_vec3() + Vec3::splat(0.5) + self.split_shift(i)) * self.spacing
+    }
+
+    /// Whether particle `i` is a half of a split particle (either half: each rests off
+    /// its cell's centre, toward the edges it kept; see [`Lattice::split`]).
+    pub fn is_split_half(&self, i: u32) -> bool {
+        self.split_shift(i) != Vec3::ZERO
+    }
+
+    /// How far particle `i` rests from its cell's centre, in cells (zero unless it is a
+    /// half of a split particle: then toward the edges it holds; see [`Lattice::split`]).
+    pub fn split_shift(&self, i: u32) -> Vec3 {
+        self.rest_shift
             .get(i as usize)
             .copied()
-            .unwrap_or(Vec3::ZERO);
-        (self.coords[i as usize].as_vec3() + Vec3::splat(0.5) + shift) * self.spacing
+            .unwrap_or(Vec3::ZERO)
     }
 
     /// Whether particle `i` exists and has not been removed.

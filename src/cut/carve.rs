@@ -11,12 +11,33 @@ use crate::cut::particle_split::Pairs;
 /// Carves the live particles `inside` (inside a carving tool this frame). Returns the
 /// edges severed (carved to uncarved) and the edges linked again (between carved
 /// particles, severed by an earlier carve), each `(a, b)` with `a < b`.
+///
+/// A half of a split particle is carved only where it holds on to the rest of what is
+/// carved (linked, or linkable, to a carved particle): its twin across the split holds
+/// the edges on the other side, so a half inside the tool whose own edges all lead out
+/// of it would come away alone — a single particle between the tool and the split — and
+/// stays with the material its edges hold instead.
 pub fn carve(lattice: &mut Lattice, inside: &[u32]) -> (Pairs, Pairs) {
-    let newly: Vec<u32> = inside
+    let carving =
+        |lattice: &Lattice, q: u32| lattice.is_carved(q) || inside.binary_search(&q).is_ok();
+    let holds_on = |lattice: &Lattice, p: u32| {
+        NEIGHBOUR_OFFSETS
+            .iter()
+            .enumerate()
+            .any(|(d, offset)| match lattice.link(p, d) {
+                NO_PARTICLE => lattice
+                    .at(lattice.coord(p) + *offset)
+                    .is_some_and(|q| carving(lattice, q) && lattice.link(q, d ^ 1) == NO_PARTICLE),
+                q => carving(lattice, q),
+            })
+    };
+    let taken: Vec<u32> = inside
         .iter()
         .copied()
-        .filter(|&p| lattice.is_live(p) && lattice.carve(p))
+        .filter(|&p| lattice.is_live(p) && !lattice.is_carved(p))
+        .filter(|&p| !lattice.is_split_half(p) || holds_on(lattice, p))
         .collect();
+    let newly: Vec<u32> = taken.into_iter().filter(|&p| lattice.carve(p)).collect();
     let (mut severed, mut relinked) = (Vec::new(), Vec::new());
     for &c in &newly {
         for (d, offset) in NEIGHBOUR_OFFSETS.iter().enumerate() {

@@ -48,13 +48,13 @@ pub struct BodyCut {
     /// Particles to remove (tools in [`crate::cut::tool::CutMode::Remove`]): body-local
     /// indices, ascending.
     pub particles: Vec<u32>,
-    /// Edges blades in `Sever` or `Split` mode cross, to sever: body-local `(a, b)` with
-    /// `a < b`, ascending.
+    /// Edges blades in `Sever` mode cross, to sever: body-local `(a, b)` with `a < b`,
+    /// ascending.
     pub edges: Vec<(u32, u32)>,
     /// Edges of voxels stretched past the material's `tear_stretch`, strongest first.
     pub torn: Vec<(u32, u32)>,
-    /// What `split` blades do: the particles they split and the edges between split
-    /// particles they sever.
+    /// What `split` blades do: the particles they split and the edges they cross that no
+    /// split takes, to sever.
     pub splits: crate::cut::particle_split::SplitPlan,
     /// Particles inside a sphere or capsule in `sever` or `split` mode this frame, to
     /// carve ([`crate::cut::carve`]), ascending.

@@ -16,6 +16,7 @@ use crate::cut::tool::Pose;
 use crate::geometry::collider::ColliderShape;
 use crate::solver::particles::PARTICLES_PER_TASK;
 use crate::solver::term::{NO_DENSE, ParticleState, Substep, Term, Topology};
+use crate::solver::terms::contacts::ball_radius;
 use glam::{Affine3A, Vec3A};
 use rayon::prelude::*;
 
@@ -298,9 +299,10 @@ impl Term for Colliders {
             .unwrap_or(0);
         self.margins = vec![0.0; count];
         for body in change.bodies {
-            let radius = body.material.contact_radius_at(body.lattice.spacing());
-            for d in body.dense.iter().filter(|d| **d != NO_DENSE) {
-                self.margins[*d as usize] = radius;
+            for (i, d) in body.dense.iter().enumerate() {
+                if *d != NO_DENSE {
+                    self.margins[*d as usize] = ball_radius(body.material, body.lattice, i as u32);
+                }
             }
         }
         self.largest_margin = self.margins.iter().copied().fold(0.0, f32::max);

@@ -16,7 +16,9 @@
 //! would then accelerate the bodies).
 
 use super::contact_pairs::{ContactGroup, ContactParticles};
+use crate::body::lattice::Lattice;
 use crate::body::pieces::body_pieces;
+use crate::config::Material;
 use crate::solver::term::{NO_DENSE, ParticleState, Substep, Term, Topology};
 use glam::Vec3A;
 use rayon::prelude::*;
@@ -31,6 +33,21 @@ const PAIRS_PER_TASK: usize = 512;
 /// correction is divided by the larger load of its particles over this factor (at least
 /// by 1), so that particles in a few contacts converge in fewer iterations.
 pub const RELAXATION: f32 = 2.0;
+
+/// The radius of particle `i`'s ball: the material's contact radius, halved for a half
+/// of a split particle. A half rests a quarter cell from its cell's centre (see
+/// [`Lattice::split`]), so its twin across the cut rests half a cell away: with full
+/// balls the two pieces would overlap by half a cell the moment they part, and contact
+/// would push them apart (a rigid block split through its middle flew apart at metres
+/// per second); half balls meet at the cut face.
+pub fn ball_radius(material: &Material, lattice: &Lattice, i: u32) -> f32 {
+    let radius = material.contact_radius_at(lattice.spacing());
+    if lattice.is_split_half(i) {
+        0.5 * radius
+    } else {
+        radius
+    }
+}
 
 /// A pair as the projection reads it: everything it needs in one place.
 #[derive(Clone, Copy, Debug, Default)]
@@ -104,7 +121,6 @@ impl Contacts {
         let (mut particles, mut groups) = (ContactParticles::default(), Vec::new());
         for body in change.bodies {
             let (lattice, material) = (body.lattice, body.material);
-            let radius = material.contact_radius_at(lattice.spacing());
             let group = ContactGroup {
                 self_contact: material.self_contact,
                 static_friction: material.static_friction,
@@ -126,6 +142,7 @@ impl Contacts {
             taking_part.sort_unstable();
             for (d, i) in taking_part {
                 let piece = labels.as_ref().map_or(0, |(l, _)| l[i as usize]);
+                let radius = ball_radius(material, lattice, i);
                 particles.push(d, first_group + piece, lattice.coord(i), radius);
             }
         }
