@@ -55,32 +55,33 @@ pub fn sync_solver(
     let config = &settings.0;
     let removed: Vec<Entity> = removed_clusters.read().collect();
     let bodies_removed = removed_bodies.read().count() > 0;
-    if std::mem::take(&mut cache.adopt_changes) {
-        return;
+    if !std::mem::take(&mut cache.adopt_changes) {
+        if bodies_removed {
+            cache.valid = false;
+        }
+        let changed_bodies: Vec<Entity> = changed_bodies.iter().collect();
+        if !cache.valid
+            || cache.solver.mode() != config.solver
+            || !removed.is_empty()
+            || !changed_bodies.is_empty()
+            || !changed_clusters.is_empty()
+        {
+            let changes = LayoutChanges {
+                bodies: &changed_bodies,
+                cut: &cut.bodies,
+                clusters: changed_clusters.iter().collect(),
+                removed: &removed,
+                indices: {
+                    let mut list: Vec<_> = indices.iter().collect();
+                    list.sort_unstable_by_key(|(b, _)| *b);
+                    list
+                },
+            };
+            sync_layout(&mut cache, &bodies, changes, clusters.iter(), config.solver);
+        }
     }
-    if bodies_removed {
-        cache.valid = false;
-    }
-    let changed_bodies: Vec<Entity> = changed_bodies.iter().collect();
-    if !cache.valid
-        || cache.solver.mode() != config.solver
-        || !removed.is_empty()
-        || !changed_bodies.is_empty()
-        || !changed_clusters.is_empty()
-    {
-        let changes = LayoutChanges {
-            bodies: &changed_bodies,
-            cut: &cut.bodies,
-            clusters: changed_clusters.iter().collect(),
-            removed: &removed,
-            indices: {
-                let mut list: Vec<_> = indices.iter().collect();
-                list.sort_unstable_by_key(|(b, _)| *b);
-                list
-            },
-        };
-        sync_layout(&mut cache, &bodies, changes, clusters.iter(), config.solver);
-    }
+    // (a rebuilt or a loaded solver starts from the default)
+    cache.solver.projective.budget_bytes = (config.memory_budget_gb as f64 * 1e9) as u64;
 }
 
 /// Cluster data as the shape-match stage reads it.

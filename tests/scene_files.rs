@@ -592,3 +592,30 @@ fn numbers_that_are_not_whole_or_out_of_range_name_the_field_and_its_range() {
         assert!(err.contains(expected), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn a_projective_factor_past_the_memory_budget_falls_back_to_jacobi_with_a_warning() {
+    // 11³ particles take 0.8 MB of a 1 MB budget; their factor would take 3 MB
+    let settings = "frames: 2, settings: (memory_budget_gb: 0.001, solver: \"projective\"),";
+    let text = GOOD
+        .replace("frames: 2,", settings)
+        .replace("Cells(cells: (4, 4, 4))", "Cells(cells: (11, 11, 11))");
+    let (code, err) = run_file("factor_over_budget.ron", &text);
+    assert_eq!(code, Some(0), "{err}");
+    for e in [
+        "cleave: warning: projective dynamics",
+        "memory_budget_gb",
+        "Jacobi steps",
+    ] {
+        assert!(err.contains(e), "`{e}` missing from: {err}");
+    }
+    // within the budget, it factors and says so only as a note
+    let text = text.replace("memory_budget_gb: 0.001", "memory_budget_gb: 1.0");
+    let (code, err) = run_file("factor_within_budget.ron", &text);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(!err.contains("warning"), "{err}");
+    assert!(
+        err.contains("cleave: projective dynamics: factored"),
+        "{err}"
+    );
+}

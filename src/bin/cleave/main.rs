@@ -2,6 +2,7 @@
 
 mod bench;
 mod fidelity;
+mod notices;
 mod pictures;
 mod run;
 mod summary;
@@ -226,6 +227,7 @@ where
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    notices::install(matches!(cli.command, Command::Run { quiet: true, .. }));
     let result = match cli.command {
         Command::Scenes { action: None } => {
             for (name, description) in BUILTIN_SCENES {

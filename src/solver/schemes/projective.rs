@@ -26,28 +26,44 @@
 //! for any thread count.
 
 use super::jacobi::Jacobi;
+use crate::body::shape::{BYTES_PER_PARTICLE, DEFAULT_MEMORY_BUDGET_GB};
+use crate::math::sparse_cholesky::{FactorError, SparseCholesky};
 use crate::solver::clusters::term::ClusterTerm;
 use crate::solver::particles::{PARTICLES_PER_TASK, Particles};
 use crate::solver::registry::Terms;
 use crate::solver::term::{NO_DENSE, STIFFEST, Substep, Unknowns};
-use faer::linalg::solvers::SolveCore;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-use faer::sparse::{SparseColMat, Triplet};
-use faer::{Conj, Mat, Side};
+use faer::Mat;
+use faer::sparse::Triplet;
 use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
 
 /// Projective dynamics' state: the factored global matrix and what it was built for.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Projective {
     /// The factor (built on first use; not saved: a loaded simulation factors the same
     /// matrix again).
     global: Option<GlobalSolve>,
+    /// The memory the simulation may take, bytes
+    /// ([`crate::config::SimConfig::memory_budget_gb`]): the factor may take what its
+    /// particles leave of it ([`BYTES_PER_PARTICLE`] each); a larger one is not built,
+    /// and the global step falls back to Jacobi's.
+    pub budget_bytes: u64,
     /// Seconds spent building the global factor since this state was made (the engine
     /// reports its growth over a cut).
     pub factor_seconds: f64,
     /// The terms' forces of the current iteration, by particle (scratch).
     forces: Vec<DVec3>,
+}
+
+impl Default for Projective {
+    fn default() -> Self {
+        Self {
+            global: None,
+            budget_bytes: (DEFAULT_MEMORY_BUDGET_GB as f64 * 1e9) as u64,
+            factor_seconds: 0.0,
+            forces: Vec::new(),
+        }
+    }
 }
 
 /// The factored global matrix and what it was built for.
@@ -62,9 +78,8 @@ struct GlobalSolve {
     pull_weight: Vec<f64>,
     /// Per row: `mᵢ/dt²`.
     inertia: Vec<f64>,
-    /// The factor; `None` when it could not be computed (the step then falls back to
-    /// Jacobi's).
-    factor: Option<Llt<usize, f64>>,
+    /// The factor, or why there is none (the step then falls back to Jacobi's).
+    factor: Result<SparseCholesky, FactorError>,
     /// What it was built for: the time step, the inverse masses, the clusters (their
     /// carry epoch changes with them) and each projective term's version.
     dt: f32,
@@ -116,17 +131,24 @@ impl Projective {
     ) {
         if self.global.is_none() {
             let start = std::time::Instant::now();
-            self.global = Some(build(clusters, &particles.inv_mass, terms, step));
+            let global = build(
+                clusters,
+                &particles.inv_mass,
+                terms,
+                step,
+                self.budget_bytes,
+            );
+            self.global = Some(global);
             self.factor_seconds += start.elapsed().as_secs_f64();
         }
         let Some(global) = self.global.as_mut() else {
             return;
         };
-        if global.factor.is_none() {
+        let Ok(factor) = &global.factor else {
             // no factor (see `GlobalSolve::factor`): Jacobi's particle step instead
             jacobi.move_particles(clusters, particles);
             return;
-        }
+        };
         let unknowns = Unknowns {
             row_of: &global.row_of,
             inv_mass: &particles.inv_mass,
@@ -152,9 +174,7 @@ impl Projective {
                 global.rhs[(row, axis)] = r[axis];
             }
         }
-        if let Some(factor) = &global.factor {
-            factor.solve_in_place_with_conj(Conj::No, global.rhs.as_mut());
-        }
+        factor.solve_in_place(global.rhs.as_mut());
         let (rhs, row_of) = (&global.rhs, &global.row_of);
         particles
             .positions
@@ -270,8 +290,14 @@ pub(in crate::solver) fn assemble(
 }
 
 /// Assembles and factors the global matrix for the current clusters, terms, masses and
-/// time step.
-fn build(clusters: &ClusterTerm, inv_mass: &[f32], terms: &Terms, step: &Substep) -> GlobalSolve {
+/// time step, within `budget_bytes` less its particles' share.
+fn build(
+    clusters: &ClusterTerm,
+    inv_mass: &[f32],
+    terms: &Terms,
+    step: &Substep,
+    budget_bytes: u64,
+) -> GlobalSolve {
     let inv_dt2 = 1.0 / (step.dt as f64 * step.dt as f64);
     let Assembly {
         row_of,
@@ -292,13 +318,20 @@ fn build(clusters: &ClusterTerm, inv_mass: &[f32], terms: &Terms, step: &Substep
         .iter()
         .map(|&i| inv_dt2 / inv_mass[i as usize] as f64)
         .collect();
-    let factor = factor_lower(rows, &entries);
-    if factor.is_none() && rows > 0 {
-        tracing::warn!(
-            rows,
-            "projective dynamics: the global matrix could not be factored; \
-             using Jacobi steps"
-        );
+    let limit = budget_bytes.saturating_sub(inv_mass.len() as u64 * BYTES_PER_PARTICLE);
+    let start = std::time::Instant::now();
+    let factor = SparseCholesky::new(rows, &entries, limit);
+    match &factor {
+        Err(FactorError::Empty) => {}
+        Err(reason) => tracing::warn!(
+            "projective dynamics: the global matrix ({rows} rows) is not factored: \
+             {reason}; the solver takes Jacobi steps instead"
+        ),
+        Ok(factor) => tracing::info!(
+            "projective dynamics: factored the global matrix ({rows} rows, {:.1} MB) in {:.2} s",
+            factor.bytes() as f64 / 1e6,
+            start.elapsed().as_secs_f64()
+        ),
     }
     GlobalSolve {
         row_of,
@@ -314,18 +347,16 @@ fn build(clusters: &ClusterTerm, inv_mass: &[f32], terms: &Terms, step: &Substep
     }
 }
 
-/// The Cholesky factor of the symmetric matrix whose lower triangle `entries` gives
-/// (duplicates summed); `None` for an empty matrix or one that is not positive definite.
-pub(in crate::solver) fn factor_lower(
-    rows: usize,
-    entries: &[Triplet<usize, usize, f64>],
-) -> Option<Llt<usize, f64>> {
-    if rows == 0 {
-        return None;
+impl Projective {
+    /// Why the global step takes Jacobi steps instead of solving with its factor (the
+    /// factor would pass the memory budget, or the matrix cannot be factored); `None`
+    /// while it has its factor, or before it first needs one.
+    pub fn fallback(&self) -> Option<&FactorError> {
+        self.global
+            .as_ref()
+            .and_then(|g| g.factor.as_ref().err())
+            .filter(|e| **e != FactorError::Empty)
     }
-    let matrix = SparseColMat::<usize, f64>::try_new_from_triplets(rows, rows, entries).ok()?;
-    let symbolic = SymbolicLlt::try_new(matrix.symbolic(), Side::Lower).ok()?;
-    Llt::try_new_with_symbolic(symbolic, matrix.as_ref(), Side::Lower).ok()
 }
 
 #[cfg(test)]
@@ -340,7 +371,9 @@ mod tests {
     use crate::solver::terms::attachments::{Attachment, Attachments};
     use crate::solver::terms::edges::Edges;
     use crate::solver::testing::{TEST_DT, step};
+    use faer::Conj;
     use faer::Mat;
+    use faer::linalg::solvers::SolveCore;
     use glam::{UVec3, Vec3};
 
     /// A 4×3×3 lattice block (dense index = lattice index) with 2×2×2 clusters at every
@@ -393,10 +426,10 @@ mod tests {
         // positive definite: a dense Cholesky succeeds with a positive diagonal
         let llt = matrix.llt(faer::Side::Lower).expect("positive definite");
         assert!((0..rows).all(|i| llt.L()[(i, i)] > 0.0));
-        let factor = factor_lower(rows, &a.entries).expect("a factor");
+        let factor = SparseCholesky::new(rows, &a.entries, u64::MAX).expect("a factor");
         let rhs = Mat::<f64>::from_fn(rows, 3, |i, j| ((i * 7 + j * 3) % 11) as f64 - 5.0);
         let mut sparse = rhs.clone();
-        factor.solve_in_place_with_conj(Conj::No, sparse.as_mut());
+        factor.solve_in_place(sparse.as_mut());
         let residual = (&matrix * &sparse - &rhs).norm_max();
         assert!(residual < 1e-9 * rhs.norm_max(), "{residual}");
     }
@@ -465,10 +498,10 @@ mod tests {
         let difference = (&matrix - &expected).norm_max();
         assert!(difference < 1e-9 * expected.norm_max(), "{difference}");
         // and the sparse factor solves it as a dense solve does
-        let factor = factor_lower(rows, &with.entries).expect("a factor");
+        let factor = SparseCholesky::new(rows, &with.entries, u64::MAX).expect("a factor");
         let rhs = Mat::<f64>::from_fn(rows, 3, |i, j| ((i * 5 + j) % 7) as f64 - 3.0);
         let mut sparse = rhs.clone();
-        factor.solve_in_place_with_conj(Conj::No, sparse.as_mut());
+        factor.solve_in_place(sparse.as_mut());
         let mut reference = rhs.clone();
         expected
             .llt(faer::Side::Lower)
@@ -482,8 +515,8 @@ mod tests {
     fn a_layout_with_every_particle_held_or_one_particle_has_no_factor_and_stays_finite() {
         let (_, clusters, inv_mass) = block();
         let held = vec![0.0; inv_mass.len()];
-        let global = build(&clusters, &held, &Terms::default(), &step(1));
-        assert!(global.factor.is_none());
+        let global = build(&clusters, &held, &Terms::default(), &step(1), u64::MAX);
+        assert!(global.factor.is_err());
         let rest: Vec<Vec3> = clusters.rest.iter().map(|r| Vec3::from(*r)).collect();
         let mut particles = Particles::at_rest(&rest);
         particles.inv_mass = held;
@@ -501,5 +534,38 @@ mod tests {
         Solver::new(term, Terms::default()).solve(&mut single, &step(3));
         assert!(single.positions[0].is_finite());
         let _ = TEST_DT;
+    }
+
+    #[test]
+    fn a_factor_past_the_memory_budget_is_not_built_and_the_solver_takes_jacobi_steps() {
+        let (_, clusters, inv_mass) = block();
+        let rest: Vec<Vec3> = clusters.rest.iter().map(|r| Vec3::from(*r)).collect();
+        let sag = |budget_bytes: u64| {
+            let mut solver = Solver::new(clusters.clone(), Terms::default());
+            solver.projective.budget_bytes = budget_bytes;
+            let mut particles = Particles::at_rest(&rest);
+            particles.inv_mass = inv_mass.clone();
+            // the far corner pulled off its place (particle 0 is held), then let go
+            let last = rest.len() - 1;
+            particles.positions[last].y -= 0.05;
+            solver.solve(&mut particles, &step(5));
+            (
+                solver.projective.fallback().cloned(),
+                particles.positions[last],
+            )
+        };
+        let (none, factored) = sag(u64::MAX);
+        assert_eq!(none, None);
+        // the particles' own share alone passes this budget
+        let (reason, jacobi) = sag(inv_mass.len() as u64 * BYTES_PER_PARTICLE);
+        assert!(
+            matches!(reason, Some(FactorError::OverBudget { limit: 0, .. })),
+            "{reason:?}"
+        );
+        // Jacobi steps pull the particle back too
+        let pulled = rest[rest.len() - 1].y - 0.05;
+        for x in [jacobi, factored] {
+            assert!(x.is_finite() && x.y > pulled + 1e-3, "{x}");
+        }
     }
 }
