@@ -251,3 +251,41 @@ pub fn cantilever_sag(extra: &[&str]) -> f64 {
     let (s, _) = run_with("cantilever", Some(600), &args);
     f(&s["bodies"][0]["tip_drop_h_end"])
 }
+
+/// Runs `cleave run` on `text` written to a file `name` (unique across the tests, which
+/// run in parallel and share the directory); returns (exit code, stderr).
+pub fn run_file(name: &str, text: &str) -> (Option<i32>, String) {
+    let dir = std::env::temp_dir().join(format!("cleave-scene-files-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join(name);
+    std::fs::write(&file, text).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_cleave"))
+        .args(["run"])
+        .arg(&file)
+        .args([
+            "--frames",
+            "2",
+            "--gif-every",
+            "0",
+            "--png-every",
+            "0",
+            "--out",
+        ])
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+pub const GOOD: &str = r#"(
+    frames: 2,
+    bodies: [(shape: Cells(cells: (4, 4, 4)), spacing: 0.1, position: (0.0, 0.5, 0.0))],
+    tools: [(
+        shape: Sphere(radius: 0.1),
+        cut_width: 0.05,
+        path: [(0.0, (position: (0.0, 2.0, 0.0))), (1.0, (position: (0.0, 0.5, 0.0)))],
+    )],
+)"#;

@@ -1,0 +1,136 @@
+//! Memory budgets: a body the budget cannot hold is refused before anything is
+//! allocated (its cells counted, a mesh's too), and a projective factor that would pass
+//! what the budget leaves beside the particles is not built: the solver takes Jacobi
+//! steps and says so.
+
+mod common;
+use common::{GOOD, run_file};
+
+#[test]
+fn a_body_past_the_memory_budget_is_refused_before_anything_is_allocated() {
+    let text = GOOD.replace("Cells(cells: (4, 4, 4))", "Cells(cells: (400, 400, 400))");
+    let start = std::time::Instant::now();
+    let (code, err) = run_file("huge.ron", &text);
+    assert_eq!(code, Some(2), "{err}");
+    // the entry's line and column: line 3, just after `bodies: [`
+    for e in [
+        "huge.ron:3:14: bodies[0]",
+        "shape.cells",
+        "64000000 particles",
+        "memory budget",
+    ] {
+        assert!(err.contains(e), "`{e}` missing from: {err}");
+    }
+    // refused up front: well under the seconds a 38 GB allocation would take to fail
+    assert!(start.elapsed().as_secs_f64() < 5.0);
+}
+
+#[test]
+fn a_memory_budget_refuses_bodies_it_cannot_hold_and_a_fine_mesh_is_refused_at_once() {
+    // a budget of 1 MB refuses 8,000 particles
+    let text = GOOD
+        .replace(
+            "frames: 2,",
+            "frames: 2, settings: (memory_budget_gb: 0.001),",
+        )
+        .replace("Cells(cells: (4, 4, 4))", "Cells(cells: (20, 20, 20))");
+    let (code, err) = run_file("small.ron", &text);
+    assert_eq!(code, Some(2), "{err}");
+    for e in ["small.ron:3:14: bodies[0]", "memory budget of 0.001 GB"] {
+        assert!(err.contains(e), "`{e}` missing from: {err}");
+    }
+    // a closed 3,120-triangle ball, 1 m across, at spacing 0.005: 8 million cells
+    let (stacks, slices) = (40usize, 40usize);
+    let mut obj = String::from("v 0 0.5 0\n");
+    for i in 1..stacks {
+        let theta = std::f64::consts::PI * i as f64 / stacks as f64;
+        for j in 0..slices {
+            let phi = std::f64::consts::TAU * j as f64 / slices as f64;
+            let (s, c) = (theta.sin() * 0.5, theta.cos() * 0.5);
+            obj += &format!("v {} {} {}\n", s * phi.cos(), c, s * phi.sin());
+        }
+    }
+    obj += "v 0 -0.5 0\n";
+    let ring = |i: usize, j: usize| 2 + (i - 1) * slices + j % slices;
+    let last = 2 + (stacks - 1) * slices;
+    let mut triangles = 0;
+    for j in 0..slices {
+        obj += &format!("f 1 {} {}\n", ring(1, j + 1), ring(1, j));
+        obj += &format!(
+            "f {last} {} {}\n",
+            ring(stacks - 1, j),
+            ring(stacks - 1, j + 1)
+        );
+        triangles += 2;
+        for i in 1..stacks - 1 {
+            let (a, b, c, d) = (
+                ring(i, j),
+                ring(i, j + 1),
+                ring(i + 1, j),
+                ring(i + 1, j + 1),
+            );
+            obj += &format!("f {a} {b} {d}\nf {a} {d} {c}\n");
+            triangles += 2;
+        }
+    }
+    assert_eq!(triangles, 3120);
+    let dir = std::env::temp_dir().join(format!("cleave-scene-files-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("ball.obj"), obj).unwrap();
+    let text = GOOD
+        .replace("Cells(cells: (4, 4, 4))", r#"Mesh(path: "ball.obj")"#)
+        .replace("spacing: 0.1", "spacing: 0.005");
+    let start = std::time::Instant::now();
+    let (code, err) = run_file("fine.ron", &text);
+    assert_eq!(code, Some(2), "{err}");
+    for e in [
+        "fine.ron:3:14: bodies[0]",
+        "shape (mesh ",
+        "ball.obj)",
+        "particles",
+        "memory budget of 2 GB",
+    ] {
+        assert!(err.contains(e), "`{e}` missing from: {err}");
+    }
+    assert!(start.elapsed().as_secs_f64() < 10.0);
+    // at a spacing wider than the ball, nothing: the OBJ is named too
+    let (code, err) = run_file("wide.ron", &text.replace("spacing: 0.005", "spacing: 5.0"));
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("empty shape") && err.contains("ball.obj"),
+        "{err}"
+    );
+    // and at a spacing the budget allows, it runs
+    let (code, err) = run_file(
+        "coarse.ron",
+        &text.replace("spacing: 0.005", "spacing: 0.05"),
+    );
+    assert_eq!(code, Some(0), "{err}");
+}
+
+#[test]
+fn a_projective_factor_past_the_memory_budget_falls_back_to_jacobi_with_a_warning() {
+    // 11³ particles take 0.8 MB of a 1 MB budget; their factor would take 3 MB
+    let settings = "frames: 2, settings: (memory_budget_gb: 0.001, solver: \"projective\"),";
+    let text = GOOD
+        .replace("frames: 2,", settings)
+        .replace("Cells(cells: (4, 4, 4))", "Cells(cells: (11, 11, 11))");
+    let (code, err) = run_file("factor_over_budget.ron", &text);
+    assert_eq!(code, Some(0), "{err}");
+    for e in [
+        "cleave: warning: projective dynamics",
+        "memory_budget_gb",
+        "Jacobi steps",
+    ] {
+        assert!(err.contains(e), "`{e}` missing from: {err}");
+    }
+    // within the budget, it factors and says so only as a note
+    let text = text.replace("memory_budget_gb: 0.001", "memory_budget_gb: 1.0");
+    let (code, err) = run_file("factor_within_budget.ron", &text);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(!err.contains("warning"), "{err}");
+    assert!(
+        err.contains("cleave: projective dynamics: factored"),
+        "{err}"
+    );
+}
