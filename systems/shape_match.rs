@@ -10,9 +10,9 @@ use crate::solver::terms::colliders::{Colliders, PosedCollider};
 use bevy_ecs::prelude::*;
 use glam::Vec3A;
 
-/// The largest speed (m/s) a particle gains from being pushed out of a collider it
-/// started the substep inside: a body spawned in a collider comes out at a walk, not
-/// shot out.
+/// How fast (m/s) a particle that began a substep inside a collider is pushed out of
+/// it (see [`Colliders::depenetration_step`]): a body spawned in a collider comes out at
+/// a walk, not shot out.
 pub const MAX_DEPENETRATION_SPEED: f32 = 2.0;
 
 /// One solver substep over all bodies.

@@ -168,10 +168,12 @@ pub struct Colliders {
     pub ground: Option<GroundPlane>,
     /// Boxes, balls and capsules, static or moving.
     pub shapes: Vec<PosedCollider>,
-    /// The longest push out of a collider that a particle which started the substep
-    /// inside it (spawned there, or pressed in by something else) turns into velocity;
-    /// the rest of the push moves it without speeding it up, so that an overlap is
-    /// resolved without an explosion. Infinite by default.
+    /// The longest push out of a collider, per substep, of the depth a particle already
+    /// had when the substep began (spawned there, or pressed in by something else): it
+    /// comes out over several substeps, at most this far in each, so that a deep overlap
+    /// is resolved at a walk instead of in one jump that the clusters would turn into
+    /// velocity for the whole body. What the substep's own motion carried in is pushed
+    /// out at once. Infinite by default.
     pub depenetration_step: f32,
     /// Bounds of each block's substep-start positions (see `begin_substep`).
     previous_bounds: Vec<(Vec3A, Vec3A)>,
@@ -224,39 +226,42 @@ impl Colliders {
     }
 
     /// Pushes a ball of radius `margin` centred at `p` out of the ground and every
-    /// collider, with friction against its displacement since `previous`; pure, so the
-    /// kernel's blocks run it in parallel. Returns the new centre and the part of the
-    /// move that is not to become velocity (see [`Colliders::depenetration_step`]).
-    pub fn resolve(&self, p: Vec3A, previous: Vec3A, margin: f32) -> (Vec3A, Vec3A) {
-        let (mut p, mut quiet) = (p, Vec3A::ZERO);
+    /// collider, with friction against its displacement since `previous`, the depth it
+    /// already had at `previous` by at most [`Colliders::depenetration_step`]; pure, so
+    /// the kernel's blocks run it in parallel. Returns the new centre.
+    pub fn resolve(&self, p: Vec3A, previous: Vec3A, margin: f32) -> Vec3A {
+        let mut p = p;
         if let Some(g) = &self.ground
             && p.y < g.height + margin
         {
             let depth = g.height + margin - p.y;
-            p.y = g.height + margin;
-            p = with_friction(p, previous, Vec3A::Y, depth, g.friction);
-            // as for a collider below: what it was already in undone quietly
             let depth_before = g.height + margin - previous.y;
-            quiet.y += (depth.min(depth_before) - self.depenetration_step).max(0.0);
+            let held_back = self.held_back(depth, depth_before);
+            p.y = g.height + margin - held_back;
+            p = with_friction(p, previous, Vec3A::Y, depth - held_back, g.friction);
         }
         let (lo, hi) = (p.min(previous), p.max(previous));
         for shape in &self.shapes {
             if shape.reaches(lo, hi, margin)
                 && let Some((q, depth_before)) = shape.resolve(p, previous, margin)
             {
-                // only the depth it already had is undone quietly, and only beyond the
-                // allowance: what this substep's motion carried in (a particle resting
-                // on the surface, rounding a hair inside) must stop with velocity
                 let push = q - p;
                 let length = push.length();
-                let quiet_length = (length.min(depth_before) - self.depenetration_step).max(0.0);
-                if quiet_length > 0.0 {
-                    quiet += push * (quiet_length / length);
+                if length > 0.0 {
+                    p = q - push * (self.held_back(length, depth_before) / length);
                 }
-                p = q;
             }
         }
-        (p, quiet)
+        p
+    }
+
+    /// How much of a push of `depth` out of a collider waits for later substeps: of the
+    /// depth the particle already had (`depth_before`), what lies beyond one
+    /// [`Colliders::depenetration_step`]. What the substep's motion carried in (a
+    /// particle resting on the surface, rounding a hair inside, or one that fell in) is
+    /// never held back.
+    fn held_back(&self, depth: f32, depth_before: f32) -> f32 {
+        (depth.min(depth_before) - self.depenetration_step).max(0.0)
     }
 }
 
@@ -338,8 +343,8 @@ impl Term for Colliders {
                         if inv_mass[i] == 0.0 {
                             continue;
                         }
-                        let (resolved, quiet) = this.resolve(*p, previous[i], margins[i]);
-                        corrections[i] += resolved - *p - quiet;
+                        let resolved = this.resolve(*p, previous[i], margins[i]);
+                        corrections[i] += resolved - *p;
                         *p = resolved;
                     }
                 },
@@ -372,9 +377,9 @@ mod tests {
             Pose::at(Vec3::splat(1.5)),
         );
         let colliders = Colliders::new(ground(0.0).ground, vec![block]);
-        let (p, _) = colliders.resolve(Vec3A::new(0.0, -0.5, 0.0), Vec3A::ZERO, 0.0);
+        let p = colliders.resolve(Vec3A::new(0.0, -0.5, 0.0), Vec3A::ZERO, 0.0);
         assert_eq!(p.y, 0.0);
-        let (p, _) = colliders.resolve(Vec3A::new(1.5, 1.9, 1.5), Vec3A::new(1.5, 2.5, 1.5), 0.0);
+        let p = colliders.resolve(Vec3A::new(1.5, 1.9, 1.5), Vec3A::new(1.5, 2.5, 1.5), 0.0);
         assert!((p - Vec3A::new(1.5, 2.0, 1.5)).length() < 1e-6, "{p}");
     }
 
@@ -382,10 +387,10 @@ mod tests {
     fn friction_stops_small_slides() {
         let colliders = ground(1.0);
         // slid 0.05 sideways while sinking 0.1: the friction cone holds it
-        let (p, _) = colliders.resolve(Vec3A::new(0.05, -0.1, 0.0), Vec3A::ZERO, 0.0);
+        let p = colliders.resolve(Vec3A::new(0.05, -0.1, 0.0), Vec3A::ZERO, 0.0);
         assert_eq!(p, Vec3A::ZERO);
         // slid 0.5 sideways while sinking 0.1: kinetic friction removes 0.1 of it
-        let (p, _) = colliders.resolve(Vec3A::new(0.5, -0.1, 0.0), Vec3A::ZERO, 0.0);
+        let p = colliders.resolve(Vec3A::new(0.5, -0.1, 0.0), Vec3A::ZERO, 0.0);
         assert!((p.x - 0.4).abs() < 1e-6 && p.y == 0.0, "{p}");
     }
 
@@ -411,7 +416,7 @@ mod tests {
         let colliders = Colliders::new(None, vec![block.clone()]);
         for end_x in [2.0, 0.25] {
             let (from, to) = (Vec3A::new(-2.0, 0.05, 0.0), Vec3A::new(end_x, 0.05, 0.0));
-            let (p, _) = colliders.resolve(to, from, 0.0);
+            let p = colliders.resolve(to, from, 0.0);
             assert!(p.x < -0.29, "ended at {p} (end {end_x})");
             assert!(
                 block
@@ -472,30 +477,30 @@ mod tests {
     }
 
     #[test]
-    fn a_push_out_of_a_collider_entered_before_the_substep_is_mostly_quiet() {
-        // a particle that starts and ends 0.3 deep in a box is pushed out by 0.3, of
-        // which only `depenetration_step` is to become velocity
+    fn a_particle_that_began_the_substep_deep_in_a_collider_comes_out_a_step_at_a_time() {
+        // a particle that starts and ends 0.3 deep in a box (or below the ground) comes
+        // out by `depenetration_step` per substep
         let mut colliders = Colliders::new(
-            None,
+            ground(0.0).ground,
             vec![PosedCollider::fixed(
                 ColliderShape::Box {
                     half_extents: Vec3::splat(0.5),
                 },
                 0.0,
-                Pose::at(Vec3::ZERO),
+                Pose::at(Vec3::new(0.0, 0.0, 3.0)),
             )],
         );
         colliders.depenetration_step = 0.01;
-        let inside = Vec3A::new(0.0, 0.2, 0.0);
-        let (p, quiet) = colliders.resolve(inside, inside, 0.0);
-        assert!((p.y - 0.5).abs() < 1e-6, "{p}");
-        assert!((quiet.y - 0.29).abs() < 1e-5 && quiet.x == 0.0, "{quiet}");
-        // one that entered during the substep keeps its whole push as velocity
-        let (p, quiet) = colliders.resolve(inside, Vec3A::new(0.0, 0.6, 0.0), 0.0);
-        assert!(
-            (p.y - 0.5).abs() < 1e-6 && quiet == Vec3A::ZERO,
-            "{p} {quiet}"
-        );
+        for (inside, out) in [
+            (Vec3A::new(0.0, 0.2, 3.0), Vec3A::new(0.0, 0.21, 3.0)),
+            (Vec3A::new(0.0, -0.3, 0.0), Vec3A::new(0.0, -0.29, 0.0)),
+        ] {
+            let p = colliders.resolve(inside, inside, 0.0);
+            assert!(p.distance(out) < 1e-6, "{p}");
+            // one that came in during the substep goes out at once, from either
+            let entered = colliders.resolve(inside, inside + Vec3A::new(0.0, 0.8, 0.0), 0.0);
+            assert!((entered.y - (out.y + 0.29)).abs() < 1e-6, "{entered}");
+        }
     }
 
     #[test]
@@ -523,7 +528,7 @@ mod tests {
     #[test]
     fn balls_rest_with_their_radius_on_the_ground_and_on_colliders() {
         let r = 0.05;
-        let (p, _) = ground(0.0).resolve(Vec3A::new(0.0, 0.01, 0.0), Vec3A::new(0.0, 0.2, 0.0), r);
+        let p = ground(0.0).resolve(Vec3A::new(0.0, 0.01, 0.0), Vec3A::new(0.0, 0.2, 0.0), r);
         assert_eq!(p.y, r);
         // a fast ball crossing the turned box stops a radius short of the face it came
         // through
@@ -531,7 +536,7 @@ mod tests {
         let colliders = Colliders::new(None, vec![block.clone()]);
         for end_x in [2.0, 0.25, -0.3] {
             let (from, to) = (Vec3A::new(-2.0, 0.05, 0.0), Vec3A::new(end_x, 0.05, 0.0));
-            let (p, _) = colliders.resolve(to, from, r);
+            let p = colliders.resolve(to, from, r);
             let local = block.end_inverse.transform_point3a(p);
             let gap = block.shape.signed_distance(local);
             assert!(
