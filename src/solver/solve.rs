@@ -73,7 +73,7 @@ impl Solver {
             particles.predicted.clone_from(&particles.positions);
             self.begin_substep(particles, step);
             self.iterate(particles, step, step.iterations);
-            self.finish_substep(particles);
+            self.finish_substep(particles, step);
         })
     }
 
@@ -181,11 +181,16 @@ impl Solver {
 
     /// Ends a solve: the corrections are the terms' and the clusters' together; rounding
     /// noise is dropped.
-    fn finish_substep(&mut self, particles: &mut Particles) {
+    fn finish_substep(&mut self, particles: &mut Particles, step: &Substep) {
         for (c, carry) in particles.corrections.iter_mut().zip(&self.clusters.carry) {
             *c += *carry;
         }
         self.drop_rounding_noise(particles);
+        for term in self.terms.iter() {
+            if !term.is_empty() {
+                term.end_substep(step, &particles.velocities, &mut particles.corrections);
+            }
+        }
     }
 
     /// Restores the predicted position of every particle whose total correction is below

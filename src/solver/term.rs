@@ -239,6 +239,11 @@ pub trait Term: std::any::Any + Send + Sync {
     /// clearing accumulated `λ`).
     fn begin_substep(&mut self, _step: &Substep, _state: &mut ParticleState) {}
 
+    /// Called once per substep after the iterations, with every particle's velocity
+    /// and total correction (`v += Σ Δp / dt` follows): the place to bound the speed a
+    /// term's particles gain from corrections that are not to become motion.
+    fn end_substep(&self, _step: &Substep, _velocities: &[Vec3A], _corrections: &mut [Vec3A]) {}
+
     /// Projects the term's constraints once (Jacobi and Gauss–Seidel: after the
     /// clusters' pass of every iteration; projective dynamics: after the global step,
     /// for a term without [`Term::projective`]). Deterministic for any thread count.

@@ -183,6 +183,11 @@ pub struct Colliders {
     margins: Vec<f32>,
     /// The largest of `margins`.
     largest_margin: f32,
+    /// Each particle's body (its index in the last topology change), by dense index.
+    body_of: Vec<u32>,
+    /// Which particles had part of a push held back in this substep (see
+    /// [`Colliders::depenetration_step`]), by dense index.
+    held: Vec<bool>,
 }
 
 impl Default for Colliders {
@@ -201,6 +206,8 @@ impl Colliders {
             previous_bounds: Vec::new(),
             margins: Vec::new(),
             largest_margin: 0.0,
+            body_of: Vec::new(),
+            held: Vec::new(),
         }
     }
 
@@ -230,13 +237,19 @@ impl Colliders {
     /// already had at `previous` by at most [`Colliders::depenetration_step`]; pure, so
     /// the kernel's blocks run it in parallel. Returns the new centre.
     pub fn resolve(&self, p: Vec3A, previous: Vec3A, margin: f32) -> Vec3A {
-        let mut p = p;
+        self.resolve_holding_back(p, previous, margin).0
+    }
+
+    /// [`Colliders::resolve`], and whether part of a push was held back.
+    fn resolve_holding_back(&self, p: Vec3A, previous: Vec3A, margin: f32) -> (Vec3A, bool) {
+        let (mut p, mut held) = (p, false);
         if let Some(g) = &self.ground
             && p.y < g.height + margin
         {
             let depth = g.height + margin - p.y;
             let depth_before = g.height + margin - previous.y;
             let held_back = self.held_back(depth, depth_before);
+            held |= held_back > 0.0;
             p.y = g.height + margin - held_back;
             p = with_friction(p, previous, Vec3A::Y, depth - held_back, g.friction);
         }
@@ -248,11 +261,13 @@ impl Colliders {
                 let push = q - p;
                 let length = push.length();
                 if length > 0.0 {
-                    p = q - push * (self.held_back(length, depth_before) / length);
+                    let held_back = self.held_back(length, depth_before);
+                    held |= held_back > 0.0;
+                    p = q - push * (held_back / length);
                 }
             }
         }
-        p
+        (p, held)
     }
 
     /// How much of a push of `depth` out of a collider waits for later substeps: of the
@@ -303,10 +318,12 @@ impl Term for Colliders {
             .max()
             .unwrap_or(0);
         self.margins = vec![0.0; count];
-        for body in change.bodies {
+        self.body_of = vec![u32::MAX; count];
+        for (b, body) in change.bodies.iter().enumerate() {
             for (i, d) in body.dense.iter().enumerate() {
                 if *d != NO_DENSE {
                     self.margins[*d as usize] = ball_radius(body.material, body.lattice, i as u32);
+                    self.body_of[*d as usize] = b as u32;
                 }
             }
         }
@@ -316,6 +333,8 @@ impl Term for Colliders {
     fn begin_substep(&mut self, _step: &Substep, state: &mut ParticleState) {
         // (a particle the layout holds but no body names has no ball)
         self.margins.resize(state.positions.len(), 0.0);
+        self.held.clear();
+        self.held.resize(state.positions.len(), false);
         self.previous_bounds = state
             .previous
             .par_chunks(PARTICLES_PER_TASK)
@@ -324,17 +343,19 @@ impl Term for Colliders {
     }
 
     fn project(&mut self, _step: &Substep, state: &mut ParticleState) {
+        let mut held = std::mem::take(&mut self.held);
         let this = &*self;
         state
             .positions
             .par_chunks_mut(PARTICLES_PER_TASK)
+            .zip(held.par_chunks_mut(PARTICLES_PER_TASK))
             .zip(state.corrections.par_chunks_mut(PARTICLES_PER_TASK))
             .zip(state.previous.par_chunks(PARTICLES_PER_TASK))
             .zip(state.inv_mass.par_chunks(PARTICLES_PER_TASK))
             .zip(this.margins.par_chunks(PARTICLES_PER_TASK))
             .zip(this.previous_bounds.par_iter())
             .for_each(
-                |(((((positions, corrections), previous), inv_mass), margins), before)| {
+                |((((((positions, held), corrections), previous), inv_mass), margins), before)| {
                     let (lo, hi) = bounds(positions);
                     if !this.reaches(lo.min(before.0), hi.max(before.1), this.largest_margin) {
                         return;
@@ -343,12 +364,45 @@ impl Term for Colliders {
                         if inv_mass[i] == 0.0 {
                             continue;
                         }
-                        let resolved = this.resolve(*p, previous[i], margins[i]);
+                        let (resolved, held_back) =
+                            this.resolve_holding_back(*p, previous[i], margins[i]);
+                        held[i] |= held_back;
                         corrections[i] += resolved - *p;
                         *p = resolved;
                     }
                 },
             );
+        self.held = held;
+    }
+
+    /// While a body comes out of a collider it began the substep deep in, the clusters
+    /// drag its outer particles in after its inner ones and the collider pushes them
+    /// out again, substep after substep: its particles are not let speed up past the
+    /// depenetration speed ([`Colliders::depenetration_step`] per substep), so that it
+    /// leaves at a walk however deep it was (unbounded, a body spawned two thirds inside
+    /// a box was flung out at 60 m/s).
+    fn end_substep(&self, step: &Substep, velocities: &[Vec3A], corrections: &mut [Vec3A]) {
+        if !self.held.contains(&true) {
+            return;
+        }
+        let bodies = self.body_of.iter().filter(|b| **b != u32::MAX).max();
+        let mut depenetrating = vec![false; bodies.map_or(0, |&b| b as usize + 1)];
+        for (held, body) in self.held.iter().zip(&self.body_of) {
+            if *held && *body != u32::MAX {
+                depenetrating[*body as usize] = true;
+            }
+        }
+        let limit = self.depenetration_step / step.dt;
+        for ((c, v), body) in corrections.iter_mut().zip(velocities).zip(&self.body_of) {
+            if depenetrating.get(*body as usize) != Some(&true) {
+                continue;
+            }
+            let after = *v + *c / step.dt;
+            let allowed = v.length().max(limit);
+            if after.length() > allowed {
+                *c = (after * (allowed / after.length()) - *v) * step.dt;
+            }
+        }
     }
 }
 
