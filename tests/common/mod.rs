@@ -289,3 +289,10 @@ pub const GOOD: &str = r#"(
         path: [(0.0, (position: (0.0, 2.0, 0.0))), (1.0, (position: (0.0, 0.5, 0.0)))],
     )],
 )"#;
+
+/// Asserts that `text` (a program's error output) contains every one of `parts`.
+pub fn assert_mentions(text: &str, parts: &[&str]) {
+    for part in parts {
+        assert!(text.contains(part), "`{part}` missing from: {text}");
+    }
+}

@@ -99,6 +99,16 @@ fn term_versions(terms: &Terms) -> Vec<u64> {
 }
 
 impl Projective {
+    /// Why the global step takes Jacobi steps instead of solving with its factor (the
+    /// factor would pass the memory budget, or the matrix cannot be factored); `None`
+    /// while it has its factor, or before it first needs one.
+    pub fn fallback(&self) -> Option<&FactorError> {
+        self.global
+            .as_ref()
+            .and_then(|g| g.factor.as_ref().err())
+            .filter(|e| **e != FactorError::Empty)
+    }
+
     /// Drops a factor built for other masses, another time step, other clusters or
     /// other terms.
     pub fn begin_substep(
@@ -344,18 +354,6 @@ fn build(
         cluster_epoch: clusters.carry_epoch,
         term_versions: term_versions(terms),
         rhs: Mat::zeros(rows, 3),
-    }
-}
-
-impl Projective {
-    /// Why the global step takes Jacobi steps instead of solving with its factor (the
-    /// factor would pass the memory budget, or the matrix cannot be factored); `None`
-    /// while it has its factor, or before it first needs one.
-    pub fn fallback(&self) -> Option<&FactorError> {
-        self.global
-            .as_ref()
-            .and_then(|g| g.factor.as_ref().err())
-            .filter(|e| **e != FactorError::Empty)
     }
 }
 
