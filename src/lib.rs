@@ -56,7 +56,7 @@
 //! ```
 //!
 //! The folders are the layers, each importing only those below it: [`util`], [`math`],
-//! [`geometry`], [`body`], [`clusters`], [`cut`], [`reconstruct`], [`solver`] hold pure
+//! [`geometry`], [`body`], [`clusters`], [`cut`], [`reconstruct`], [`solver`], [`surface`] hold pure
 //! algorithms on plain data; [`ecs`] the components and resources, [`systems`] the thin
 //! ECS stages; [`io`] scenes, saves and pictures; [`sim`] the headless facade
 //! ([`sim::simulation::Simulation`]) and the Bevy plugin; [`analysis`] the measurements.
@@ -75,6 +75,7 @@ pub mod math;
 pub mod reconstruct;
 pub mod sim;
 pub mod solver;
+pub mod surface;
 #[path = "../systems/mod.rs"]
 pub mod systems;
 pub mod util;

@@ -1,0 +1,237 @@
+//! Which particle owns each piece of a body's space, and which neighbouring pieces are
+//! joined: the solid whose boundary [`mod@super::extract`] draws.
+//!
+//! Each live particle owns the cube of its lattice cell. A split particle shares its
+//! cell with its other half (or halves), so once a body holds split particles every cell
+//! is drawn as 2×2×2 *sub-cells* (octants), and the octants of a shared cell are dealt
+//! out in turns: each half, in index order, takes the free octant it rests furthest
+//! toward (its [`Lattice::split_shift`] has the largest component along the octant's
+//! direction; ties break on a fixed order of the axes). Two halves of a cell cut along
+//! x own the four octants on their own side each, the twins of a cell cut along a
+//! diagonal four each, and a cell split three ways still gives every half a share.
+//!
+//! Two face-adjacent sub-cells are *joined* — their common face is inside the solid —
+//! when one particle owns both, or when their owners lie in neighbouring cells and are
+//! linked across that face. Everything else is surface: the body's outside, a removed
+//! particle, a severed edge, the two halves of a split particle.
+
+use crate::body::lattice::{Lattice, NEIGHBOUR_OFFSETS};
+use glam::{IVec3, Vec3};
+use rustc_hash::FxHashMap;
+
+/// Weights of the axes that break ties between octants a half rests equally far
+/// toward: the one it leans furthest toward along x first, then along y, then z. Twins
+/// lean opposite ways, so of two octants they tie on, each takes one.
+const TIE_BREAK: Vec3 = Vec3::new(1.0, 0.01, 0.0001);
+
+/// The owners of a lattice's sub-cells (see the module docs).
+pub struct CellOwners<'a> {
+    lattice: &'a Lattice,
+    resolution: i32,
+    /// The owner of each octant (numbered like [`octant`]) of each cell that holds a
+    /// split particle.
+    shared: FxHashMap<IVec3, [u32; 8]>,
+}
+
+impl<'a> CellOwners<'a> {
+    /// The owners of `lattice`'s live particles' cells.
+    pub fn new(lattice: &'a Lattice) -> Self {
+        let mut members: FxHashMap<IVec3, Vec<u32>> = FxHashMap::default();
+        for p in lattice
+            .live_particles()
+            .filter(|&p| lattice.is_split_half(p))
+        {
+            members.entry(lattice.coord(p)).or_default().push(p);
+        }
+        let shared: FxHashMap<IVec3, [u32; 8]> = members
+            .into_iter()
+            .map(|(cell, mut members)| {
+                if let Some(p) = lattice.at(cell).filter(|p| !members.contains(p)) {
+                    members.push(p);
+                }
+                members.sort_unstable();
+                (cell, deal_octants(lattice, &members))
+            })
+            .collect();
+        let resolution = if shared.is_empty() { 1 } else { 2 };
+        Self {
+            lattice,
+            resolution,
+            shared,
+        }
+    }
+
+    /// The lattice.
+    pub fn lattice(&self) -> &'a Lattice {
+        self.lattice
+    }
+
+    /// Sub-cells per cell along each axis: 1, or 2 once a particle was split.
+    pub fn resolution(&self) -> i32 {
+        self.resolution
+    }
+
+    /// The lattice cell sub-cell `s` lies in.
+    #[inline]
+    pub fn cell_of(&self, s: IVec3) -> IVec3 {
+        // (an arithmetic shift rounds toward −∞, like the division it stands for)
+        s >> (self.resolution - 1)
+    }
+
+    /// Whether every face of `p`'s sub-cells is either inside its cell or against a
+    /// sub-cell of a particle it is linked to, so that none can be on the surface: `p`
+    /// has all six links and no particle of its cell or the six around it was split.
+    pub fn is_enclosed(&self, p: u32) -> bool {
+        let lattice = self.lattice;
+        if lattice.is_surface(p) {
+            return false;
+        }
+        if self.shared.is_empty() {
+            return true;
+        }
+        let c = lattice.coord(p);
+        !self.shared.contains_key(&c)
+            && NEIGHBOUR_OFFSETS
+                .iter()
+                .all(|o| !self.shared.contains_key(&(c + *o)))
+    }
+
+    /// The sub-cells `p` owns.
+    pub fn owned_by(&self, p: u32) -> impl Iterator<Item = IVec3> + '_ {
+        let base = self.lattice.coord(p) * self.resolution;
+        let count = (self.resolution * self.resolution * self.resolution) as u32;
+        (0..count)
+            .map(move |k| base + octant(k) * (self.resolution - 1))
+            .filter(move |&s| self.owner(s) == Some(p))
+    }
+
+    /// The live particle that owns sub-cell `s`, if any.
+    pub fn owner(&self, s: IVec3) -> Option<u32> {
+        let cell = self.cell_of(s);
+        let Some(octants) = self.shared.get(&cell) else {
+            return self.lattice.at(cell);
+        };
+        let k = (s - cell * self.resolution).dot(IVec3::new(1, 2, 4));
+        Some(octants[k as usize])
+    }
+
+    /// Whether sub-cell `a`, owned by `p`, and its neighbour in direction `d` (an index
+    /// into [`NEIGHBOUR_OFFSETS`]), owned by `q`, are joined.
+    pub fn joined(&self, a: IVec3, p: u32, d: usize, q: u32) -> bool {
+        if p == q {
+            return true;
+        }
+        let b = a + NEIGHBOUR_OFFSETS[d];
+        self.cell_of(a) != self.cell_of(b) && self.lattice.link(p, d) == q
+    }
+}
+
+/// The octants of a cell dealt out among its live particles `members` (ascending), in
+/// turns (see the module docs).
+fn deal_octants(lattice: &Lattice, members: &[u32]) -> [u32; 8] {
+    let mut dealt = [u32::MAX; 8];
+    for turn in 0..8 {
+        let p = members[turn % members.len()];
+        let shift = lattice.split_shift(p);
+        let lean = |k: u32| {
+            let toward = (octant(k) * 2 - IVec3::ONE).as_vec3();
+            (shift.dot(toward), (shift * toward).dot(TIE_BREAK))
+        };
+        let best = (0..8u32)
+            .filter(|&k| dealt[k as usize] == u32::MAX)
+            .max_by(|&a, &b| {
+                let (la, lb) = (lean(a), lean(b));
+                la.0.total_cmp(&lb.0)
+                    .then(la.1.total_cmp(&lb.1))
+                    .then(b.cmp(&a))
+            })
+            .expect("eight turns for eight octants");
+        dealt[best as usize] = p;
+    }
+    dealt
+}
+
+/// The corner offset in `{0, 1}³` numbered `k` (bit 0: x, bit 1: y, bit 2: z).
+pub fn octant(k: u32) -> IVec3 {
+    IVec3::new((k & 1) as i32, (k >> 1 & 1) as i32, (k >> 2 & 1) as i32)
+}
+
+/// The grid corners of the face of sub-cell `s` in direction `d`, counter-clockwise seen
+/// from outside (along the direction).
+pub fn face_corners(s: IVec3, d: u8) -> [IVec3; 4] {
+    let axis = d as usize / 2;
+    let positive = d % 2 == 1;
+    // (axis, b, c) a right-handed cycle of (x, y, z)
+    let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+    let corner = |i: i32, j: i32| {
+        let mut w = s;
+        w[axis] += positive as i32;
+        w[b] += i;
+        w[c] += j;
+        w
+    };
+    // a quad's triangles meet along the diagonal from its first corner: opposite faces
+    // take opposite diagonals, so the two faces of a slit (a severed edge inside a
+    // piece), which share all four corners, share no diagonal
+    if positive {
+        [corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)]
+    } else {
+        [corner(0, 1), corner(1, 1), corner(1, 0), corner(0, 0)]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::body::shape::Shape;
+    use glam::UVec3;
+
+    #[test]
+    fn an_intact_box_is_one_cell_per_particle() {
+        let l = Shape::cuboid(UVec3::new(3, 2, 2)).voxelise(1.0).unwrap();
+        let owners = CellOwners::new(&l);
+        assert_eq!(owners.resolution(), 1);
+        for p in l.live_particles() {
+            assert_eq!(owners.owned_by(p).collect::<Vec<_>>(), vec![l.coord(p)]);
+        }
+    }
+
+    #[test]
+    fn halves_of_a_split_own_the_octants_on_their_side() {
+        let mut l = Shape::cuboid(UVec3::new(3, 1, 1)).voxelise(1.0).unwrap();
+        let middle = l.at(l.coord(0) + IVec3::X).unwrap();
+        // the new half takes the +x edge
+        let half = l
+            .split(middle, [false, true, false, false, false, false])
+            .unwrap();
+        let owners = CellOwners::new(&l);
+        assert_eq!(owners.resolution(), 2);
+        let base = l.coord(middle) * 2;
+        let x_of = |p: u32| {
+            let xs: Vec<i32> = owners.owned_by(p).map(|s| s.x - base.x).collect();
+            assert_eq!(xs.len(), 4);
+            xs
+        };
+        assert!(x_of(half).iter().all(|&x| x == 1));
+        assert!(x_of(middle).iter().all(|&x| x == 0));
+        // the far particle owns its whole cell, and the half is joined to it
+        let far = l.link(half, 1);
+        assert_eq!(owners.owned_by(far).count(), 8);
+        let s = base + IVec3::new(1, 0, 0);
+        assert!(owners.joined(s, half, 1, far));
+        assert!(!owners.joined(s, half, 0, middle));
+    }
+
+    #[test]
+    fn a_diagonal_split_shares_its_octants_four_and_four() {
+        let mut l = Shape::cuboid(UVec3::new(3, 3, 1)).voxelise(1.0).unwrap();
+        let centre = l.at(l.coord(0) + IVec3::new(1, 1, 0)).unwrap();
+        // the new half takes the -x and -y edges: it rests toward (-1, -1, 0)
+        let half = l
+            .split(centre, [true, false, true, false, false, false])
+            .unwrap();
+        let owners = CellOwners::new(&l);
+        assert_eq!(owners.owned_by(half).count(), 4);
+        assert_eq!(owners.owned_by(centre).count(), 4);
+    }
+}

@@ -1,0 +1,151 @@
+//! The surface of a body's lattice: a triangle mesh of the boundary of the solid its
+//! live particles own ([`super::cells`]), each vertex bound to the particles whose
+//! positions carry it ([`super::deform`]).
+//!
+//! Every sub-cell face between a solid sub-cell and one it is not joined to is a quad
+//! (two triangles), wound counter-clockwise seen from outside. Which quads share a
+//! corner vertex is decided around each grid edge ([`super::fans`]): going round the
+//! edge, each run of joined solid sub-cells is bounded by two quads, and those two
+//! share the edge's end vertices. So corners are shared only between particles that
+//! stay linked around them: a sever or a split opens the surface into two closed ones
+//! along the cut, a severed edge inside a piece leaves a closed slit, and two pieces
+//! that touch at a corner or an edge get vertices of their own. A vertex is bound to
+//! the particles owning the solid sub-cells joined to its quads around its corner,
+//! each weighted by the sub-cells it owns there.
+
+use super::cells::{CellOwners, face_corners, octant};
+use super::fans::{Quad, vertex_classes};
+use crate::body::lattice::{Lattice, NEIGHBOUR_OFFSETS};
+use crate::body::pieces::body_pieces;
+use glam::{IVec3, Vec3};
+
+/// The surface's topology and its binding to the particles: what changes only when the
+/// lattice does.
+#[derive(Clone, Debug, Default)]
+pub struct SurfaceTopology {
+    /// Per vertex, its rest position in the body's lattice frame (the frame of
+    /// [`Lattice::rest_position`]).
+    pub rest: Vec<Vec3>,
+    /// Per vertex `v`, its bindings are `bindings[binding_start[v]..binding_start[v + 1]]`.
+    pub binding_start: Vec<u32>,
+    /// `(particle, weight)` pairs; a vertex's weights sum to 1.
+    pub bindings: Vec<(u32, f32)>,
+    /// Triangles (vertex indices), counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+    /// Per triangle, the piece (connected component of the body, as
+    /// [`body_pieces`] numbers them) it bounds.
+    pub triangle_piece: Vec<u32>,
+    /// The particles any vertex is bound to, ascending.
+    pub particles: Vec<u32>,
+}
+
+impl SurfaceTopology {
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.rest.len()
+    }
+
+    /// The `(particle, weight)` bindings of vertex `v`.
+    pub fn bindings_of(&self, v: usize) -> &[(u32, f32)] {
+        &self.bindings[self.binding_start[v] as usize..self.binding_start[v + 1] as usize]
+    }
+}
+
+/// The surface of `lattice` (see the module docs).
+pub fn extract(lattice: &Lattice) -> SurfaceTopology {
+    let owners = CellOwners::new(lattice);
+    let mut quads = Vec::new();
+    for p in lattice.live_particles().filter(|&p| !owners.is_enclosed(p)) {
+        for s in owners.owned_by(p) {
+            for (d, offset) in NEIGHBOUR_OFFSETS.iter().enumerate() {
+                if !owners
+                    .owner(s + *offset)
+                    .is_some_and(|q| owners.joined(s, p, d, q))
+                {
+                    quads.push(Quad {
+                        cell: s,
+                        direction: d as u8,
+                        owner: p,
+                    });
+                }
+            }
+        }
+    }
+    let (class_of, classes) = vertex_classes(&owners, &quads);
+    let mut topology = SurfaceTopology {
+        binding_start: vec![0],
+        ..SurfaceTopology::default()
+    };
+    let h = lattice.spacing() / owners.resolution() as f32;
+    for members in &classes {
+        let (q, k) = (members[0] / 4, members[0] % 4);
+        let corner = face_corners(quads[q as usize].cell, quads[q as usize].direction)[k as usize];
+        topology.rest.push(corner.as_vec3() * h);
+        let cells: Vec<IVec3> = members
+            .iter()
+            .map(|s| quads[(s / 4) as usize].cell)
+            .collect();
+        bind(&owners, corner, &cells, &mut topology);
+    }
+    let (piece, _) = body_pieces(lattice);
+    for (q, quad) in quads.iter().enumerate() {
+        let v: [u32; 4] = std::array::from_fn(|k| class_of[q * 4 + k]);
+        topology.triangles.push([v[0], v[1], v[2]]);
+        topology.triangles.push([v[0], v[2], v[3]]);
+        topology
+            .triangle_piece
+            .extend([piece[quad.owner as usize]; 2]);
+    }
+    let mut particles: Vec<u32> = topology.bindings.iter().map(|b| b.0).collect();
+    particles.sort_unstable();
+    particles.dedup();
+    topology.particles = particles;
+    topology
+}
+
+/// Appends the bindings of the vertex at grid corner `w` whose quads belong to the
+/// solid sub-cells `cells`: the owners of those sub-cells and of every solid sub-cell
+/// around `w` joined to them through faces at `w`, one share per sub-cell.
+fn bind(owners: &CellOwners, w: IVec3, cells: &[IVec3], topology: &mut SurfaceTopology) {
+    // the eight sub-cells around `w`, numbered like `octant`
+    let around: [IVec3; 8] = std::array::from_fn(|k| w - IVec3::ONE + octant(k as u32));
+    let own: [Option<u32>; 8] = around.map(|c| owners.owner(c));
+    let mut reached: [bool; 8] = std::array::from_fn(|k| cells.contains(&around[k]));
+    // spread across the twelve faces at `w` until nothing changes
+    loop {
+        let mut changed = false;
+        for k in 0..8u32 {
+            for axis in 0..3 {
+                let j = k | 1 << axis;
+                let (Some(p), Some(q)) = (own[k as usize], own[j as usize]) else {
+                    continue;
+                };
+                if j == k
+                    || reached[k as usize] == reached[j as usize]
+                    || !owners.joined(around[k as usize], p, 2 * axis + 1, q)
+                {
+                    continue;
+                }
+                reached[k as usize] = true;
+                reached[j as usize] = true;
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    let members: Vec<u32> = (0..8)
+        .filter(|&k| reached[k])
+        .filter_map(|k| own[k])
+        .collect();
+    let weight = 1.0 / members.len() as f32;
+    let start = topology.bindings.len();
+    for p in members {
+        match topology.bindings[start..].iter_mut().find(|b| b.0 == p) {
+            Some(b) => b.1 += weight,
+            None => topology.bindings.push((p, weight)),
+        }
+    }
+    topology.binding_start.push(topology.bindings.len() as u32);
+}

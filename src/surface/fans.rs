@@ -1,0 +1,233 @@
+//! Which quad corners of a surface are one vertex: decided around each grid edge, so
+//! that every edge of the mesh lies in exactly two triangles.
+//!
+//! Around a grid edge lie four sub-cells. Going round, each *run* of solid sub-cells,
+//! each joined to the next, is bounded by two quads (its first sub-cell's face toward
+//! the one before, its last one's toward the one after); those two quads share the
+//! edge, so their corners at both ends of the edge are one vertex. The vertices are the
+//! classes of quad corners these pairings join.
+//!
+//! One configuration needs more: a *pinch*, where two runs around an edge are joined
+//! to each other around both of its ends (two cells of a piece that touch only along
+//! that edge, with the piece closing round on either side). Then both runs' quads
+//! would share both end vertices, and the edge would lie in four triangles. At a pinch
+//! the pairings are kept at the edge's lower end only; at its upper end the vertex
+//! falls apart into the arcs of its fan between the runs, each arc a vertex of its own.
+//! An arc runs from one run's quad to another's, and the two meet the one lower vertex,
+//! so the edge appears once per arc, in two triangles wound opposite ways.
+
+use super::cells::{CellOwners, face_corners};
+use glam::IVec3;
+use rustc_hash::{FxHashMap, FxHashSet};
+
+/// A face of a solid sub-cell on the surface.
+#[derive(Clone, Copy, Debug)]
+pub struct Quad {
+    /// The solid sub-cell.
+    pub cell: IVec3,
+    /// The face's outward direction (an index into the lattice's neighbour offsets).
+    pub direction: u8,
+    /// The particle that owns the sub-cell.
+    pub owner: u32,
+}
+
+/// The vertex class of every quad corner (corner `k` of quad `q` is slot `4q + k`), and
+/// the slots of each class, in order of their first slot.
+pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> (Vec<u32>, Vec<Vec<u32>>) {
+    let index: FxHashMap<(IVec3, u8), u32> = quads
+        .iter()
+        .enumerate()
+        .map(|(q, quad)| ((quad.cell, quad.direction), q as u32))
+        .collect();
+    let mut edges: Vec<(i32, i32, i32, u8)> = Vec::with_capacity(quads.len() * 2);
+    for quad in quads {
+        let c = face_corners(quad.cell, quad.direction);
+        for k in 0..4 {
+            let (a, b) = (c[k], c[(k + 1) % 4]);
+            let low = a.min(b);
+            let axis = (b - a).abs().max_position() as u8;
+            edges.push((low.x, low.y, low.z, axis));
+        }
+    }
+    edges.sort_unstable();
+    edges.dedup();
+    // per edge, its pairings: the slots of both quads at the lower end, then at the upper
+    let mut pairings: Vec<(usize, [u32; 4])> = Vec::new();
+    for (e, &(x, y, z, axis)) in edges.iter().enumerate() {
+        for (first, last) in runs_around(owners, IVec3::new(x, y, z), axis as usize) {
+            let (Some(&qa), Some(&qb)) = (index.get(&first), index.get(&last)) else {
+                continue;
+            };
+            let low = IVec3::new(x, y, z);
+            let mut high = low;
+            high[axis as usize] += 1;
+            let slot = |q: u32, w: IVec3| {
+                let k = face_corners(quads[q as usize].cell, quads[q as usize].direction)
+                    .iter()
+                    .position(|c| *c == w)
+                    .expect("a quad at an edge has both of its ends as corners");
+                4 * q + k as u32
+            };
+            pairings.push((
+                e,
+                [slot(qa, low), slot(qb, low), slot(qa, high), slot(qb, high)],
+            ));
+        }
+    }
+    let slots = quads.len() * 4;
+    let mut all = UnionFind::new(slots);
+    for (_, [a, b, c, d]) in &pairings {
+        all.union(*a, *b);
+        all.union(*c, *d);
+    }
+    let mut pinched = FxHashSet::default();
+    let mut seen: FxHashMap<(usize, u32, u32), ()> = FxHashMap::default();
+    for (e, [a, _, c, _]) in &pairings {
+        if seen.insert((*e, all.find(*a), all.find(*c)), ()).is_some() {
+            pinched.insert(*e);
+        }
+    }
+    let mut kept = UnionFind::new(slots);
+    for (e, [a, b, c, d]) in &pairings {
+        kept.union(*a, *b);
+        if !pinched.contains(e) {
+            kept.union(*c, *d);
+        }
+    }
+    let mut class_of_root: FxHashMap<u32, u32> = FxHashMap::default();
+    let mut class_of = Vec::with_capacity(slots);
+    let mut classes: Vec<Vec<u32>> = Vec::new();
+    for s in 0..slots as u32 {
+        let root = kept.find(s);
+        let class = *class_of_root.entry(root).or_insert_with(|| {
+            classes.push(Vec::new());
+            classes.len() as u32 - 1
+        });
+        classes[class as usize].push(s);
+        class_of.push(class);
+    }
+    (class_of, classes)
+}
+
+/// The runs of joined solid sub-cells around the grid edge from `w` along `axis`, each
+/// as its bounding quads `(first, last)`, keyed `(sub-cell, direction)`.
+fn runs_around(owners: &CellOwners, w: IVec3, axis: usize) -> Vec<((IVec3, u8), (IVec3, u8))> {
+    let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+    // round the edge: (0, 0) → (−1, 0) → (−1, −1) → (0, −1) in (b, c), each step one face
+    let offsets = [(0, 0), (-1, 0), (-1, -1), (0, -1)];
+    let steps = [2 * b, 2 * c, 2 * b + 1, 2 * c + 1];
+    let cells: [IVec3; 4] = offsets.map(|(i, j)| {
+        let mut u = w;
+        u[b] += i;
+        u[c] += j;
+        u
+    });
+    let own = cells.map(|u| owners.owner(u));
+    let joined: [bool; 4] = std::array::from_fn(|i| {
+        let next = (i + 1) % 4;
+        match (own[i], own[next]) {
+            (Some(p), Some(q)) => owners.joined(cells[i], p, steps[i], q),
+            _ => false,
+        }
+    });
+    let Some(start) = (0..4).find(|&i| !joined[(i + 3) % 4]) else {
+        return Vec::new();
+    };
+    let mut runs = Vec::new();
+    let mut first = None;
+    for k in 0..4 {
+        let i = (start + k) % 4;
+        if own[i].is_none() {
+            continue;
+        }
+        if !joined[(i + 3) % 4] {
+            first = Some((cells[i], (steps[(i + 3) % 4] ^ 1) as u8));
+        }
+        if !joined[i]
+            && let Some(f) = first.take()
+        {
+            runs.push((f, (cells[i], steps[i] as u8)));
+        }
+    }
+    runs
+}
+
+/// Union–find over `0..n` with path halving.
+struct UnionFind(Vec<u32>);
+
+impl UnionFind {
+    fn new(n: usize) -> Self {
+        Self((0..n as u32).collect())
+    }
+
+    fn find(&mut self, mut x: u32) -> u32 {
+        while self.0[x as usize] != x {
+            let grand = self.0[self.0[x as usize] as usize];
+            self.0[x as usize] = grand;
+            x = grand;
+        }
+        x
+    }
+
+    fn union(&mut self, a: u32, b: u32) {
+        let (ra, rb) = (self.find(a), self.find(b));
+        if ra != rb {
+            self.0[ra.max(rb) as usize] = ra.min(rb);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::body::lattice::Lattice;
+    use crate::surface::extract;
+    use glam::IVec3;
+    use rustc_hash::FxHashMap;
+
+    /// Panics unless every directed edge of `triangles` appears once and its reverse
+    /// once; returns the enclosed volume over `rest`.
+    fn closed_volume(lattice: &Lattice) -> f32 {
+        let t = extract(lattice);
+        let mut directed: FxHashMap<(u32, u32), u32> = FxHashMap::default();
+        let mut volume = 0.0;
+        for tri in &t.triangles {
+            for k in 0..3 {
+                *directed.entry((tri[k], tri[(k + 1) % 3])).or_default() += 1;
+            }
+            let [a, b, c] = tri.map(|v| t.rest[v as usize]);
+            volume += a.dot(b.cross(c)) / 6.0;
+        }
+        for (&(a, b), &n) in &directed {
+            assert_eq!(n, 1, "{a}→{b} doubled");
+            assert_eq!(directed.get(&(b, a)), Some(&1), "{a}→{b} open");
+        }
+        volume
+    }
+
+    #[test]
+    fn two_cells_touching_along_an_edge_inside_a_ring_keep_every_edge_in_two_triangles() {
+        // a 2×2×3 column whose middle layer keeps only two diagonal cells: they touch
+        // along one vertical edge, and the full layers join them below and above
+        let coords: Vec<IVec3> = (0..3)
+            .flat_map(|z| (0..2).flat_map(move |y| (0..2).map(move |x| IVec3::new(x, y, z))))
+            .filter(|c| c.z != 1 || c.x == c.y)
+            .collect();
+        let lattice = Lattice::from_coords(1.0, coords).unwrap();
+        assert!((closed_volume(&lattice) - 10.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn a_severed_edge_inside_a_block_leaves_a_closed_slit() {
+        let coords: Vec<IVec3> = (0..27)
+            .map(|k| IVec3::new(k % 3, k / 3 % 3, k / 9))
+            .collect();
+        let mut lattice = Lattice::from_coords(1.0, coords).unwrap();
+        let centre = lattice.at(IVec3::ONE).unwrap();
+        let above = lattice.at(IVec3::new(1, 1, 2)).unwrap();
+        assert!(lattice.sever(centre, above));
+        let t = extract(&lattice);
+        // the box's 54 faces and the slit's two
+        assert_eq!(t.triangles.len(), 2 * (54 + 2));
+        assert!((closed_volume(&lattice) - 27.0).abs() < 1e-5);
+    }
+}

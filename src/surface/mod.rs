@@ -1,0 +1,11 @@
+//! A drawable surface for every body: the closed triangle mesh of the boundary of the
+//! solid its particles own, opened along every cut ([`mod@extract`]), and carried by the
+//! particles each frame ([`deform`]). Pure functions on the lattice and on arrays of
+//! positions; the `Surface` stage keeps one per body ([`crate::ecs::surface_mesh`]).
+
+pub mod cells;
+pub mod deform;
+pub mod extract;
+pub mod fans;
+
+pub use extract::{SurfaceTopology, extract};
