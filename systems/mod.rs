@@ -15,12 +15,13 @@
 //! 6. `MoveTools → Detect → Cut → Regroup → Split → Expand`;
 //! 7. [`SimStage::Settle`]: where tools, colliders and attachment targets ended the
 //!    frame becomes where the next frame moves them from (so a pose game code writes
-//!    between frames is swept like a keyframed one); then the optional invariant check
-//!    ([`SimStage::Verify`]).
+//!    between frames is swept like a keyframed one);
+//! 8. [`SimStage::Surface`]: every body's drawable surface ([`surface`]); then the
+//!    optional invariant check ([`SimStage::Verify`]).
 //!
 //! Access contract (tested in `tests/schedule_access.rs`): predict and shape-match write
 //! particle data only; detect writes only its `CutList`; cut writes no cluster data;
-//! regroup/split/expand write no particle data.
+//! regroup/split/expand write no particle data; surface writes surface data only.
 
 pub mod cut;
 pub mod detect;
@@ -37,6 +38,7 @@ pub mod settle_poses;
 pub mod shape_match;
 pub mod split;
 pub mod store;
+pub mod surface;
 pub mod term_sync;
 
 use crate::ecs::resources::*;
@@ -80,6 +82,8 @@ pub enum SimStage {
     /// The poses tools, colliders and attachment targets reached become the next
     /// frame's start.
     Settle,
+    /// Every body's drawable surface brought up to date (writes surface data only).
+    Surface,
     /// Optional invariant check (debug / tests).
     Verify,
 }
@@ -149,6 +153,7 @@ pub fn build_schedule() -> Schedule {
             SimStage::Split,
             SimStage::Expand,
             SimStage::Settle,
+            SimStage::Surface,
             SimStage::Verify,
         )
             .chain(),
@@ -165,6 +170,7 @@ pub fn build_schedule() -> Schedule {
     s.add_systems(split::split.in_set(SimStage::Split));
     s.add_systems(expand::expand.in_set(SimStage::Expand));
     s.add_systems(settle_poses::settle_poses.in_set(SimStage::Settle));
+    s.add_systems(surface::update_surfaces.in_set(SimStage::Surface));
     s.add_systems(
         verify
             .in_set(SimStage::Verify)
@@ -192,6 +198,7 @@ pub fn install(world: &mut World, config: crate::config::SimConfig) {
     MessageRegistry::register_message::<ClustersRebuilt>(world);
     MessageRegistry::register_message::<BodySplit>(world);
     MessageRegistry::register_message::<ParticlesRepaired>(world);
+    MessageRegistry::register_message::<SurfaceChanged>(world);
     world.add_schedule(build_sync_schedule());
     world.add_schedule(build_substep_schedule());
     world.add_schedule(build_schedule());

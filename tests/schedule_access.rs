@@ -3,7 +3,8 @@
 //! and the term sync write only the solver; store writes only particle positions and
 //! velocities; the tool, collider and attachment movers and the settle stage write their
 //! poses only; detect writes only its CutList and spawns nothing; cut writes no cluster
-//! data; regroup/split/expand write no particle data.
+//! data; regroup/split/expand write no particle data; the surface stage writes only
+//! the surfaces (and its message).
 
 use bevy_ecs::component::ComponentId;
 use bevy_ecs::message::Messages;
@@ -168,6 +169,23 @@ fn regroup_split_expand_write_no_particle_data() {
             "must write ClusterMembers"
         );
     }
+}
+
+#[test]
+fn the_surface_stage_writes_surfaces_only() {
+    let mut w = world();
+    ids(&mut w);
+    let surface = w.register_component::<cleave::ecs::surface_mesh::SurfaceMesh>();
+    let access = access_of(&mut w, surface::update_surfaces);
+    let message = w
+        .component_id::<Messages<SurfaceChanged>>()
+        .expect("registered");
+    let mut expected = vec![surface, message];
+    let mut writes = access.writes;
+    expected.sort();
+    writes.sort();
+    assert_eq!(writes, expected);
+    assert!(!access.deferred);
 }
 
 #[test]

@@ -1,6 +1,6 @@
 //! The ECS data of a simulation: components, resources and messages, descriptions of
 //! what can be spawned and the spawning itself, poses set from game code, the map between the particle table and
-//! the solver's dense arrays, and the invariant check over a world.
+//! the solver's dense arrays, the drawable surfaces, and the invariant check over a world.
 
 pub mod attach;
 pub mod check;
@@ -9,4 +9,5 @@ pub mod desc;
 pub mod poses;
 pub mod resources;
 pub mod spawn;
+pub mod surface_mesh;
 pub mod table_rows;

@@ -441,3 +441,13 @@ mod tests {
         );
     }
 }
+
+/// Sent by the surface stage when a body's surface triangles change (its first surface,
+/// and after every cut, split or tear that changed its links).
+#[derive(Message, Clone, Copy, Debug)]
+pub struct SurfaceChanged {
+    /// The body.
+    pub body: Entity,
+    /// The surface's new [`crate::ecs::surface_mesh::SurfaceMesh::topology_version`].
+    pub topology_version: u64,
+}

@@ -10,6 +10,7 @@ use crate::ecs::attach::{TargetMotion, centroid_pose, check_compliance, spawn_at
 use crate::ecs::components::*;
 use crate::ecs::desc::{BodyDesc, ColliderDesc, Region, ToolDesc};
 use crate::ecs::resources::*;
+use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::{
     CleaveError, MAX_COORDINATE, MAX_SPEED, Result, check_finite_vec, check_positive, check_range,
     check_vec_within,
@@ -264,6 +265,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             pieces,
         },
         clusters,
+        SurfaceMesh::default(),
     ));
     let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time) as f32;
     for ((pin, particles), positions) in desc.pins.iter().zip(pinned).zip(pinned_at) {

@@ -6,6 +6,7 @@ use crate::ecs::components::*;
 use crate::ecs::desc::{BodyDesc, ColliderDesc, ToolDesc};
 use crate::ecs::resources::{SceneLabel, SimSettings, SolverCache};
 use crate::ecs::spawn::{recluster, spawn_body, spawn_collider, spawn_tool};
+use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::{CleaveError, Result};
 use crate::solver::term::Term;
 use crate::systems::{CleaveSchedule, install};
@@ -188,6 +189,16 @@ impl Simulation {
         cache.solver.terms.register(term);
         // every term hears of the bodies again at the next frame, the new one with them
         cache.pending_topology.get_or_insert_default().relaid = true;
+    }
+
+    /// Stops keeping the drawable surfaces of the bodies spawned so far (their
+    /// [`SurfaceMesh`] components are removed, and the surface stage skips them):
+    /// headless runs and benchmarks that draw nothing save its work. Bodies spawned
+    /// later get one again.
+    pub fn drop_surfaces(&mut self) {
+        for body in self.bodies() {
+            self.world.entity_mut(body).remove::<SurfaceMesh>();
+        }
     }
 
     /// Every body entity, in entity order.

@@ -1,0 +1,48 @@
+//! The drawable surface of a body, as an ECS component: the closed mesh of each of its
+//! pieces ([`crate::surface`]), kept by the `Surface` stage. A renderer reads the
+//! positions, normals and triangles, and polls [`SurfaceMesh::topology_version`] (or
+//! reads [`crate::ecs::resources::SurfaceChanged`]) to know when to upload new
+//! triangles.
+
+use crate::surface::SurfaceTopology;
+use bevy_ecs::prelude::*;
+use glam::{Quat, Vec3};
+
+/// A body's surface. Every spawned body gets one; remove it to skip the work (the
+/// `Surface` stage updates only bodies that have it).
+#[derive(Component, Clone, Debug, Default)]
+pub struct SurfaceMesh {
+    /// Vertex positions (world frame), this frame.
+    pub positions: Vec<Vec3>,
+    /// Unit vertex normals, this frame.
+    pub normals: Vec<Vec3>,
+    /// Grows by one each time the triangles change (the first surface is version 1):
+    /// positions and normals change every frame, triangles only with this.
+    pub topology_version: u64,
+    pub(crate) topology: SurfaceTopology,
+    /// Per particle, its frame (see [`crate::surface::deform`]).
+    pub(crate) frames: Vec<Quat>,
+    /// Per particle, its position this frame (only those the surface reads).
+    pub(crate) gathered: Vec<Vec3>,
+    /// The particles whose positions the surface reads: its particles and their
+    /// linked neighbours.
+    pub(crate) read: Vec<u32>,
+}
+
+impl SurfaceMesh {
+    /// Triangles (vertex indices), counter-clockwise seen from outside.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.topology.triangles
+    }
+
+    /// Per triangle, the piece of the body it bounds (numbered as
+    /// [`crate::body::pieces::body_pieces`] numbers them).
+    pub fn triangle_pieces(&self) -> &[u32] {
+        &self.topology.triangle_piece
+    }
+
+    /// The topology and its binding to the particles.
+    pub fn topology(&self) -> &SurfaceTopology {
+        &self.topology
+    }
+}

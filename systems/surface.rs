@@ -1,0 +1,57 @@
+//! Stage surface: every body's [`SurfaceMesh`] brought up to date — its triangles
+//! extracted again when the body's lattice changed (a cut, split or tear) or it has
+//! none yet, then its vertices carried to where the particles are
+//! ([`crate::surface::deform`]). Writes surface data only.
+
+use crate::ecs::components::{BodyLattice, Position};
+use crate::ecs::resources::SurfaceChanged;
+use crate::ecs::surface_mesh::SurfaceMesh;
+use crate::surface::{deform, extract};
+use bevy_ecs::prelude::*;
+use glam::{Quat, Vec3};
+
+/// Updates the surface of every body that has one.
+pub fn update_surfaces(
+    mut bodies: Query<(Entity, Ref<BodyLattice>, &mut SurfaceMesh)>,
+    positions: Query<&Position>,
+    mut changed: MessageWriter<SurfaceChanged>,
+) {
+    for (body, lattice, mut mesh) in &mut bodies {
+        let mesh = &mut *mesh;
+        let l = &lattice.lattice;
+        if mesh.topology_version == 0 || lattice.is_changed() {
+            mesh.topology = extract(l);
+            let mut read = mesh.topology.particles.clone();
+            for &p in &mesh.topology.particles {
+                read.extend(l.neighbours(p));
+            }
+            read.sort_unstable();
+            read.dedup();
+            mesh.read = read;
+            // a new half starts from its twin's frame, as near as the identity
+            mesh.frames.resize(l.len(), Quat::IDENTITY);
+            mesh.gathered.resize(l.len(), Vec3::ZERO);
+            mesh.topology_version += 1;
+            changed.write(SurfaceChanged {
+                body,
+                topology_version: mesh.topology_version,
+            });
+        }
+        for &p in &mesh.read {
+            // (a particle despawned from outside keeps its last place until cut removes it)
+            let entity = lattice.particles.get(p as usize);
+            if let Some(x) = entity.and_then(|e| positions.get(*e).ok()) {
+                mesh.gathered[p as usize] = x.0;
+            }
+        }
+        deform::particle_frames(l, &mesh.topology, &mesh.gathered, &mut mesh.frames);
+        deform::vertex_positions(
+            l,
+            &mesh.topology,
+            &mesh.gathered,
+            &mesh.frames,
+            &mut mesh.positions,
+        );
+        deform::vertex_normals(&mesh.positions, &mesh.topology.triangles, &mut mesh.normals);
+    }
+}

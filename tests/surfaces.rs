@@ -1,0 +1,211 @@
+//! The drawable surfaces, checked by a mesh checker written here (not the engine's):
+//! each piece's surface closed and consistently oriented (every directed edge once,
+//! its reverse once), enclosing the volume of the cells its live particles own (by the
+//! divergence theorem), a box's surface exactly its voxel boundary, cuts opening the
+//! surface along the cut, and a bent beam's triangles never flipped.
+
+use cleave::config::SimConfig;
+use cleave::cut::tool::CutMode;
+use cleave::ecs::components::BodyLattice;
+use cleave::ecs::desc::BodyDesc;
+use cleave::ecs::surface_mesh::SurfaceMesh;
+use cleave::io::scene::builtin;
+use cleave::prelude::*;
+use glam::IVec3;
+use std::collections::{HashMap, HashSet};
+
+/// Per piece, the enclosed volume of a closed, consistently oriented mesh; an error
+/// naming the first edge that is open, doubled or turned the wrong way.
+fn closed_volumes(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    pieces: &[u32],
+) -> Result<HashMap<u32, f64>, String> {
+    let mut directed: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut volume: HashMap<u32, f64> = HashMap::new();
+    for (t, piece) in triangles.iter().zip(pieces) {
+        for k in 0..3 {
+            let e = (t[k], t[(k + 1) % 3]);
+            if e.0 == e.1 {
+                return Err(format!("degenerate triangle {t:?}"));
+            }
+            *directed.entry(e).or_default() += 1;
+        }
+        let [a, b, c] = t.map(|i| positions[i as usize].as_dvec3());
+        *volume.entry(*piece).or_default() += a.dot(b.cross(c)) / 6.0;
+    }
+    for (&(a, b), &n) in &directed {
+        if n != 1 {
+            return Err(format!("edge {a}→{b} in {n} triangles the same way"));
+        }
+        if directed.get(&(b, a)) != Some(&1) {
+            return Err(format!("edge {a}→{b} has no single twin"));
+        }
+    }
+    Ok(volume)
+}
+
+/// The volume of the cells `lattice`'s live particles occupy (two halves of a split
+/// particle share one cell), in units of h³.
+fn occupied_cells(lattice: &cleave::body::lattice::Lattice) -> usize {
+    let cells: HashSet<IVec3> = lattice.live_particles().map(|p| lattice.coord(p)).collect();
+    cells.len()
+}
+
+fn surface(sim: &Simulation, body: Entity) -> SurfaceMesh {
+    sim.world()
+        .get::<SurfaceMesh>(body)
+        .expect("a surface")
+        .clone()
+}
+
+#[test]
+fn a_box_at_rest_is_its_voxel_boundary() {
+    let config = SimConfig {
+        gravity: Vec3::ZERO,
+        ground: None,
+        ..SimConfig::default()
+    };
+    let mut sim = Simulation::new(config).unwrap();
+    let h = 0.1;
+    let (n, m, k) = (5u32, 3u32, 4u32);
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(n, m, k)), h);
+    desc.position = Vec3::new(0.3, 1.7, -0.2);
+    let body = sim.spawn_body(&desc).unwrap();
+    sim.run(1);
+    let mesh = surface(&sim, body);
+    assert_eq!(mesh.topology_version, 1);
+    let lowest = mesh.positions.iter().fold(Vec3::MAX, |a, b| a.min(*b));
+    let mut corners = HashSet::new();
+    for x in &mesh.positions {
+        let w = (*x - lowest) / h;
+        assert!(
+            (w - w.round()).abs().max_element() < 1e-5,
+            "{x} off the grid"
+        );
+        assert!(corners.insert(w.round().as_ivec3()), "two vertices at {w}");
+    }
+    let all = (n + 1) * (m + 1) * (k + 1);
+    let inside = (n - 1) * (m - 1) * (k - 1);
+    assert_eq!(corners.len() as u32, all - inside);
+    assert_eq!(mesh.triangles().len() as u32, 4 * (n * m + m * k + n * k));
+    let volumes =
+        closed_volumes(&mesh.positions, mesh.triangles(), mesh.triangle_pieces()).unwrap();
+    assert_eq!(volumes.len(), 1);
+    let expected = (n * m * k) as f64 * (h as f64).powi(3);
+    assert!((volumes[&0] / expected - 1.0).abs() < 1e-5, "{volumes:?}");
+    // normals point out of the box
+    let centre = mesh.positions.iter().sum::<Vec3>() / mesh.positions.len() as f32;
+    for (x, normal) in mesh.positions.iter().zip(&mesh.normals) {
+        assert!((*x - centre).dot(*normal) > 0.0);
+    }
+}
+
+/// Runs built-in `scene` in `mode`, then checks every body's surface: closed per piece,
+/// a piece per body piece, and at rest enclosing the occupied cells' volume. Returns
+/// the first body's rest surface area in h².
+fn cut_scene_surfaces_are_closed(name: &str, mode: CutMode) -> f64 {
+    let mut scene = builtin(name, 0).unwrap();
+    for tool in &mut scene.tools {
+        tool.cut_mode = mode;
+    }
+    let frames = scene.frames;
+    let mut sim = Simulation::from_scene(&scene).unwrap();
+    sim.run(frames);
+    let mut area = None;
+    for body in sim.bodies() {
+        let mesh = surface(&sim, body);
+        let lattice = &sim.world().get::<BodyLattice>(body).unwrap().lattice;
+        let pieces = sim.pieces(body).unwrap().len();
+        let now = closed_volumes(&mesh.positions, mesh.triangles(), mesh.triangle_pieces())
+            .unwrap_or_else(|e| panic!("{name} {mode:?}: {e}"));
+        assert_eq!(now.len(), pieces, "{name} {mode:?}: a surface per piece");
+        let rest = &mesh.topology().rest;
+        let at_rest = closed_volumes(rest, mesh.triangles(), mesh.triangle_pieces()).unwrap();
+        assert!(
+            at_rest.values().all(|v| *v > 0.0),
+            "{name} {mode:?}: inside out"
+        );
+        let h = lattice.spacing() as f64;
+        let total: f64 = at_rest.values().sum::<f64>() / h.powi(3);
+        let cells = occupied_cells(lattice) as f64;
+        assert!(
+            (total / cells - 1.0).abs() < 1e-5,
+            "{name} {mode:?}: {total} h³ enclosed, {cells} cells"
+        );
+        area.get_or_insert_with(|| {
+            mesh.triangles()
+                .iter()
+                .map(|t| {
+                    let [a, b, c] = t.map(|i| rest[i as usize].as_dvec3());
+                    (b - a).cross(c - a).length() / 2.0
+                })
+                .sum::<f64>()
+                / (h * h)
+        });
+    }
+    area.unwrap()
+}
+
+#[test]
+fn slice_opens_the_surface_along_the_cut_in_every_mode() {
+    // the 24×12×12 block: 2·(24·12 + 12·12 + 24·12) h² before the cut
+    let whole = 2.0 * (24.0 * 12.0 + 12.0 * 12.0 + 24.0 * 12.0);
+    let severed = cut_scene_surfaces_are_closed("slice", CutMode::Sever);
+    // the blade leaves a 12×12 face on each half
+    assert!((severed - whole - 2.0 * 144.0).abs() < 1e-3, "{severed} h²");
+    // removing a layer takes its rim off the sides; a split blade through particle
+    // centres may leave steps
+    for mode in [CutMode::Remove, CutMode::Split] {
+        let area = cut_scene_surfaces_are_closed("slice", mode);
+        assert!(area >= whole + 144.0, "{mode:?}: {area} h²");
+    }
+}
+
+#[test]
+fn dice_and_scoop_surfaces_are_closed_in_every_mode() {
+    for scene in ["dice", "scoop"] {
+        for mode in [CutMode::Remove, CutMode::Sever, CutMode::Split] {
+            cut_scene_surfaces_are_closed(scene, mode);
+        }
+    }
+}
+
+#[test]
+fn random_and_cuts_surfaces_are_closed_in_every_mode() {
+    for scene in ["random", "cuts"] {
+        for mode in [CutMode::Remove, CutMode::Sever, CutMode::Split] {
+            cut_scene_surfaces_are_closed(scene, mode);
+        }
+    }
+}
+
+#[test]
+fn a_bent_cantilever_flips_no_triangle_and_keeps_its_volume() {
+    let scene = builtin("cantilever", 0).unwrap();
+    let mut sim = Simulation::from_scene(&scene).unwrap();
+    sim.run(300);
+    let body = sim.bodies()[0];
+    let mesh = surface(&sim, body);
+    let rest = &mesh.topology().rest;
+    let normal = |x: &[Vec3], t: &[u32; 3]| {
+        let [a, b, c] = t.map(|i| x[i as usize]);
+        (b - a).cross(c - a).normalize()
+    };
+    // the beam spawns unrotated and bends by less than a right angle: every triangle
+    // still faces the way it faced at rest
+    let worst = mesh
+        .triangles()
+        .iter()
+        .map(|t| normal(&mesh.positions, t).dot(normal(rest, t)))
+        .fold(1.0f32, f32::min);
+    assert!(worst > 0.5, "a triangle turned to {worst}");
+    let volume = |x: &[Vec3]| -> f64 {
+        closed_volumes(x, mesh.triangles(), mesh.triangle_pieces())
+            .unwrap()
+            .values()
+            .sum()
+    };
+    let ratio = volume(&mesh.positions) / volume(rest);
+    assert!((ratio - 1.0).abs() < 0.02, "volume ratio {ratio}");
+}
