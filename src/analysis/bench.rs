@@ -1,7 +1,8 @@
 //! The measurements behind `cleave bench`: step time of boxes of n³ particles in the
 //! engine and, in the same run, in a bare dense kernel on the same clusters; memory per
 //! particle; a full slice cut event against re-clustering; and a convergence table of
-//! the two solver schemes.
+//! the two solver schemes. The bodies here keep no drawable surface:
+//! [`crate::analysis::bench_surface`] times that on its own.
 
 use crate::analysis::static_solve::StaticProblem;
 use crate::body::shape::Shape;
@@ -165,6 +166,8 @@ pub fn bench_edges(n: u32, steps: usize, config: &SimConfig) -> Result<EdgeRow> 
         ..Material::rigid()
     };
     sim.spawn_body(&desc)?;
+    // (the surfaces have their own row)
+    sim.drop_surfaces();
     for _ in 0..3 {
         sim.step();
     }
@@ -206,6 +209,7 @@ pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileR
         for c in &scene.colliders {
             sim.spawn_collider(c)?;
         }
+        sim.drop_surfaces();
         Ok(sim)
     };
     let (mut with, mut without) = (build(true)?, build(false)?);
@@ -278,6 +282,7 @@ fn box_simulation(n: u32, config: &SimConfig) -> Result<Simulation> {
     desc.material = Material::rigid();
     desc.position = Vec3::new(0.0, n as f32 * H * 0.5 + 0.05, 0.0);
     sim.spawn_body(&desc)?;
+    sim.drop_surfaces();
     Ok(sim)
 }
 

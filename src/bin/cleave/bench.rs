@@ -3,6 +3,7 @@
 use cleave::analysis::bench::{
     ConvergenceOptions, bench_edges, bench_pile, bench_size, convergence,
 };
+use cleave::analysis::bench_surface::bench_surface;
 use cleave::config::SimConfig;
 
 /// The contact row: the `pile` scene at this spacing (or none).
@@ -153,6 +154,58 @@ pub fn bench(
                 row.contact_ns_per_particle_iteration,
                 row.contact_ms_per_step,
                 100.0 * row.contact_share
+            );
+        }
+    }
+    Ok(())
+}
+
+/// `cleave bench --surface`: a surface row per size (see
+/// [`cleave::analysis::bench_surface`]).
+pub fn bench_surfaces(
+    sizes: &[u32],
+    steps: usize,
+    config: &SimConfig,
+    json: bool,
+) -> Result<(), String> {
+    if let Some(bad) = sizes.iter().find(|n| !(2..=128).contains(*n)) {
+        return Err(format!(
+            "--sizes: {bad} is out of range with --surface (allowed 2 ≤ size ≤ 128)"
+        ));
+    }
+    if !json {
+        println!(
+            "cleave bench --surface: {} timed runs each, {} thread(s)",
+            steps.max(1),
+            rayon::current_num_threads()
+        );
+        println!(
+            "{:>5} {:>9} {:>9} {:>9} {:>10} {:>11} {:>11} {:>11}",
+            "size",
+            "particles",
+            "vertices",
+            "triangles",
+            "frame ms",
+            "extract ms",
+            "sliced ms",
+            "sliced tris"
+        );
+    }
+    for &n in sizes {
+        let row = bench_surface(n, steps, config).map_err(|e| e.to_string())?;
+        if json {
+            print_json(&row)?;
+        } else {
+            println!(
+                "{:>5} {:>9} {:>9} {:>9} {:>10.3} {:>11.3} {:>11.3} {:>11}",
+                row.size,
+                row.particles,
+                row.vertices,
+                row.triangles,
+                row.frame_ms,
+                row.extract_ms,
+                row.sliced_extract_ms,
+                row.sliced_triangles
             );
         }
     }

@@ -172,6 +172,10 @@ enum Command {
         /// Skip the edge-constraint row (a box of the largest size with edge constraints).
         #[arg(long)]
         no_edges: bool,
+        /// Instead of the engine rows: what each size's drawable surface costs (the
+        /// per-frame update, the extraction intact and after a slice).
+        #[arg(long)]
+        surface: bool,
     },
 }
 
@@ -332,6 +336,7 @@ fn main() -> ExitCode {
             pile_frames,
             no_pile,
             no_edges,
+            surface,
         } => with_threads(threads, |_| {
             let config = SimConfig {
                 solver,
@@ -346,6 +351,9 @@ fn main() -> ExitCode {
                     budget_seconds: budget,
                 };
                 return bench::bench_convergence(options, json);
+            }
+            if surface {
+                return bench::bench_surfaces(&sizes, steps, &config, json);
             }
             let pile = bench::PileOptions {
                 spacing: (!no_pile).then_some(pile_spacing),

@@ -1,0 +1,117 @@
+//! `cleave bench --surface`: what a body's drawable surface costs on an n³ box — the
+//! surface stage's per-frame update (particles' frames, vertex positions and normals)
+//! and the extraction of the whole surface, intact and after a slice through its
+//! middle. Every topology change extracts the whole surface again today; the slice
+//! row says what that costs.
+
+use crate::analysis::bench::median;
+use crate::body::shape::Shape;
+use crate::ecs::components::BodyLattice;
+use crate::ecs::desc::BodyDesc;
+use crate::ecs::surface_mesh::SurfaceMesh;
+use crate::error::{CleaveError, Result};
+use crate::sim::simulation::Simulation;
+use crate::surface::extract;
+use crate::systems::surface::update_surfaces;
+use glam::{UVec3, Vec3};
+use serde::Serialize;
+use std::time::Instant;
+
+/// One `--surface` row.
+#[derive(Clone, Debug, Serialize)]
+pub struct SurfaceRow {
+    /// Always `"surface"`.
+    pub row: &'static str,
+    /// Edge length of the box in particles.
+    pub size: u32,
+    /// Particles.
+    pub particles: usize,
+    /// Surface vertices of the intact box.
+    pub vertices: usize,
+    /// Surface triangles of the intact box.
+    pub triangles: usize,
+    /// Median wall time of the surface stage's update in a frame without a topology
+    /// change, ms.
+    pub frame_ms: f64,
+    /// Median wall time of extracting the intact box's surface, ms.
+    pub extract_ms: f64,
+    /// Median wall time of extracting the surface after a slice severed every edge
+    /// across the box's middle, ms.
+    pub sliced_extract_ms: f64,
+    /// Triangles after the slice.
+    pub sliced_triangles: usize,
+}
+
+/// Times the surface of an n³ box falling under gravity: `steps` frames' updates, and
+/// `steps` extractions intact and after the slice (medians).
+pub fn bench_surface(
+    n: u32,
+    steps: usize,
+    config: &crate::config::SimConfig,
+) -> Result<SurfaceRow> {
+    let h = 0.1;
+    let mut sim = Simulation::new(config.clone())?;
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(n)), h);
+    desc.position = Vec3::new(0.0, n as f32 * h, 0.0);
+    let body = sim.spawn_body(&desc)?;
+    sim.run(3);
+    let world = sim.world_mut();
+    let update = world.register_system(update_surfaces);
+    let run = |sim: &mut Simulation| -> Result<f64> {
+        let start = Instant::now();
+        sim.world_mut()
+            .run_system(update)
+            .map_err(|e| CleaveError::InvalidEntity(format!("surface stage: {e}")))?;
+        Ok(start.elapsed().as_secs_f64() * 1e3)
+    };
+    run(&mut sim)?;
+    let mut frames = (0..steps.max(1))
+        .map(|_| run(&mut sim))
+        .collect::<Result<Vec<f64>>>()?;
+    let mesh = sim
+        .world()
+        .get::<SurfaceMesh>(body)
+        .ok_or_else(|| CleaveError::not_a("a body with a surface", body))?;
+    let (vertices, triangles) = (mesh.positions.len(), mesh.triangles().len());
+    let mut lattice = sim
+        .world()
+        .get::<BodyLattice>(body)
+        .ok_or_else(|| CleaveError::not_a("a body", body))?
+        .lattice
+        .clone();
+    let particles = lattice.live_count();
+    let extraction = |lattice: &crate::body::lattice::Lattice| {
+        let mut samples: Vec<f64> = (0..steps.max(1))
+            .map(|_| {
+                let start = Instant::now();
+                let t = extract(lattice);
+                std::hint::black_box(&t);
+                start.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
+        (median(&mut samples), extract(lattice).triangles.len())
+    };
+    let (extract_ms, _) = extraction(&lattice);
+    let middle = lattice.coord(0).x + n as i32 / 2;
+    let crossing: Vec<(u32, u32)> = lattice
+        .edges()
+        .into_iter()
+        .filter(|&(a, b)| lattice.coord(a).x.min(lattice.coord(b).x) == middle - 1)
+        .filter(|&(a, b)| lattice.coord(a).x != lattice.coord(b).x)
+        .collect();
+    for (a, b) in crossing {
+        lattice.sever(a, b);
+    }
+    let (sliced_extract_ms, sliced_triangles) = extraction(&lattice);
+    Ok(SurfaceRow {
+        row: "surface",
+        size: n,
+        particles,
+        vertices,
+        triangles,
+        frame_ms: median(&mut frames),
+        extract_ms,
+        sliced_extract_ms,
+        sliced_triangles,
+    })
+}
