@@ -1,5 +1,6 @@
 //! What `cleave run` writes for people: PNG frames and a GIF in which the pieces of a
-//! cut show in different colours, and PLY point clouds that a PLY reader loads.
+//! cut show in different colours (drawn as surfaces or as particles), PLY point clouds
+//! that a PLY reader loads, and OBJ surfaces, read back here: a closed mesh per piece.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -132,4 +133,99 @@ fn ply_frames_load_with_positions_colours_and_pieces() {
         rows.iter()
             .all(|r| r[3..6].iter().all(|c| (0.0..=255.0).contains(c)))
     );
+}
+
+/// The triangles of each group of an OBJ file, as vertex positions.
+fn obj_groups(path: &Path) -> std::collections::BTreeMap<String, Vec<[[f64; 3]; 3]>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let (mut vertices, mut groups) = (Vec::new(), std::collections::BTreeMap::new());
+    let mut group = String::new();
+    for line in text.lines() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                let v: Vec<f64> = words.map(|w| w.parse().unwrap()).collect();
+                vertices.push([v[0], v[1], v[2]]);
+            }
+            Some("g") => group = words.next().unwrap().to_string(),
+            Some("f") => {
+                let corner: Vec<usize> = words
+                    .map(|w| w.split("//").next().unwrap().parse::<usize>().unwrap() - 1)
+                    .collect();
+                assert_eq!(corner.len(), 3, "{line}");
+                groups.entry(group.clone()).or_insert_with(Vec::new).push([
+                    vertices[corner[0]],
+                    vertices[corner[1]],
+                    vertices[corner[2]],
+                ]);
+            }
+            _ => {}
+        }
+    }
+    groups
+}
+
+#[test]
+fn obj_exports_hold_a_closed_surface_per_piece() {
+    let dir = temp("obj");
+    run_slice(
+        &dir,
+        &[
+            "--frames",
+            "120",
+            "--png-every",
+            "120",
+            "--gif-every",
+            "0",
+            "--export",
+            "obj",
+        ],
+    );
+    let mut volumes = Vec::new();
+    for (frame, pieces) in [(0, 1), (120, 2)] {
+        let groups = obj_groups(&dir.join(format!("obj/frame_{frame:05}.obj")));
+        assert_eq!(groups.len(), pieces, "frame {frame}: {:?}", groups.keys());
+        for (name, triangles) in &groups {
+            // every edge, by its end positions, once each way
+            let key = |p: [f64; 3]| p.map(|x| (x * 1e6).round() as i64);
+            let mut directed = std::collections::HashMap::new();
+            let mut volume = 0.0;
+            for [a, b, c] in triangles {
+                for (p, q) in [(a, b), (b, c), (c, a)] {
+                    *directed.entry((key(*p), key(*q))).or_insert(0) += 1;
+                }
+                let cross = [
+                    b[1] * c[2] - b[2] * c[1],
+                    b[2] * c[0] - b[0] * c[2],
+                    b[0] * c[1] - b[1] * c[0],
+                ];
+                volume += (a[0] * cross[0] + a[1] * cross[1] + a[2] * cross[2]) / 6.0;
+            }
+            for (&(p, q), &n) in &directed {
+                assert_eq!(
+                    (n, directed.get(&(q, p))),
+                    (1, Some(&1)),
+                    "{name}: open at {p:?}"
+                );
+            }
+            volumes.push(volume);
+        }
+    }
+    // the slice takes a layer out of the middle: two halves of the block's volume
+    let whole = volumes[0];
+    for half in &volumes[1..] {
+        assert!((half / whole - 0.5).abs() < 0.05, "{volumes:?}");
+    }
+}
+
+#[test]
+fn particles_are_drawn_when_asked() {
+    let dir = temp("particles");
+    let size = ["--width", "320", "--height", "240", "--gif-every", "0"];
+    run_slice(
+        &dir,
+        &[&size[..], &["--frames", "0", "--draw", "particles"]].concat(),
+    );
+    let (blue, _) = blue_and_orange(&dir.join("frame_00000.png"));
+    assert!(blue > 500, "{blue}");
 }

@@ -201,6 +201,15 @@ impl Simulation {
         }
     }
 
+    /// Brings every body's surface up to date now, as the surface stage does at the end
+    /// of each frame: for pictures or exports of the state before the first frame.
+    pub fn update_surfaces(&mut self) -> Result<()> {
+        use bevy_ecs::system::RunSystemOnce;
+        self.world
+            .run_system_once(crate::systems::surface::update_surfaces)
+            .map_err(|e| CleaveError::InvalidEntity(format!("surface stage: {e}")))
+    }
+
     /// Every body entity, in entity order.
     pub fn bodies(&mut self) -> Vec<Entity> {
         let mut bodies: Vec<Entity> = self

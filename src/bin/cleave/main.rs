@@ -10,7 +10,7 @@ mod summary;
 use clap::{Parser, Subcommand};
 use cleave::config::{SimConfig, SolverMode};
 use cleave::cut::tool::CutMode;
-use cleave::io::render::ColorMode;
+use cleave::io::render::{ColorMode, Draw};
 use cleave::io::scene::BUILTIN_SCENES;
 use cleave::io::scene_file::SceneFile;
 use std::path::PathBuf;
@@ -70,7 +70,12 @@ enum Command {
         /// Image height in pixels.
         #[arg(long, default_value_t = 480, value_parser = whole::<u32>, allow_negative_numbers = true)]
         height: u32,
-        /// Also export point clouds (`ply`: DIR/ply/frame_NNNNN.ply).
+        /// What stands for a body in the pictures: its surface, its particles, or both.
+        #[arg(long, value_enum, default_value = "surfaces")]
+        draw: DrawArg,
+        /// Also export point clouds (`ply`: DIR/ply/frame_NNNNN.ply, every `--ply-every`
+        /// frames) or the surfaces (`obj`: DIR/obj/frame_NNNNN.obj with every PNG, a
+        /// group per piece).
         #[arg(long, value_enum)]
         export: Option<ExportArg>,
         /// With `--export ply`: a point cloud every N frames.
@@ -196,10 +201,19 @@ enum ColorArg {
     Clusters,
 }
 
+/// What stands for a body in the pictures.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum DrawArg {
+    Surfaces,
+    Particles,
+    Both,
+}
+
 /// Export formats.
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum ExportArg {
     Ply,
+    Obj,
 }
 
 /// Most worker threads `--threads` accepts: far more than any machine's cores, far
@@ -258,6 +272,7 @@ fn main() -> ExitCode {
             png_every,
             gif_every,
             color,
+            draw,
             width,
             height,
             export,
@@ -293,9 +308,15 @@ fn main() -> ExitCode {
                     } else {
                         0
                     },
+                    obj: export == Some(ExportArg::Obj),
                     color: match color {
                         ColorArg::Pieces => ColorMode::Pieces,
                         ColorArg::Clusters => ColorMode::Clusters,
+                    },
+                    draw: match draw {
+                        DrawArg::Surfaces => Draw::Surfaces,
+                        DrawArg::Particles => Draw::Particles,
+                        DrawArg::Both => Draw::Both,
                     },
                     width,
                     height,

@@ -1,11 +1,11 @@
 //! What `cleave run` writes for people to look at: PNG frames, an animated GIF, and
-//! optionally PLY point clouds, with the time spent on them.
+//! optionally PLY point clouds and OBJ surfaces, with the time spent on them.
 
 use bevy_ecs::prelude::*;
-use cleave::io::export::write_ply;
+use cleave::io::export::{write_obj, write_ply};
 use cleave::io::render::camera::Camera;
 use cleave::io::render::encode::{GifWriter, write_png};
-use cleave::io::render::{ColorMode, frame_camera, render, snapshot};
+use cleave::io::render::{ColorMode, Draw, frame_camera, render, snapshot};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -18,8 +18,12 @@ pub struct PictureOptions {
     pub gif_every: u32,
     /// A PLY point cloud every this many frames (0: none).
     pub ply_every: u32,
+    /// An OBJ of the surfaces with every PNG.
+    pub obj: bool,
     /// Particle colours.
     pub color: ColorMode,
+    /// What stands for a body.
+    pub draw: Draw,
     /// Image width.
     pub width: u32,
     /// Image height.
@@ -55,10 +59,12 @@ impl Pictures {
         }
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("cannot create `{}`: {e}", dir.display()))?;
-        if options.ply_every > 0 {
-            let ply = dir.join("ply");
-            std::fs::create_dir_all(&ply)
-                .map_err(|e| format!("cannot create `{}`: {e}", ply.display()))?;
+        for (wanted, sub) in [(options.ply_every > 0, "ply"), (options.obj, "obj")] {
+            if wanted {
+                let path = dir.join(sub);
+                std::fs::create_dir_all(&path)
+                    .map_err(|e| format!("cannot create `{}`: {e}", path.display()))?;
+            }
         }
         Ok(Self {
             options,
@@ -79,12 +85,19 @@ impl Pictures {
             return Ok(());
         }
         let start = Instant::now();
-        let snap = snapshot(world, o.color);
+        let snap = snapshot(world, o.color, o.draw);
         let (width, height) = (o.width, o.height);
         if ply {
             write_ply(
                 &self.dir.join(format!("ply/frame_{frame:05}.ply")),
-                &snap.spheres,
+                &snapshot(world, o.color, Draw::Particles).spheres,
+            )?;
+            self.files += 1;
+        }
+        if png && o.obj {
+            write_obj(
+                &self.dir.join(format!("obj/frame_{frame:05}.obj")),
+                &snapshot(world, o.color, Draw::Surfaces).surfaces,
             )?;
             self.files += 1;
         }

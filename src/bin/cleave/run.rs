@@ -241,6 +241,7 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
             ..args.pictures.clone()
         },
     )?;
+    sim.update_surfaces().map_err(|e| e.to_string())?;
     pictures.frame(sim.world_mut(), 0)?;
     let recluster = |sim: &mut Simulation, frame: u32| -> Result<(), String> {
         if args.recluster_at == Some(frame) {

@@ -70,6 +70,11 @@ impl Camera {
     pub fn eye(&self) -> Vec3 {
         self.eye
     }
+
+    /// A world direction in view space: (right, up, toward the eye).
+    pub fn to_view(&self, v: Vec3) -> Vec3 {
+        Vec3::new(v.dot(self.right), v.dot(self.up), -v.dot(self.forward))
+    }
 }
 
 #[cfg(test)]

@@ -1,5 +1,6 @@
 //! The frame buffer: a tiny-skia pixmap for flat shapes (ground, grid, boxes, tools) plus
-//! a depth buffer for the particles, which are stamped as shaded spheres.
+//! a depth buffer for the particles, stamped as shaded spheres, and the surfaces,
+//! rasterised as shaded triangles.
 
 use glam::Vec3;
 use tiny_skia::{Color, FillRule, Paint, PathBuilder, Pixmap, Stroke, Transform};
@@ -130,6 +131,58 @@ impl Canvas {
                 let specular = n.dot(half).max(0.0).powi(24) * 110.0;
                 let c = base * (0.32 + 0.68 * diffuse) + Vec3::splat(specular);
                 let c = c.min(Vec3::splat(255.0));
+                pixels[i * 4..i * 4 + 4].copy_from_slice(&[c.x as u8, c.y as u8, c.z as u8, 255]);
+            }
+        }
+    }
+}
+
+impl Canvas {
+    /// Fills a triangle with corners at pixel coordinates and view depths `corners` and
+    /// view-space unit normals `normals`, shaded per pixel like the spheres (the normal
+    /// interpolated, turned toward the viewer if it faces away); depth-tested.
+    pub fn triangle(&mut self, corners: [(f32, f32, f32); 3], normals: [Vec3; 3], rgb: [u8; 3]) {
+        let (w, h) = (self.width() as i32, self.height() as i32);
+        let [(ax, ay, az), (bx, by, bz), (cx, cy, cz)] = corners;
+        let area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
+        if area.abs() <= 1e-12 || area.is_nan() {
+            return;
+        }
+        let x0 = (ax.min(bx).min(cx).floor() as i32).max(0);
+        let x1 = (ax.max(bx).max(cx).ceil() as i32).min(w);
+        let y0 = (ay.min(by).min(cy).floor() as i32).max(0);
+        let y1 = (ay.max(by).max(cy).ceil() as i32).min(h);
+        let base = Vec3::new(rgb[0] as f32, rgb[1] as f32, rgb[2] as f32);
+        let light = LIGHT.normalize();
+        let half = (light + Vec3::Z).normalize();
+        let pixels = self.pixmap.data_mut();
+        for py in y0..y1 {
+            let y = py as f32 + 0.5;
+            for px in x0..x1 {
+                let x = px as f32 + 0.5;
+                // barycentric weights of a, b and c
+                let wa = ((bx - x) * (cy - y) - (by - y) * (cx - x)) / area;
+                let wb = ((cx - x) * (ay - y) - (cy - y) * (ax - x)) / area;
+                let wc = 1.0 - wa - wb;
+                if wa < 0.0 || wb < 0.0 || wc < 0.0 {
+                    continue;
+                }
+                // (perspective-correct enough for triangles a fraction of a cell wide)
+                let depth = wa * az + wb * bz + wc * cz;
+                let i = (py * w + px) as usize;
+                if depth >= self.depth[i] {
+                    continue;
+                }
+                self.depth[i] = depth;
+                let mut n =
+                    (normals[0] * wa + normals[1] * wb + normals[2] * wc).normalize_or_zero();
+                if n.z < 0.0 {
+                    n = -n;
+                }
+                let diffuse = n.dot(light).max(0.0);
+                let specular = n.dot(half).max(0.0).powi(24) * 60.0;
+                let c = (base * (0.32 + 0.68 * diffuse) + Vec3::splat(specular))
+                    .min(Vec3::splat(255.0));
                 pixels[i * 4..i * 4 + 4].copy_from_slice(&[c.x as u8, c.y as u8, c.z as u8, 255]);
             }
         }

@@ -1,15 +1,18 @@
-//! Software rendering of a simulation for people to look at: particles as shaded,
-//! depth-tested spheres coloured by piece or by cluster, the ground as a grid, the
-//! colliders, and the tools, seen by a fixed three-quarter camera that frames the scene.
-//! [`snapshot`] reads a World into plain data; [`render`] draws plain data.
+//! Software rendering of a simulation for people to look at: the bodies' surfaces as
+//! shaded, depth-tested triangles coloured by piece with a shadow on the ground, or their
+//! particles as shaded spheres coloured by piece or by cluster ([`Draw`]); the ground as
+//! a grid, the colliders, and the tools, seen by a fixed three-quarter camera that
+//! frames the scene. [`snapshot`] reads a World into plain data; [`render`] draws plain
+//! data.
 //!
 //! Known simplification: the ground, boxes and tools are flat layers (ground and boxes
-//! behind all particles, tools in front); only the particles, and collider balls and
-//! capsules (drawn as balls), are depth-tested.
+//! behind all bodies, tools in front); only the bodies, and collider balls and capsules
+//! (drawn as balls), are depth-tested.
 
 pub mod camera;
 pub mod canvas;
 pub mod encode;
+pub mod surfaces;
 
 use crate::body::pieces::body_pieces;
 use crate::config::GroundPlane;
@@ -18,11 +21,13 @@ use crate::ecs::components::{
     BodyLattice, Collider, ColliderPose, ParticleClusters, Tool, ToolPose,
 };
 use crate::ecs::resources::SimSettings;
+use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::geometry::collider::ColliderShape;
 use bevy_ecs::prelude::*;
 use camera::Camera;
 use canvas::Canvas;
 use glam::Vec3;
+use surfaces::{SurfaceToDraw, draw_shadows, draw_surface};
 
 /// How particles are coloured.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -32,6 +37,18 @@ pub enum ColorMode {
     Pieces,
     /// One colour per cluster; a particle in several clusters blends their colours.
     Clusters,
+}
+
+/// What stands for a body in a picture.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Draw {
+    /// Its surface (its particles while it has none yet, or was spawned without one).
+    #[default]
+    Surfaces,
+    /// Its particles, as balls.
+    Particles,
+    /// Both.
+    Both,
 }
 
 /// One particle to draw.
@@ -50,8 +67,10 @@ pub struct Sphere {
 /// Everything drawn in one frame, as plain data.
 #[derive(Clone, Debug, Default)]
 pub struct Snapshot {
-    /// The live particles.
+    /// The live particles drawn as balls.
     pub spheres: Vec<Sphere>,
+    /// The surfaces drawn.
+    pub surfaces: Vec<SurfaceToDraw>,
     /// Tool shapes and poses.
     pub tools: Vec<(ToolShape, Pose)>,
     /// Ground plane.
@@ -94,18 +113,47 @@ fn cluster_colour(bits: u64) -> Vec3 {
     rgb * 255.0
 }
 
-/// Reads the particles, tools and colliders of `world`.
-pub fn snapshot(world: &mut World, mode: ColorMode) -> Snapshot {
-    let mut query = world.query::<(Entity, &BodyLattice, Option<&ParticleClusters>)>();
+/// Reads the bodies (as `draw` says, particles coloured as `mode` says), tools and
+/// colliders of `world`.
+pub fn snapshot(world: &mut World, mode: ColorMode, draw: Draw) -> Snapshot {
+    type BodyRow<'a> = (
+        Entity,
+        &'a BodyLattice,
+        Option<&'a ParticleClusters>,
+        Option<&'a SurfaceMesh>,
+    );
+    let mut query = world.query::<BodyRow>();
     let world: &World = world;
-    let mut bodies: Vec<(Entity, &BodyLattice, Option<&ParticleClusters>)> =
-        query.iter(world).collect();
-    bodies.sort_by_key(|(e, _, _)| *e);
+    let mut bodies: Vec<BodyRow> = query.iter(world).collect();
+    bodies.sort_by_key(|(e, ..)| *e);
     let mut spheres = Vec::new();
+    let mut surfaces = Vec::new();
     let mut piece_offset = 0u32;
-    for (_, body, clusters) in &bodies {
+    for (_, body, clusters, surface) in &bodies {
         let lattice = &body.lattice;
         let (labels, pieces) = body_pieces(lattice);
+        let surface = surface.filter(|s| s.topology_version > 0 && draw != Draw::Particles);
+        if let Some(s) = surface {
+            surfaces.push(SurfaceToDraw {
+                positions: s.positions.clone(),
+                normals: s.normals.clone(),
+                triangles: s.triangles().to_vec(),
+                pieces: s
+                    .triangle_pieces()
+                    .iter()
+                    .map(|p| piece_offset + p)
+                    .collect(),
+                colours: s
+                    .triangle_pieces()
+                    .iter()
+                    .map(|p| PIECE_COLOURS[(piece_offset + p) as usize % PIECE_COLOURS.len()])
+                    .collect(),
+            });
+            if draw == Draw::Surfaces {
+                piece_offset += pieces as u32;
+                continue;
+            }
+        }
         let radius = lattice.spacing() * 0.5;
         for i in lattice.live_particles() {
             let Some(position) = world
@@ -152,15 +200,27 @@ pub fn snapshot(world: &mut World, mode: ColorMode) -> Snapshot {
     colliders.extend(moving.into_iter().map(|(_, s, p)| (s, p)));
     Snapshot {
         spheres,
+        surfaces,
         tools: tools.into_iter().map(|(_, s, p)| (s, p)).collect(),
         ground: settings.ground,
         colliders,
     }
 }
 
-/// A camera that frames the particles and colliders of `snapshot`.
+impl Snapshot {
+    /// Where the bodies are: the particles drawn and the surfaces' vertices.
+    fn body_points(&self) -> impl Iterator<Item = Vec3> + '_ {
+        let surfaces = self
+            .surfaces
+            .iter()
+            .flat_map(|s| s.positions.iter().copied());
+        self.spheres.iter().map(|s| s.position).chain(surfaces)
+    }
+}
+
+/// A camera that frames the bodies and colliders of `snapshot`.
 pub fn frame_camera(snapshot: &Snapshot, width: u32, height: u32) -> Camera {
-    let mut points: Vec<Vec3> = snapshot.spheres.iter().map(|s| s.position).collect();
+    let mut points: Vec<Vec3> = snapshot.body_points().collect();
     for (shape, pose) in &snapshot.colliders {
         let half = shape.local_half_extents();
         points.extend([pose.position - half, pose.position + half]);
@@ -182,6 +242,7 @@ pub fn render(snapshot: &Snapshot, camera: &Camera, width: u32, height: u32) -> 
     let mut canvas = Canvas::new(width, height, [236, 239, 243])?;
     if let Some(ground) = snapshot.ground {
         draw_ground(&mut canvas, camera, ground.height, snapshot);
+        draw_shadows(&mut canvas, camera, ground.height, &snapshot.surfaces);
     }
     for (shape, pose) in &snapshot.colliders {
         draw_collider(&mut canvas, camera, shape, pose);
@@ -191,6 +252,9 @@ pub fn render(snapshot: &Snapshot, camera: &Camera, width: u32, height: u32) -> 
             let r = s.radius * camera.scale_at(z);
             canvas.sphere(x, y, z, r, s.radius, s.rgb);
         }
+    }
+    for s in &snapshot.surfaces {
+        draw_surface(&mut canvas, camera, s);
     }
     for (shape, pose) in &snapshot.tools {
         let below_ground = snapshot
@@ -204,17 +268,15 @@ pub fn render(snapshot: &Snapshot, camera: &Camera, width: u32, height: u32) -> 
 }
 
 fn draw_ground(canvas: &mut Canvas, camera: &Camera, height: f32, snapshot: &Snapshot) {
-    let centre = if snapshot.spheres.is_empty() {
+    let count = snapshot.body_points().count();
+    let centre = if count == 0 {
         Vec3::ZERO
     } else {
-        snapshot.spheres.iter().map(|s| s.position).sum::<Vec3>() / snapshot.spheres.len() as f32
+        snapshot.body_points().sum::<Vec3>() / count as f32
     };
     let (lo, hi) = snapshot
-        .spheres
-        .iter()
-        .fold((centre, centre), |(lo, hi), s| {
-            (lo.min(s.position), hi.max(s.position))
-        });
+        .body_points()
+        .fold((centre, centre), |(lo, hi), p| (lo.min(p), hi.max(p)));
     let extent = ((hi - lo).max_element() * 1.5).max(1.0);
     let step = nice_step(extent / 5.0);
     let half = (extent / step).ceil() * step;
