@@ -1,6 +1,7 @@
 //! What `cleave run` writes for people: PNG frames and a GIF in which the pieces of a
 //! cut show in different colours (drawn as surfaces or as particles), PLY point clouds
-//! that a PLY reader loads, and OBJ surfaces, read back here: a closed mesh per piece.
+//! that a PLY reader loads, and OBJ and glTF surfaces, read back here: a closed mesh per
+//! piece, the same in both.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -166,7 +167,7 @@ fn obj_groups(path: &Path) -> std::collections::BTreeMap<String, Vec<[[f64; 3]; 
 }
 
 #[test]
-fn obj_exports_hold_a_closed_surface_per_piece() {
+fn obj_and_gltf_exports_hold_a_closed_surface_per_piece() {
     let dir = temp("obj");
     run_slice(
         &dir,
@@ -178,7 +179,7 @@ fn obj_exports_hold_a_closed_surface_per_piece() {
             "--gif-every",
             "0",
             "--export",
-            "obj",
+            "obj,gltf",
         ],
     );
     let mut volumes = Vec::new();
@@ -216,6 +217,25 @@ fn obj_exports_hold_a_closed_surface_per_piece() {
     for half in &volumes[1..] {
         assert!((half / whole - 0.5).abs() < 0.05, "{volumes:?}");
     }
+    // the glTF of the same frame, read by the `gltf` crate: a mesh per piece, the OBJ's
+    // vertices and triangles
+    let obj = std::fs::read_to_string(dir.join("obj/frame_00120.obj")).unwrap();
+    let count = |prefix: &str| obj.lines().filter(|l| l.starts_with(prefix)).count();
+    let glb = std::fs::read(dir.join("gltf/frame_00120.glb")).unwrap();
+    let gltf = gltf::Gltf::from_slice(&glb).unwrap();
+    assert_eq!(gltf.meshes().count(), 2);
+    let mut positions = std::collections::BTreeMap::new();
+    let mut indices = 0;
+    for mesh in gltf.meshes() {
+        for primitive in mesh.primitives() {
+            let p = primitive.get(&gltf::Semantic::Positions).unwrap();
+            positions.insert(p.index(), p.count());
+            assert!(primitive.get(&gltf::Semantic::Normals).is_some());
+            indices += primitive.indices().unwrap().count();
+        }
+    }
+    assert_eq!(positions.values().sum::<usize>(), count("v "));
+    assert_eq!(indices, 3 * count("f "));
 }
 
 #[test]

@@ -1,10 +1,12 @@
 //! In and out: built-in scenes and scene files, state dumps, saved simulations,
-//! pictures and point clouds.
+//! pictures, point clouds and surface meshes (OBJ, glTF).
 
 pub mod cut_scenes;
 pub mod dump;
 #[cfg(feature = "render")]
 pub mod export;
+#[cfg(feature = "render")]
+pub mod gltf;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod save;

@@ -73,11 +73,12 @@ enum Command {
         /// What stands for a body in the pictures: its surface, its particles, or both.
         #[arg(long, value_enum, default_value = "surfaces")]
         draw: DrawArg,
-        /// Also export point clouds (`ply`: DIR/ply/frame_NNNNN.ply, every `--ply-every`
-        /// frames) or the surfaces (`obj`: DIR/obj/frame_NNNNN.obj with every PNG, a
-        /// group per piece).
-        #[arg(long, value_enum)]
-        export: Option<ExportArg>,
+        /// Also export, comma-separated: point clouds (`ply`: DIR/ply/frame_NNNNN.ply,
+        /// every `--ply-every` frames) and the surfaces with every PNG (`obj`:
+        /// DIR/obj/frame_NNNNN.obj, a group per piece; `gltf`: DIR/gltf/frame_NNNNN.glb,
+        /// a mesh per piece).
+        #[arg(long, value_enum, value_delimiter = ',')]
+        export: Vec<ExportArg>,
         /// With `--export ply`: a point cloud every N frames.
         #[arg(long, default_value_t = 10, value_parser = whole::<u32>, allow_negative_numbers = true)]
         ply_every: u32,
@@ -214,6 +215,7 @@ enum DrawArg {
 enum ExportArg {
     Ply,
     Obj,
+    Gltf,
 }
 
 /// Most worker threads `--threads` accepts: far more than any machine's cores, far
@@ -303,12 +305,13 @@ fn main() -> ExitCode {
                 pictures: pictures::PictureOptions {
                     png_every,
                     gif_every,
-                    ply_every: if export == Some(ExportArg::Ply) {
+                    ply_every: if export.contains(&ExportArg::Ply) {
                         ply_every
                     } else {
                         0
                     },
-                    obj: export == Some(ExportArg::Obj),
+                    obj: export.contains(&ExportArg::Obj),
+                    gltf: export.contains(&ExportArg::Gltf),
                     color: match color {
                         ColorArg::Pieces => ColorMode::Pieces,
                         ColorArg::Clusters => ColorMode::Clusters,

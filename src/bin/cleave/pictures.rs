@@ -1,8 +1,9 @@
 //! What `cleave run` writes for people to look at: PNG frames, an animated GIF, and
-//! optionally PLY point clouds and OBJ surfaces, with the time spent on them.
+//! optionally PLY point clouds and OBJ and glTF surfaces, with the time spent on them.
 
 use bevy_ecs::prelude::*;
 use cleave::io::export::{write_obj, write_ply};
+use cleave::io::gltf::write_glb;
 use cleave::io::render::camera::Camera;
 use cleave::io::render::encode::{GifWriter, write_png};
 use cleave::io::render::{ColorMode, Draw, frame_camera, render, snapshot};
@@ -20,6 +21,8 @@ pub struct PictureOptions {
     pub ply_every: u32,
     /// An OBJ of the surfaces with every PNG.
     pub obj: bool,
+    /// A binary glTF of the surfaces with every PNG.
+    pub gltf: bool,
     /// Particle colours.
     pub color: ColorMode,
     /// What stands for a body.
@@ -59,7 +62,12 @@ impl Pictures {
         }
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("cannot create `{}`: {e}", dir.display()))?;
-        for (wanted, sub) in [(options.ply_every > 0, "ply"), (options.obj, "obj")] {
+        let wanted = [
+            (options.ply_every > 0, "ply"),
+            (options.obj, "obj"),
+            (options.gltf, "gltf"),
+        ];
+        for (wanted, sub) in wanted {
             if wanted {
                 let path = dir.join(sub);
                 std::fs::create_dir_all(&path)
@@ -94,12 +102,22 @@ impl Pictures {
             )?;
             self.files += 1;
         }
-        if png && o.obj {
-            write_obj(
-                &self.dir.join(format!("obj/frame_{frame:05}.obj")),
-                &snapshot(world, o.color, Draw::Surfaces).surfaces,
-            )?;
-            self.files += 1;
+        if png && (o.obj || o.gltf) {
+            let surfaces = snapshot(world, o.color, Draw::Surfaces).surfaces;
+            if o.obj {
+                write_obj(
+                    &self.dir.join(format!("obj/frame_{frame:05}.obj")),
+                    &surfaces,
+                )?;
+                self.files += 1;
+            }
+            if o.gltf {
+                write_glb(
+                    &self.dir.join(format!("gltf/frame_{frame:05}.glb")),
+                    &surfaces,
+                )?;
+                self.files += 1;
+            }
         }
         if png || gif {
             let camera = *self
