@@ -46,7 +46,6 @@ pub fn update_surfaces(
         }
         deform::particle_frames(l, &mesh.topology, &mesh.gathered, &mut mesh.frames);
         deform::vertex_positions(
-            l,
             &mesh.topology,
             &mesh.gathered,
             &mesh.frames,

@@ -55,7 +55,6 @@ pub fn particle_frames(
 /// The vertices' positions from the particles' `positions` and `frames` (indexed by
 /// particle), into `out`.
 pub fn vertex_positions(
-    lattice: &Lattice,
     topology: &SurfaceTopology,
     positions: &[Vec3],
     frames: &[Quat],
@@ -66,13 +65,12 @@ pub fn vertex_positions(
         .with_min_len(PER_TASK)
         .enumerate()
         .for_each(|(v, at)| {
-            let rest = topology.rest[v];
             *at = topology
                 .bindings_of(v)
                 .iter()
-                .map(|&(p, w)| {
-                    let carried = frames[p as usize] * (rest - lattice.rest_position(p));
-                    w * (positions[p as usize] + carried)
+                .map(|b| {
+                    let p = b.particle as usize;
+                    b.weight * (positions[p] + frames[p] * b.offset)
                 })
                 .sum();
         });
@@ -117,7 +115,7 @@ mod tests {
             particle_frames(&l, &t, &moved, &mut frames);
         }
         let mut at = Vec::new();
-        vertex_positions(&l, &t, &moved, &frames, &mut at);
+        vertex_positions(&t, &moved, &frames, &mut at);
         for (v, x) in at.iter().enumerate() {
             let expected = turn * t.rest[v] + shift;
             assert!((*x - expected).length() < 1e-5, "{x} vs {expected}");

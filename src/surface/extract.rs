@@ -28,8 +28,8 @@ pub struct SurfaceTopology {
     pub rest: Vec<Vec3>,
     /// Per vertex `v`, its bindings are `bindings[binding_start[v]..binding_start[v + 1]]`.
     pub binding_start: Vec<u32>,
-    /// `(particle, weight)` pairs; a vertex's weights sum to 1.
-    pub bindings: Vec<(u32, f32)>,
+    /// The particles carrying each vertex; a vertex's weights sum to 1.
+    pub bindings: Vec<Binding>,
     /// Triangles (vertex indices), counter-clockwise seen from outside.
     pub triangles: Vec<[u32; 3]>,
     /// Per triangle, the piece (connected component of the body, as
@@ -39,14 +39,25 @@ pub struct SurfaceTopology {
     pub particles: Vec<u32>,
 }
 
+/// One particle carrying a vertex.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Binding {
+    /// The particle.
+    pub particle: u32,
+    /// Its share of the vertex.
+    pub weight: f32,
+    /// The vertex's rest position less the particle's, in the lattice frame.
+    pub offset: Vec3,
+}
+
 impl SurfaceTopology {
     /// Number of vertices.
     pub fn vertex_count(&self) -> usize {
         self.rest.len()
     }
 
-    /// The `(particle, weight)` bindings of vertex `v`.
-    pub fn bindings_of(&self, v: usize) -> &[(u32, f32)] {
+    /// The bindings of vertex `v`.
+    pub fn bindings_of(&self, v: usize) -> &[Binding] {
         &self.bindings[self.binding_start[v] as usize..self.binding_start[v + 1] as usize]
     }
 }
@@ -80,12 +91,13 @@ pub fn extract(lattice: &Lattice) -> SurfaceTopology {
     for members in &classes {
         let (q, k) = (members[0] / 4, members[0] % 4);
         let corner = face_corners(quads[q as usize].cell, quads[q as usize].direction)[k as usize];
-        topology.rest.push(corner.as_vec3() * h);
+        let rest = corner.as_vec3() * h;
+        topology.rest.push(rest);
         let cells: Vec<IVec3> = members
             .iter()
             .map(|s| quads[(s / 4) as usize].cell)
             .collect();
-        bind(&owners, corner, &cells, &mut topology);
+        bind(&owners, corner, rest, &cells, &mut topology);
     }
     let (piece, _) = body_pieces(lattice);
     for (q, quad) in quads.iter().enumerate() {
@@ -96,17 +108,24 @@ pub fn extract(lattice: &Lattice) -> SurfaceTopology {
             .triangle_piece
             .extend([piece[quad.owner as usize]; 2]);
     }
-    let mut particles: Vec<u32> = topology.bindings.iter().map(|b| b.0).collect();
+    let mut particles: Vec<u32> = topology.bindings.iter().map(|b| b.particle).collect();
     particles.sort_unstable();
     particles.dedup();
     topology.particles = particles;
     topology
 }
 
-/// Appends the bindings of the vertex at grid corner `w` whose quads belong to the
-/// solid sub-cells `cells`: the owners of those sub-cells and of every solid sub-cell
-/// around `w` joined to them through faces at `w`, one share per sub-cell.
-fn bind(owners: &CellOwners, w: IVec3, cells: &[IVec3], topology: &mut SurfaceTopology) {
+/// Appends the bindings of the vertex at grid corner `w` (resting at `rest`) whose
+/// quads belong to the solid sub-cells `cells`: the owners of those sub-cells and of
+/// every solid sub-cell around `w` joined to them through faces at `w`, one share per
+/// sub-cell.
+fn bind(
+    owners: &CellOwners,
+    w: IVec3,
+    rest: Vec3,
+    cells: &[IVec3],
+    topology: &mut SurfaceTopology,
+) {
     // the eight sub-cells around `w`, numbered like `octant`
     let around: [IVec3; 8] = std::array::from_fn(|k| w - IVec3::ONE + octant(k as u32));
     let own: [Option<u32>; 8] = around.map(|c| owners.owner(c));
@@ -142,9 +161,16 @@ fn bind(owners: &CellOwners, w: IVec3, cells: &[IVec3], topology: &mut SurfaceTo
     let weight = 1.0 / members.len() as f32;
     let start = topology.bindings.len();
     for p in members {
-        match topology.bindings[start..].iter_mut().find(|b| b.0 == p) {
-            Some(b) => b.1 += weight,
-            None => topology.bindings.push((p, weight)),
+        match topology.bindings[start..]
+            .iter_mut()
+            .find(|b| b.particle == p)
+        {
+            Some(b) => b.weight += weight,
+            None => topology.bindings.push(Binding {
+                particle: p,
+                weight,
+                offset: rest - owners.lattice().rest_position(p),
+            }),
         }
     }
     topology.binding_start.push(topology.bindings.len() as u32);

@@ -8,4 +8,4 @@ pub mod deform;
 pub mod extract;
 pub mod fans;
 
-pub use extract::{SurfaceTopology, extract};
+pub use extract::{Binding, SurfaceTopology, extract};
