@@ -249,3 +249,22 @@ fn particles_are_drawn_when_asked() {
     let (blue, _) = blue_and_orange(&dir.join("frame_00000.png"));
     assert!(blue > 500, "{blue}");
 }
+
+#[test]
+fn an_export_folder_that_cannot_be_made_is_an_error_naming_it() {
+    let dir = temp("blocked");
+    std::fs::create_dir_all(&dir).unwrap();
+    // a file where the OBJ folder would go
+    std::fs::write(dir.join("obj"), b"in the way").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_cleave"))
+        .args(["run", "slice", "--frames", "1", "--export", "obj", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains(&dir.join("obj").display().to_string()),
+        "{stderr}"
+    );
+}

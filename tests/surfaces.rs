@@ -209,3 +209,33 @@ fn a_bent_cantilever_flips_no_triangle_and_keeps_its_volume() {
     let ratio = volume(&mesh.positions) / volume(rest);
     assert!((ratio - 1.0).abs() < 0.02, "volume ratio {ratio}");
 }
+
+#[test]
+fn the_triangles_change_with_the_cuts_and_say_so() {
+    use cleave::ecs::resources::{EdgesSevered, ParticlesCut, SurfaceChanged};
+    let mut scene = builtin("slice", 0).unwrap();
+    scene.tools[0].cut_mode = CutMode::Remove;
+    let mut sim = Simulation::from_scene(&scene).unwrap();
+    let body = sim.bodies()[0];
+    let mut version = 0;
+    let mut cut_frames = 0;
+    for frame in 0..120 {
+        sim.step();
+        let cut = !sim.messages::<ParticlesCut>().is_empty()
+            || !sim.messages::<EdgesSevered>().is_empty();
+        cut_frames += cut as u32;
+        let now = surface(&sim, body).topology_version;
+        // the first frame makes the surface; a frame that cut makes it again
+        let expected = version + (frame == 0 || cut) as u64;
+        assert_eq!(now, expected, "frame {frame}");
+        let changed = sim.messages::<SurfaceChanged>();
+        assert_eq!(changed.len(), (now != version) as usize, "frame {frame}");
+        assert!(
+            changed
+                .iter()
+                .all(|m| m.body == body && m.topology_version == now)
+        );
+        version = now;
+    }
+    assert!(cut_frames > 0);
+}
