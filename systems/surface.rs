@@ -28,8 +28,16 @@ pub fn update_surfaces(
             read.sort_unstable();
             read.dedup();
             mesh.read = read;
-            // a new half starts from its twin's frame, as near as the identity
+            // a particle new since the last extraction (a split's new half) starts from
+            // the frame of a particle it is linked to, so that a turned body's halves
+            // do not start from the identity where their links leave the turn open
+            let known = mesh.frames.len();
             mesh.frames.resize(l.len(), Quat::IDENTITY);
+            for p in known..l.len() {
+                if let Some(q) = l.neighbours(p as u32).find(|q| (*q as usize) < known) {
+                    mesh.frames[p] = mesh.frames[q as usize];
+                }
+            }
             mesh.gathered.resize(l.len(), Vec3::ZERO);
             mesh.topology_version += 1;
             changed.write(SurfaceChanged {
