@@ -61,6 +61,12 @@ impl<'w, 's> BodyClusters<'w, 's> {
         lost
     }
 
+    /// Where `body`'s seed grid lies (see [`crate::ecs::components::Body::seed_grid`]);
+    /// `None` if `body` is not a body.
+    pub fn seed_grid(&self, body: Entity) -> Option<glam::IVec3> {
+        self.bodies.get(body).ok().map(|(_, b, ..)| b.seed_grid)
+    }
+
     /// The store of `body`'s clusters, with its material and lattice; `None` if `body`
     /// is not a body.
     pub fn open(

@@ -1,6 +1,7 @@
 //! Stage regroup (reconstruction step 1): cut clusters → pieces; redundant pieces dropped,
 //! fragments merged into neighbours (after giving the new halves of split particles
-//! their clusters). Writes cluster data only.
+//! their clusters); after a split, what that produced grown again from the seed grid
+//! ([`reconstruct::reseed()`]). Writes cluster data only.
 //!
 //! A cluster entity despawned from outside (by a game, say) is forgotten here first:
 //! its particles and edges are covered again, so the body stays legal.
@@ -47,7 +48,8 @@ pub fn regroup(
     }
     let start = Instant::now();
     for cut in &report.bodies {
-        let Some((mut store, _, lattice)) = clusters.open(cut.body) else {
+        let grid = clusters.seed_grid(cut.body).unwrap_or_default();
+        let Some((mut store, material, lattice)) = clusters.open(cut.body) else {
             continue;
         };
         // a split particle's new half joins each of its clusters; the pieces below part
@@ -57,7 +59,10 @@ pub fn regroup(
                 store.add_members(k, &[new]);
             }
         }
-        let produced = reconstruct::regroup(&mut store, lattice, &cut.cut_clusters, &mut rng.0);
+        let mut produced = reconstruct::regroup(&mut store, lattice, &cut.cut_clusters, &mut rng.0);
+        if !cut.splits.is_empty() {
+            produced = reconstruct::reseed(&mut store, lattice, material, grid, &produced);
+        }
         store.finish();
         rebuilt.bodies.push(RebuiltBody {
             body: cut.body,

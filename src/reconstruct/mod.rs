@@ -18,6 +18,11 @@
 //!    ([`crate::clusters::clustering::cover_edge_list`]), so no cluster is isolated from the
 //!    ones around it, and no cluster is left inside another ([`remove_contained`]).
 //!
+//! After a `split` cut, step 1's clusters are grown again from the body's seed grid
+//! ([`reseed()`]): the pieces of a cluster a blade split through its particles are not
+//! what a fresh clustering of the two sides builds (the ECS stages do this; it is not
+//! part of [`rebuild_after_cut`], which knows no splits).
+//!
 //! Everything is topology: which side of a cut a particle is on is never decided by
 //! geometry, so any number of partial, curved or disconnected cuts work alike; the
 //! price is that every cluster must stay connected, which all four steps keep.
@@ -29,11 +34,13 @@ mod merge;
 pub mod pca;
 mod pieces;
 pub mod regroup;
+pub mod reseed;
 pub mod split;
 
 use crate::clusters::contained::remove_contained;
 pub use expand::expand_clusters;
 pub use regroup::regroup;
+pub use reseed::reseed;
 pub use split::{SplitOutcome, split_cluster, split_oversized};
 
 use crate::body::lattice::Lattice;
