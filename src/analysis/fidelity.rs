@@ -114,6 +114,8 @@ fn run_scene(mut scene: Scene, frames: u32, mode: CutMode) -> Result<(Simulation
         tool.cut_mode = mode;
     }
     let mut sim = Simulation::from_scene(&scene)?;
+    // (nothing is drawn)
+    sim.drop_surfaces();
     let body = sim.bodies()[0];
     sim.run(frames);
     Ok((sim, body))

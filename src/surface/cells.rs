@@ -15,7 +15,7 @@
 //! linked across that face. Everything else is surface: the body's outside, a removed
 //! particle, a severed edge, the two halves of a split particle.
 
-use crate::body::lattice::{Lattice, NEIGHBOUR_OFFSETS};
+use crate::body::lattice::{Lattice, NEIGHBOUR_OFFSETS, NO_PARTICLE};
 use glam::{IVec3, Vec3};
 use rustc_hash::FxHashMap;
 
@@ -31,7 +31,16 @@ pub struct CellOwners<'a> {
     /// The owner of each octant (numbered like [`octant`]) of each cell that holds a
     /// split particle.
     shared: FxHashMap<IVec3, [u32; 8]>,
+    /// With octants, their owners over the box of sub-cells from `dense_min`, `dense_dims`
+    /// wide ([`NO_PARTICLE`] where none): a lookup instead of a hash per sub-cell. Empty
+    /// (and the hash consulted) for one sub-cell per cell, or a box too large to fill.
+    dense: Vec<u32>,
+    dense_min: IVec3,
+    dense_dims: IVec3,
 }
+
+/// Most sub-cells the dense owner box may hold (256 MB of owners).
+const MAX_DENSE: i64 = 1 << 26;
 
 impl<'a> CellOwners<'a> {
     /// The owners of `lattice`'s live particles' cells.
@@ -54,11 +63,50 @@ impl<'a> CellOwners<'a> {
             })
             .collect();
         let resolution = if shared.is_empty() { 1 } else { 2 };
-        Self {
+        let mut owners = Self {
             lattice,
             resolution,
             shared,
+            dense: Vec::new(),
+            dense_min: IVec3::ZERO,
+            dense_dims: IVec3::ZERO,
+        };
+        if resolution == 2 {
+            owners.fill_dense();
         }
+        owners
+    }
+
+    /// Fills the dense owner box of the octants (unless it would pass [`MAX_DENSE`]).
+    fn fill_dense(&mut self) {
+        let lattice = self.lattice;
+        let (lo, hi) = lattice
+            .live_particles()
+            .map(|p| lattice.coord(p))
+            .fold((IVec3::MAX, IVec3::MIN), |(lo, hi), c| {
+                (lo.min(c), hi.max(c))
+            });
+        if lo.cmpgt(hi).any() {
+            return;
+        }
+        let dims = (hi - lo + IVec3::ONE) * 2;
+        let count = dims.as_i64vec3().element_product();
+        if count > MAX_DENSE {
+            return;
+        }
+        let mut dense = vec![NO_PARTICLE; count as usize];
+        for p in lattice.live_particles() {
+            let c = lattice.coord(p);
+            let dealt = self.shared.get(&c);
+            for k in 0..8u32 {
+                let d = (c - lo) * 2 + octant(k);
+                let i = ((d.z * dims.y + d.y) * dims.x + d.x) as usize;
+                dense[i] = dealt.map_or(p, |t| t[k as usize]);
+            }
+        }
+        self.dense = dense;
+        self.dense_min = lo * 2;
+        self.dense_dims = dims;
     }
 
     /// The lattice.
@@ -107,6 +155,15 @@ impl<'a> CellOwners<'a> {
 
     /// The live particle that owns sub-cell `s`, if any.
     pub fn owner(&self, s: IVec3) -> Option<u32> {
+        if !self.dense.is_empty() {
+            let d = s - self.dense_min;
+            if d.cmplt(IVec3::ZERO).any() || d.cmpge(self.dense_dims).any() {
+                return None;
+            }
+            let dims = self.dense_dims;
+            let p = self.dense[((d.z * dims.y + d.y) * dims.x + d.x) as usize];
+            return (p != NO_PARTICLE).then_some(p);
+        }
         let cell = self.cell_of(s);
         let Some(octants) = self.shared.get(&cell) else {
             return self.lattice.at(cell);
@@ -180,6 +237,22 @@ pub fn face_corners(s: IVec3, d: u8) -> [IVec3; 4] {
     }
 }
 
+/// Which of [`face_corners`]`(s, d)` grid corner `w` is (`w` must be one of them).
+#[inline]
+pub fn corner_index(s: IVec3, d: u8, w: IVec3) -> usize {
+    let axis = d as usize / 2;
+    let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+    let (i, j) = (w[b] - s[b], w[c] - s[c]);
+    // the orders of `face_corners`: (0,0) (1,0) (1,1) (0,1) facing +, (0,1) (1,1) (1,0)
+    // (0,0) facing −
+    match (d % 2 == 1, i, j) {
+        (true, 0, 0) | (false, 0, 1) => 0,
+        (true, 1, 0) | (false, 1, 1) => 1,
+        (true, 1, 1) | (false, 1, 0) => 2,
+        _ => 3,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -220,6 +293,16 @@ mod tests {
         let s = base + IVec3::new(1, 0, 0);
         assert!(owners.joined(s, half, 1, far));
         assert!(!owners.joined(s, half, 0, middle));
+    }
+
+    #[test]
+    fn corner_index_finds_each_corner_of_every_face() {
+        let s = IVec3::new(3, -2, 5);
+        for d in 0..6u8 {
+            for (k, w) in face_corners(s, d).into_iter().enumerate() {
+                assert_eq!(corner_index(s, d, w), k);
+            }
+        }
     }
 
     #[test]

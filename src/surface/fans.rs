@@ -16,7 +16,7 @@
 //! An arc runs from one run's quad to another's, and the two meet the one lower vertex,
 //! so the edge appears once per arc, in two triangles wound opposite ways.
 
-use super::cells::{CellOwners, face_corners};
+use super::cells::{CellOwners, corner_index, face_corners};
 use glam::IVec3;
 use rustc_hash::{FxHashMap, FxHashSet};
 
@@ -62,11 +62,8 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> (Vec<u32>, Vec<Vec
             let mut high = low;
             high[axis as usize] += 1;
             let slot = |q: u32, w: IVec3| {
-                let k = face_corners(quads[q as usize].cell, quads[q as usize].direction)
-                    .iter()
-                    .position(|c| *c == w)
-                    .expect("a quad at an edge has both of its ends as corners");
-                4 * q + k as u32
+                let quad = &quads[q as usize];
+                4 * q + corner_index(quad.cell, quad.direction, w) as u32
             };
             pairings.push((
                 e,
