@@ -14,6 +14,7 @@ use cleave::ecs::components::BodyLattice;
 use cleave::ecs::desc::Scene;
 use cleave::ecs::resources::{CutTimings, ParticlesCut, SolverCache};
 use cleave::io::dump::dump_world;
+use cleave::io::render::Draw;
 use cleave::io::scene::{BUILTIN_SCENES, builtin};
 use cleave::io::scene_file::{entry_position, load_scene_file};
 use cleave::sim::simulation::Simulation;
@@ -241,6 +242,11 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
             ..args.pictures.clone()
         },
     )?;
+    let o = &args.pictures;
+    if o.draw == Draw::Particles && !o.obj && !o.gltf {
+        // (nothing drawn or written needs them)
+        sim.drop_surfaces();
+    }
     sim.update_surfaces().map_err(|e| e.to_string())?;
     pictures.frame(sim.world_mut(), 0)?;
     let recluster = |sim: &mut Simulation, frame: u32| -> Result<(), String> {
