@@ -101,21 +101,28 @@ mod tests {
     use crate::surface::extract::extract;
     use glam::UVec3;
 
+    /// The vertices of `t` where the particles carry them when each particle of `l`
+    /// sits at `map` of its rest position (the frames given ten frames to settle).
+    fn carried(l: &Lattice, t: &SurfaceTopology, map: impl Fn(Vec3) -> Vec3) -> Vec<Vec3> {
+        let moved: Vec<Vec3> = (0..l.len() as u32)
+            .map(|p| map(l.rest_position(p)))
+            .collect();
+        let mut frames = vec![Quat::IDENTITY; l.len()];
+        for _ in 0..10 {
+            particle_frames(l, t, &moved, &mut frames);
+        }
+        let mut at = Vec::new();
+        vertex_positions(t, &moved, &frames, &mut at);
+        at
+    }
+
     #[test]
     fn a_rigid_motion_moves_every_vertex_rigidly() {
         let l = Shape::cuboid(UVec3::new(4, 3, 2)).voxelise(0.5).unwrap();
         let t = extract(&l);
         let turn = Quat::from_euler(glam::EulerRot::XYZ, 0.4, -1.1, 0.7);
         let shift = Vec3::new(3.0, -2.0, 0.5);
-        let moved: Vec<Vec3> = (0..l.len() as u32)
-            .map(|p| turn * l.rest_position(p) + shift)
-            .collect();
-        let mut frames = vec![Quat::IDENTITY; l.len()];
-        for _ in 0..5 {
-            particle_frames(&l, &t, &moved, &mut frames);
-        }
-        let mut at = Vec::new();
-        vertex_positions(&t, &moved, &frames, &mut at);
+        let at = carried(&l, &t, |x| turn * x + shift);
         for (v, x) in at.iter().enumerate() {
             let expected = turn * t.rest[v] + shift;
             assert!((*x - expected).length() < 1e-5, "{x} vs {expected}");
@@ -138,15 +145,7 @@ mod tests {
         let centre = Vec3::new(3.0, 3.0, 0.0);
         let twist = |z: f32| Quat::from_rotation_z(std::f32::consts::FRAC_PI_2 * z / 16.0);
         let twisted = |x: Vec3| twist(x.z) * (x - centre) + centre;
-        let moved: Vec<Vec3> = (0..l.len() as u32)
-            .map(|p| twisted(l.rest_position(p)))
-            .collect();
-        let mut frames = vec![Quat::IDENTITY; l.len()];
-        for _ in 0..10 {
-            particle_frames(&l, &t, &moved, &mut frames);
-        }
-        let mut at = Vec::new();
-        vertex_positions(&t, &moved, &frames, &mut at);
+        let at = carried(&l, &t, twisted);
         let normal = |x: &[Vec3], tri: &[u32; 3]| {
             let [a, b, c] = tri.map(|v| x[v as usize]);
             (b - a).cross(c - a).normalize()
