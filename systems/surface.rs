@@ -6,9 +6,10 @@
 use crate::ecs::components::{BodyLattice, Position};
 use crate::ecs::resources::SurfaceChanged;
 use crate::ecs::surface_mesh::SurfaceMesh;
-use crate::surface::{deform, extract};
+use crate::surface::{CarryLayout, deform, extract};
 use bevy_ecs::prelude::*;
-use glam::{Quat, Vec3};
+use glam::{Mat3A, Vec3A};
+use rayon::prelude::*;
 
 /// Updates the surface of every body that has one.
 pub fn update_surfaces(
@@ -21,44 +22,48 @@ pub fn update_surfaces(
         let l = &lattice.lattice;
         if mesh.topology_version == 0 || lattice.is_changed() {
             mesh.topology = extract(l);
-            let mut read = mesh.topology.particles.clone();
-            for &p in &mesh.topology.particles {
-                read.extend(l.neighbours(p));
-            }
-            read.sort_unstable();
-            read.dedup();
-            mesh.read = read;
-            // a particle new since the last extraction (a split's new half) starts from
-            // the frame of a particle it is linked to, so that a turned body's halves
-            // do not start from the identity where their links leave the turn open
-            let known = mesh.frames.len();
-            mesh.frames.resize(l.len(), Quat::IDENTITY);
-            for p in known..l.len() {
-                if let Some(q) = l.neighbours(p as u32).find(|q| (*q as usize) < known) {
-                    mesh.frames[p] = mesh.frames[q as usize];
-                }
-            }
-            mesh.gathered.resize(l.len(), Vec3::ZERO);
+            let layout = CarryLayout::new(l, &mesh.topology);
+            mesh.frames = layout.carry_frames(l, &mesh.layout, &mesh.frames);
+            mesh.rotations = vec![Mat3A::IDENTITY; layout.carrier_count()];
+            mesh.gathered = vec![Vec3A::ZERO; layout.read.len()];
+            mesh.layout = layout;
             mesh.topology_version += 1;
             changed.write(SurfaceChanged {
                 body,
                 topology_version: mesh.topology_version,
             });
         }
-        for &p in &mesh.read {
-            // (a particle despawned from outside keeps its last place until cut removes it)
-            let entity = lattice.particles.get(p as usize);
-            if let Some(x) = entity.and_then(|e| positions.get(*e).ok()) {
-                mesh.gathered[p as usize] = x.0;
-            }
-        }
-        deform::particle_frames(l, &mesh.topology, &mesh.gathered, &mut mesh.frames);
+        mesh.gathered
+            .par_iter_mut()
+            .with_min_len(4096)
+            .zip(&mesh.layout.read)
+            .for_each(|(at, &p)| {
+                // (a particle despawned from outside keeps its last place until cut
+                // removes it)
+                let entity = lattice.particles.get(p as usize);
+                if let Some(x) = entity.and_then(|e| positions.get(*e).ok()) {
+                    *at = x.0.into();
+                }
+            });
+        deform::particle_frames(
+            &mesh.layout,
+            &mesh.gathered,
+            &mut mesh.frames,
+            &mut mesh.rotations,
+        );
         deform::vertex_positions(
             &mesh.topology,
+            &mesh.layout,
             &mesh.gathered,
-            &mesh.frames,
+            &mesh.rotations,
             &mut mesh.positions,
         );
-        deform::vertex_normals(&mesh.positions, &mesh.topology.triangles, &mut mesh.normals);
+        deform::vertex_normals(
+            &mesh.topology,
+            &mesh.layout,
+            &mesh.positions,
+            &mut mesh.faces,
+            &mut mesh.normals,
+        );
     }
 }

@@ -4,9 +4,9 @@
 //! reads [`crate::ecs::resources::SurfaceChanged`]) to know when to upload new
 //! triangles.
 
-use crate::surface::SurfaceTopology;
+use crate::surface::{CarryLayout, SurfaceTopology};
 use bevy_ecs::prelude::*;
-use glam::{Quat, Vec3};
+use glam::{Mat3A, Quat, Vec3, Vec3A};
 
 /// A body's surface. Every spawned body gets one; remove it to skip the work (the
 /// `Surface` stage updates only bodies that have it).
@@ -20,13 +20,15 @@ pub struct SurfaceMesh {
     /// positions and normals change every frame, triangles only with this.
     pub topology_version: u64,
     pub(crate) topology: SurfaceTopology,
-    /// Per particle, its frame (see [`crate::surface::deform`]).
+    /// The particles the surface reads, by slot.
+    pub(crate) layout: CarryLayout,
+    /// Per slot of the layout, its particle's position this frame.
+    pub(crate) gathered: Vec<Vec3A>,
+    /// Per carrier, its frame (see [`crate::surface::deform`]) and its matrix.
     pub(crate) frames: Vec<Quat>,
-    /// Per particle, its position this frame (only those the surface reads).
-    pub(crate) gathered: Vec<Vec3>,
-    /// The particles whose positions the surface reads: its particles and their
-    /// linked neighbours.
-    pub(crate) read: Vec<u32>,
+    pub(crate) rotations: Vec<Mat3A>,
+    /// Per triangle, scratch for the normals.
+    pub(crate) faces: Vec<Vec3A>,
 }
 
 impl SurfaceMesh {

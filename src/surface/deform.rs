@@ -11,53 +11,110 @@
 //! A particle with one link (or a chain of them) fixes no rotation about that link: its
 //! frame keeps the last frame's twist there.
 
+use super::carry::CarryLayout;
 use super::extract::SurfaceTopology;
-use crate::body::lattice::Lattice;
-use crate::math::rotation::extract_rotation;
+use crate::math::lanes::{LANES, Mat3x8, Quatx8, Vec3x8};
+use crate::math::rotation::extract_rotation_x8;
+use crate::math::simd::{Lane, WithLanes, dispatch};
 use glam::{Mat3A, Quat, Vec3, Vec3A};
 use rayon::prelude::*;
 
 /// Rotation iterations per frame: frames turn little between frames, and each iteration
 /// starts from the last frame's.
-const ITERATIONS: u32 = 4;
+const ITERATIONS: u32 = 2;
 
-/// Vertices per parallel task.
+/// Vertices (or carriers) per parallel task.
 const PER_TASK: usize = 1024;
 
-/// Updates `frames[p]` for every particle `p` of `topology`, from `positions` (indexed
-/// by particle; read at those particles and their linked neighbours).
+/// Updates the carriers' `frames` (warm starts in, results out) and their rotation
+/// matrices `rotations`, from `positions` (one per slot of `layout`).
 pub fn particle_frames(
-    lattice: &Lattice,
-    topology: &SurfaceTopology,
-    positions: &[Vec3],
+    layout: &CarryLayout,
+    positions: &[Vec3A],
     frames: &mut [Quat],
+    rotations: &mut [Mat3A],
 ) {
-    let updated: Vec<Quat> = topology
-        .particles
-        .par_iter()
-        .with_min_len(PER_TASK)
-        .map(|&p| {
-            let (x, r) = (positions[p as usize], lattice.rest_position(p));
-            let mut a = Mat3A::ZERO;
-            for q in lattice.neighbours(p) {
-                let dx = Vec3A::from(positions[q as usize] - x);
-                let dr = Vec3A::from(lattice.rest_position(q) - r);
-                a += Mat3A::from_cols(dx * dr.x, dx * dr.y, dx * dr.z);
+    assert_eq!(positions.len(), layout.read.len(), "a position per slot");
+    assert_eq!(frames.len(), layout.carrier_count(), "a frame per carrier");
+    assert_eq!(
+        rotations.len(),
+        layout.carrier_count(),
+        "a rotation per carrier"
+    );
+    frames
+        .par_chunks_mut(PER_TASK)
+        .zip(rotations.par_chunks_mut(PER_TASK))
+        .enumerate()
+        .for_each(|(task, (frames, rotations))| {
+            dispatch(FrameTask {
+                layout,
+                positions,
+                first: task * PER_TASK,
+                frames,
+                rotations,
+            })
+        });
+}
+
+/// The frames of one task's carriers, eight at a time.
+struct FrameTask<'a> {
+    layout: &'a CarryLayout,
+    positions: &'a [Vec3A],
+    /// The carrier of `frames[0]`.
+    first: usize,
+    frames: &'a mut [Quat],
+    rotations: &'a mut [Mat3A],
+}
+
+impl WithLanes for FrameTask<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run<L: Lane>(self) {
+        for (b, batch) in self.layout.batches[self.first / LANES..].iter().enumerate() {
+            let start = b * LANES;
+            if start >= self.frames.len() {
+                break;
             }
-            extract_rotation(a, frames[p as usize], ITERATIONS)
-        })
-        .collect();
-    for (&p, q) in topology.particles.iter().zip(updated) {
-        frames[p as usize] = q;
+            let centre = gather::<L>(self.positions, &batch.own);
+            let mut a = Mat3x8::<L>::ZERO;
+            for (links, spoke) in batch.links.iter().zip(&batch.spokes) {
+                let dx = gather::<L>(self.positions, links) - centre;
+                let dr = Vec3x8::<L>::load(spoke);
+                a.x_axis = dx.mul_add(dr.x, a.x_axis);
+                a.y_axis = dx.mul_add(dr.y, a.y_axis);
+                a.z_axis = dx.mul_add(dr.z, a.z_axis);
+            }
+            let mut warm = [Quat::IDENTITY; LANES];
+            for (l, w) in warm.iter_mut().enumerate() {
+                *w = self.frames[batch.own[l] as usize - self.first];
+            }
+            let q = extract_rotation_x8(&a, Quatx8::from_lanes(warm), ITERATIONS);
+            let r = Mat3x8::from_quat(q);
+            for l in 0..LANES.min(self.frames.len() - start) {
+                self.frames[start + l] = q.lane(l);
+                self.rotations[start + l] = r.lane(l);
+            }
+        }
     }
 }
 
-/// The vertices' positions from the particles' `positions` and `frames` (indexed by
-/// particle), into `out`.
+/// The positions of eight slots, one per lane.
+#[inline(always)]
+fn gather<L: Lane>(positions: &[Vec3A], slots: &[u32; LANES]) -> Vec3x8<L> {
+    let mut v = [Vec3A::ZERO; LANES];
+    for (v, &s) in v.iter_mut().zip(slots) {
+        *v = positions[s as usize];
+    }
+    Vec3x8::from_lanes(v)
+}
+
+/// The vertices' positions from the slots' `positions` and the carriers' `rotations`,
+/// into `out`.
 pub fn vertex_positions(
     topology: &SurfaceTopology,
-    positions: &[Vec3],
-    frames: &[Quat],
+    layout: &CarryLayout,
+    positions: &[Vec3A],
+    rotations: &[Mat3A],
     out: &mut Vec<Vec3>,
 ) {
     out.resize(topology.vertex_count(), Vec3::ZERO);
@@ -65,55 +122,86 @@ pub fn vertex_positions(
         .with_min_len(PER_TASK)
         .enumerate()
         .for_each(|(v, at)| {
-            *at = topology
-                .bindings_of(v)
+            let range = topology.binding_start[v] as usize..topology.binding_start[v + 1] as usize;
+            let sum: Vec3A = topology.bindings[range.clone()]
                 .iter()
-                .map(|b| {
-                    let p = b.particle as usize;
-                    b.weight * (positions[p] + frames[p] * b.offset)
+                .zip(&layout.binding_slots[range])
+                .map(|(b, &s)| {
+                    let s = s as usize;
+                    b.weight * (positions[s] + rotations[s] * Vec3A::from(b.offset))
                 })
                 .sum();
+            *at = sum.into();
         });
 }
 
-/// Unit vertex normals of `triangles` over `positions` (area-weighted), into `out`; a
-/// vertex whose triangles have no area gets a zero normal.
-pub fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]], out: &mut Vec<Vec3>) {
-    out.clear();
+/// Unit vertex normals of the topology's triangles over `positions` (area-weighted),
+/// into `out`, with `faces` as scratch; a vertex whose triangles have no area gets a
+/// zero normal.
+pub fn vertex_normals(
+    topology: &SurfaceTopology,
+    layout: &CarryLayout,
+    positions: &[Vec3],
+    faces: &mut Vec<Vec3A>,
+    out: &mut Vec<Vec3>,
+) {
+    faces.resize(topology.triangles.len(), Vec3A::ZERO);
+    faces
+        .par_iter_mut()
+        .with_min_len(PER_TASK)
+        .zip(&topology.triangles)
+        .for_each(|(n, t)| {
+            let a = Vec3A::from(positions[t[0] as usize]);
+            let b = Vec3A::from(positions[t[1] as usize]);
+            let c = Vec3A::from(positions[t[2] as usize]);
+            // twice the area times the unit normal
+            *n = (b - a).cross(c - a);
+        });
     out.resize(positions.len(), Vec3::ZERO);
-    for t in triangles {
-        let [a, b, c] = t.map(|i| positions[i as usize]);
-        // twice the area times the unit normal
-        let n = (b - a).cross(c - a);
-        for i in t {
-            out[*i as usize] += n;
-        }
-    }
     out.par_iter_mut()
         .with_min_len(PER_TASK)
-        .for_each(|n| *n = n.normalize_or_zero());
+        .enumerate()
+        .for_each(|(v, n)| {
+            let around = layout.triangle_start[v] as usize..layout.triangle_start[v + 1] as usize;
+            let sum: Vec3A = layout.vertex_triangles[around]
+                .iter()
+                .map(|&t| faces[t as usize])
+                .sum();
+            *n = sum.normalize_or_zero().into();
+        });
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::body::lattice::Lattice;
     use crate::body::shape::Shape;
     use crate::surface::extract::extract;
     use glam::UVec3;
 
     /// The vertices of `t` where the particles carry them when each particle of `l`
-    /// sits at `map` of its rest position (the frames given ten frames to settle).
-    fn carried(l: &Lattice, t: &SurfaceTopology, map: impl Fn(Vec3) -> Vec3) -> Vec<Vec3> {
-        let moved: Vec<Vec3> = (0..l.len() as u32)
-            .map(|p| map(l.rest_position(p)))
+    /// sits at `map` of its rest position (the frames given ten frames to settle), and
+    /// their normals.
+    fn carried(
+        l: &Lattice,
+        t: &SurfaceTopology,
+        map: impl Fn(Vec3) -> Vec3,
+    ) -> (Vec<Vec3>, Vec<Vec3>) {
+        let layout = CarryLayout::new(l, t);
+        let moved: Vec<Vec3A> = layout
+            .read
+            .iter()
+            .map(|&p| map(l.rest_position(p)).into())
             .collect();
-        let mut frames = vec![Quat::IDENTITY; l.len()];
+        let mut frames = vec![Quat::IDENTITY; layout.carrier_count()];
+        let mut rotations = vec![Mat3A::IDENTITY; layout.carrier_count()];
         for _ in 0..10 {
-            particle_frames(l, t, &moved, &mut frames);
+            particle_frames(&layout, &moved, &mut frames, &mut rotations);
         }
-        let mut at = Vec::new();
-        vertex_positions(t, &moved, &frames, &mut at);
-        at
+        let (mut at, mut normals) = (Vec::new(), Vec::new());
+        vertex_positions(t, &layout, &moved, &rotations, &mut at);
+        vertex_normals(t, &layout, &at, &mut Vec::new(), &mut normals);
+        (at, normals)
     }
 
     #[test]
@@ -122,13 +210,11 @@ mod tests {
         let t = extract(&l);
         let turn = Quat::from_euler(glam::EulerRot::XYZ, 0.4, -1.1, 0.7);
         let shift = Vec3::new(3.0, -2.0, 0.5);
-        let at = carried(&l, &t, |x| turn * x + shift);
+        let (at, normals) = carried(&l, &t, |x| turn * x + shift);
         for (v, x) in at.iter().enumerate() {
             let expected = turn * t.rest[v] + shift;
             assert!((*x - expected).length() < 1e-5, "{x} vs {expected}");
         }
-        let mut normals = Vec::new();
-        vertex_normals(&at, &t.triangles, &mut normals);
         // a box corner's normal points away from the box's centre
         let centre = turn * (l.rest_position(0) + l.rest_position(l.len() as u32 - 1)) / 2.0;
         for (x, n) in at.iter().zip(&normals) {
@@ -145,7 +231,7 @@ mod tests {
         let centre = Vec3::new(3.0, 3.0, 0.0);
         let twist = |z: f32| Quat::from_rotation_z(std::f32::consts::FRAC_PI_2 * z / 16.0);
         let twisted = |x: Vec3| twist(x.z) * (x - centre) + centre;
-        let at = carried(&l, &t, twisted);
+        let (at, _) = carried(&l, &t, twisted);
         let normal = |x: &[Vec3], tri: &[u32; 3]| {
             let [a, b, c] = tri.map(|v| x[v as usize]);
             (b - a).cross(c - a).normalize()

@@ -3,9 +3,11 @@
 //! particles each frame ([`deform`]). Pure functions on the lattice and on arrays of
 //! positions; the `Surface` stage keeps one per body ([`crate::ecs::surface_mesh`]).
 
+pub mod carry;
 pub mod cells;
 pub mod deform;
 pub mod extract;
 pub mod fans;
 
+pub use carry::CarryLayout;
 pub use extract::{Binding, SurfaceTopology, extract};

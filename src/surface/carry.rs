@@ -1,0 +1,226 @@
+//! Who carries a surface, laid out once per topology so that the per-frame update
+//! ([`super::deform`]) reads short dense arrays instead of the whole body.
+//!
+//! The *carriers* are the particles the surface's vertices are bound to; each needs its
+//! own position and its linked neighbours' to find its frame. Those particles are
+//! numbered by *slot*: the carriers first, in the order of
+//! [`SurfaceTopology::particles`], then their other linked neighbours. The stage
+//! gathers their positions into slot order once a frame; everything after reads slots.
+
+use super::extract::SurfaceTopology;
+use crate::body::lattice::Lattice;
+use crate::math::lanes::{LANES, Vec3x8};
+use glam::{Quat, Vec3A};
+use wide::f32x8;
+
+/// The slots of a surface's carriers and of what they read (see the module docs).
+#[derive(Clone, Debug, Default)]
+pub struct CarryLayout {
+    /// The particle of each slot: the carriers, then their other linked neighbours.
+    pub read: Vec<u32>,
+    /// The carriers eight at a time, with what their frames read.
+    pub(super) batches: Vec<FrameBatch>,
+    /// Number of carriers.
+    carriers: usize,
+    /// Per binding of the topology, the slot of its particle (a carrier).
+    pub(super) binding_slots: Vec<u32>,
+    /// Per vertex `v`, the triangles around it are
+    /// `vertex_triangles[triangle_start[v]..triangle_start[v + 1]]`.
+    pub(super) triangle_start: Vec<u32>,
+    pub(super) vertex_triangles: Vec<u32>,
+}
+
+/// Eight carriers (lane `l` is carrier `8b + l` of batch `b`; a short last batch
+/// repeats its last carrier) and their spokes.
+#[derive(Clone, Debug)]
+pub(super) struct FrameBatch {
+    /// Each lane's slot.
+    pub(super) own: [u32; LANES],
+    /// Spoke `k` of each lane: the slot of a linked neighbour, or the lane's own slot (a
+    /// zero spoke, which adds nothing to its frame).
+    pub(super) links: [[u32; LANES]; 6],
+    /// The rest vectors of the spokes, in the lattice frame.
+    pub(super) spokes: [Vec3x8; 6],
+}
+
+impl CarryLayout {
+    /// The layout of `topology`, extracted from `lattice`.
+    pub fn new(lattice: &Lattice, topology: &SurfaceTopology) -> Self {
+        let carriers = &topology.particles;
+        let mut read = carriers.clone();
+        let slot_of_carrier = |p: u32| carriers.binary_search(&p).ok().map(|s| s as u32);
+        let mut extra: Vec<u32> = carriers
+            .iter()
+            .flat_map(|&p| lattice.neighbours(p))
+            .filter(|&q| slot_of_carrier(q).is_none())
+            .collect();
+        extra.sort_unstable();
+        extra.dedup();
+        read.extend_from_slice(&extra);
+        let slot_of = |p: u32| {
+            slot_of_carrier(p).unwrap_or_else(|| {
+                // every neighbour of a carrier is a carrier or in `extra`
+                (carriers.len() + extra.binary_search(&p).unwrap_or(0)) as u32
+            })
+        };
+        let rest = |p: u32| Vec3A::from(lattice.rest_position(p));
+        let batches = (0..carriers.len())
+            .step_by(LANES)
+            .map(|start| {
+                let last = (start + LANES).min(carriers.len()) - 1;
+                let own: [u32; LANES] = std::array::from_fn(|l| (start + l).min(last) as u32);
+                let mut links = [own; 6];
+                let mut spokes = [[Vec3A::ZERO; LANES]; 6];
+                for (l, &c) in own.iter().enumerate() {
+                    let p = carriers[c as usize];
+                    for (k, q) in lattice.neighbours(p).enumerate() {
+                        links[k][l] = slot_of(q);
+                        spokes[k][l] = rest(q) - rest(p);
+                    }
+                }
+                FrameBatch {
+                    own,
+                    links,
+                    spokes: spokes.map(|s| Vec3x8::<f32x8>::from_lanes(s).store()),
+                }
+            })
+            .collect();
+        let binding_slots = topology
+            .bindings
+            .iter()
+            .map(|b| slot_of(b.particle))
+            .collect();
+        let mut triangle_start = vec![0u32; topology.vertex_count() + 1];
+        for t in &topology.triangles {
+            for &v in t {
+                triangle_start[v as usize + 1] += 1;
+            }
+        }
+        for v in 0..topology.vertex_count() {
+            triangle_start[v + 1] += triangle_start[v];
+        }
+        let mut filled = triangle_start.clone();
+        let mut vertex_triangles = vec![0u32; topology.triangles.len() * 3];
+        for (i, t) in topology.triangles.iter().enumerate() {
+            for &v in t {
+                vertex_triangles[filled[v as usize] as usize] = i as u32;
+                filled[v as usize] += 1;
+            }
+        }
+        Self {
+            read,
+            batches,
+            carriers: carriers.len(),
+            binding_slots,
+            triangle_start,
+            vertex_triangles,
+        }
+    }
+
+    /// Number of carriers (the first slots).
+    pub fn carrier_count(&self) -> usize {
+        self.carriers
+    }
+
+    /// The frames of this layout's carriers, kept from `old` (the frames `old_frames` of
+    /// an earlier layout of the same body) where a carrier was one before, else taken
+    /// from a linked neighbour that was, else the identity: a particle a cut brings to
+    /// the surface, or a split's new half, starts turned with the body around it.
+    pub fn carry_frames(
+        &self,
+        lattice: &Lattice,
+        old: &CarryLayout,
+        old_frames: &[Quat],
+    ) -> Vec<Quat> {
+        let old_carriers = &old.read[..old.carrier_count().min(old_frames.len())];
+        let frame_of = |p: u32| old_carriers.binary_search(&p).ok().map(|s| old_frames[s]);
+        self.read[..self.carrier_count()]
+            .iter()
+            .map(|&p| {
+                frame_of(p)
+                    .or_else(|| lattice.neighbours(p).find_map(frame_of))
+                    .unwrap_or(Quat::IDENTITY)
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::body::shape::Shape;
+    use crate::surface::extract::extract;
+    use glam::UVec3;
+
+    #[test]
+    fn slots_hold_the_carriers_first_then_their_links_and_batches_pad_with_the_last() {
+        let mut l = Shape::cuboid(UVec3::new(5, 4, 3)).voxelise(0.5).unwrap();
+        l.remove(7);
+        l.sever(20, 21);
+        let t = extract(&l);
+        let layout = CarryLayout::new(&l, &t);
+        let n = layout.carrier_count();
+        assert_eq!(layout.read[..n], t.particles[..]);
+        assert_eq!(layout.batches.len(), n.div_ceil(LANES));
+        for (b, batch) in layout.batches.iter().enumerate() {
+            for l_ in 0..LANES {
+                let c = batch.own[l_] as usize;
+                assert_eq!(c, (b * LANES + l_).min(n - 1), "lane {l_} of batch {b}");
+                let p = layout.read[c];
+                let mut linked: Vec<u32> = (0..6)
+                    .map(|k| batch.links[k][l_] as usize)
+                    .filter(|&s| s != c)
+                    .map(|s| layout.read[s])
+                    .collect();
+                linked.sort_unstable();
+                let mut expected: Vec<u32> = l.neighbours(p).collect();
+                expected.sort_unstable();
+                assert_eq!(linked, expected, "links of particle {p}");
+                for k in 0..6 {
+                    let q = layout.read[batch.links[k][l_] as usize];
+                    let spoke = Vec3x8::<f32x8>::load(&batch.spokes[k]).lane(l_);
+                    let expected = Vec3A::from(l.rest_position(q) - l.rest_position(p));
+                    assert!((spoke - expected).length() < 1e-6);
+                }
+            }
+        }
+        for (b, &s) in t.bindings.iter().zip(&layout.binding_slots) {
+            assert_eq!(layout.read[s as usize], b.particle);
+        }
+        // every slot past the carriers is a linked neighbour of one, read once
+        let mut extra = layout.read[n..].to_vec();
+        extra.dedup();
+        assert_eq!(extra.len(), layout.read.len() - n);
+        for q in extra {
+            assert!(
+                l.neighbours(q)
+                    .any(|p| t.particles.binary_search(&p).is_ok())
+            );
+        }
+    }
+
+    #[test]
+    fn a_new_carrier_takes_the_frame_of_a_linked_old_one() {
+        let mut l = Shape::cuboid(UVec3::new(6, 6, 6)).voxelise(0.5).unwrap();
+        let before = CarryLayout::new(&l, &extract(&l));
+        let turn = Quat::from_rotation_y(0.3);
+        let frames = vec![turn; before.carrier_count()];
+        // removing a surface particle brings the one under it to the surface; one of
+        // its neighbours (at x = 0) was on the surface already
+        let top = l.at(glam::IVec3::new(1, 2, 5) + l.coord(0)).unwrap();
+        let under = l.at(glam::IVec3::new(1, 2, 4) + l.coord(0)).unwrap();
+        assert!(
+            before.read[..before.carrier_count()]
+                .binary_search(&under)
+                .is_err()
+        );
+        l.remove(top);
+        let after = CarryLayout::new(&l, &extract(&l));
+        let carried = after.carry_frames(&l, &before, &frames);
+        let slot = after.read[..after.carrier_count()]
+            .binary_search(&under)
+            .unwrap();
+        assert_eq!(carried[slot], turn);
+        assert!(carried.iter().all(|q| *q == turn));
+    }
+}
