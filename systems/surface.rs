@@ -1,14 +1,16 @@
 //! Stage surface: every body's [`SurfaceMesh`] brought up to date — its triangles
 //! extracted again when the body's lattice changed (a cut, split or tear) or it has
-//! none yet, then its vertices carried to where the particles are
+//! none yet (the lattice's surface, or the body's render mesh with the cut faces the
+//! lattice's surface adds to it), then its vertices carried to where the particles are
 //! ([`crate::surface::deform`]). Writes surface data only.
 
 use crate::ecs::components::{BodyLattice, Position};
 use crate::ecs::resources::SurfaceChanged;
 use crate::ecs::surface_mesh::SurfaceMesh;
+use crate::surface::extract::extract_with_faces;
 use crate::surface::{CarryLayout, deform, extract};
 use bevy_ecs::prelude::*;
-use glam::{Mat3A, Vec3A};
+use glam::Mat3A;
 use rayon::prelude::*;
 
 /// Updates the surface of every body that has one.
@@ -21,11 +23,17 @@ pub fn update_surfaces(
         let mesh = &mut *mesh;
         let l = &lattice.lattice;
         if mesh.topology_version == 0 || lattice.is_changed() {
-            mesh.topology = extract(l);
+            mesh.topology = match &mesh.render_mesh {
+                None => extract(l),
+                Some(render) => {
+                    let (surface, faces) = extract_with_faces(l);
+                    render.drawn(l, &surface, &faces)
+                }
+            };
             let layout = CarryLayout::new(l, &mesh.topology);
             mesh.frames = layout.carry_frames(l, &mesh.layout, &mesh.frames);
             mesh.rotations = vec![Mat3A::IDENTITY; layout.carrier_count()];
-            mesh.gathered = vec![Vec3A::ZERO; layout.read.len()];
+            mesh.gathered = layout.carry_positions(&mesh.layout, &mesh.gathered);
             mesh.layout = layout;
             mesh.topology_version += 1;
             changed.write(SurfaceChanged {
@@ -38,8 +46,7 @@ pub fn update_surfaces(
             .with_min_len(4096)
             .zip(&mesh.layout.read)
             .for_each(|(at, &p)| {
-                // (a particle despawned from outside keeps its last place until cut
-                // removes it)
+                // (a particle whose entity is gone keeps its last place)
                 let entity = lattice.particles.get(p as usize);
                 if let Some(x) = entity.and_then(|e| positions.get(*e).ok()) {
                     *at = x.0.into();

@@ -74,6 +74,44 @@ fn a_saved_run_resumes_bit_for_bit() {
         let (a, b) = (state(&mut straight), state(&mut resumed));
         assert_eq!(a.len(), b.len(), "{name} {solver:?}");
         assert!(a == b, "{name} {solver:?}: the resumed run differs");
+        // the resumed bodies draw the same surfaces: their frames start afresh, so
+        // positions agree to rounding where the particles' links fix their frames
+        // (links along two axes or more); a particle linked along one axis or none
+        // keeps whatever turn about it its history gave
+        for (s, r) in straight.bodies().into_iter().zip(resumed.bodies()) {
+            let lattice = resumed
+                .world()
+                .get::<cleave::ecs::components::BodyLattice>(r)
+                .unwrap()
+                .lattice
+                .clone();
+            let fixed = |p: u32| {
+                let axes: std::collections::HashSet<_> = lattice
+                    .neighbours(p)
+                    .map(|q| lattice.coord(q) - lattice.coord(p))
+                    .map(|d| d.abs())
+                    .collect();
+                axes.len() >= 2
+            };
+            let surface = |sim: &Simulation, body| {
+                sim.world()
+                    .get::<cleave::ecs::surface_mesh::SurfaceMesh>(body)
+                    .expect("a surface")
+                    .clone()
+            };
+            let (s, r) = (surface(&straight, s), surface(&resumed, r));
+            assert_eq!(s.triangles(), r.triangles(), "{name}");
+            let off = (0..r.positions.len())
+                .filter(|&v| {
+                    r.topology()
+                        .bindings_of(v)
+                        .iter()
+                        .all(|b| fixed(b.particle))
+                })
+                .map(|v| s.positions[v].distance(r.positions[v]))
+                .fold(0.0f32, f32::max);
+            assert!(off < 1e-4, "{name}: surface vertices {off} m apart");
+        }
         assert!(check_invariants(resumed.world()).is_empty());
     }
 }

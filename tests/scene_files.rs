@@ -137,7 +137,7 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
             &format!("    colliders: [(shape: {shape})],\n    tools: [("),
         )
     };
-    let cases: [(&str, String, &[&str]); 21] = [
+    let cases: [(&str, String, &[&str]); 23] = [
         (
             "zero.ron",
             GOOD.replace("Cells(cells: (4, 4, 4))", r#"Mesh(path: "/dev/zero")"#),
@@ -261,6 +261,22 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
             "mesh.ron",
             GOOD.replace("Cells(cells: (4, 4, 4))", r#"Mesh(path: "missing.obj")"#),
             &["mesh.ron", "bodies[0].shape", "missing.obj"],
+        ),
+        (
+            "render.ron",
+            GOOD.replace(
+                "spacing: 0.1, position: (0.0, 0.5, 0.0))",
+                r#"spacing: 0.1, position: (0.0, 0.5, 0.0), render_mesh: Some("gone.obj"))"#,
+            ),
+            &["render.ron", "bodies[0].render_mesh", "gone.obj", "cannot open"],
+        ),
+        (
+            "render_zero.ron",
+            GOOD.replace(
+                "spacing: 0.1, position: (0.0, 0.5, 0.0))",
+                r#"spacing: 0.1, position: (0.0, 0.5, 0.0), render_mesh: Some("/dev/zero"))"#,
+            ),
+            &["bodies[0].render_mesh", "/dev/zero", "not a regular file"],
         ),
     ];
     for (name, text, expected) in cases {

@@ -5,7 +5,9 @@ use crate::body::shape::Shape;
 use crate::config::{Material, SimConfig};
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::geometry::collider::ColliderShape;
+use crate::geometry::mesh::TriangleMesh;
 use glam::{Quat, Vec3};
+use std::sync::Arc;
 
 /// An axis-aligned world-space box (bounds included).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -88,6 +90,11 @@ pub struct BodyDesc {
     pub pins: Vec<PinRegion>,
     /// Attachments of the body's particles (world space, after placement).
     pub attachments: Vec<AttachmentDesc>,
+    /// A closed mesh (in the shape's local frame) to draw instead of the lattice's
+    /// surface, carried by the particles and opened by cuts
+    /// ([`crate::surface::embed`]). A body voxelised from a mesh draws that mesh when
+    /// this is `None`.
+    pub render_mesh: Option<Arc<TriangleMesh>>,
 }
 
 impl BodyDesc {
@@ -102,6 +109,7 @@ impl BodyDesc {
             material: Material::default(),
             pins: Vec::new(),
             attachments: Vec::new(),
+            render_mesh: None,
         }
     }
 }

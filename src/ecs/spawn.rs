@@ -17,6 +17,7 @@ use crate::error::{
 };
 use crate::math::rotation::unit_quaternion;
 use crate::solver::clusters::term::MAX_SOLVER_PARTICLES;
+use crate::surface::embed::EmbeddedMesh;
 use bevy_ecs::prelude::*;
 use glam::Vec3;
 
@@ -196,6 +197,12 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         });
     let lattice = desc.shape.voxelise_within(desc.spacing, budget)?;
     check_particle_budget(existing_particles(world), lattice.len() as u64)?;
+    let render_mesh = match (&desc.render_mesh, &desc.shape) {
+        (Some(mesh), _) | (None, crate::body::shape::Shape::Mesh(mesh)) => {
+            Some(EmbeddedMesh::new(&lattice, mesh)?)
+        }
+        _ => None,
+    };
     let placed = |i: u32| desc.position + rotation * lattice.rest_position(i);
     // each attachment's particles, and each pin's (a region that holds none is an error
     // for an attachment, and nothing for a pin)
@@ -265,7 +272,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             pieces,
         },
         clusters,
-        SurfaceMesh::default(),
+        SurfaceMesh::with_render_mesh(render_mesh),
     ));
     let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time) as f32;
     for ((pin, particles), positions) in desc.pins.iter().zip(pinned).zip(pinned_at) {

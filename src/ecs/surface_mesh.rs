@@ -4,9 +4,11 @@
 //! reads [`crate::ecs::resources::SurfaceChanged`]) to know when to upload new
 //! triangles.
 
+use crate::surface::embed::EmbeddedMesh;
 use crate::surface::{CarryLayout, SurfaceTopology};
 use bevy_ecs::prelude::*;
 use glam::{Mat3A, Quat, Vec3, Vec3A};
+use std::sync::Arc;
 
 /// A body's surface. Every spawned body gets one; remove it to skip the work (the
 /// `Surface` stage updates only bodies that have it).
@@ -29,9 +31,24 @@ pub struct SurfaceMesh {
     pub(crate) rotations: Vec<Mat3A>,
     /// Per triangle, scratch for the normals.
     pub(crate) faces: Vec<Vec3A>,
+    /// The render mesh drawn instead of the lattice's surface, if the body has one.
+    pub(crate) render_mesh: Option<Arc<EmbeddedMesh>>,
 }
 
 impl SurfaceMesh {
+    /// A surface still to be extracted: the lattice's, or `render_mesh` embedded in it.
+    pub fn with_render_mesh(render_mesh: Option<EmbeddedMesh>) -> Self {
+        Self {
+            render_mesh: render_mesh.map(Arc::new),
+            ..Self::default()
+        }
+    }
+
+    /// The render mesh drawn instead of the lattice's surface, if the body has one.
+    pub fn render_mesh(&self) -> Option<&EmbeddedMesh> {
+        self.render_mesh.as_deref()
+    }
+
     /// Triangles (vertex indices), counter-clockwise seen from outside.
     pub fn triangles(&self) -> &[[u32; 3]] {
         &self.topology.triangles

@@ -28,6 +28,7 @@ use crate::ecs::resources::{
     BodyDense, ClusterSlots, CutReport, PendingTopology, SceneLabel, SimClock, SimRng, SimSettings,
     SolverCache,
 };
+use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::{CleaveError, Result};
 use crate::io::save_file::{SaveReader, SaveWriter};
 use crate::solver::clusters::term::ClusterTerm;
@@ -439,7 +440,11 @@ fn restore(snapshot: Snapshot) -> Result<World> {
             keys,
         };
         let body = map.get(b.entity);
-        world.entity_mut(body).insert((b.body, lattice, clusters));
+        // (the surface is extracted again on the first frame; a render mesh is not
+        // saved, and the body draws its lattice's surface)
+        world
+            .entity_mut(body)
+            .insert((b.body, lattice, clusters, SurfaceMesh::default()));
         handles.0.push((b.entity, body));
     }
     handles.0.sort_unstable();

@@ -122,6 +122,15 @@ impl CarryLayout {
         self.carriers
     }
 
+    /// The slot of particle `p`, if the layout reads it.
+    pub fn slot_of(&self, p: u32) -> Option<usize> {
+        let (carriers, extra) = self.read.split_at(self.carriers);
+        carriers
+            .binary_search(&p)
+            .ok()
+            .or_else(|| extra.binary_search(&p).ok().map(|s| self.carriers + s))
+    }
+
     /// The frames of this layout's carriers, kept from `old` (the frames `old_frames` of
     /// an earlier layout of the same body) where a carrier was one before, else taken
     /// from a linked neighbour that was, else the identity: a particle a cut brings to
@@ -132,14 +141,32 @@ impl CarryLayout {
         old: &CarryLayout,
         old_frames: &[Quat],
     ) -> Vec<Quat> {
-        let old_carriers = &old.read[..old.carrier_count().min(old_frames.len())];
-        let frame_of = |p: u32| old_carriers.binary_search(&p).ok().map(|s| old_frames[s]);
-        self.read[..self.carrier_count()]
+        let frame_of = |p: u32| {
+            old.slot_of(p)
+                .filter(|&s| s < old.carriers)
+                .and_then(|s| old_frames.get(s).copied())
+        };
+        self.read[..self.carriers]
             .iter()
             .map(|&p| {
                 frame_of(p)
                     .or_else(|| lattice.neighbours(p).find_map(frame_of))
                     .unwrap_or(Quat::IDENTITY)
+            })
+            .collect()
+    }
+
+    /// Per slot, the position `old_positions` (one per slot of `old`) held for its
+    /// particle, or zero for a particle `old` did not read: so that a particle whose
+    /// entity is gone (removed by a cut, while a render mesh's unused vertex is still
+    /// bound to it) stays where it was last seen.
+    pub fn carry_positions(&self, old: &CarryLayout, old_positions: &[Vec3A]) -> Vec<Vec3A> {
+        self.read
+            .iter()
+            .map(|&p| {
+                old.slot_of(p)
+                    .and_then(|s| old_positions.get(s).copied())
+                    .unwrap_or(Vec3A::ZERO)
             })
             .collect()
     }

@@ -62,8 +62,25 @@ impl SurfaceTopology {
     }
 }
 
+/// The face of the lattice a quad of the surface lies on: between a sub-cell in lattice
+/// cell `cell` and one in lattice cell `across` (the same cell for the face between two
+/// halves of a split particle).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LatticeFace {
+    /// The cell of the solid side.
+    pub cell: IVec3,
+    /// The cell on the other side.
+    pub across: IVec3,
+}
+
 /// The surface of `lattice` (see the module docs).
 pub fn extract(lattice: &Lattice) -> SurfaceTopology {
+    extract_with_faces(lattice).0
+}
+
+/// [`extract`], with the lattice face of each quad: triangles `2q` and `2q + 1` lie on
+/// face `q`.
+pub fn extract_with_faces(lattice: &Lattice) -> (SurfaceTopology, Vec<LatticeFace>) {
     let owners = CellOwners::new(lattice);
     let mut quads = Vec::new();
     for p in lattice.live_particles().filter(|&p| !owners.is_enclosed(p)) {
@@ -112,7 +129,14 @@ pub fn extract(lattice: &Lattice) -> SurfaceTopology {
     particles.sort_unstable();
     particles.dedup();
     topology.particles = particles;
-    topology
+    let faces = quads
+        .iter()
+        .map(|q| LatticeFace {
+            cell: owners.cell_of(q.cell),
+            across: owners.cell_of(q.cell + NEIGHBOUR_OFFSETS[q.direction as usize]),
+        })
+        .collect();
+    (topology, faces)
 }
 
 /// Appends the bindings of the vertex at grid corner `w` (resting at `rest`) whose

@@ -6,6 +6,7 @@
 pub mod carry;
 pub mod cells;
 pub mod deform;
+pub mod embed;
 pub mod extract;
 pub mod fans;
 

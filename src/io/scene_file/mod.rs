@@ -166,6 +166,9 @@ impl SceneFile {
                     },
                     Shape::Sdf(_) | Shape::Mesh(_) => return None,
                 };
+                if b.render_mesh.is_some() {
+                    return None;
+                }
                 Some(BodyFile {
                     shape,
                     spacing: b.spacing,
@@ -183,6 +186,7 @@ impl SceneFile {
                             compliance: a.compliance,
                         })
                         .collect(),
+                    render_mesh: None,
                 })
             })
             .collect::<Option<Vec<_>>>()?;
@@ -247,6 +251,13 @@ impl SceneFile {
             material
                 .validate()
                 .map_err(|e| format!("bodies[{i}]: {e}"))?;
+            let render_mesh = match &b.render_mesh {
+                Some(path) => Some(Arc::new(
+                    TriangleMesh::load_obj(&base_dir.join(path))
+                        .map_err(|e| format!("bodies[{i}].render_mesh: {e}"))?,
+                )),
+                None => None,
+            };
             bodies.push(BodyDesc {
                 shape,
                 spacing: b.spacing,
@@ -264,6 +275,7 @@ impl SceneFile {
                         compliance: a.compliance,
                     })
                     .collect(),
+                render_mesh,
             });
         }
         let tools = self

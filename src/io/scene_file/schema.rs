@@ -105,6 +105,11 @@ pub struct BodyFile {
     /// compliance: …)`.
     #[serde(default)]
     pub attachments: Vec<AttachmentFile>,
+    /// A closed OBJ mesh (path relative to the scene file, in the shape's local frame)
+    /// drawn instead of the lattice's surface: `render_mesh: Some("part.obj")`. A body
+    /// whose shape is a mesh draws that mesh without it.
+    #[serde(default)]
+    pub render_mesh: Option<std::path::PathBuf>,
 }
 
 /// An attachment: the particles in a world-space region (after placement), each held
