@@ -60,6 +60,25 @@ pub enum CleaveError {
         /// Most particles the budget allows.
         max: u64,
     },
+    /// A body's surface would take more memory than the budget leaves beside its
+    /// particles.
+    #[error(
+        "surface too large: the body's surface would have {faces} faces, about {} GB at ~{bytes_per_face} B each, beside about {} GB of particles (the memory budget is {budget_gigabytes} GB per body)",
+        significant(*gigabytes),
+        significant(*particle_gigabytes)
+    )]
+    SurfaceOverBudget {
+        /// Faces of the body's lattice surface.
+        faces: u64,
+        /// Estimated memory of the surface, GB.
+        gigabytes: f64,
+        /// Estimated memory of the body's particles, GB.
+        particle_gigabytes: f64,
+        /// Estimated memory per face, bytes.
+        bytes_per_face: u64,
+        /// The budget, GB.
+        budget_gigabytes: f32,
+    },
     /// The bodies of one world would hold more particles than the solver can address.
     #[error("too many particles: {particles} in the world's bodies together (at most {max})")]
     TooManyParticles {

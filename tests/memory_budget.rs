@@ -1,5 +1,6 @@
 //! Memory budgets: a body the budget cannot hold is refused before anything is
-//! allocated (its cells counted, a mesh's too), and a projective factor that would pass
+//! allocated (its cells counted, a mesh's too), a body whose surface would not fit
+//! beside its particles is refused with the estimate, and a projective factor that would pass
 //! what the budget leaves beside the particles is not built: the solver takes Jacobi
 //! steps and says so.
 
@@ -112,12 +113,40 @@ fn a_memory_budget_refuses_bodies_it_cannot_hold_and_a_fine_mesh_is_refused_at_o
 }
 
 #[test]
+fn a_body_whose_surface_would_pass_the_budget_is_refused_with_the_estimate() {
+    // a 200×200×1 sheet: 40,000 particles (24 MB) fit a 30 MB budget, but its 80,800
+    // faces of surface (24 MB more) do not; a 30³ block (16 MB, 5,400 faces) does
+    let budget = |cells: &str| {
+        GOOD.replace(
+            "frames: 2,",
+            "frames: 2, settings: (memory_budget_gb: 0.03),",
+        )
+        .replace("Cells(cells: (4, 4, 4))", cells)
+    };
+    let (code, err) = run_file("sheet.ron", &budget("Cells(cells: (200, 200, 1))"));
+    assert_eq!(code, Some(2), "{err}");
+    assert_mentions(
+        &err,
+        &[
+            "sheet.ron",
+            "surface too large",
+            "80800 faces",
+            "about 0.024 GB",
+            "memory budget is 0.03 GB",
+        ],
+    );
+    let (code, err) = run_file("block.ron", &budget("Cells(cells: (30, 30, 30))"));
+    assert_eq!(code, Some(0), "{err}");
+}
+
+#[test]
 fn a_projective_factor_past_the_memory_budget_falls_back_to_jacobi_with_a_warning() {
-    // 11³ particles take 0.8 MB of a 1 MB budget; their factor would take 3 MB
+    // 10³ particles take 0.6 MB of a 1 MB budget (their surface 0.2 MB more); their
+    // factor would take about 2 MB
     let settings = "frames: 2, settings: (memory_budget_gb: 0.001, solver: \"projective\"),";
     let text = GOOD
         .replace("frames: 2,", settings)
-        .replace("Cells(cells: (4, 4, 4))", "Cells(cells: (11, 11, 11))");
+        .replace("Cells(cells: (4, 4, 4))", "Cells(cells: (10, 10, 10))");
     let (code, err) = run_file("factor_over_budget.ron", &text);
     assert_eq!(code, Some(0), "{err}");
     assert_mentions(

@@ -2,6 +2,8 @@
 //! (voxelised, clustered, their particles, clusters and attachments as entities),
 //! cutting tools and colliders; and replacing a body's clusters by a fresh clustering.
 
+use crate::body::lattice::Lattice;
+use crate::body::shape::BYTES_PER_PARTICLE;
 use crate::clusters::clustering::{clusters_on_grid, seed_grid_offset};
 use crate::clusters::index::ClusterIndex;
 use crate::clusters::store::ClusterTable;
@@ -126,6 +128,25 @@ fn check_particle_budget(existing: u64, new: u64) -> Result<()> {
     Ok(())
 }
 
+/// Refuses a body whose surface and particles together would pass the memory budget of
+/// `budget_gb` gigabytes.
+fn check_surface_budget(lattice: &Lattice, budget_gb: f32) -> Result<()> {
+    use crate::surface::extract::{BYTES_PER_FACE, face_count};
+    let faces = face_count(lattice);
+    let gigabytes = (faces * BYTES_PER_FACE) as f64 / 1e9;
+    let particle_gigabytes = (lattice.len() as u64 * BYTES_PER_PARTICLE) as f64 / 1e9;
+    if gigabytes + particle_gigabytes > budget_gb as f64 {
+        return Err(CleaveError::SurfaceOverBudget {
+            faces,
+            gigabytes,
+            particle_gigabytes,
+            bytes_per_face: BYTES_PER_FACE,
+            budget_gigabytes: budget_gb,
+        });
+    }
+    Ok(())
+}
+
 /// Spawns a body into any world prepared with [`crate::systems::install`].
 pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     desc.material.validate()?;
@@ -197,6 +218,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         });
     let lattice = desc.shape.voxelise_within(desc.spacing, budget)?;
     check_particle_budget(existing_particles(world), lattice.len() as u64)?;
+    check_surface_budget(&lattice, budget)?;
     let render_mesh = match (&desc.render_mesh, &desc.shape) {
         (Some(mesh), _) | (None, crate::body::shape::Shape::Mesh(mesh)) => {
             Some(EmbeddedMesh::new(&lattice, mesh)?)

@@ -73,6 +73,22 @@ pub struct LatticeFace {
     pub across: IVec3,
 }
 
+/// What a surface takes per face of the lattice, in bytes: two triangles (indices,
+/// pieces, normals scratch, the vertex–triangle table: 2 × 44), about one vertex (rest,
+/// position and normal: 36; four bindings: 80; its slot, frame and rotation as a
+/// carrier: ~80) and the face itself (~16).
+pub const BYTES_PER_FACE: u64 = 300;
+
+/// Faces of the boundary of `lattice`'s live cells, each cell one (the surface's quads
+/// before any particle is split; a split body draws each cell as 2×2×2 octants, and
+/// each of these faces as four).
+pub fn face_count(lattice: &Lattice) -> u64 {
+    lattice
+        .live_particles()
+        .map(|p| 6 - lattice.neighbours(p).count() as u64)
+        .sum()
+}
+
 /// The surface of `lattice` (see the module docs).
 pub fn extract(lattice: &Lattice) -> SurfaceTopology {
     extract_with_faces(lattice).0
