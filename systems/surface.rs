@@ -8,6 +8,7 @@ use crate::ecs::components::{BodyLattice, Position};
 use crate::ecs::resources::SurfaceChanged;
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::surface::extract::extract_with_faces;
+use crate::surface::smooth::smooth;
 use crate::surface::{CarryLayout, deform, extract};
 use bevy_ecs::prelude::*;
 use glam::Mat3A;
@@ -24,6 +25,11 @@ pub fn update_surfaces(
         let l = &lattice.lattice;
         if mesh.topology_version == 0 || lattice.is_changed() {
             mesh.topology = match &mesh.render_mesh {
+                None if mesh.options.smooth => {
+                    let mut surface = extract(l);
+                    smooth(l, &mut surface);
+                    surface
+                }
                 None => extract(l),
                 Some(render) => {
                     let (surface, faces) = extract_with_faces(l);

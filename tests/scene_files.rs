@@ -70,6 +70,26 @@ fn a_file_with_many_bodies_and_colliders_runs() {
 }
 
 #[test]
+fn a_smoothed_surface_is_read_from_files_and_a_misspelt_option_is_named() {
+    let text = GOOD.replace("spacing: 0.1,", "spacing: 0.1, surface: (smooth: true),");
+    let scene = SceneFile::parse(&text)
+        .unwrap()
+        .to_scene(Path::new("."))
+        .unwrap();
+    assert!(scene.bodies[0].surface.smooth);
+    let plain = SceneFile::parse(GOOD)
+        .unwrap()
+        .to_scene(Path::new("."))
+        .unwrap();
+    assert!(!plain.bodies[0].surface.smooth);
+    let (code, err) = run_file("smooth.ron", &text);
+    assert_eq!(code, Some(0), "{err}");
+    let (code, err) = run_file("smoth.ron", &text.replace("smooth: true", "smoth: true"));
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("smoth.ron") && err.contains("smoth"), "{err}");
+}
+
+#[test]
 fn cut_modes_tearing_and_moving_pins_are_read_from_files_and_checked() {
     let text = GOOD
         .replace("cut_width: 0.05,", r#"cut_width: 0.05, cut_mode: "sever","#)

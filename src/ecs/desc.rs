@@ -95,6 +95,16 @@ pub struct BodyDesc {
     /// ([`crate::surface::embed`]). A body voxelised from a mesh draws that mesh when
     /// this is `None`.
     pub render_mesh: Option<Arc<TriangleMesh>>,
+    /// How the body's lattice surface is drawn.
+    pub surface: SurfaceOptions,
+}
+
+/// How a body's lattice surface is drawn.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SurfaceOptions {
+    /// Round the voxel staircase once per topology change, in rest space
+    /// ([`crate::surface::smooth`]); a render mesh is drawn as given either way.
+    pub smooth: bool,
 }
 
 impl BodyDesc {
@@ -110,6 +120,7 @@ impl BodyDesc {
             pins: Vec::new(),
             attachments: Vec::new(),
             render_mesh: None,
+            surface: SurfaceOptions::default(),
         }
     }
 }

@@ -294,7 +294,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             pieces,
         },
         clusters,
-        SurfaceMesh::with_render_mesh(render_mesh),
+        SurfaceMesh::new(render_mesh, desc.surface),
     ));
     let now = world.get_resource::<SimClock>().map_or(0.0, |c| c.time) as f32;
     for ((pin, particles), positions) in desc.pins.iter().zip(pinned).zip(pinned_at) {

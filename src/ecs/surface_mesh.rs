@@ -4,6 +4,7 @@
 //! reads [`crate::ecs::resources::SurfaceChanged`]) to know when to upload new
 //! triangles.
 
+use crate::ecs::desc::SurfaceOptions;
 use crate::surface::embed::EmbeddedMesh;
 use crate::surface::{CarryLayout, SurfaceTopology};
 use bevy_ecs::prelude::*;
@@ -33,13 +34,17 @@ pub struct SurfaceMesh {
     pub(crate) faces: Vec<Vec3A>,
     /// The render mesh drawn instead of the lattice's surface, if the body has one.
     pub(crate) render_mesh: Option<Arc<EmbeddedMesh>>,
+    /// How the lattice's surface is drawn.
+    pub(crate) options: SurfaceOptions,
 }
 
 impl SurfaceMesh {
-    /// A surface still to be extracted: the lattice's, or `render_mesh` embedded in it.
-    pub fn with_render_mesh(render_mesh: Option<EmbeddedMesh>) -> Self {
+    /// A surface still to be extracted: the lattice's, drawn as `options` say, or
+    /// `render_mesh` embedded in it.
+    pub fn new(render_mesh: Option<EmbeddedMesh>, options: SurfaceOptions) -> Self {
         Self {
             render_mesh: render_mesh.map(Arc::new),
+            options,
             ..Self::default()
         }
     }

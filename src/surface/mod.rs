@@ -9,6 +9,7 @@ pub mod deform;
 pub mod embed;
 pub mod extract;
 pub mod fans;
+pub mod smooth;
 
 pub use carry::CarryLayout;
 pub use extract::{Binding, SurfaceTopology, extract};

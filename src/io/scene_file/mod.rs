@@ -6,7 +6,7 @@ use crate::body::shape::Shape;
 use crate::config::{Material, SimConfig};
 use crate::cut::tool::{Path as ToolPath, Pose};
 use crate::ecs::desc::Scene;
-use crate::ecs::desc::{AttachmentDesc, BodyDesc, ColliderDesc, ToolDesc};
+use crate::ecs::desc::{AttachmentDesc, BodyDesc, ColliderDesc, SurfaceOptions, ToolDesc};
 use crate::geometry::collider::ColliderShape;
 use crate::geometry::mesh::TriangleMesh;
 use glam::Vec3;
@@ -187,6 +187,9 @@ impl SceneFile {
                         })
                         .collect(),
                     render_mesh: None,
+                    surface: SurfaceFile {
+                        smooth: b.surface.smooth,
+                    },
                 })
             })
             .collect::<Option<Vec<_>>>()?;
@@ -276,6 +279,9 @@ impl SceneFile {
                     })
                     .collect(),
                 render_mesh,
+                surface: SurfaceOptions {
+                    smooth: b.surface.smooth,
+                },
             });
         }
         let tools = self

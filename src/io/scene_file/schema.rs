@@ -110,6 +110,18 @@ pub struct BodyFile {
     /// whose shape is a mesh draws that mesh without it.
     #[serde(default)]
     pub render_mesh: Option<std::path::PathBuf>,
+    /// How the lattice's surface is drawn: `surface: (smooth: true)`.
+    #[serde(default)]
+    pub surface: SurfaceFile,
+}
+
+/// How a body's lattice surface is drawn.
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SurfaceFile {
+    /// Round the voxel staircase (rest space, once per topology change).
+    #[serde(default)]
+    pub smooth: bool,
 }
 
 /// An attachment: the particles in a world-space region (after placement), each held
