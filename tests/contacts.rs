@@ -3,6 +3,7 @@
 //! resolved without an explosion, and bad input refused with the field named. Overlap is
 //! measured here by brute force over the particle positions, apart from the engine.
 
+mod common;
 use bevy_ecs::prelude::*;
 use cleave::prelude::*;
 use glam::{Quat, UVec3, Vec3, Vec3A};
@@ -134,18 +135,9 @@ fn a_plate_at_20_m_per_s_pushes_a_body_instead_of_passing_through() -> cleave::e
 
 /// A closed octahedron |x| + |y| + |z| = `r` as a triangle mesh.
 fn octahedron(r: f32) -> cleave::geometry::mesh::TriangleMesh {
-    let v = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z].map(|v| v * r);
-    let t = vec![
-        [0, 2, 4],
-        [2, 1, 4],
-        [1, 3, 4],
-        [3, 0, 4],
-        [2, 0, 5],
-        [1, 2, 5],
-        [3, 1, 5],
-        [0, 3, 5],
-    ];
-    cleave::geometry::mesh::TriangleMesh::new(v.to_vec(), t, std::path::Path::new("octahedron"))
+    let (v, t) = common::octahedron(r);
+    let v = v.into_iter().map(Vec3::from).collect();
+    cleave::geometry::mesh::TriangleMesh::new(v, t, std::path::Path::new("octahedron"))
         .expect("a closed mesh")
 }
 

@@ -5,6 +5,7 @@
 //! a blade that severs it drops exactly the triangles that would span the cut and draws
 //! the lattice's cut faces on both pieces; a mesh outside its body is refused.
 
+mod common;
 use cleave::body::lattice::Lattice;
 use cleave::ecs::components::BodyLattice;
 use cleave::ecs::surface_mesh::SurfaceMesh;
@@ -19,17 +20,8 @@ const H: f32 = 0.1;
 /// A closed sphere of `radius` about the origin: an octahedron subdivided `levels`
 /// times, pushed onto the sphere, wound counter-clockwise seen from outside.
 fn sphere(radius: f32, levels: u32) -> TriangleMesh {
-    let mut vertices = vec![Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
-    let mut triangles: Vec<[u32; 3]> = vec![
-        [0, 2, 4],
-        [2, 1, 4],
-        [1, 3, 4],
-        [3, 0, 4],
-        [2, 0, 5],
-        [1, 2, 5],
-        [3, 1, 5],
-        [0, 3, 5],
-    ];
+    let (corners, mut triangles) = common::octahedron(1.0);
+    let mut vertices: Vec<Vec3> = corners.into_iter().map(Vec3::from).collect();
     for _ in 0..levels {
         let mut middle: HashMap<(u32, u32), u32> = HashMap::new();
         let mut split = |a: u32, b: u32, vertices: &mut Vec<Vec3>| {

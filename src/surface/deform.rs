@@ -28,6 +28,9 @@ const PER_TASK: usize = 1024;
 
 /// Updates the carriers' `frames` (warm starts in, results out) and their rotation
 /// matrices `rotations`, from `positions` (one per slot of `layout`).
+///
+/// # Panics
+/// When the lengths of `positions`, `frames` or `rotations` are not the layout's.
 pub fn particle_frames(
     layout: &CarryLayout,
     positions: &[Vec3A],

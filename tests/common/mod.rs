@@ -296,3 +296,27 @@ pub fn assert_mentions(text: &str, parts: &[&str]) {
         assert!(text.contains(part), "`{part}` missing from: {text}");
     }
 }
+
+/// A closed octahedron |x| + |y| + |z| = `r`: its vertices and its triangles, wound
+/// counter-clockwise seen from outside.
+pub fn octahedron(r: f32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+    let vertices = vec![
+        [r, 0.0, 0.0],
+        [-r, 0.0, 0.0],
+        [0.0, r, 0.0],
+        [0.0, -r, 0.0],
+        [0.0, 0.0, r],
+        [0.0, 0.0, -r],
+    ];
+    let triangles = vec![
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ];
+    (vertices, triangles)
+}
