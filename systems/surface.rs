@@ -1,14 +1,20 @@
 //! Stage surface: every body's [`SurfaceMesh`] brought up to date — its triangles
-//! extracted again when the body's lattice changed (a cut, split or tear) or it has
-//! none yet (the lattice's surface, or the body's render mesh with the cut faces the
-//! lattice's surface adds to it), then its vertices carried to where the particles are
-//! ([`crate::surface::deform`]). Writes surface data only.
+//! updated around what this frame's cut changed in the body's lattice
+//! ([`crate::surface::update`]), or extracted again when the lattice changed otherwise
+//! or the body has none yet (the lattice's surface, or the body's render mesh with the
+//! cut faces the lattice's surface adds to it), then its vertices carried to where the
+//! particles are ([`crate::surface::deform`]). Writes surface data only.
+//!
+//! The cut's report says what changed; a lattice edited from outside in a frame that
+//! also cuts it is updated around the cut's changes only.
 
+use crate::body::lattice::Lattice;
 use crate::ecs::components::{BodyLattice, Position};
-use crate::ecs::resources::SurfaceChanged;
+use crate::ecs::resources::{BodyCutReport, CutReport, SurfaceChanged};
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::surface::extract::extract_with_faces;
 use crate::surface::smooth::smooth;
+use crate::surface::update::update;
 use crate::surface::{CarryLayout, deform, extract};
 use bevy_ecs::prelude::*;
 use glam::Mat3A;
@@ -18,19 +24,23 @@ use rayon::prelude::*;
 pub fn update_surfaces(
     mut bodies: Query<(Entity, Ref<BodyLattice>, &mut SurfaceMesh)>,
     positions: Query<&Position>,
+    cut: Res<CutReport>,
     mut changed: MessageWriter<SurfaceChanged>,
 ) {
     for (body, lattice, mut mesh) in &mut bodies {
         let mesh = &mut *mesh;
         let l = &lattice.lattice;
         if mesh.topology_version == 0 || lattice.is_changed() {
+            let touched = explained_by_cut(mesh, l, cut.bodies.iter().find(|c| c.body == body));
             mesh.topology = match &mesh.render_mesh {
                 None if mesh.options.smooth => {
                     let mut surface = extract(l);
                     smooth(l, &mut surface);
                     surface
                 }
-                None => extract(l),
+                None => touched
+                    .and_then(|touched| update(l, &mesh.topology, &touched))
+                    .unwrap_or_else(|| extract(l)),
                 Some(render) => {
                     let (surface, faces) = extract_with_faces(l);
                     render.drawn(l, &surface, &faces)
@@ -41,6 +51,7 @@ pub fn update_surfaces(
             mesh.rotations = vec![Mat3A::IDENTITY; layout.carrier_count()];
             mesh.gathered = layout.carry_positions(&mesh.layout, &mesh.gathered);
             mesh.layout = layout;
+            mesh.seen = (l.len(), l.live_count());
             mesh.topology_version += 1;
             changed.write(SurfaceChanged {
                 body,
@@ -79,4 +90,30 @@ pub fn update_surfaces(
             &mut mesh.normals,
         );
     }
+}
+
+/// The particles this frame's cut touched in a body (removed, split, or with links
+/// severed or made) when they account for every change to its lattice since `mesh` was
+/// last brought up to date — its particle counts then, moved by what the cut removed
+/// and split, are the lattice's now — so that a local update will do; `None` for a
+/// change from elsewhere, or a surface never extracted.
+fn explained_by_cut(
+    mesh: &SurfaceMesh,
+    lattice: &Lattice,
+    cut: Option<&BodyCutReport>,
+) -> Option<Vec<u32>> {
+    let cut = cut.filter(|_| mesh.topology_version > 0)?;
+    let (len, live) = mesh.seen;
+    let expected = (
+        len + cut.splits.len(),
+        (live + cut.splits.len()).checked_sub(cut.removed.len())?,
+    );
+    if expected != (lattice.len(), lattice.live_count()) {
+        return None;
+    }
+    let mut touched: Vec<u32> = cut.removed.clone();
+    for &(a, b) in cut.splits.iter().chain(&cut.severed).chain(&cut.relinked) {
+        touched.extend([a, b]);
+    }
+    Some(touched)
 }

@@ -1,8 +1,7 @@
 //! `cleave bench --surface`: what a body's drawable surface costs on an n³ box — the
-//! surface stage's per-frame update (particles' frames, vertex positions and normals)
-//! and the extraction of the whole surface, intact and after a slice through its
-//! middle. Every topology change extracts the whole surface again today; the slice
-//! row says what that costs.
+//! surface stage's per-frame update (particles' frames, vertex positions and normals),
+//! the extraction of the whole surface, intact and after a slice through its middle,
+//! and the local update that brings the intact surface up to date after that slice.
 
 use crate::analysis::bench::median;
 use crate::body::shape::Shape;
@@ -12,6 +11,7 @@ use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::{CleaveError, Result};
 use crate::sim::simulation::Simulation;
 use crate::surface::extract;
+use crate::surface::update::update;
 use crate::systems::surface::update_surfaces;
 use glam::{UVec3, Vec3};
 use serde::Serialize;
@@ -40,6 +40,9 @@ pub struct SurfaceRow {
     pub sliced_extract_ms: f64,
     /// Triangles after the slice.
     pub sliced_triangles: usize,
+    /// Median wall time of bringing the intact surface up to date after the slice by a
+    /// local update ([`crate::surface::update`]), ms.
+    pub local_update_ms: f64,
 }
 
 /// Times the surface of an n³ box falling under gravity: `steps` frames' updates, and
@@ -56,11 +59,11 @@ pub fn bench_surface(
     let body = sim.spawn_body(&desc)?;
     sim.run(3);
     let world = sim.world_mut();
-    let update = world.register_system(update_surfaces);
+    let stage = world.register_system(update_surfaces);
     let run = |sim: &mut Simulation| -> Result<f64> {
         let start = Instant::now();
         sim.world_mut()
-            .run_system(update)
+            .run_system(stage)
             .map_err(|e| CleaveError::InvalidEntity(format!("surface stage: {e}")))?;
         Ok(start.elapsed().as_secs_f64() * 1e3)
     };
@@ -99,10 +102,22 @@ pub fn bench_surface(
         .filter(|&(a, b)| lattice.coord(a).x.min(lattice.coord(b).x) == middle - 1)
         .filter(|&(a, b)| lattice.coord(a).x != lattice.coord(b).x)
         .collect();
+    let intact = extract(&lattice);
+    let mut touched = Vec::new();
     for (a, b) in crossing {
         lattice.sever(a, b);
+        touched.extend([a, b]);
     }
     let (sliced_extract_ms, sliced_triangles) = extraction(&lattice);
+    let mut samples: Vec<f64> = (0..steps.max(1))
+        .map(|_| {
+            let start = Instant::now();
+            let t = update(&lattice, &intact, &touched);
+            std::hint::black_box(&t);
+            start.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    let local_update_ms = median(&mut samples);
     Ok(SurfaceRow {
         row: "surface",
         size: n,
@@ -113,5 +128,6 @@ pub fn bench_surface(
         extract_ms,
         sliced_extract_ms,
         sliced_triangles,
+        local_update_ms,
     })
 }

@@ -36,6 +36,8 @@ pub struct SurfaceMesh {
     pub(crate) render_mesh: Option<Arc<EmbeddedMesh>>,
     /// How the lattice's surface is drawn.
     pub(crate) options: SurfaceOptions,
+    /// The lattice's particles and live particles when the triangles were last made.
+    pub(crate) seen: (usize, usize),
 }
 
 impl SurfaceMesh {

@@ -37,6 +37,12 @@ pub struct SurfaceTopology {
     pub triangle_piece: Vec<u32>,
     /// The particles any vertex is bound to, ascending.
     pub particles: Vec<u32>,
+    /// For a lattice's surface, the face each quad lies on (triangles `2q` and `2q + 1`
+    /// are quad `q`'s), each vertex's grid corner, and the sub-cells per cell: what a
+    /// local update ([`super::update`]) needs. Empty for a render mesh.
+    pub(crate) quads: Vec<Quad>,
+    pub(crate) corners: Vec<IVec3>,
+    pub(crate) resolution: i32,
 }
 
 /// One particle carrying a vertex.
@@ -101,18 +107,7 @@ pub fn extract_with_faces(lattice: &Lattice) -> (SurfaceTopology, Vec<LatticeFac
     let mut quads = Vec::new();
     for p in lattice.live_particles().filter(|&p| !owners.is_enclosed(p)) {
         for s in owners.owned_by(p) {
-            for (d, offset) in NEIGHBOUR_OFFSETS.iter().enumerate() {
-                if !owners
-                    .owner(s + *offset)
-                    .is_some_and(|q| owners.joined(s, p, d, q))
-                {
-                    quads.push(Quad {
-                        cell: s,
-                        direction: d as u8,
-                        owner: p,
-                    });
-                }
-            }
+            push_faces(&owners, s, p, &mut quads);
         }
     }
     let (class_of, classes) = vertex_classes(&owners, &quads);
@@ -120,31 +115,14 @@ pub fn extract_with_faces(lattice: &Lattice) -> (SurfaceTopology, Vec<LatticeFac
         binding_start: vec![0],
         ..SurfaceTopology::default()
     };
-    let h = lattice.spacing() / owners.resolution() as f32;
     for members in &classes {
-        let (q, k) = (members[0] / 4, members[0] % 4);
-        let corner = face_corners(quads[q as usize].cell, quads[q as usize].direction)[k as usize];
-        let rest = corner.as_vec3() * h;
-        topology.rest.push(rest);
-        let cells: Vec<IVec3> = members
-            .iter()
-            .map(|s| quads[(s / 4) as usize].cell)
-            .collect();
-        bind(&owners, corner, rest, &cells, &mut topology);
+        add_vertex(&owners, &quads, members, &mut topology);
     }
-    let (piece, _) = body_pieces(lattice);
-    for (q, quad) in quads.iter().enumerate() {
+    for q in 0..quads.len() {
         let v: [u32; 4] = std::array::from_fn(|k| class_of[q * 4 + k]);
-        topology.triangles.push([v[0], v[1], v[2]]);
-        topology.triangles.push([v[0], v[2], v[3]]);
-        topology
-            .triangle_piece
-            .extend([piece[quad.owner as usize]; 2]);
+        push_quad(&mut topology, v);
     }
-    let mut particles: Vec<u32> = topology.bindings.iter().map(|b| b.particle).collect();
-    particles.sort_unstable();
-    particles.dedup();
-    topology.particles = particles;
+    topology.resolution = owners.resolution();
     let faces = quads
         .iter()
         .map(|q| LatticeFace {
@@ -152,7 +130,67 @@ pub fn extract_with_faces(lattice: &Lattice) -> (SurfaceTopology, Vec<LatticeFac
             across: owners.cell_of(q.cell + NEIGHBOUR_OFFSETS[q.direction as usize]),
         })
         .collect();
+    topology.quads = quads;
+    finish(lattice, &mut topology);
     (topology, faces)
+}
+
+/// Appends the quads of sub-cell `s`, owned by `p`: its faces toward sub-cells it is
+/// not joined to.
+pub(super) fn push_faces(owners: &CellOwners, s: IVec3, p: u32, quads: &mut Vec<Quad>) {
+    for (d, offset) in NEIGHBOUR_OFFSETS.iter().enumerate() {
+        if !owners
+            .owner(s + *offset)
+            .is_some_and(|q| owners.joined(s, p, d, q))
+        {
+            quads.push(Quad {
+                cell: s,
+                direction: d as u8,
+                owner: p,
+            });
+        }
+    }
+}
+
+/// Appends the vertex of the quad corner slots `members` (corner `k` of quad `q` is
+/// slot `4q + k`), all at one grid corner, with its bindings.
+pub(super) fn add_vertex(
+    owners: &CellOwners,
+    quads: &[Quad],
+    members: &[u32],
+    topology: &mut SurfaceTopology,
+) {
+    let (q, k) = (members[0] / 4, members[0] % 4);
+    let corner = face_corners(quads[q as usize].cell, quads[q as usize].direction)[k as usize];
+    let rest = corner.as_vec3() * (owners.lattice().spacing() / owners.resolution() as f32);
+    topology.rest.push(rest);
+    topology.corners.push(corner);
+    let cells: Vec<IVec3> = members
+        .iter()
+        .map(|s| quads[(s / 4) as usize].cell)
+        .collect();
+    bind(owners, corner, rest, &cells, topology);
+}
+
+/// Appends the two triangles of a quad with corner vertices `v` (counter-clockwise).
+pub(super) fn push_quad(topology: &mut SurfaceTopology, v: [u32; 4]) {
+    topology.triangles.push([v[0], v[1], v[2]]);
+    topology.triangles.push([v[0], v[2], v[3]]);
+}
+
+/// Numbers the triangles by piece, from their quads' owners, and lists the particles
+/// the vertices are bound to.
+pub(super) fn finish(lattice: &Lattice, topology: &mut SurfaceTopology) {
+    let (piece, _) = body_pieces(lattice);
+    topology.triangle_piece = topology
+        .quads
+        .iter()
+        .flat_map(|quad| [piece[quad.owner as usize]; 2])
+        .collect();
+    let mut particles: Vec<u32> = topology.bindings.iter().map(|b| b.particle).collect();
+    particles.sort_unstable();
+    particles.dedup();
+    topology.particles = particles;
 }
 
 /// Appends the bindings of the vertex at grid corner `w` (resting at `rest`) whose

@@ -10,6 +10,7 @@ pub mod embed;
 pub mod extract;
 pub mod fans;
 pub mod smooth;
+pub mod update;
 
 pub use carry::CarryLayout;
 pub use extract::{Binding, SurfaceTopology, extract};

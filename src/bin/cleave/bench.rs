@@ -180,7 +180,7 @@ pub fn bench_surfaces(
             rayon::current_num_threads()
         );
         println!(
-            "{:>5} {:>9} {:>9} {:>9} {:>10} {:>11} {:>11} {:>11}",
+            "{:>5} {:>9} {:>9} {:>9} {:>10} {:>11} {:>11} {:>11} {:>9}",
             "size",
             "particles",
             "vertices",
@@ -188,7 +188,8 @@ pub fn bench_surfaces(
             "frame ms",
             "extract ms",
             "sliced ms",
-            "sliced tris"
+            "sliced tris",
+            "local ms"
         );
     }
     for &n in sizes {
@@ -197,7 +198,7 @@ pub fn bench_surfaces(
             print_json(&row)?;
         } else {
             println!(
-                "{:>5} {:>9} {:>9} {:>9} {:>10.3} {:>11.3} {:>11.3} {:>11}",
+                "{:>5} {:>9} {:>9} {:>9} {:>10.3} {:>11.3} {:>11.3} {:>11} {:>9.3}",
                 row.size,
                 row.particles,
                 row.vertices,
@@ -205,7 +206,8 @@ pub fn bench_surfaces(
                 row.frame_ms,
                 row.extract_ms,
                 row.sliced_extract_ms,
-                row.sliced_triangles
+                row.sliced_triangles,
+                row.local_update_ms
             );
         }
     }

@@ -1,0 +1,341 @@
+//! Bringing a lattice surface up to date after a cut without extracting it again: only
+//! the quads and vertices near the particles the cut touched are rebuilt, and spliced
+//! into the rest, which keeps its vertices and triangles (renumbered).
+//!
+//! What a cut can change is local. A quad depends on its sub-cell, the one across its
+//! face and their owners' link; a vertex's class and bindings on the sub-cells around
+//! its corner and, through the pinch rule of [`super::fans`], around the six corners
+//! next to it. So with `C` the cells of the touched particles:
+//! - quads change only on faces of `C`'s sub-cells, and vertices only at corners of
+//!   sub-cells of `C ⊕ 1` (the cells within one of `C`, counting diagonals): those
+//!   corners are rebuilt;
+//! - the quads of `C ⊕ 3` are extracted afresh: every quad around a rebuilt corner and
+//!   around its neighbours lies in it, so its classes there are exactly those a full
+//!   extraction finds; a fresh quad's corners that are not rebuilt keep the vertex the
+//!   same quad had before (such a quad is unchanged).
+//!
+//! The pieces are numbered again over the whole body, as a full extraction numbers
+//! them. A change of resolution (a body's first split particle) needs a full
+//! extraction; so does a surface that is not a lattice's.
+
+use super::cells::{CellOwners, face_corners, octant};
+use super::extract::{SurfaceTopology, add_vertex, finish, push_faces, push_quad};
+use super::fans::vertex_classes;
+use crate::body::lattice::Lattice;
+use glam::IVec3;
+use rustc_hash::FxHashMap;
+
+/// The surface of `lattice` after a change that touched only the particles `touched`
+/// (removed, split — both halves —, or with links severed or made), from `old`, its
+/// surface before; `None` when only a full extraction will do (see the module docs).
+pub fn update(
+    lattice: &Lattice,
+    old: &SurfaceTopology,
+    touched: &[u32],
+) -> Option<SurfaceTopology> {
+    let owners = CellOwners::new(lattice);
+    let res = owners.resolution();
+    if old.quads.is_empty() || res != old.resolution {
+        return None;
+    }
+    let Some(changed) = CellSet::around(touched.iter().map(|&p| lattice.coord(p)), 3) else {
+        return Some(old.clone());
+    };
+    let near = changed.dilated(1);
+    // C ⊕ 3
+    let region = near.dilated(2);
+    let in_region = |s: IVec3| region.contains(owners.cell_of(s));
+    let rebuilt = |w: IVec3| (0..8).any(|k| near.contains(owners.cell_of(w - octant(k))));
+    // the fresh quads of the region, in a fixed order
+    let mut quads = Vec::new();
+    for c in region.cells() {
+        for k in 0..(res * res * res) as u32 {
+            let s = c * res + octant(k) * (res - 1);
+            if let Some(p) = owners.owner(s) {
+                push_faces(&owners, s, p, &mut quads);
+            }
+        }
+    }
+    let (class_of, classes) = vertex_classes(&owners, &quads);
+    // the old quads inside the region are replaced; the old vertices at rebuilt corners
+    // go, the others are renumbered in order
+    let old_quad: FxHashMap<(IVec3, u8), usize> = old
+        .quads
+        .iter()
+        .enumerate()
+        .filter(|(_, q)| in_region(q.cell))
+        .map(|(i, q)| ((q.cell, q.direction), i))
+        .collect();
+    let mut topology = SurfaceTopology {
+        binding_start: vec![0],
+        resolution: res,
+        ..SurfaceTopology::default()
+    };
+    let mut renumbered = vec![u32::MAX; old.vertex_count()];
+    for (v, &corner) in old.corners.iter().enumerate() {
+        if !rebuilt(corner) {
+            renumbered[v] = topology.rest.len() as u32;
+            topology.rest.push(old.rest[v]);
+            topology.corners.push(corner);
+            topology.bindings.extend_from_slice(old.bindings_of(v));
+            topology.binding_start.push(topology.bindings.len() as u32);
+        }
+    }
+    let old_corners = |q: usize| -> [u32; 4] {
+        let [a, b, c] = old.triangles[2 * q];
+        [a, b, c, old.triangles[2 * q + 1][2]]
+    };
+    for (q, quad) in old.quads.iter().enumerate() {
+        if !in_region(quad.cell) {
+            topology.quads.push(*quad);
+            push_quad(
+                &mut topology,
+                old_corners(q).map(|v| renumbered[v as usize]),
+            );
+        }
+    }
+    let mut vertex_of_class = vec![u32::MAX; classes.len()];
+    for (q, quad) in quads.iter().enumerate() {
+        let corners = face_corners(quad.cell, quad.direction);
+        let mut v = [0u32; 4];
+        for k in 0..4 {
+            let class = class_of[4 * q + k] as usize;
+            v[k] = if rebuilt(corners[k]) {
+                if vertex_of_class[class] == u32::MAX {
+                    vertex_of_class[class] = topology.rest.len() as u32;
+                    add_vertex(&owners, &quads, &classes[class], &mut topology);
+                }
+                vertex_of_class[class]
+            } else {
+                // an unchanged quad at a corner nothing changed around
+                let &was = old_quad.get(&(quad.cell, quad.direction))?;
+                let kept = renumbered[old_corners(was)[k] as usize];
+                if kept == u32::MAX {
+                    return None;
+                }
+                kept
+            };
+        }
+        topology.quads.push(*quad);
+        push_quad(&mut topology, v);
+    }
+    finish(lattice, &mut topology);
+    Some(topology)
+}
+
+/// A set of cells: flags over a box.
+struct CellSet {
+    min: IVec3,
+    dims: IVec3,
+    flags: Vec<bool>,
+}
+
+impl CellSet {
+    /// `cells`, in a box with room for `margin` cells around them; `None` for no cells.
+    fn around(cells: impl Iterator<Item = IVec3> + Clone, margin: i32) -> Option<Self> {
+        let (lo, hi) = cells.clone().fold((IVec3::MAX, IVec3::MIN), |(lo, hi), c| {
+            (lo.min(c), hi.max(c))
+        });
+        if lo.cmpgt(hi).any() {
+            return None;
+        }
+        let min = lo - IVec3::splat(margin);
+        let dims = hi - lo + IVec3::splat(2 * margin + 1);
+        let mut set = Self {
+            min,
+            dims,
+            flags: vec![false; dims.as_i64vec3().element_product() as usize],
+        };
+        for c in cells {
+            let i = set.index(c).expect("inside its own box");
+            set.flags[i] = true;
+        }
+        Some(set)
+    }
+
+    fn index(&self, c: IVec3) -> Option<usize> {
+        let d = c - self.min;
+        if d.cmplt(IVec3::ZERO).any() || d.cmpge(self.dims).any() {
+            return None;
+        }
+        Some(((d.z * self.dims.y + d.y) * self.dims.x + d.x) as usize)
+    }
+
+    fn contains(&self, c: IVec3) -> bool {
+        self.index(c).is_some_and(|i| self.flags[i])
+    }
+
+    /// The cells within `r` of these (counting diagonals; the box must have room): a
+    /// sweep along each axis in turn.
+    fn dilated(&self, r: i32) -> Self {
+        let mut flags = self.flags.clone();
+        let stride = [
+            1,
+            self.dims.x as usize,
+            (self.dims.x * self.dims.y) as usize,
+        ];
+        for axis in 0..3 {
+            let from = flags.clone();
+            let n = self.dims[axis] as usize;
+            for (i, flag) in flags.iter_mut().enumerate() {
+                let at = i / stride[axis] % n;
+                let lo = at.saturating_sub(r as usize);
+                let hi = (at + r as usize).min(n - 1);
+                *flag = (lo..=hi).any(|j| from[i + j * stride[axis] - at * stride[axis]]);
+            }
+        }
+        Self {
+            min: self.min,
+            dims: self.dims,
+            flags,
+        }
+    }
+
+    /// The cells, in order of z, then y, then x.
+    fn cells(&self) -> impl Iterator<Item = IVec3> + '_ {
+        let (nx, ny) = (self.dims.x as usize, self.dims.y as usize);
+        self.flags
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| **f)
+            .map(move |(i, _)| {
+                self.min + IVec3::new((i % nx) as i32, (i / nx % ny) as i32, (i / nx / ny) as i32)
+            })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::body::lattice::NEIGHBOUR_OFFSETS;
+    use crate::surface::extract::extract;
+    use rand::{Rng, SeedableRng};
+
+    /// The surface as what does not depend on numbering: per vertex, its rest place,
+    /// its bindings and the quad corners (quad face, corner) it joins; per quad face,
+    /// its piece.
+    fn canonical(t: &SurfaceTopology) -> (Vec<String>, Vec<String>) {
+        let mut slots: Vec<Vec<(IVec3, u8, usize)>> = vec![Vec::new(); t.vertex_count()];
+        let mut pieces = Vec::new();
+        for (q, quad) in t.quads.iter().enumerate() {
+            let [a, b, c] = t.triangles[2 * q];
+            let d = t.triangles[2 * q + 1][2];
+            for (k, v) in [a, b, c, d].into_iter().enumerate() {
+                slots[v as usize].push((quad.cell, quad.direction, k));
+            }
+            assert_eq!(t.triangle_piece[2 * q], t.triangle_piece[2 * q + 1]);
+            pieces.push(format!(
+                "{:?} {} {}",
+                quad.cell,
+                quad.direction,
+                t.triangle_piece[2 * q]
+            ));
+        }
+        let mut vertices: Vec<String> = (0..t.vertex_count())
+            .map(|v| {
+                let mut s = slots[v].clone();
+                s.sort_by_key(|(c, d, k)| (c.x, c.y, c.z, *d, *k));
+                let mut b: Vec<(u32, i32)> = t
+                    .bindings_of(v)
+                    .iter()
+                    .map(|b| (b.particle, (b.weight * 1e4).round() as i32))
+                    .collect();
+                b.sort_unstable();
+                format!("{:?} {:?} {:?}", (t.rest[v] * 1e4).round(), b, s)
+            })
+            .collect();
+        vertices.sort();
+        pieces.sort();
+        (vertices, pieces)
+    }
+
+    #[test]
+    fn a_local_update_is_the_full_extraction_after_every_kind_of_cut() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(51);
+        let mut updates = 0;
+        for case in 0..40 {
+            let dims = IVec3::new(
+                rng.random_range(3..10),
+                rng.random_range(3..10),
+                rng.random_range(3..10),
+            );
+            let coords: Vec<IVec3> = (0..dims.x * dims.y * dims.z)
+                .map(|k| IVec3::new(k % dims.x, k / dims.x % dims.y, k / dims.x / dims.y))
+                .filter(|_| rng.random_bool(0.9))
+                .collect();
+            let Ok(mut lattice) = Lattice::from_coords(0.1, coords) else {
+                continue;
+            };
+            // split bodies from the start in half the cases: they draw octants
+            let split_first = case % 2 == 0;
+            if split_first {
+                let p = lattice.live_particles().next().unwrap();
+                lattice.split(p, [true, false, false, false, false, false]);
+            }
+            let mut surface = extract(&lattice);
+            for step in 0..6 {
+                let live: Vec<u32> = lattice.live_particles().collect();
+                let mut touched = Vec::new();
+                for _ in 0..rng.random_range(1..6) {
+                    let p = live[rng.random_range(0..live.len())];
+                    if !lattice.is_live(p) {
+                        continue;
+                    }
+                    match rng.random_range(0..3) {
+                        0 => {
+                            lattice.remove(p);
+                            touched.push(p);
+                        }
+                        1 => {
+                            if let Some(q) = lattice.neighbours(p).next() {
+                                lattice.sever(p, q);
+                                touched.extend([p, q]);
+                            }
+                        }
+                        _ if split_first => {
+                            // the edges on one side of a blade, as the cut plans them
+                            let n = glam::Vec3::new(
+                                rng.random_range(-1.0..1.0),
+                                rng.random_range(-1.0..1.0),
+                                rng.random_range(-1.0..1.0),
+                            );
+                            let moves: [bool; 6] = std::array::from_fn(|d| {
+                                NEIGHBOUR_OFFSETS[d].as_vec3().dot(n) > 0.0
+                            });
+                            if let Some(q) = lattice.split(p, moves) {
+                                touched.extend([p, q]);
+                            }
+                        }
+                        _ => {}
+                    }
+                }
+                let full = extract(&lattice);
+                match update(&lattice, &surface, &touched) {
+                    Some(local) => {
+                        let (a, b) = (canonical(&local), canonical(&full));
+                        let only = |x: &[String], y: &[String]| -> Vec<String> {
+                            x.iter()
+                                .filter(|s| !y.contains(s))
+                                .take(3)
+                                .cloned()
+                                .collect()
+                        };
+                        assert!(
+                            a == b,
+                            "case {case} step {step} res {}: local only {:?} / full only {:?}; pieces local only {:?} / full only {:?}",
+                            full.resolution,
+                            only(&a.0, &b.0),
+                            only(&b.0, &a.0),
+                            only(&a.1, &b.1),
+                            only(&b.1, &a.1)
+                        );
+                        updates += 1;
+                    }
+                    None => assert_ne!(full.resolution, surface.resolution),
+                }
+                surface = full;
+            }
+        }
+        assert!(updates > 150, "{updates} local updates checked");
+    }
+}
