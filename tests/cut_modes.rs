@@ -170,7 +170,7 @@ proptest! {
         let centre = desc.position + Vec3::from(offset);
         let world = sim.world_mut();
         let lattice = world.get::<BodyLattice>(body).unwrap().clone();
-        let (labels, count) = cleave::body::pieces::body_pieces(&lattice.lattice);
+        let (labels, count) = (&lattice.lattice.pieces().label, lattice.lattice.pieces().count);
         let mut sides = vec![(false, false); count];
         for p in lattice.lattice.live_particles() {
             let x = world.get::<Position>(lattice.particles[p as usize]).unwrap().0;
@@ -337,7 +337,7 @@ fn a_split_blade_through_a_layer_halves_its_particles_and_keeps_the_mass() {
     // position lies beyond the blade (x > 0.04 in the body frame), the other the rest
     // (the old halves rest a quarter cell beyond their cells' centres, the new a
     // quarter cell short of them)
-    let (labels, _) = cleave::body::pieces::body_pieces(&lattice);
+    let labels = &lattice.pieces().label;
     let side = |p: u32| lattice.rest_position(p).x > 0.04;
     let beyond = lattice.live_particles().find(|&p| side(p)).unwrap();
     for p in lattice.live_particles() {

@@ -108,6 +108,9 @@ pub fn bench_surface(
         lattice.sever(a, b);
         touched.extend([a, b]);
     }
+    // the cut stage counts the pieces in the frame it cuts, labelling them; the surface
+    // stage after it reads the same labels
+    lattice.piece_count();
     let (sliced_extract_ms, sliced_triangles) = extraction(&lattice);
     let mut samples: Vec<f64> = (0..steps.max(1))
         .map(|_| {

@@ -2,7 +2,6 @@
 //! shape, lowest particle, piece centroids.
 
 use crate::body::lattice::Lattice;
-use crate::body::pieces::body_pieces;
 use crate::ecs::components::*;
 use crate::math::rotation::extract_rotation;
 use bevy_ecs::prelude::*;
@@ -127,7 +126,7 @@ pub fn labelled_positions(world: &mut World) -> Vec<(Vec3, u32, u32)> {
     bodies.sort_unstable_by_key(|(e, _)| *e);
     let mut out = Vec::new();
     for (ordinal, (_, body)) in bodies.iter().enumerate() {
-        let (labels, _) = body_pieces(&body.lattice);
+        let labels = &body.lattice.pieces().label;
         for i in body.lattice.live_particles() {
             if let Some(p) = world.get::<Position>(body.particles[i as usize]) {
                 out.push((p.0, ordinal as u32, labels[i as usize]));
@@ -160,7 +159,7 @@ pub fn body_stats(world: &mut World, body: Entity) -> Option<BodyStats> {
             memberships += members.0.len();
         }
     }
-    let (labels, pieces) = body_pieces(l);
+    let (labels, pieces) = (&l.pieces().label, l.pieces().count);
     let mut groups: Vec<Vec<u32>> = vec![Vec::new(); pieces];
     for i in l.live_particles() {
         groups[labels[i as usize] as usize].push(i);

@@ -18,6 +18,7 @@ impl Lattice {
         self.links[a as usize][d] = NO_PARTICLE;
         self.links[b as usize][d ^ 1] = NO_PARTICLE;
         self.intact = false;
+        self.pieces.take();
         true
     }
 
@@ -58,6 +59,7 @@ impl Lattice {
         }
         self.links[a as usize][d] = b;
         self.links[b as usize][d ^ 1] = a;
+        self.pieces.take();
         true
     }
 
@@ -103,6 +105,7 @@ impl Lattice {
         self.live[j as usize / 64] |= 1 << (j % 64);
         self.live_count += 1;
         self.intact = false;
+        self.pieces.take();
         Some(j)
     }
 
@@ -128,6 +131,7 @@ impl Lattice {
         }
         self.live[i as usize / 64] &= !(1 << (i % 64));
         self.live_count -= 1;
+        self.pieces.take();
         true
     }
 }

@@ -55,6 +55,11 @@ pub struct Lattice {
     /// live particle is the one its cell names (nothing severed, nothing split): then
     /// the pieces can be counted from the occupancy grid alone.
     pub(super) intact: bool,
+    /// The pieces, labelled once after each edit and kept until the next
+    /// ([`Lattice::pieces`]): the cut counts them, contacts, the surface and the
+    /// checks read the same labels.
+    #[serde(skip)]
+    pub(super) pieces: std::sync::OnceLock<super::pieces::PieceLabels>,
 }
 
 impl Lattice {
@@ -90,6 +95,7 @@ impl Lattice {
             rest_shift: Vec::new(),
             carved: Vec::new(),
             intact: true,
+            pieces: std::sync::OnceLock::new(),
             coords,
         };
         for i in 0..lattice.coords.len() {

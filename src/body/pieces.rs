@@ -3,9 +3,18 @@
 
 use super::lattice::{Lattice, NO_PARTICLE};
 
-/// Labels every live particle with its piece (connected component of the whole body);
-/// removed particles get `u32::MAX`. Returns the labels and the number of pieces.
-pub fn body_pieces(lattice: &Lattice) -> (Vec<u32>, usize) {
+/// The pieces of a body, labelled: every live particle's piece (connected component of
+/// the whole body over the lattice's links), numbered from 0 in order of the lowest live
+/// particle in each; removed particles get `u32::MAX`.
+#[derive(Clone, Debug, Default)]
+pub struct PieceLabels {
+    /// The piece of each particle, by particle index (`u32::MAX`: removed).
+    pub label: Vec<u32>,
+    /// How many pieces there are.
+    pub count: usize,
+}
+
+fn label_pieces(lattice: &Lattice) -> PieceLabels {
     let mut label = vec![u32::MAX; lattice.len()];
     let mut pieces = 0u32;
     let mut stack = Vec::new();
@@ -25,12 +34,22 @@ pub fn body_pieces(lattice: &Lattice) -> (Vec<u32>, usize) {
         }
         pieces += 1;
     }
-    (label, pieces as usize)
+    PieceLabels {
+        label,
+        count: pieces as usize,
+    }
 }
 
 impl Lattice {
+    /// The body's pieces, labelled. Labelled on the first call after an edit (a search
+    /// over the links) and kept until the next edit, so every reader in a frame —
+    /// the cut's count, contacts, the surface — shares one labelling.
+    pub fn pieces(&self) -> &PieceLabels {
+        self.pieces.get_or_init(|| label_pieces(self))
+    }
+
     /// Number of pieces: connected components of the live particles under the
-    /// 6-neighbourhood (the count of [`body_pieces`], without labelling
+    /// 6-neighbourhood (the count of [`Lattice::pieces`], without labelling
     /// every particle). Works on runs of occupied cells along x: one pass over the grid,
     /// then a union–find over the runs, joining each run to the overlapping runs of the
     /// row below and of the slice below — a few operations per run instead of a search
@@ -39,8 +58,11 @@ impl Lattice {
     /// Once edges were severed or particles split ([`Lattice::is_intact`] false), the
     /// grid no longer tells the edges, and the pieces are labelled over the links.
     pub fn piece_count(&self) -> usize {
+        if let Some(labelled) = self.pieces.get() {
+            return labelled.count;
+        }
         if !self.intact {
-            return body_pieces(self).1;
+            return self.pieces().count;
         }
         let (nx, ny) = (self.dims.x as usize, self.dims.y as usize);
         if self.live_count == 0 || nx == 0 {
@@ -142,11 +164,49 @@ mod tests {
                     l.remove(p);
                 }
             }
-            let pieces = body_pieces(&l).1;
+            let pieces = label_pieces(&l).count;
             assert_eq!(l.piece_count(), pieces, "case {case}");
             counts.insert(pieces.min(4));
         }
         // empty, one, and several pieces all occurred
         assert_eq!(counts.into_iter().collect::<Vec<_>>(), [0, 1, 2, 3, 4]);
+    }
+
+    #[test]
+    fn the_kept_labels_follow_every_edit() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let coords = (0..5 * 5 * 5)
+            .map(|k| IVec3::new(k % 5, k / 5 % 5, k / 25))
+            .collect();
+        let mut l = Lattice::from_coords(1.0, coords).unwrap();
+        let mut severed = Vec::new();
+        for step in 0..200 {
+            l.pieces();
+            let live: Vec<u32> = l.live_particles().collect();
+            let p = live[rng.random_range(0..live.len())];
+            match step % 4 {
+                0 => {
+                    l.remove(p);
+                }
+                1 => {
+                    if let Some(q) = l.neighbours(p).next() {
+                        l.sever(p, q);
+                        severed.push((p, q));
+                    }
+                }
+                2 => {
+                    l.split(p, std::array::from_fn(|_| rng.random_bool(0.5)));
+                }
+                _ => {
+                    if let Some((a, b)) = severed.pop() {
+                        l.relink(a, b);
+                    }
+                }
+            }
+            let fresh = label_pieces(&l);
+            assert_eq!(l.pieces().label, fresh.label, "step {step}");
+            assert_eq!(l.piece_count(), fresh.count, "step {step}");
+        }
     }
 }

@@ -5,7 +5,6 @@
 
 use crate::body::graph::is_connected;
 use crate::body::lattice::Lattice;
-use crate::body::pieces::body_pieces;
 use crate::clusters::contained::subset;
 use petgraph::unionfind::UnionFind;
 use std::fmt;
@@ -146,7 +145,7 @@ pub fn check_body<'a>(
             out.push(Violation::Uncovered { particle: p });
         }
     }
-    let (piece, count) = body_pieces(lattice);
+    let (piece, count) = (&lattice.pieces().label, lattice.pieces().count);
     let mut roots: Vec<Vec<u32>> = vec![Vec::new(); count];
     for p in lattice.live_particles().filter(|p| covered[*p as usize]) {
         roots[piece[p as usize] as usize].push(sets.find(p));

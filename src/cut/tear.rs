@@ -12,7 +12,6 @@
 //! crumble into dust where it is crushed or whipped.
 
 use crate::body::lattice::Lattice;
-use crate::body::pieces::body_pieces;
 use glam::{IVec3, Mat3, Vec3};
 use rayon::prelude::*;
 
@@ -219,12 +218,12 @@ pub fn sever_keeping_pieces(
     if severed.is_empty() || min_piece <= 1 {
         return severed;
     }
-    let (label, pieces) = body_pieces(lattice);
-    let mut size = vec![0usize; pieces];
+    let labels = lattice.pieces();
+    let mut size = vec![0usize; labels.count];
     for p in lattice.live_particles() {
-        size[label[p as usize] as usize] += 1;
+        size[labels.label[p as usize] as usize] += 1;
     }
-    let small = |p: u32| size[label[p as usize] as usize] < min_piece;
+    let small = |p: u32| size[labels.label[p as usize] as usize] < min_piece;
     let (kept, restored): (Vec<_>, Vec<_>) = severed
         .into_iter()
         .partition(|&(a, b)| !small(a) && !small(b));

@@ -62,7 +62,7 @@ impl SurfaceMesh {
     }
 
     /// Per triangle, the piece of the body it bounds (numbered as
-    /// [`crate::body::pieces::body_pieces`] numbers them).
+    /// [`crate::body::lattice::Lattice::pieces`] numbers them).
     pub fn triangle_pieces(&self) -> &[u32] {
         &self.topology.triangle_piece
     }

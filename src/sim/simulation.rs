@@ -272,7 +272,7 @@ impl Simulation {
             .get::<BodyLattice>(body)
             .ok_or_else(|| CleaveError::not_a("a body", body))?
             .lattice;
-        let (labels, count) = crate::body::pieces::body_pieces(lattice);
+        let (labels, count) = (&lattice.pieces().label, lattice.pieces().count);
         let mut pieces = vec![Vec::new(); count];
         for i in lattice.live_particles() {
             pieces[labels[i as usize] as usize].push(i);

@@ -18,7 +18,6 @@
 use super::cells::octant;
 use super::extract::{Binding, LatticeFace, SurfaceTopology};
 use crate::body::lattice::Lattice;
-use crate::body::pieces::body_pieces;
 use crate::error::{CleaveError, Result};
 use crate::geometry::mesh::TriangleMesh;
 use glam::{IVec3, Vec3};
@@ -85,14 +84,14 @@ impl EmbeddedMesh {
     /// cut faces of `surface`, the lattice's surface (with its `faces`, from
     /// [`super::extract::extract_with_faces`]). The mesh's vertices come first, in its
     /// order, then those of the cut faces; triangles are numbered by piece as
-    /// [`body_pieces`] numbers them.
+    /// [`Lattice::pieces`] numbers them.
     pub fn drawn(
         &self,
         lattice: &Lattice,
         surface: &SurfaceTopology,
         faces: &[LatticeFace],
     ) -> SurfaceTopology {
-        let (piece, _) = body_pieces(lattice);
+        let piece = &lattice.pieces().label;
         // the mesh's vertices keep their numbers (a renderer's texture coordinates and
         // other per-vertex data stay valid), whether or not a drawn triangle uses them
         let mut drawn = SurfaceTopology {

@@ -16,7 +16,6 @@
 use super::cells::{CellOwners, face_corners, octant};
 use super::fans::{Quad, vertex_classes};
 use crate::body::lattice::{Lattice, NEIGHBOUR_OFFSETS};
-use crate::body::pieces::body_pieces;
 use glam::{IVec3, Vec3};
 
 /// The surface's topology and its binding to the particles: what changes only when the
@@ -33,7 +32,7 @@ pub struct SurfaceTopology {
     /// Triangles (vertex indices), counter-clockwise seen from outside.
     pub triangles: Vec<[u32; 3]>,
     /// Per triangle, the piece (connected component of the body, as
-    /// [`body_pieces`] numbers them) it bounds.
+    /// [`Lattice::pieces`] numbers them) it bounds.
     pub triangle_piece: Vec<u32>,
     /// The particles any vertex is bound to, ascending.
     pub particles: Vec<u32>,
@@ -181,7 +180,7 @@ pub(super) fn push_quad(topology: &mut SurfaceTopology, v: [u32; 4]) {
 /// Numbers the triangles by piece, from their quads' owners, and lists the particles
 /// the vertices are bound to.
 pub(super) fn finish(lattice: &Lattice, topology: &mut SurfaceTopology) {
-    let (piece, _) = body_pieces(lattice);
+    let piece = &lattice.pieces().label;
     topology.triangle_piece = topology
         .quads
         .iter()

@@ -193,7 +193,7 @@ pub(crate) fn piece_separation(
     end: &[glam::Vec3],
     h: f32,
 ) -> (f64, f64) {
-    let (labels, pieces) = cleave::body::pieces::body_pieces(lattice);
+    let (labels, pieces) = (&lattice.pieces().label, lattice.pieces().count);
     if pieces < 2 {
         return (0.0, 0.0);
     }

@@ -14,7 +14,6 @@ pub mod canvas;
 pub mod encode;
 pub mod surfaces;
 
-use crate::body::pieces::body_pieces;
 use crate::config::GroundPlane;
 use crate::cut::tool::{Pose, ToolShape};
 use crate::ecs::components::{
@@ -131,7 +130,7 @@ pub fn snapshot(world: &mut World, mode: ColorMode, draw: Draw) -> Snapshot {
     let mut piece_offset = 0u32;
     for (_, body, clusters, surface) in &bodies {
         let lattice = &body.lattice;
-        let (labels, pieces) = body_pieces(lattice);
+        let (labels, pieces) = (&lattice.pieces().label, lattice.pieces().count);
         let surface = surface.filter(|s| s.topology_version > 0 && draw != Draw::Particles);
         if let Some(s) = surface {
             surfaces.push(SurfaceToDraw {

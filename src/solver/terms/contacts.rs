@@ -17,7 +17,6 @@
 
 use super::contact_pairs::{ContactGroup, ContactParticles};
 use crate::body::lattice::Lattice;
-use crate::body::pieces::body_pieces;
 use crate::config::Material;
 use crate::solver::term::{NO_DENSE, ParticleState, Substep, Term, Topology};
 use glam::Vec3A;
@@ -128,8 +127,8 @@ impl Contacts {
             };
             let first_group = groups.len() as u32;
             // labels only where the body is in more than one piece
-            let labels = (body.pieces > 1).then(|| body_pieces(lattice));
-            let pieces = labels.as_ref().map_or(1, |(_, n)| *n).max(1);
+            let labels = (body.pieces > 1).then(|| lattice.pieces());
+            let pieces = labels.map_or(1, |l| l.count).max(1);
             groups.extend(std::iter::repeat_n(group, pieces));
             let mut taking_part: Vec<(u32, u32)> = lattice
                 .live_particles()
@@ -141,7 +140,7 @@ impl Contacts {
                 .collect();
             taking_part.sort_unstable();
             for (d, i) in taking_part {
-                let piece = labels.as_ref().map_or(0, |(l, _)| l[i as usize]);
+                let piece = labels.map_or(0, |l| l.label[i as usize]);
                 let radius = ball_radius(material, lattice, i);
                 particles.push(d, first_group + piece, lattice.coord(i), radius);
             }
