@@ -4,5 +4,6 @@
 pub mod carve;
 pub mod detection;
 pub mod particle_split;
+pub mod stroke;
 pub mod tear;
 pub mod tool;

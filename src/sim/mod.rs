@@ -1,5 +1,6 @@
 //! The headless facade ([`simulation::Simulation`]) and the Bevy plugin.
 
+pub mod interact;
 #[cfg(feature = "bevy_app")]
 pub mod plugin;
 pub mod simulation;
