@@ -37,6 +37,9 @@ pub struct ToolSweep {
     scale: f32,
     /// A blade's plane at the end of the motion.
     plane: Option<BladePlane>,
+    /// Whether a blade stays in that one plane throughout the motion (turning about
+    /// its normal, moving along the plane).
+    in_plane: bool,
 }
 
 impl ToolSweep {
@@ -68,8 +71,18 @@ impl ToolSweep {
                 offset: normal.dot(current.position),
             }
         });
+        // a blade that turns about its normal and moves along its plane never leaves
+        // it: then only an edge with its ends on both sides can be separated — a test
+        // that also keeps the sweep's slack from severing edges that lie along the
+        // plane (which would free the particles on it)
+        let in_plane = plane.is_some_and(|p| {
+            let before = last.rotation.normalize() * Vec3::Z;
+            let moved = current.position - last.position;
+            before.dot(p.normal) > 1.0 - 1e-6 && p.normal.dot(moved).abs() <= 1e-6 * (1.0 + far)
+        });
         Some(Self {
             plane,
+            in_plane,
             core,
             radius,
             reach,
@@ -119,6 +132,12 @@ impl ToolSweep {
     pub fn separates_at(&self, (a, da): (Vec3, f32), (b, db): (Vec3, f32)) -> bool {
         if da < 0.0 || db < 0.0 {
             return false;
+        }
+        if let Some(plane) = self.plane.filter(|_| self.in_plane) {
+            let (sa, sb) = (plane.distance(a), plane.distance(b));
+            if !(sa < 0.0 && sb >= 0.0 || sb < 0.0 && sa >= 0.0) {
+                return false;
+            }
         }
         // every point of the segment lies within half its length of an end: when both
         // ends are farther than that, the segment cannot touch the tool (and the point
@@ -481,6 +500,47 @@ mod tests {
             if case == 0 {
                 assert_eq!(found.len(), 64, "every x edge across the middle");
             }
+        }
+    }
+
+    #[test]
+    fn a_blade_turning_in_its_plane_separates_exactly_the_edges_across_the_plane() {
+        use crate::body::shape::Shape;
+        use crate::cut::stroke::stroke_cut;
+        let lattice = Shape::cuboid(glam::UVec3::splat(8)).voxelise(0.1).unwrap();
+        let positions: Vec<Vec3> = (0..lattice.len() as u32)
+            .map(|p| lattice.rest_position(p))
+            .collect();
+        let tool = |shape| Tool {
+            shape,
+            cut_width: 0.101,
+            mode: CutMode::Sever,
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(12);
+        for case in 0..6 {
+            // a stroke seen from 3 m away whose fan covers the whole box
+            let eye = random_pose(&mut rng).rotation * Vec3::new(0.0, 0.0, 3.0);
+            let across = eye.any_orthonormal_vector();
+            let (from, to) = (across - 0.3 * eye, -across - 0.3 * eye);
+            let cut = stroke_cut(eye, from, to, 0.0, 5.0).unwrap();
+            let normal = from.cross(to).normalize();
+            let mut found = std::collections::BTreeSet::new();
+            for pair in cut.poses.windows(2) {
+                let sweep = ToolSweep::new(&tool(cut.shape), &pair[0], &pair[1]).unwrap();
+                for (a, b) in lattice.edges() {
+                    if sweep.separates(positions[a as usize], positions[b as usize]) {
+                        found.insert((a, b));
+                    }
+                }
+            }
+            let side = |p: u32| normal.dot(positions[p as usize] - eye) < 0.0;
+            let across: std::collections::BTreeSet<_> = lattice
+                .edges()
+                .into_iter()
+                .filter(|&(a, b)| side(a) != side(b))
+                .collect();
+            assert!(!across.is_empty(), "case {case}");
+            assert_eq!(found, across, "case {case}");
         }
     }
 
