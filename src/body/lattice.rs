@@ -24,6 +24,17 @@ pub const NEIGHBOUR_OFFSETS: [IVec3; 6] = [
 /// Largest number of lattice cells (bounding box) a body may span.
 pub const MAX_LATTICE_CELLS: u64 = 1 << 27;
 
+/// The pieces of a body, labelled: every live particle's piece (connected component of
+/// the whole body over the lattice's links), numbered from 0 in order of the lowest live
+/// particle in each; removed particles get `u32::MAX`.
+#[derive(Clone, Debug, Default)]
+pub struct PieceLabels {
+    /// The piece of each particle, by particle index (`u32::MAX`: removed).
+    pub label: Vec<u32>,
+    /// How many pieces there are.
+    pub count: usize,
+}
+
 /// Dense lattice of one body: maps integer coordinates to particle indices and back.
 ///
 /// Particle indices are stable for the life of the body (never reused); a removed
@@ -59,7 +70,7 @@ pub struct Lattice {
     /// ([`Lattice::pieces`]): the cut counts them, contacts, the surface and the
     /// checks read the same labels.
     #[serde(skip)]
-    pub(super) pieces: std::sync::OnceLock<super::pieces::PieceLabels>,
+    pub(super) pieces: std::sync::OnceLock<PieceLabels>,
 }
 
 impl Lattice {

@@ -1,18 +1,7 @@
 //! The pieces of a body: connected components of its live particles over the
 //! lattice's links, counted fast while the lattice is intact and labelled otherwise.
 
-use super::lattice::{Lattice, NO_PARTICLE};
-
-/// The pieces of a body, labelled: every live particle's piece (connected component of
-/// the whole body over the lattice's links), numbered from 0 in order of the lowest live
-/// particle in each; removed particles get `u32::MAX`.
-#[derive(Clone, Debug, Default)]
-pub struct PieceLabels {
-    /// The piece of each particle, by particle index (`u32::MAX`: removed).
-    pub label: Vec<u32>,
-    /// How many pieces there are.
-    pub count: usize,
-}
+use super::lattice::{Lattice, NO_PARTICLE, PieceLabels};
 
 fn label_pieces(lattice: &Lattice) -> PieceLabels {
     let mut label = vec![u32::MAX; lattice.len()];
