@@ -13,3 +13,4 @@ pub mod save;
 pub mod save_file;
 pub mod scene;
 pub mod scene_file;
+pub mod stream;

@@ -6,6 +6,8 @@ mod notices;
 mod pictures;
 mod run;
 mod summary;
+#[cfg(feature = "viewer")]
+mod view;
 
 use clap::{Parser, Subcommand};
 use cleave::config::{SimConfig, SolverMode};
@@ -182,6 +184,26 @@ enum Command {
         /// per-frame update, the extraction intact and after a slice).
         #[arg(long)]
         surface: bool,
+    },
+    /// Serve an interactive page: the simulation runs here, the browser draws it; orbit,
+    /// cut with a mouse stroke, grab and drag.
+    #[cfg(feature = "viewer")]
+    View {
+        /// Built-in scene name or a `.ron` scene file (default: slice).
+        scene: Option<String>,
+        /// Port to listen on (0: any free port, printed on start).
+        #[arg(long, default_value_t = 7878, value_parser = whole::<u16>, allow_negative_numbers = true)]
+        port: u16,
+        /// Address to listen on (only this machine by default).
+        #[arg(long, default_value = "127.0.0.1")]
+        host: String,
+        /// Random seed of the built-in scenes.
+        #[arg(long, default_value_t = 0, value_parser = whole::<u64>, allow_negative_numbers = true)]
+        seed: u64,
+        /// Worker threads of the simulation (default: all cores but one, left to the
+        /// browser drawing the page).
+        #[arg(long, value_parser = whole::<usize>, allow_negative_numbers = true)]
+        threads: Option<usize>,
     },
 }
 
@@ -385,6 +407,25 @@ fn main() -> ExitCode {
             };
             bench::bench(&sizes, steps, config, json, pile, no_edges)
         }),
+        #[cfg(feature = "viewer")]
+        Command::View {
+            scene,
+            port,
+            host,
+            seed,
+            threads,
+        } => with_threads(
+            Some(threads.unwrap_or_else(|| rayon::current_num_threads().saturating_sub(1).max(1))),
+            |threads| {
+                view::view(view::ViewArgs {
+                    scene,
+                    port,
+                    host,
+                    seed,
+                    threads,
+                })
+            },
+        ),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

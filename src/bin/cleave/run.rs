@@ -33,7 +33,7 @@ pub fn builtin_scene(name: &str, seed: u64) -> Result<Scene, String> {
 
 /// A built-in scene by name, or a scene file (a name ending in `.ron` or an existing
 /// file); `seed` overrides the scene's.
-fn load_scene(name: &str, seed: Option<u64>) -> Result<Scene, String> {
+pub(crate) fn load_scene(name: &str, seed: Option<u64>) -> Result<Scene, String> {
     let path = Path::new(name);
     let mut scene = if name.ends_with(".ron") || path.is_file() {
         load_scene_file(path)?
