@@ -39,13 +39,15 @@ pub enum Command {
     Release,
 }
 
+// (commands without fields are empty structs: serde refuses unknown fields only in
+// those, not in unit variants)
 #[derive(Deserialize)]
 #[serde(tag = "cmd", rename_all = "snake_case", deny_unknown_fields)]
 enum Wire {
-    Play,
-    Pause,
-    Step,
-    Reset,
+    Play {},
+    Pause {},
+    Step {},
+    Reset {},
     Scene {
         name: String,
     },
@@ -68,7 +70,7 @@ enum Wire {
         eye: [f32; 3],
         dir: [f32; 3],
     },
-    Release,
+    Release {},
 }
 
 /// Reads a page's message; an error says why it is refused.
@@ -89,10 +91,10 @@ pub fn parse(text: &str) -> Result<Command, String> {
         }
     };
     Ok(match wire {
-        Wire::Play => Command::Play,
-        Wire::Pause => Command::Pause,
-        Wire::Step => Command::Step,
-        Wire::Reset => Command::Reset,
+        Wire::Play {} => Command::Play,
+        Wire::Pause {} => Command::Pause,
+        Wire::Step {} => Command::Step,
+        Wire::Reset {} => Command::Reset,
         Wire::Scene { name } => Command::Scene(name),
         Wire::CutMode { mode } => Command::CutMode(match mode.as_str() {
             "remove" => CutMode::Remove,
@@ -108,7 +110,7 @@ pub fn parse(text: &str) -> Result<Command, String> {
         ),
         Wire::Grab { eye, dir } => Command::Grab(vector("eye", eye)?, vector("dir", dir)?),
         Wire::Drag { eye, dir } => Command::Drag(vector("eye", eye)?, vector("dir", dir)?),
-        Wire::Release => Command::Release,
+        Wire::Release {} => Command::Release,
     })
 }
 
