@@ -61,10 +61,11 @@ impl Runner {
         if !self.scripted_tools {
             scene.tools.clear();
         }
-        self.sim = Simulation::from_scene(&scene).map_err(|e| e.to_string())?;
-        self.sim
-            .update_surfaces()
+        // (a scene that will not build leaves the running one as it was)
+        let mut sim = Simulation::from_scene(&scene).map_err(|e| e.to_string())?;
+        sim.update_surfaces()
             .map_err(|e| format!("surfaces: {e}"))?;
+        self.sim = sim;
         self.current = index;
         self.interaction = Interaction::new();
         self.epoch += 1;
