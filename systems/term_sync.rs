@@ -1,13 +1,17 @@
 //! Keeps the terms in step with the ECS, once at the start of each frame (after the
 //! layout, in [`crate::systems::SyncSchedule`]): every term hears of a topology change
-//! of the layout ([`crate::solver::term::Topology`]); the attachments are taken from
-//! their entities when those change, and their targets every frame; contacts follow the
-//! `contacts` setting. Writes the solver cache only.
+//! of the layout ([`crate::solver::term::Topology`]); the attachments (each particle
+//! held, or only a set's centroid) are taken from their entities when those change,
+//! and their targets every frame; contacts follow the `contacts` setting. Writes the
+//! solver cache only.
 
-use crate::ecs::components::{Attachment, AttachmentTarget, AttachmentVelocity, Body, BodyLattice};
+use crate::ecs::components::{
+    Attachment, AttachmentTarget, AttachmentVelocity, Body, BodyLattice, Hold,
+};
 use crate::ecs::resources::{SimSettings, SolverCache};
 use crate::solver::term::{BodyTopology, ParticleKey, Topology};
 use crate::solver::terms::attachments::{self, Attachments};
+use crate::solver::terms::centroids::{Centroid, Centroids};
 use crate::solver::terms::contacts::Contacts;
 use bevy_ecs::prelude::*;
 
@@ -41,6 +45,9 @@ pub fn sync_terms(
     let attachments_changed = !changed.is_empty() || removed.read().count() > 0;
     let mut list: Vec<AttachmentItem> = attachments.iter().collect();
     list.sort_unstable_by_key(|(e, ..)| *e);
+    let (each, centroids): (Vec<AttachmentItem>, Vec<AttachmentItem>) = list
+        .into_iter()
+        .partition(|(_, a, ..)| a.hold == Hold::Each);
     let pending = pending_topology.take();
     if pending.is_some() || contacts_changed || attachments_changed {
         let pending = pending.unwrap_or_default();
@@ -64,27 +71,49 @@ pub fn sync_terms(
         };
         solver.topology(&topology);
         if attachments_changed && let Some(term) = solver.terms.get_mut::<Attachments>() {
-            term.set(list.iter().map(as_term).collect(), &topology);
+            term.set(each.iter().map(as_term).collect(), &topology);
+        }
+        if attachments_changed && let Some(term) = solver.terms.get_mut::<Centroids>() {
+            term.set(centroids.iter().map(as_centroid).collect(), &topology);
         }
     }
     if let Some(term) = solver.terms.get_mut::<Attachments>() {
-        for (i, (_, _, target, _)) in list.iter().enumerate() {
+        for (i, (_, _, target, _)) in each.iter().enumerate() {
             term.set_poses(i, target.reached, target.pose);
         }
+    }
+    if let Some(term) = solver.terms.get_mut::<Centroids>() {
+        for (i, (_, _, target, _)) in centroids.iter().enumerate() {
+            term.set_poses(i, target.reached, target.pose);
+        }
+    }
+}
+
+fn keys(a: &Attachment) -> Vec<ParticleKey> {
+    a.particles
+        .iter()
+        .map(|&local| ParticleKey {
+            body: a.body.to_bits(),
+            local,
+        })
+        .collect()
+}
+
+/// A centroid hold's entity as its term takes it.
+fn as_centroid((_, a, target, _): &AttachmentItem) -> Centroid {
+    Centroid {
+        particles: keys(a),
+        offsets: a.offsets.clone(),
+        compliance: a.compliance,
+        from: target.reached,
+        to: target.pose,
     }
 }
 
 /// An attachment entity as the term takes it.
 fn as_term((_, a, target, velocity): &AttachmentItem) -> attachments::Attachment {
     attachments::Attachment {
-        particles: a
-            .particles
-            .iter()
-            .map(|&local| ParticleKey {
-                body: a.body.to_bits(),
-                local,
-            })
-            .collect(),
+        particles: keys(a),
         offsets: a.offsets.clone(),
         compliance: a.compliance,
         from: target.reached,

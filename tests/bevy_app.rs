@@ -136,7 +136,7 @@ fn grab_and_release(world: &mut World) {
             .live_particles()
             .filter(|&p| lattice.coord(p).y == 1)
             .collect();
-        let a = cleave::ecs::attach::attach(world, body, &top, 1e-5).unwrap();
+        let a = cleave::ecs::attach::attach(world, body, &top, 1e-5, Hold::Each).unwrap();
         world.resource_mut::<Drag>().attachment = Some(a);
     } else if frame == 30 {
         let a = world.resource_mut::<Drag>().attachment.take().unwrap();

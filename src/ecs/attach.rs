@@ -32,14 +32,17 @@ pub fn check_compliance(field: &str, compliance: f32) -> Result<()> {
 }
 
 /// Spawns an attachment of `body`'s particles `particles` (body-local), which are at
-/// the world positions `positions` now, each held by a spring of `compliance` to its
-/// place relative to the target `pose`, which `motion` moves.
+/// the world positions `positions` now, each (or, by `hold`, only their centroid) held
+/// by a spring of `compliance` to its place relative to the target `pose`, which
+/// `motion` moves.
+#[allow(clippy::too_many_arguments)]
 pub fn spawn_attachment(
     world: &mut World,
     body: Entity,
     particles: Vec<u32>,
     positions: &[Vec3],
     compliance: f32,
+    hold: Hold,
     pose: Pose,
     motion: TargetMotion,
 ) -> Entity {
@@ -54,6 +57,7 @@ pub fn spawn_attachment(
             particles,
             offsets,
             compliance,
+            hold,
         },
         AttachmentTarget::at(pose),
     ));
@@ -75,14 +79,16 @@ pub fn centroid_pose(positions: &[Vec3]) -> Pose {
     Pose::at(sum / positions.len().max(1) as f32)
 }
 
-/// Attaches `body`'s live particles `particles` (body-local) where they are now, each by
-/// a spring of `compliance` (m/N; 0: hard), to a target at their centroid; returns the
-/// attachment. Move it through its [`AttachmentTarget`]; despawn it to let go.
+/// Attaches `body`'s live particles `particles` (body-local) where they are now, each
+/// (or, by `hold`, only their centroid) by a spring of `compliance` (m/N; 0: hard), to a
+/// target at their centroid; returns the attachment. Move it through its
+/// [`AttachmentTarget`]; despawn it to let go.
 pub fn attach(
     world: &mut World,
     body: Entity,
     particles: &[u32],
     compliance: f32,
+    hold: Hold,
 ) -> Result<Entity> {
     check_compliance("attachment", compliance)?;
     let lattice = world
@@ -112,6 +118,7 @@ pub fn attach(
         particles.to_vec(),
         &positions,
         compliance,
+        hold,
         pose,
         TargetMotion::Still,
     ))
@@ -123,7 +130,7 @@ pub fn pinned_particles(world: &mut World, body: Entity) -> Vec<u32> {
     let mut pinned: Vec<u32> = world
         .query::<&Attachment>()
         .iter(world)
-        .filter(|a| a.body == body && a.compliance == 0.0)
+        .filter(|a| a.body == body && a.compliance == 0.0 && a.hold == Hold::Each)
         .flat_map(|a| a.particles.iter().copied())
         .collect();
     pinned.sort_unstable();

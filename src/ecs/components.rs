@@ -249,8 +249,23 @@ pub struct Attachment {
     pub particles: Vec<u32>,
     /// Each particle's target in the frame of the target pose.
     pub offsets: Vec<Vec3>,
-    /// Compliance of each particle's spring, m/N (≥ 0; 0: hard).
+    /// Compliance of each particle's spring, m/N (≥ 0; 0: hard); of the centroid's
+    /// spring for a [`Hold::Centroid`].
     pub compliance: f32,
+    /// What is held: each particle, or only their centroid.
+    pub hold: Hold,
+}
+
+/// What an [`Attachment`] holds to its target.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum Hold {
+    /// Each particle to its own place (a pin, a drag).
+    #[default]
+    Each,
+    /// Only the particles' centroid, to the centroid of their places: the set deforms
+    /// freely about it (a grasper holding tissue; SPEC §6.1). See
+    /// [`crate::solver::terms::centroids`].
+    Centroid,
 }
 
 /// Where an attachment pulls: its target pose at the end of the frame being simulated

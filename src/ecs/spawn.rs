@@ -303,7 +303,16 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         }
         let pose = centroid_pose(&positions);
         let motion = TargetMotion::Velocity(pin.velocity);
-        spawn_attachment(world, body, particles, &positions, 0.0, pose, motion);
+        spawn_attachment(
+            world,
+            body,
+            particles,
+            &positions,
+            0.0,
+            Hold::Each,
+            pose,
+            motion,
+        );
     }
     for ((a, particles), positions) in desc.attachments.iter().zip(attached).zip(attached_at) {
         let path = a.path.normalized();
@@ -317,6 +326,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             particles,
             &positions,
             a.compliance,
+            Hold::Each,
             pose,
             motion,
         );

@@ -133,7 +133,21 @@ impl Simulation {
     /// returns the attachment. Move it with [`Simulation::move_attachment`]; despawn it to
     /// let go.
     pub fn attach(&mut self, body: Entity, particles: &[u32], compliance: f32) -> Result<Entity> {
-        crate::ecs::attach::attach(&mut self.world, body, particles, compliance)
+        crate::ecs::attach::attach(&mut self.world, body, particles, compliance, Hold::Each)
+    }
+
+    /// Holds the centroid of `body`'s live particles `particles` (body-local) where it is
+    /// now, by a spring of `compliance` (m/N; 0: hard), while the particles themselves
+    /// move freely about it (see [`crate::solver::terms::centroids`]); returns the hold,
+    /// an attachment: [`Simulation::move_attachment`] moves its target (a translation
+    /// moves the centroid's target by as much), [`Simulation::detach`] lets go.
+    pub fn hold_centroid(
+        &mut self,
+        body: Entity,
+        particles: &[u32],
+        compliance: f32,
+    ) -> Result<Entity> {
+        crate::ecs::attach::attach(&mut self.world, body, particles, compliance, Hold::Centroid)
     }
 
     /// Sets where attachment `attachment` pulls at the end of the next frame (its target

@@ -2,6 +2,7 @@
 
 use super::term::{Term, Topology};
 use super::terms::attachments::Attachments;
+use super::terms::centroids::Centroids;
 use super::terms::colliders::Colliders;
 use super::terms::contacts::Contacts;
 use super::terms::edges::Edges;
@@ -30,6 +31,7 @@ impl Terms {
     pub fn builtin() -> Self {
         let mut terms = Terms::default();
         terms.register(Attachments::default());
+        terms.register(Centroids::default());
         terms.register(Edges::default());
         terms.register(Contacts::default());
         terms.register(Colliders::default());

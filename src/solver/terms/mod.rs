@@ -2,6 +2,7 @@
 //! [`super::registry::Terms::builtin`].
 
 pub mod attachments;
+pub mod centroids;
 pub mod colliders;
 pub mod contact_pairs;
 pub mod contacts;
