@@ -134,7 +134,14 @@ fn bench_json_has_one_consistent_line_per_size() {
         let names: Vec<&str> = kinds.iter().map(|k| k.0).collect();
         assert_eq!(
             names,
-            ["clusters", "attachments", "edges", "contacts", "colliders"]
+            [
+                "clusters",
+                "attachments",
+                "centroids",
+                "edges",
+                "contacts",
+                "colliders"
+            ]
         );
         assert!(
             kinds[0].1 > 0.0 && kinds[0].1 < number("ms_per_step"),
