@@ -133,6 +133,7 @@ fn attachments_and_edges_resume_bit_for_bit() {
             keys: vec![(0.0, at(0.0)), (1.0, at(1.0))],
         },
         compliance: 1e-3,
+        hold: Hold::Each,
     }];
     for (name, scene) in [("soft_beam", beam), ("dragged", dragged)] {
         let mut straight = start(&scene);

@@ -491,3 +491,78 @@ fn numbers_that_are_not_whole_or_out_of_range_name_the_field_and_its_range() {
         assert!(err.contains(expected), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn centroid_holds_are_read_from_files_drag_their_body_and_are_checked() {
+    // the top layer of the 4×4×4 block (y = 0.65) held by its centroid, which a path
+    // moves 1 m along x over half a second
+    let text = GOOD.replace(
+        "spacing: 0.1,",
+        "spacing: 0.1, centroids: [(region: (min: (-1.0, 0.6, -1.0), max: (1.0, 2.0, 1.0)), \
+         path: [(0.0, (position: (0.0, 0.65, 0.0))), (0.5, (position: (1.0, 0.65, 0.0)))], \
+         compliance: 0.0)],",
+    );
+    let scene = SceneFile::parse(&text)
+        .unwrap()
+        .to_scene(Path::new("."))
+        .unwrap();
+    let holds = &scene.bodies[0].attachments;
+    assert_eq!(holds.len(), 1);
+    assert_eq!(holds[0].hold, Hold::Centroid);
+    // written back as a centroid hold
+    let ron = SceneFile::from_scene(&scene).unwrap().to_ron();
+    assert!(
+        ron.contains("centroids: [") && ron.contains("attachments: []"),
+        "{ron}"
+    );
+    let mut sim = Simulation::from_scene(&scene).unwrap();
+    let body = sim.bodies()[0];
+    let top: Vec<u32> = sim
+        .positions(body)
+        .unwrap()
+        .into_iter()
+        .filter(|(_, x)| x.y > 0.6)
+        .map(|(i, _)| i)
+        .collect();
+    assert_eq!(top.len(), 16);
+    sim.run(60);
+    let positions = sim.positions(body).unwrap();
+    let held = top
+        .iter()
+        .map(|p| positions.iter().find(|(i, _)| i == p).unwrap().1)
+        .sum::<glam::Vec3>()
+        / 16.0;
+    assert!(
+        held.distance(glam::Vec3::new(1.0, 0.65, 0.0)) < 1e-4 * 0.1,
+        "the held centroid is at {held}"
+    );
+    assert!(sim.centroid(body).unwrap().x > 0.8, "the block was dragged");
+    for (name, good, bad, expected) in [
+        (
+            "centneg.ron",
+            "compliance: 0.0)",
+            "compliance: -1.0)",
+            "bodies[0].centroids[0].compliance",
+        ),
+        (
+            "centorder.ron",
+            "(0.5, (position: (1.0",
+            "(-0.5, (position: (1.0",
+            "bodies[0].centroids[0].path",
+        ),
+        (
+            "centregion.ron",
+            "min: (-1.0, 0.6, -1.0)",
+            "min: (5.0, 0.6, -1.0)",
+            "centroids[0].region",
+        ),
+    ] {
+        let text = text.replace(good, bad);
+        let (code, err) = run_file(name, &text);
+        assert_eq!(code, Some(2), "{name}: {err}");
+        assert!(
+            err.contains(expected) && err.contains(name),
+            "{name}: {err}"
+        );
+    }
+}

@@ -228,6 +228,7 @@ fn a_block_dragged_by_a_soft_attachment_follows_and_stretches_it_as_its_complian
                 keys: vec![(0.1, at(0.0)), (0.6, at(1.0))],
             },
             compliance: 1e-4,
+            hold: Hold::Each,
         }];
         let body = sim.spawn_body(&desc).expect("a body");
         let start = sim.positions(body).expect("a body");
@@ -283,6 +284,7 @@ fn a_hard_attachment_holds_like_a_pin_and_a_despawned_one_lets_go() {
             region: p.region(),
             path: Path::default(),
             compliance: 0.0,
+            hold: Hold::Each,
         })
         .collect();
     attached.pins.clear();
@@ -431,6 +433,7 @@ fn bad_attachments_and_edge_compliances_are_errors_naming_the_field() {
             },
             path: Path::default(),
             compliance: bad,
+            hold: Hold::Each,
         }];
         assert!(
             err(sim.spawn_body(&d)).contains("body.attachments[0].compliance"),
@@ -443,6 +446,7 @@ fn bad_attachments_and_edge_compliances_are_errors_naming_the_field() {
             region,
             path,
             compliance: 0.0,
+            hold: Hold::Each,
         }];
         d
     };

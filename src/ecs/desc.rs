@@ -4,6 +4,7 @@
 use crate::body::shape::Shape;
 use crate::config::{Material, SimConfig};
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
+use crate::ecs::components::Hold;
 use crate::geometry::collider::ColliderShape;
 use crate::geometry::mesh::TriangleMesh;
 use glam::{Quat, Vec3};
@@ -56,8 +57,9 @@ impl PinRegion {
 }
 
 /// Particles of a body (those in `region` when it is spawned) attached to a target
-/// pose, each by a spring of `compliance` (see
-/// [`crate::ecs::components::Attachment`]).
+/// pose, each by a spring of `compliance`, or only their centroid by `hold` (see
+/// [`crate::ecs::components::Attachment`]; scene files list the two as `attachments`
+/// and `centroids`).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct AttachmentDesc {
     /// World-space region (after the body is placed) whose particles are attached; it
@@ -66,8 +68,11 @@ pub struct AttachmentDesc {
     /// The target's keyframed path; its motion moves the particles' targets. Empty: the
     /// target stays where the particles are (until game code moves it).
     pub path: Path,
-    /// Compliance of each particle's spring, m/N (≥ 0; 0: hard, as a pin).
+    /// Compliance of each particle's spring (of the centroid's, for a centroid hold),
+    /// m/N (≥ 0; 0: hard, as a pin).
     pub compliance: f32,
+    /// What is held: each particle, or only their centroid.
+    pub hold: Hold,
 }
 
 /// Everything needed to spawn a body.

@@ -197,8 +197,20 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             "|vx|, |vy|, |vz| ≤ 1e4 (m/s)",
         )?;
     }
+    // the name a scene file gives attachment `i`: its place among those of its kind
+    let field_of = |i: usize| {
+        let hold = desc.attachments[i].hold;
+        let k = desc.attachments[..i]
+            .iter()
+            .filter(|a| a.hold == hold)
+            .count();
+        match hold {
+            Hold::Each => format!("body.attachments[{k}]"),
+            Hold::Centroid => format!("body.centroids[{k}]"),
+        }
+    };
     for (i, a) in desc.attachments.iter().enumerate() {
-        let field = format!("body.attachments[{i}]");
+        let field = field_of(i);
         check_finite_vec(&format!("{field}.region.min"), a.region.min)?;
         check_finite_vec(&format!("{field}.region.max"), a.region.max)?;
         check_compliance(&field, a.compliance)?;
@@ -241,7 +253,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         .collect();
     if let Some(i) = attached.iter().position(Vec::is_empty) {
         return Err(crate::error::out_of_range(
-            &format!("body.attachments[{i}].region"),
+            &format!("{}.region", field_of(i)),
             (
                 desc.attachments[i].region.min,
                 desc.attachments[i].region.max,
@@ -326,7 +338,7 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             particles,
             &positions,
             a.compliance,
-            Hold::Each,
+            a.hold,
             pose,
             motion,
         );

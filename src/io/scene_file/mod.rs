@@ -5,6 +5,7 @@
 use crate::body::shape::Shape;
 use crate::config::{Material, SimConfig};
 use crate::cut::tool::{Path as ToolPath, Pose};
+use crate::ecs::components::Hold;
 use crate::ecs::desc::Scene;
 use crate::ecs::desc::{AttachmentDesc, BodyDesc, ColliderDesc, SurfaceOptions, ToolDesc};
 use crate::geometry::collider::ColliderShape;
@@ -177,15 +178,8 @@ impl SceneFile {
                     velocity: b.velocity,
                     material: MaterialFile::from_material(&b.material),
                     pins: b.pins.clone(),
-                    attachments: b
-                        .attachments
-                        .iter()
-                        .map(|a| AttachmentFile {
-                            region: a.region,
-                            path: a.path.keys.iter().map(|(k, p)| (*k, (*p).into())).collect(),
-                            compliance: a.compliance,
-                        })
-                        .collect(),
+                    attachments: attachment_files(&b.attachments, Hold::Each),
+                    centroids: attachment_files(&b.attachments, Hold::Centroid),
                     render_mesh: None,
                     surface: SurfaceFile {
                         smooth: b.surface.smooth,
@@ -269,13 +263,15 @@ impl SceneFile {
                 velocity: b.velocity,
                 material,
                 pins: b.pins.clone(),
-                attachments: b
-                    .attachments
-                    .iter()
-                    .map(|a| AttachmentDesc {
-                        region: a.region,
-                        path: path_and_pose(&a.path, None).0,
-                        compliance: a.compliance,
+                attachments: [(&b.attachments, Hold::Each), (&b.centroids, Hold::Centroid)]
+                    .into_iter()
+                    .flat_map(|(list, hold)| {
+                        list.iter().map(move |a| AttachmentDesc {
+                            region: a.region,
+                            path: path_and_pose(&a.path, None).0,
+                            compliance: a.compliance,
+                            hold,
+                        })
                     })
                     .collect(),
                 render_mesh,
@@ -354,6 +350,18 @@ impl SceneFile {
 
 /// A keyframed path and the pose before it starts (default: the first key's, else the
 /// origin).
+/// The attachments of `list` that hold by `hold`, as a scene file lists them.
+fn attachment_files(list: &[AttachmentDesc], hold: Hold) -> Vec<AttachmentFile> {
+    list.iter()
+        .filter(|a| a.hold == hold)
+        .map(|a| AttachmentFile {
+            region: a.region,
+            path: a.path.keys.iter().map(|(k, p)| (*k, (*p).into())).collect(),
+            compliance: a.compliance,
+        })
+        .collect()
+}
+
 fn path_and_pose(keys: &[(f32, PoseFile)], pose: Option<PoseFile>) -> (ToolPath, Pose) {
     let keys: Vec<(f32, Pose)> = keys.iter().map(|(k, p)| (*k, (*p).into())).collect();
     let pose = pose

@@ -105,6 +105,11 @@ pub struct BodyFile {
     /// compliance: …)`.
     #[serde(default)]
     pub attachments: Vec<AttachmentFile>,
+    /// Centroid holds: the centroid of a region's particles held to a target (by a
+    /// spring of `compliance`, m/N; 0: hard) while the particles deform about it, in the
+    /// attachments' form: `(region: …, path: […], compliance: …)`.
+    #[serde(default)]
+    pub centroids: Vec<AttachmentFile>,
     /// A closed OBJ mesh (path relative to the scene file, in the shape's local frame)
     /// drawn instead of the lattice's surface: `render_mesh: Some("part.obj")`. A body
     /// whose shape is a mesh draws that mesh without it.
