@@ -277,6 +277,9 @@ function onTopology(words) {
     for (const b of [mesh.position, mesh.normal, mesh.colour, mesh.index]) gl.deleteBuffer(b);
   }
   bodies = [];
+  // pieces are numbered per body: number them on across the bodies, so that every
+  // piece of every body takes the next colour
+  let firstColour = 0;
   let at = 2;
   for (let k = 0; k < words[1]; k++) {
     const [version, vertices, triangles] = [words[at], words[at + 1], words[at + 2]];
@@ -286,10 +289,13 @@ function onTopology(words) {
     const pieces = words.slice(at, at + triangles);
     at += triangles;
     const colours = new Float32Array(3 * vertices).fill(0.8);
+    let count = 0;
     for (let t = 0; t < triangles; t++) {
-      const c = PALETTE[pieces[t] % PALETTE.length];
+      const c = PALETTE[(firstColour + pieces[t]) % PALETTE.length];
       for (let j = 0; j < 3; j++) colours.set(c, 3 * indices[3 * t + j]);
+      count = Math.max(count, pieces[t] + 1);
     }
+    firstColour += count;
     const empty = new Float32Array(3 * vertices);
     const mesh = meshFrom(empty, empty, indices);
     gl.bindBuffer(gl.ARRAY_BUFFER, mesh.colour);
@@ -365,14 +371,21 @@ function onStatus(s) {
   $('clusters').textContent = s.clusters;
   $('pieces').textContent = s.pieces;
   $('play').textContent = s.playing ? 'Pause' : 'Play';
-  $('cutmode').value = s.cut_mode;
-  $('scripted').checked = s.scripted_tools;
   const select = $('scene');
   if (select.options.length !== s.scenes.length) {
     select.replaceChildren(...s.scenes.map((name) => new Option(name, name)));
   }
-  select.value = s.scene;
+  // the controls show the server's settings when those change (not on every frame,
+  // which would undo a choice the server has not heard yet)
+  const shown = [s.cut_mode, s.scripted_tools, s.scene].join();
+  if (shown !== lastShown) {
+    lastShown = shown;
+    $('cutmode').value = s.cut_mode;
+    $('scripted').checked = s.scripted_tools;
+    select.value = s.scene;
+  }
 }
+let lastShown = null;
 
 // ---- the connection ----
 let socket = null;
