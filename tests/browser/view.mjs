@@ -2,7 +2,8 @@
 // downloads no browser). Run by tests/viewer.rs:
 //   node view.mjs check URL OUT_DIR   the page draws, a stroke cuts, a grab drags, a
 //                                     second page sees the same simulation, pause
-//                                     stops the frames, bad messages are survived
+//                                     stops the frames, bad messages are survived,
+//                                     the scene picker runs a scene's own tools
 //   node view.mjs fps URL             frames per second the page draws, and bytes per
 //                                     frame received, while the simulation runs
 // Prints one JSON line of figures; exits non-zero (with the reason) on a failed check.
@@ -119,6 +120,12 @@ async function checks(browser) {
   const resumed = (await status()).frame;
   await waitFor('frames after the bad messages', async () => (await status()).frame > resumed + 10, 3000);
   check((await status()).scene === 'slice', 'the scene stayed');
+
+  // the scene picker, with the scene's own blades: dice cuts itself in four
+  await page.check('#scripted');
+  await page.selectOption('#scene', 'dice');
+  figures.dice_to_four_pieces_ms = await waitFor('dice in four pieces',
+    async () => { const s = await status(); return s.scene === 'dice' && s.pieces === 4; }, 10000);
 
   check(errors.length === 0, `console errors: ${errors.join(' | ')}`);
   return figures;
