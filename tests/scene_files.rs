@@ -11,6 +11,18 @@ use std::process::Command;
 mod common;
 use common::{GOOD, run_file};
 
+/// Runs the scene file `text` as `name`, which must be refused (exit code 2) with an
+/// error naming the file and `expected`; the error.
+fn refused_naming(name: &str, text: &str, expected: &str) -> String {
+    let (code, err) = run_file(name, text);
+    assert_eq!(code, Some(2), "{name}: {err}");
+    assert!(
+        err.contains(expected) && err.contains(name),
+        "{name}: {err}"
+    );
+    err
+}
+
 fn positions_after(scene: &Scene, frames: u32) -> Vec<u32> {
     let mut sim = Simulation::from_scene(scene).unwrap();
     sim.run(frames);
@@ -140,12 +152,7 @@ fn cut_modes_tearing_and_moving_pins_are_read_from_files_and_checked() {
         ("pin.ron", "velocity: (-0.5", "velocity: (1e9", "velocity"),
     ] {
         let text = text.replace(good, bad);
-        let (code, err) = run_file(name, &text);
-        assert_eq!(code, Some(2), "{name}: {err}");
-        assert!(
-            err.contains(expected) && err.contains(name),
-            "{name}: {err}"
-        );
+        refused_naming(name, &text, expected);
     }
 }
 
@@ -424,16 +431,11 @@ fn attachments_and_edge_compliance_are_read_from_files_and_checked() {
     ] {
         let text = text.replace(good, bad);
         assert_ne!(text, GOOD, "{name}: replaced");
-        let (code, err) = run_file(name, &text);
-        assert_eq!(code, Some(2), "{name}: {err}");
+        let err = refused_naming(name, &text, expected);
         assert_eq!(
             err.trim_end().lines().count(),
             1,
             "{name}: not one line: {err}"
-        );
-        assert!(
-            err.contains(expected) && err.contains(name),
-            "{name}: {err}"
         );
     }
 }
@@ -558,11 +560,6 @@ fn centroid_holds_are_read_from_files_drag_their_body_and_are_checked() {
         ),
     ] {
         let text = text.replace(good, bad);
-        let (code, err) = run_file(name, &text);
-        assert_eq!(code, Some(2), "{name}: {err}");
-        assert!(
-            err.contains(expected) && err.contains(name),
-            "{name}: {err}"
-        );
+        refused_naming(name, &text, expected);
     }
 }
