@@ -11,7 +11,7 @@ use crate::ecs::components::{
 use crate::ecs::resources::{SimSettings, SolverCache};
 use crate::solver::term::{BodyTopology, ParticleKey, Topology};
 use crate::solver::terms::attachments::{self, Attachments};
-use crate::solver::terms::centroids::{Centroid, Centroids};
+use crate::solver::terms::centroids::Centroids;
 use crate::solver::terms::contacts::Contacts;
 use bevy_ecs::prelude::*;
 
@@ -74,7 +74,7 @@ pub fn sync_terms(
             term.set(each.iter().map(as_term).collect(), &topology);
         }
         if attachments_changed && let Some(term) = solver.terms.get_mut::<Centroids>() {
-            term.set(centroids.iter().map(as_centroid).collect(), &topology);
+            term.set(centroids.iter().map(as_term).collect(), &topology);
         }
     }
     if let Some(term) = solver.terms.get_mut::<Attachments>() {
@@ -89,31 +89,17 @@ pub fn sync_terms(
     }
 }
 
-fn keys(a: &Attachment) -> Vec<ParticleKey> {
-    a.particles
-        .iter()
-        .map(|&local| ParticleKey {
-            body: a.body.to_bits(),
-            local,
-        })
-        .collect()
-}
-
-/// A centroid hold's entity as its term takes it.
-fn as_centroid((_, a, target, _): &AttachmentItem) -> Centroid {
-    Centroid {
-        particles: keys(a),
-        offsets: a.offsets.clone(),
-        compliance: a.compliance,
-        from: target.reached,
-        to: target.pose,
-    }
-}
-
-/// An attachment entity as the term takes it.
+/// An attachment entity as its term (attachments or centroid holds) takes it.
 fn as_term((_, a, target, velocity): &AttachmentItem) -> attachments::Attachment {
     attachments::Attachment {
-        particles: keys(a),
+        particles: a
+            .particles
+            .iter()
+            .map(|&local| ParticleKey {
+                body: a.body.to_bits(),
+                local,
+            })
+            .collect(),
         offsets: a.offsets.clone(),
         compliance: a.compliance,
         from: target.reached,

@@ -11,24 +11,10 @@
 //! is left to the other terms. No projective-dynamics form (its block would couple every
 //! pair of members): projective dynamics projects the holds after its global step.
 
+use super::attachments::Attachment;
 use crate::cut::tool::Pose;
-use crate::solver::term::{ParticleKey, ParticleState, Substep, Term, Topology};
+use crate::solver::term::{ParticleState, Substep, Term, Topology};
 use glam::{Vec3, Vec3A};
-
-/// One centroid hold as the solver takes it.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Centroid {
-    /// The held particles.
-    pub particles: Vec<ParticleKey>,
-    /// Each particle's place in the pose's frame.
-    pub offsets: Vec<Vec3>,
-    /// Compliance of the centroid's spring, m/N; 0: hard.
-    pub compliance: f32,
-    /// The pose at the frame's start.
-    pub from: Pose,
-    /// The pose at the frame's end.
-    pub to: Pose,
-}
 
 /// A hold's particles in the layout, and the centroid of their places.
 #[derive(Clone, Debug, Default)]
@@ -41,7 +27,10 @@ struct Resolved {
 /// The centroid-hold term; see the module docs.
 #[derive(Clone, Debug, Default)]
 pub struct Centroids {
-    list: Vec<Centroid>,
+    /// The holds, in the attachments' form: the centroid's target is the centroid of
+    /// the particles' places, `compliance` the centroid's spring (a velocity, which
+    /// only pins have, plays no part).
+    list: Vec<Attachment>,
     resolved: Vec<Resolved>,
     /// This substep's target and accumulated `λ` of each hold.
     targets: Vec<Vec3A>,
@@ -50,7 +39,7 @@ pub struct Centroids {
 
 impl Centroids {
     /// Replaces the holds by `list` and finds their particles in `topology`.
-    pub fn set(&mut self, list: Vec<Centroid>, topology: &Topology) {
+    pub fn set(&mut self, list: Vec<Attachment>, topology: &Topology) {
         self.list = list;
         self.resolve(topology);
     }
