@@ -79,7 +79,6 @@ impl Interaction {
         to: Vec3,
         mode: CutMode,
     ) -> Result<()> {
-        check_vec_within("stroke.eye", eye, MAX_COORDINATE, "finite, within ±1e6 m")?;
         let (mut far, mut spacing) = (0.0f32, 0.0f32);
         for body in sim.bodies() {
             for (_, x) in sim.positions(body)? {
@@ -126,7 +125,7 @@ impl Interaction {
     ) -> Result<Option<Grab>> {
         let direction = ray(eye, direction)?;
         self.release(sim)?;
-        let mut best: Option<(f32, Entity, u32, Vec3)> = None;
+        let mut best: Option<Picked> = None;
         for body in sim.bodies() {
             let Some(h) = sim
                 .world()
@@ -135,25 +134,44 @@ impl Interaction {
             else {
                 continue;
             };
-            for (p, x) in sim.positions(body)? {
-                let t = (x - eye).dot(direction);
-                let off = (x - eye - t * direction).length();
-                if t > 0.0 && off <= h && best.is_none_or(|b| t < b.0) {
-                    best = Some((t, body, p, x));
-                }
+            let positions = sim.positions(body)?;
+            let nearest = positions
+                .iter()
+                .map(|&(p, x)| ((x - eye).dot(direction), p, x))
+                .filter(|&(t, _, x)| t > 0.0 && (x - eye - t * direction).length() <= h)
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some((depth, particle, at)) = nearest
+                && best.as_ref().is_none_or(|b| depth < b.depth)
+            {
+                best = Some(Picked {
+                    depth,
+                    particle,
+                    at,
+                    body,
+                    positions,
+                    spacing: h,
+                });
             }
         }
-        let Some((depth, body, picked, at)) = best else {
+        let Some(Picked {
+            depth,
+            particle: picked,
+            at,
+            body,
+            positions,
+            spacing: h,
+        }) = best
+        else {
             return Ok(None);
         };
-        let lattice = &sim
+        let piece = &sim
             .world()
             .get::<BodyLattice>(body)
             .ok_or_else(|| CleaveError::not_a("a body", body))?
-            .lattice;
-        let (h, piece) = (lattice.spacing(), lattice.pieces().label.clone());
-        let held: Vec<u32> = sim
-            .positions(body)?
+            .lattice
+            .pieces()
+            .label;
+        let held: Vec<u32> = positions
             .into_iter()
             .filter(|&(p, x)| {
                 piece[p as usize] == piece[picked as usize] && x.distance(at) <= GRAB_RADIUS * h
@@ -215,6 +233,17 @@ impl Interaction {
             });
         result
     }
+}
+
+/// The particle nearest the eye along a pointer's ray, with its body's positions.
+struct Picked {
+    /// How far along the ray it is.
+    depth: f32,
+    particle: u32,
+    at: Vec3,
+    body: Entity,
+    positions: Vec<(u32, Vec3)>,
+    spacing: f32,
 }
 
 /// `direction` normalised, after checking the ray.
