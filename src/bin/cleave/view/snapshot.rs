@@ -103,10 +103,7 @@ fn status(sim: &Simulation, bodies: &[Entity], settings: &Settings, clock: SimCl
             "centroid": centroid,
         }));
     }
-    let clusters = world
-        .iter_entities()
-        .filter(|e| e.contains::<ClusterMembers>())
-        .count();
+    let mut clusters = 0;
     let mut colliders = Vec::new();
     let config = sim.config();
     for b in &config.boxes {
@@ -116,7 +113,9 @@ fn status(sim: &Simulation, bodies: &[Entity], settings: &Settings, clock: SimCl
         }));
     }
     let mut tools = Vec::new();
+    // one pass over the entities for the clusters, colliders and tools
     for e in world.iter_entities() {
+        clusters += usize::from(e.contains::<ClusterMembers>());
         if let (Some(c), Some(p)) = (e.get::<Collider>(), e.get::<ColliderPose>()) {
             colliders.push(json!({"shape": collider_shape(&c.shape), "pose": pose(&p.current)}));
         }
