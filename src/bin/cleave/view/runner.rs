@@ -22,6 +22,18 @@ pub struct Offered {
     pub scene: Scene,
 }
 
+/// The simulation of `scene`, with its own tools or without, its surfaces extracted.
+fn build(scene: &Scene, scripted_tools: bool) -> Result<Simulation, String> {
+    let mut scene = scene.clone();
+    if !scripted_tools {
+        scene.tools.clear();
+    }
+    let mut sim = Simulation::from_scene(&scene).map_err(|e| e.to_string())?;
+    sim.update_surfaces()
+        .map_err(|e| format!("surfaces: {e}"))?;
+    Ok(sim)
+}
+
 /// What the simulation thread runs on.
 pub struct Runner {
     offered: Vec<Offered>,
@@ -40,8 +52,8 @@ impl Runner {
     /// Starts on the offered scene `current`, playing, without the scene's own tools
     /// (the pointer is the tool); an error when the scene will not build.
     pub fn new(offered: Vec<Offered>, current: usize) -> Result<Self, String> {
-        let mut runner = Runner {
-            sim: Simulation::new(Default::default()).map_err(|e| e.to_string())?,
+        Ok(Runner {
+            sim: build(&offered[current].scene, false)?,
             offered,
             current,
             interaction: Interaction::new(),
@@ -49,23 +61,15 @@ impl Runner {
             cut_mode: CutMode::Sever,
             scripted_tools: false,
             ms_per_step: 0.0,
-            epoch: 0,
+            epoch: 1,
             last: None,
-        };
-        runner.load(current)?;
-        Ok(runner)
+        })
     }
 
+    /// Starts the offered scene `index` afresh; a scene that will not build leaves the
+    /// running one as it was.
     fn load(&mut self, index: usize) -> Result<(), String> {
-        let mut scene = self.offered[index].scene.clone();
-        if !self.scripted_tools {
-            scene.tools.clear();
-        }
-        // (a scene that will not build leaves the running one as it was)
-        let mut sim = Simulation::from_scene(&scene).map_err(|e| e.to_string())?;
-        sim.update_surfaces()
-            .map_err(|e| format!("surfaces: {e}"))?;
-        self.sim = sim;
+        self.sim = build(&self.offered[index].scene, self.scripted_tools)?;
         self.current = index;
         self.interaction = Interaction::new();
         self.epoch += 1;
