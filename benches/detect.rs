@@ -5,8 +5,9 @@
 //! test of a severing blade (`edges_separated`).
 
 use cleave::body::shape::Shape;
-use cleave::cut::detection::{ToolSweep, edges_separated, particles_hit};
+use cleave::cut::detection::{edges_separated, particles_hit};
 use cleave::cut::tool::{CutMode, Pose, ToolShape};
+use cleave::cut::tool_sweep::ToolSweep;
 use cleave::ecs::components::Tool;
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{Quat, UVec3, Vec3, Vec3A};
@@ -67,14 +68,14 @@ fn detect(c: &mut Criterion) {
     group.sample_size(10);
     for (name, sweep) in cases {
         let tools = vec![sweep.unwrap()];
-        let hits = particles_hit(&positions, &live, &tools);
+        let hits = particles_hit(&positions, &live, &tools, None);
         eprintln!(
             "detect/{name}: {} of {} particles hit",
             hits.len(),
             positions.len()
         );
         group.bench_function(format!("{name}/{n}^3/blocks"), |b| {
-            b.iter(|| particles_hit(&positions, &live, &tools))
+            b.iter(|| particles_hit(&positions, &live, &tools, None))
         });
         group.bench_function(format!("{name}/{n}^3/every_particle"), |b| {
             b.iter(|| {
@@ -104,10 +105,26 @@ fn detect(c: &mut Criterion) {
         ..blade
     };
     let sweep = ToolSweep::new(&sever, &blade_at(half + 1.0), &blade_at(-half - 1.0)).unwrap();
-    let edges = edges_separated(&positions, &live, 0..positions.len(), partners, &[&sweep]);
+    let edges = edges_separated(
+        &positions,
+        &live,
+        0..positions.len(),
+        partners,
+        &[&sweep],
+        None,
+    );
     eprintln!("detect/sever_slice: {} edges", edges.len());
     group.bench_function(format!("sever_slice/{n}^3/blocks"), |b| {
-        b.iter(|| edges_separated(&positions, &live, 0..positions.len(), partners, &[&sweep]))
+        b.iter(|| {
+            edges_separated(
+                &positions,
+                &live,
+                0..positions.len(),
+                partners,
+                &[&sweep],
+                None,
+            )
+        })
     });
     group.finish();
 }

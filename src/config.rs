@@ -77,6 +77,11 @@ pub struct SimConfig {
     pub solver: SolverMode,
     /// Whether particles collide with each other (see [`Material::contact_radius`]).
     pub contacts: bool,
+    /// Conservative culling (SPEC §6.2): contact pairs are kept across substeps while no
+    /// particle has moved half a skin, and tool detection skips blocks of particles the
+    /// tool cannot have reached since the last test. Exact: a run is bit for bit the same
+    /// with culling on and off; off only for checking that.
+    pub culling: bool,
     /// Seed for every random choice (clustering offsets, merges, splits, expansion).
     pub seed: u64,
     /// Run `check_invariants` after every frame and panic on a violation (tests, debugging).
@@ -102,6 +107,7 @@ impl Default for SimConfig {
             boxes: Vec::new(),
             solver: SolverMode::Jacobi,
             contacts: true,
+            culling: true,
             seed: 0,
             check_invariants_every_frame: false,
             memory_budget_gb: crate::body::shape::DEFAULT_MEMORY_BUDGET_GB,

@@ -1,36 +1,59 @@
 //! Stage detect: READ-ONLY. Selects, over the whole volume each tool swept
 //! since the last frame, the particles a `remove` tool comes within half its cut width
 //! of, and the edges a `sever` or `split` tool separates; and, in bodies whose material
-//! tears, the edges of voxels stretched past the limit. Its only output is the
-//! `CutList`. The tests themselves are [`crate::cut::detection::particles_hit`],
+//! tears, the edges of voxels stretched past the limit. Its output is the `CutList`;
+//! besides, it keeps its culling memory ([`crate::cut::culling`], with the `culling`
+//! setting): the blocks of particles no tool can have reached since they were last
+//! measured are not tested. The tests themselves are [`crate::cut::detection::particles_hit`],
 //! [`crate::cut::detection::edges_separated`] and [`crate::cut::tear::find_tears`] (parallel,
 //! deterministic order).
 
 use crate::body::lattice::NO_PARTICLE;
-use crate::cut::detection::{ToolSweep, edges_separated, particles_hit, particles_inside};
+use crate::cut::culling::FollowedTool;
+use crate::cut::detection::{edges_separated, particles_hit, particles_inside};
 use crate::cut::particle_split::plan_splits;
 use crate::cut::tear::find_tears;
 use crate::cut::tool::{BladePlane, CutMode};
+use crate::cut::tool_sweep::ToolSweep;
 use crate::ecs::components::{Body, BodyLattice, Tool, ToolPose};
-use crate::ecs::resources::{BodyCut, CutList, SolverCache};
+use crate::ecs::resources::{BodyCut, CutList, DetectCulling, SimSettings, SolverCache};
 use bevy_ecs::prelude::*;
 
 /// Fills the cut list from the solver cache's dense positions.
 pub fn detect(
+    settings: Res<SimSettings>,
     cache: Res<SolverCache>,
-    tools: Query<(&Tool, &ToolPose)>,
+    tools: Query<(Entity, Ref<Tool>, &ToolPose)>,
     bodies: Query<(&Body, &BodyLattice)>,
     mut out: ResMut<CutList>,
+    mut culling: ResMut<DetectCulling>,
 ) {
+    let start = std::time::Instant::now();
     out.cuts.clear();
     if cache.entities.is_empty() {
         return;
     }
     detect_tears(&cache, &bodies, &mut out.cuts);
-    let sweeps: Vec<ToolSweep> = tools
+    let mut followed: Vec<(FollowedTool, ToolSweep)> = tools
         .iter()
-        .filter_map(|(tool, pose)| ToolSweep::new(tool, &pose.last, &pose.current))
+        .filter_map(|(entity, tool, pose)| {
+            let sweep = ToolSweep::new(&tool, &pose.last, &pose.current)?;
+            let id = FollowedTool {
+                id: entity.to_bits(),
+                changed: tool.is_changed(),
+                last: pose.last,
+                current: pose.current,
+            };
+            Some((id, sweep))
+        })
         .collect();
+    followed.sort_unstable_by_key(|(t, _)| t.id);
+    let near = settings
+        .0
+        .culling
+        .then(|| near_blocks(&cache, &bodies, &mut culling, &followed));
+    let near = near.as_deref();
+    let sweeps: Vec<ToolSweep> = followed.into_iter().map(|(_, s)| s).collect();
     let (removers, severers): (Vec<ToolSweep>, Vec<ToolSweep>) = sweeps
         .into_iter()
         .partition(|t| t.mode() == CutMode::Remove);
@@ -39,12 +62,12 @@ pub fn detect(
     let (carving, slicing): (Vec<ToolSweep>, Vec<ToolSweep>) =
         severers.into_iter().partition(|t| t.carves());
     let positions = &cache.particles.positions;
-    for i in particles_hit(positions, &cache.live, &removers) {
+    for i in particles_hit(positions, &cache.live, &removers, near) {
         if let Some((body, local)) = cache.owner(i) {
             BodyCut::entry(&mut out.cuts, body).particles.push(local);
         }
     }
-    for i in particles_inside(positions, &cache.live, &carving) {
+    for i in particles_inside(positions, &cache.live, &carving, near) {
         if let Some((body, local)) = cache.owner(i) {
             BodyCut::entry(&mut out.cuts, body).carved.push(local);
         }
@@ -80,7 +103,7 @@ pub fn detect(
                 })
             };
             let mut edges: Vec<(u32, u32)> =
-                edges_separated(positions, &cache.live, range, partners, &tools)
+                edges_separated(positions, &cache.live, range, partners, &tools, near)
                     .into_iter()
                     .map(|(i, j)| {
                         let (a, b) = (cache.locals[i], cache.locals[j]);
@@ -113,6 +136,40 @@ pub fn detect(
             c.splits.merge_tools(&lattice.lattice);
         }
     }
+    culling.last_ms = start.elapsed().as_secs_f64() * 1e3;
+}
+
+/// Which blocks of the dense particles some tool may reach this frame (see
+/// [`crate::cut::culling`]).
+fn near_blocks(
+    cache: &SolverCache,
+    bodies: &Query<(&Body, &BodyLattice)>,
+    culling: &mut DetectCulling,
+    tools: &[(FollowedTool, ToolSweep)],
+) -> Vec<bool> {
+    let culling = &mut culling.culling;
+    let n = cache.particles.positions.len();
+    // each dense particle's +x, +y, +z partners, by the links of its body's lattice
+    // (its body: the last whose dense range starts at or before it)
+    culling.set_layout(cache.layout_version, n, |i| {
+        let body = cache.body_dense.partition_point(|b| b.first as usize <= i);
+        let Some(b) = body.checked_sub(1).and_then(|b| cache.body_dense.get(b)) else {
+            return [u32::MAX; 3];
+        };
+        let Ok((_, lattice)) = bodies.get(b.body) else {
+            return [u32::MAX; 3];
+        };
+        let local = cache.locals[i];
+        [1, 3, 5].map(|d| match lattice.lattice.link(local, d) {
+            NO_PARTICLE => u32::MAX,
+            p => b.slot(p).map_or(u32::MAX, |s| s as u32),
+        })
+    });
+    let pairs: Vec<(FollowedTool, &ToolSweep)> =
+        tools.iter().map(|(t, s)| (t.clone(), s)).collect();
+    culling.follow(&pairs);
+    let sweeps: Vec<&ToolSweep> = tools.iter().map(|(_, s)| s).collect();
+    culling.near_blocks(&cache.particles.positions, &cache.live, &sweeps)
 }
 
 /// What a group of tools does with the edges it separates.

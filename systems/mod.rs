@@ -20,8 +20,9 @@
 //!    optional invariant check ([`SimStage::Verify`]).
 //!
 //! Access contract (tested in `tests/schedule_access.rs`): predict and shape-match write
-//! particle data only; detect writes only its `CutList`; cut writes no cluster data;
-//! regroup/split/expand write no particle data; surface writes surface data only.
+//! particle data only; detect writes only its `CutList` and its culling memory; cut
+//! writes no cluster data; regroup/split/expand write no particle data; surface writes
+//! surface data only.
 
 pub mod cut;
 pub mod detect;
@@ -69,7 +70,8 @@ pub enum SimStage {
     Store,
     /// Advances keyframed tools.
     MoveTools,
-    /// Read-only collision detection producing the `CutList`.
+    /// Read-only collision detection producing the `CutList` (and keeping its culling
+    /// memory).
     Detect,
     /// Removes the listed particles.
     Cut,
@@ -188,6 +190,7 @@ pub fn install(world: &mut World, config: crate::config::SimConfig) {
     world.init_resource::<SceneLabel>();
     world.init_resource::<SubstepClock>();
     world.init_resource::<CutList>();
+    world.init_resource::<DetectCulling>();
     world.init_resource::<CutReport>();
     world.init_resource::<RebuiltClusters>();
     world.init_resource::<SolverCache>();

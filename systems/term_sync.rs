@@ -2,7 +2,7 @@
 //! layout, in [`crate::systems::SyncSchedule`]): every term hears of a topology change
 //! of the layout ([`crate::solver::term::Topology`]); the attachments (each particle
 //! held, or only a set's centroid) are taken from their entities when those change,
-//! and their targets every frame; contacts follow the `contacts` setting. Writes the
+//! and their targets every frame; contacts follow the `contacts` and `culling` settings. Writes the
 //! solver cache only.
 
 use crate::ecs::components::{
@@ -38,10 +38,10 @@ pub fn sync_terms(
         pending_topology,
         ..
     } = &mut *cache;
-    let contacts_changed = solver
-        .terms
-        .get_mut::<Contacts>()
-        .is_some_and(|c| c.set_enabled(settings.0.contacts));
+    let contacts_changed = solver.terms.get_mut::<Contacts>().is_some_and(|c| {
+        c.set_culling(settings.0.culling);
+        c.set_enabled(settings.0.contacts)
+    });
     let attachments_changed = !changed.is_empty() || removed.read().count() > 0;
     let mut list: Vec<AttachmentItem> = attachments.iter().collect();
     list.sort_unstable_by_key(|(e, ..)| *e);

@@ -225,15 +225,6 @@ fn press_squeezes_then_cuts_in_two() {
 }
 
 #[test]
-fn contact_scenes_are_identical_for_one_and_two_threads() {
-    for scene in ["stack", "pile", "press"] {
-        let (_, one) = run_with(scene, Some(120), &["--threads", "1"]);
-        let (_, two) = run_with(scene, Some(120), &["--threads", "2"]);
-        assert_eq!(one.to_string(), two.to_string(), "{scene}");
-    }
-}
-
-#[test]
 fn thread_counts_out_of_range_are_clear_errors() {
     for threads in ["0", "100000"] {
         let out = Command::new(env!("CARGO_BIN_EXE_cleave"))

@@ -2,9 +2,9 @@
 //! and shape-match (with every term) write only the solver's dense particle state; load
 //! and the term sync write only the solver; store writes only particle positions and
 //! velocities; the tool, collider and attachment movers and the settle stage write their
-//! poses only; detect writes only its CutList and spawns nothing; cut writes no cluster
-//! data; regroup/split/expand write no particle data; the surface stage writes only
-//! the surfaces (and its message).
+//! poses only; detect writes only its CutList (and its culling memory) and spawns
+//! nothing; cut writes no cluster data; regroup/split/expand write no particle data; the
+//! surface stage writes only the surfaces (and its message).
 
 use bevy_ecs::component::ComponentId;
 use bevy_ecs::message::Messages;
@@ -132,12 +132,16 @@ fn moving_and_settling_kinematic_things_writes_their_poses_only() {
 }
 
 #[test]
-fn detect_writes_only_its_cut_list_and_spawns_nothing() {
+fn detect_writes_only_its_cut_list_and_culling_memory_and_spawns_nothing() {
     let mut w = world();
     ids(&mut w);
-    let access = access_of(&mut w, detect::detect);
+    let mut access = access_of(&mut w, detect::detect);
     let cut_list = w.component_id::<CutList>().expect("registered");
-    assert_eq!(access.writes, vec![cut_list]);
+    let culling = w.component_id::<DetectCulling>().expect("registered");
+    let mut expected = vec![cut_list, culling];
+    expected.sort();
+    access.writes.sort();
+    assert_eq!(access.writes, expected);
     assert!(!access.deferred);
 }
 

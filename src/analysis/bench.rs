@@ -19,7 +19,6 @@ use crate::solver::registry::Terms;
 use crate::solver::solve::Solver;
 use crate::solver::term::Substep;
 use crate::solver::terms::colliders::Colliders;
-use crate::solver::terms::contacts::Contacts;
 use crate::solver::terms::edges::Edges;
 use crate::systems::layout_sync::rebuild_cache;
 use bevy_ecs::prelude::Entity;
@@ -99,40 +98,6 @@ pub struct BenchRow {
     pub kinds: Vec<KindTime>,
 }
 
-/// The contact row of the bench: the `pile` scene at a finer spacing, stepped with and
-/// without particle contacts in the same run.
-#[derive(Clone, Debug, Serialize)]
-pub struct PileRow {
-    /// Always `"pile"` (tells this row from the size rows in JSON lines).
-    pub row: &'static str,
-    /// Lattice spacing of the bodies.
-    pub spacing: f32,
-    /// Bodies.
-    pub bodies: usize,
-    /// Particles over all bodies.
-    pub particles: usize,
-    /// Frames stepped (the medians are over the second half, when the bodies touch).
-    pub frames: u32,
-    /// Particles that take part in contacts (surface particles), at the end.
-    pub contact_particles: usize,
-    /// Contact pairs found in the last substep (each counted from both sides).
-    pub contact_pairs: usize,
-    /// Median step with contacts, ms.
-    pub ms_per_step: f64,
-    /// Median step of the same scene with contacts off, ms.
-    pub ms_per_step_without_contacts: f64,
-    /// `ms_per_step / ms_per_step_without_contacts`. The two runs differ in more than
-    /// contacts: without them the bodies sink through each other and lie otherwise.
-    pub contacts_over_without: f64,
-    /// Median time the contact kind itself took in a step (pairs and projection), ms.
-    pub contact_ms_per_step: f64,
-    /// What contacts add to the rest of the same step: `contact_ms_per_step /
-    /// (ms_per_step − contact_ms_per_step)`.
-    pub contact_share: f64,
-    /// What contacts add, per particle (all of them) and solver iteration, ns.
-    pub contact_ns_per_particle_iteration: f64,
-}
-
 /// The edge row of the bench: an n³ box whose material has edge distance constraints,
 /// stepped as a size row is.
 #[derive(Clone, Debug, Serialize)]
@@ -191,61 +156,6 @@ pub fn bench_edges(n: u32, steps: usize, config: &SimConfig) -> Result<EdgeRow> 
     })
 }
 
-/// Runs the `pile` scene at `spacing` for `frames` frames twice, with and without
-/// contacts, alternating steps so both see the same machine noise.
-pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileRow> {
-    let build = |contacts: bool| -> Result<Simulation> {
-        let scene = crate::io::scene::pile_scene(
-            SimConfig {
-                contacts,
-                ..config.clone()
-            },
-            spacing,
-        );
-        let mut sim = Simulation::new(scene.config.clone())?;
-        for b in &scene.bodies {
-            sim.spawn_body(b)?;
-        }
-        for c in &scene.colliders {
-            sim.spawn_collider(c)?;
-        }
-        sim.drop_surfaces();
-        Ok(sim)
-    };
-    let (mut with, mut without) = (build(true)?, build(false)?);
-    let (mut on, mut off, mut inside) = (Vec::new(), Vec::new(), Vec::new());
-    let contact_seconds = |sim: &Simulation| kind_seconds(sim, "contacts");
-    for frame in 0..frames.max(2) {
-        let before = contact_seconds(&with);
-        let (a, b) = (time_ms(1, || with.step()), time_ms(1, || without.step()));
-        if frame >= frames / 2 {
-            on.push(a);
-            off.push(b);
-            inside.push((contact_seconds(&with) - before) * 1e3);
-        }
-    }
-    let cache = with.world().resource::<SolverCache>();
-    let particles = cache.particles.len();
-    let contacts = cache.solver.terms.get::<Contacts>();
-    let (ms_on, ms_off, ms_in) = (median(&mut on), median(&mut off), median(&mut inside));
-    let iterations = (config.substeps * config.iterations) as f64;
-    Ok(PileRow {
-        row: "pile",
-        spacing,
-        bodies: cache.body_dense.len(),
-        particles,
-        frames,
-        contact_particles: contacts.map_or(0, |c| c.particle_count()),
-        contact_pairs: contacts.map_or(0, |c| c.pair_count()),
-        ms_per_step: ms_on,
-        ms_per_step_without_contacts: ms_off,
-        contacts_over_without: ms_on / ms_off,
-        contact_ms_per_step: ms_in,
-        contact_share: ms_in / (ms_on - ms_in),
-        contact_ns_per_particle_iteration: (ms_on - ms_off) * 1e6 / (particles as f64 * iterations),
-    })
-}
-
 /// The median of `samples` (0 for none).
 pub fn median(samples: &mut [f64]) -> f64 {
     if samples.is_empty() {
@@ -256,7 +166,7 @@ pub fn median(samples: &mut [f64]) -> f64 {
 }
 
 /// Milliseconds of `f`, run `runs` times, median.
-fn time_ms(runs: usize, mut f: impl FnMut()) -> f64 {
+pub(crate) fn time_ms(runs: usize, mut f: impl FnMut()) -> f64 {
     let mut samples: Vec<f64> = (0..runs)
         .map(|_| {
             let t = Instant::now();

@@ -8,11 +8,11 @@
 //! reach of the tool during the motion is skipped whole, so a tool costs one test per
 //! block away from its path and the full per-particle test only near it. The skip is
 //! exact: the distance to what a tool sweeps is 1-Lipschitz, so no particle of a ball of
-//! radius `r` around `c` is nearer to it than `d(c) − r`.
+//! radius `r` around `c` is nearer to it than `d(c) − r`. Across frames, the blocks no
+//! tool can have reached since they were last measured are skipped without a test
+//! ([`NearBlocks`], kept by [`crate::cut::culling`]).
 
-use crate::cut::tool::{BladePlane, CutMode, Pose, Sweep, ToolShape};
-use crate::ecs::components::Tool;
-use crate::geometry::convex::Convex;
+use crate::cut::tool_sweep::ToolSweep;
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 use smallvec::SmallVec;
@@ -20,186 +20,36 @@ use smallvec::SmallVec;
 /// Particles culled together by one bounding ball.
 pub const BLOCK: usize = 64;
 
-/// A tool ready for point and edge tests: its motion since the last frame as
-/// translations, its convex core and radius, its reach (half the cut width), and the
-/// bounding box of everything it can touch.
-#[derive(Clone, Debug)]
-pub struct ToolSweep {
-    core: Convex,
-    radius: f32,
-    reach: f32,
-    mode: CutMode,
-    sweep: Sweep,
-    min: Vec3,
-    max: Vec3,
-    /// Largest coordinate magnitude of the sweep's positions plus the tool's size: the
-    /// scale of the rounding in a distance computed against this tool.
-    scale: f32,
-    /// A blade's plane at the end of the motion.
-    plane: Option<BladePlane>,
-    /// Whether a blade stays in that one plane throughout the motion (turning about
-    /// its normal, moving along the plane).
-    in_plane: bool,
-}
+/// Which blocks of [`BLOCK`] dense particles (`block = index / BLOCK`) a tool may
+/// reach; `None`: all may (see [`crate::cut::culling`]).
+pub type NearBlocks<'a> = Option<&'a [bool]>;
 
-impl ToolSweep {
-    /// The sweep of `tool` from pose `last` to `current`; `None` for a tool that cannot
-    /// cut (invalid shape, cut width not finite and positive, or a non-finite pose).
-    pub fn new(tool: &Tool, last: &Pose, current: &Pose) -> Option<Self> {
-        let valid = tool.shape.validate().is_ok()
-            && tool.cut_width.is_finite()
-            && tool.cut_width > 0.0
-            && current.is_finite()
-            && last.is_finite();
-        if !valid {
-            return None;
-        }
-        let reach = tool.cut_width * 0.5;
-        let bounding = tool.shape.bounding_radius();
-        let sweep = Sweep::new(last, current, bounding, reach);
-        let extent = Vec3::splat(bounding + reach + sweep.slack);
-        let (lo, hi) = (
-            last.position.min(current.position),
-            last.position.max(current.position),
-        );
-        let far = lo.abs().max(hi.abs()).max_element();
-        let (core, radius) = tool.shape.core();
-        let plane = matches!(tool.shape, ToolShape::Blade { .. }).then(|| {
-            let normal = current.rotation.normalize() * Vec3::Z;
-            BladePlane {
-                normal,
-                offset: normal.dot(current.position),
-            }
-        });
-        // a blade that turns about its normal and moves along its plane never leaves
-        // it: then only an edge with its ends on both sides can be separated — a test
-        // that also keeps the sweep's slack from severing edges that lie along the
-        // plane (which would free the particles on it)
-        let in_plane = plane.is_some_and(|p| {
-            let before = last.rotation.normalize() * Vec3::Z;
-            let moved = current.position - last.position;
-            before.dot(p.normal) > 1.0 - 1e-6 && p.normal.dot(moved).abs() <= 1e-6 * (1.0 + far)
-        });
-        Some(Self {
-            plane,
-            in_plane,
-            core,
-            radius,
-            reach,
-            mode: tool.mode,
-            min: lo - extent,
-            max: hi + extent,
-            scale: far + bounding + reach,
-            sweep,
-        })
-    }
-
-    /// The tool's cut mode.
-    pub fn mode(&self) -> CutMode {
-        self.mode
-    }
-
-    /// A blade's plane where the motion ends (`None` for a sphere or a capsule): a
-    /// particle it splits is split by side of this plane.
-    pub fn blade_plane(&self) -> Option<BladePlane> {
-        self.plane
-    }
-
-    /// Whether the point `x` comes within reach of the tool at some time of its motion.
-    pub fn hits(&self, x: Vec3) -> bool {
-        x.cmpge(self.min).all()
-            && x.cmple(self.max).all()
-            && self.sweep.point_distance(&self.core, x) - self.radius <= self.reach
-    }
-
-    /// Whether the tool's surface crosses the segment `a`–`b` with neither end inside
-    /// the tool at any time of its motion: a blade (which has no inside) slicing between
-    /// two particles, or a sphere grazing an edge past both its ends. The edges from a
-    /// particle inside the tool to one outside are the carving's (see [`crate::cut::carve`]).
-    /// The cut width plays no part: severing removes no material.
-    pub fn separates(&self, a: Vec3, b: Vec3) -> bool {
-        self.separates_at((a, self.surface_distance(a)), (b, self.surface_distance(b)))
-    }
-
-    /// Whether the segment `a`–`b` comes within reach of the tool at some time of its
-    /// motion.
-    pub fn reaches_segment(&self, a: Vec3, b: Vec3) -> bool {
-        self.touches_box(a.min(b), a.max(b))
-            && self.sweep.segment_distance(&self.core, a, b) - self.radius <= self.reach
-    }
-
-    /// [`Self::separates`] for ends whose [`Self::surface_distance`]s are known.
-    pub fn separates_at(&self, (a, da): (Vec3, f32), (b, db): (Vec3, f32)) -> bool {
-        if da < 0.0 || db < 0.0 {
-            return false;
-        }
-        if let Some(plane) = self.plane.filter(|_| self.in_plane) {
-            let (sa, sb) = (plane.distance(a), plane.distance(b));
-            if !(sa < 0.0 && sb >= 0.0 || sb < 0.0 && sa >= 0.0) {
-                return false;
-            }
-        }
-        // every point of the segment lies within half its length of an end: when both
-        // ends are farther than that, the segment cannot touch the tool (and the point
-        // tests spare most edges the parallelogram test). The margin covers the
-        // rounding of the distances: a segment crossing the blade at its middle has
-        // both ends at exactly half its length.
-        let margin = 1e-3 * a.distance(b) + self.rounding(a.abs().max(b.abs()).max_element());
-        da.min(db) <= 0.5 * a.distance(b) + margin
-            && self.sweep.segment_distance(&self.core, a, b) <= self.radius
-    }
-
-    /// A bound, with room to spare, on the rounding of a distance from this tool to a
-    /// point whose largest coordinate magnitude is `magnitude`.
-    fn rounding(&self, magnitude: f32) -> f32 {
-        64.0 * f32::EPSILON * (magnitude + self.scale)
-    }
-
-    /// Whether `x` is inside the tool at some time of its motion (never for a blade).
-    pub fn contains(&self, x: Vec3) -> bool {
-        self.radius > 0.0 && self.surface_distance(x) < 0.0
-    }
-
-    /// Whether the tool has an inside (a sphere or a capsule: it carves when it severs).
-    pub fn carves(&self) -> bool {
-        self.radius > 0.0
-    }
-
-    /// The least distance from `x` to the tool's surface over the motion, negative when
-    /// `x` is inside the tool at some time (never for a blade, whose distance is ≥ 0).
-    pub fn surface_distance(&self, x: Vec3) -> f32 {
-        let d = self.sweep.point_distance(&self.core, x) - self.radius;
-        if self.radius > 0.0 { d } else { d.max(0.0) }
-    }
-
-    fn touches_box(&self, lo: Vec3, hi: Vec3) -> bool {
-        hi.cmpge(self.min).all() && lo.cmple(self.max).all()
-    }
-
-    /// Whether some point of the ball `(centre, radius)` may come within reach of the
-    /// tool; false only when none does. The ball is grown by a margin well above the
-    /// rounding of the distances, so that a point [`Self::hits`] accepts is never
-    /// culled.
-    fn may_hit_ball(&self, centre: Vec3, radius: f32) -> bool {
-        let margin = 1e-4 * (radius + self.reach) + self.rounding(centre.abs().max_element());
-        let r = Vec3::splat(radius + margin);
-        self.touches_box(centre - r, centre + r)
-            && self.sweep.point_distance(&self.core, centre) - self.radius
-                <= self.reach + radius + margin
-    }
+/// Whether block `b` may be reached.
+fn may_reach(near: NearBlocks, b: usize) -> bool {
+    near.is_none_or(|n| n.get(b).copied().unwrap_or(true))
 }
 
 /// The live particles (indices into `positions`, ascending) that some tool hits. Blocks
-/// of [`BLOCK`] particles run in parallel; the result does not depend on the thread
-/// count. `live` has one flag per position.
-pub fn particles_hit(positions: &[Vec3A], live: &[bool], tools: &[ToolSweep]) -> Vec<usize> {
-    particles_where(positions, live, tools, ToolSweep::hits)
+/// of [`BLOCK`] particles run in parallel, those `near` marks far are skipped; the
+/// result does not depend on the thread count. `live` has one flag per position.
+pub fn particles_hit(
+    positions: &[Vec3A],
+    live: &[bool],
+    tools: &[ToolSweep],
+    near: NearBlocks,
+) -> Vec<usize> {
+    particles_where(positions, live, tools, near, ToolSweep::hits)
 }
 
 /// The live particles (ascending) inside some tool at some time of its motion
 /// ([`ToolSweep::contains`]): what a carving tool carves.
-pub fn particles_inside(positions: &[Vec3A], live: &[bool], tools: &[ToolSweep]) -> Vec<usize> {
-    particles_where(positions, live, tools, ToolSweep::contains)
+pub fn particles_inside(
+    positions: &[Vec3A],
+    live: &[bool],
+    tools: &[ToolSweep],
+    near: NearBlocks,
+) -> Vec<usize> {
+    particles_where(positions, live, tools, near, ToolSweep::contains)
 }
 
 /// The live particles for which `test` holds with some tool, culled by blocks (`test`
@@ -208,6 +58,7 @@ fn particles_where(
     positions: &[Vec3A],
     live: &[bool],
     tools: &[ToolSweep],
+    near_blocks: NearBlocks,
     test: impl Fn(&ToolSweep, Vec3) -> bool + Sync,
 ) -> Vec<usize> {
     if tools.is_empty() {
@@ -221,8 +72,10 @@ fn particles_where(
         .flat_map_iter(|(block, (positions, live))| {
             let (centre, radius) = bounding_ball(positions, live);
             let near: SmallVec<[&ToolSweep; 4]> = match radius {
-                Some(r) => tools.iter().filter(|t| t.may_hit_ball(centre, r)).collect(),
-                None => SmallVec::new(),
+                Some(r) if may_reach(near_blocks, block) => {
+                    tools.iter().filter(|t| t.may_hit_ball(centre, r)).collect()
+                }
+                _ => SmallVec::new(),
             };
             // a culled block's particles are not visited at all
             let tested = if near.is_empty() { 0 } else { positions.len() };
@@ -242,7 +95,8 @@ fn particles_where(
 /// particles `range` of `positions` (dense indices) to their `partners` (the dense
 /// indices of the particles linked along +x, +y and +z, `u32::MAX` where none, so that
 /// each edge is tested once). Returns `(particle, partner)` pairs in ascending order.
-/// Blocks of [`BLOCK`] particles are culled by a ball around their particles and
+/// The range is taken in the dense blocks of [`BLOCK`] particles; blocks `near` marks
+/// far are skipped, the others are culled by a ball around their particles and
 /// partners, and run in parallel; the result does not depend on the thread count.
 pub fn edges_separated(
     positions: &[Vec3A],
@@ -250,18 +104,18 @@ pub fn edges_separated(
     range: std::ops::Range<usize>,
     partners: impl Fn(usize) -> [u32; 3] + Sync,
     tools: &[&ToolSweep],
+    near_blocks: NearBlocks,
 ) -> Vec<(usize, usize)> {
     if tools.is_empty() || range.is_empty() {
         return Vec::new();
     }
-    let first = range.start;
-    let blocks = range.len().div_ceil(BLOCK);
-    (0..blocks)
+    (range.start / BLOCK..(range.end - 1) / BLOCK + 1)
         .into_par_iter()
         .with_min_len(16)
+        .filter(|&block| may_reach(near_blocks, block))
         .flat_map_iter(|block| {
-            let start = first + block * BLOCK;
-            let end = (start + BLOCK).min(range.end);
+            let start = (block * BLOCK).max(range.start);
+            let end = ((block + 1) * BLOCK).min(range.end);
             // every edge of the block: its particles' and their partners' positions
             let mut edges: SmallVec<[(usize, usize); 3 * BLOCK]> = SmallVec::new();
             for i in (start..end).filter(|&i| live[i]) {
@@ -349,6 +203,8 @@ fn bounding_ball(positions: &[Vec3A], live: &[bool]) -> (Vec3, Option<f32>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cut::tool::{CutMode, Pose, ToolShape};
+    use crate::ecs::components::Tool;
     use glam::Quat;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -423,7 +279,7 @@ mod tests {
                 .filter(|&i| live[i] && tools[0].hits(Vec3::from(positions[i])))
                 .collect();
             assert_eq!(
-                particles_hit(&positions, &live, &tools),
+                particles_hit(&positions, &live, &tools, None),
                 full,
                 "case {case}"
             );
@@ -486,7 +342,14 @@ mod tests {
                 mode: CutMode::Sever,
             };
             let sweep = ToolSweep::new(&tool, &pose(2.0), &pose(-2.0)).unwrap();
-            let found = edges_separated(&positions, &live, 0..positions.len(), partners, &[&sweep]);
+            let found = edges_separated(
+                &positions,
+                &live,
+                0..positions.len(),
+                partners,
+                &[&sweep],
+                None,
+            );
             let mut brute = Vec::new();
             for i in 0..positions.len() {
                 for j in partners(i).into_iter().filter(|j| *j != u32::MAX) {

@@ -2,8 +2,10 @@
 //! and the edits a cut makes to a lattice — carving, tearing, splitting particles.
 
 pub mod carve;
+pub mod culling;
 pub mod detection;
 pub mod particle_split;
 pub mod stroke;
 pub mod tear;
 pub mod tool;
+pub mod tool_sweep;

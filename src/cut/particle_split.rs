@@ -5,7 +5,7 @@
 //! is clean and no mass is lost.
 //!
 //! The blade separates exactly the edges a `sever` blade severs
-//! ([`crate::cut::detection::ToolSweep::separates`]); a split hands some of them to a new
+//! ([`crate::cut::tool_sweep::ToolSweep::separates`]); a split hands some of them to a new
 //! half instead of severing them. A new half is linked only to the far side, so the
 //! pieces are the ones the blade's swept surface separates, each with the slivers of the
 //! cells it cut through.

@@ -131,7 +131,7 @@ pub enum CutMode {
     #[default]
     Remove,
     /// Every edge the tool separates is severed (see
-    /// [`crate::cut::detection::ToolSweep::separates`]); no particle is removed, no mass is
+    /// [`crate::cut::tool_sweep::ToolSweep::separates`]); no particle is removed, no mass is
     /// lost.
     Sever,
     /// A particle a blade passes through is split in two, one on each side of the blade,

@@ -87,7 +87,17 @@ impl BodyCut {
     }
 }
 
-/// Output of detect (its only output), input of cut.
+/// What detect keeps from frame to frame: its conservative culling (see
+/// [`crate::cut::culling`]) and how long it took. Written by detect only.
+#[derive(Resource, Clone, Debug, Default)]
+pub struct DetectCulling {
+    /// The culling memory.
+    pub culling: crate::cut::culling::ToolCulling,
+    /// Wall-clock milliseconds of the last frame's detection (for reports).
+    pub last_ms: f64,
+}
+
+/// Output of detect (its only output besides its culling memory), input of cut.
 #[derive(Resource, Clone, Debug, Default)]
 pub struct CutList {
     /// Per body, sorted by body entity.
@@ -176,6 +186,9 @@ pub struct SolverCache {
     pub adopt_changes: bool,
     /// What changed in the layout since the terms last heard of it.
     pub pending_topology: Option<PendingTopology>,
+    /// Counts the layout's updates (rebuilds and patches): tables derived from the
+    /// dense indices or the links are rebuilt when it changes.
+    pub layout_version: u64,
 }
 
 /// What changed in the solver layout since the terms last heard (they hear of it in
@@ -205,6 +218,7 @@ impl Default for SolverCache {
             last_update: None,
             adopt_changes: false,
             pending_topology: None,
+            layout_version: 0,
         }
     }
 }

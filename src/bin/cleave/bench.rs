@@ -1,8 +1,7 @@
 //! `cleave bench`: the report of [`cleave::analysis::bench`] as a table or as JSON lines.
 
-use cleave::analysis::bench::{
-    ConvergenceOptions, bench_edges, bench_pile, bench_size, convergence,
-};
+use cleave::analysis::bench::{ConvergenceOptions, bench_edges, bench_size, convergence};
+use cleave::analysis::bench_pile::bench_pile;
 use cleave::analysis::bench_surface::bench_surface;
 use cleave::config::SimConfig;
 
@@ -142,7 +141,7 @@ pub fn bench(
             println!(
                 "pile (contacts): {} bodies, {} particles at h = {}, {} taking part, {} pairs; \
                  {:.3} ms/step with contacts, {:.3} without: ×{:.2}; contacts {:.2} ns per particle-iteration; \
-                 in the step: contacts {:.3} ms, +{:.0} % on the rest",
+                 in the step: contacts {:.3} ms, +{:.0} % on the rest; a far blade's detection {:.3} ms ({:.2} % of the step)",
                 row.bodies,
                 row.particles,
                 row.spacing,
@@ -153,7 +152,9 @@ pub fn bench(
                 row.contacts_over_without,
                 row.contact_ns_per_particle_iteration,
                 row.contact_ms_per_step,
-                100.0 * row.contact_share
+                100.0 * row.contact_share,
+                row.far_tool_detect_ms_per_step,
+                100.0 * row.far_tool_detect_share
             );
         }
     }

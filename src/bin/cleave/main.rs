@@ -104,6 +104,10 @@ enum Command {
         /// (edges; no mass is lost) or split (particles in two, by the blade's side).
         #[arg(long)]
         cut_mode: Option<CutMode>,
+        /// Turn conservative culling off (contact pairs and tool tests redone in full
+        /// every time): the result is the same bit for bit, only slower.
+        #[arg(long)]
+        no_culling: bool,
         /// After this frame (0: before the first), replace every body's clusters by a
         /// fresh clustering of its geometry, to compare a cut body with the same shape
         /// built fresh.
@@ -184,6 +188,9 @@ enum Command {
         /// per-frame update, the extraction intact and after a slice).
         #[arg(long)]
         surface: bool,
+        /// Turn conservative culling off (to compare: the results are the same).
+        #[arg(long)]
+        no_culling: bool,
     },
     /// Serve an interactive page: the simulation runs here, the browser draws it; orbit,
     /// cut with a mouse stroke, grab and drag.
@@ -307,6 +314,7 @@ fn main() -> ExitCode {
             substeps,
             iterations,
             cut_mode,
+            no_culling,
             recluster_at,
         } => {
             let args = run::RunArgs {
@@ -317,6 +325,7 @@ fn main() -> ExitCode {
                     substeps,
                     iterations,
                     cut_mode,
+                    no_culling,
                 },
                 frames,
                 out,
@@ -383,11 +392,13 @@ fn main() -> ExitCode {
             no_pile,
             no_edges,
             surface,
+            no_culling,
         } => with_threads(threads, |_| {
             let config = SimConfig {
                 solver,
                 substeps,
                 iterations,
+                culling: !no_culling,
                 ..SimConfig::default()
             };
             config.validate().map_err(|e| e.to_string())?;

@@ -57,6 +57,8 @@ pub struct SceneOverrides {
     pub iterations: Option<u32>,
     /// Cut mode of every tool.
     pub cut_mode: Option<CutMode>,
+    /// Turn conservative culling off.
+    pub no_culling: bool,
 }
 
 impl SceneOverrides {
@@ -65,6 +67,9 @@ impl SceneOverrides {
     fn apply(&self, config: &mut SimConfig) -> Result<(), String> {
         if let Some(solver) = self.solver {
             config.solver = solver;
+        }
+        if self.no_culling {
+            config.culling = false;
         }
         for (flag, value, slot, max) in [
             ("--substeps", self.substeps, &mut config.substeps, 1000),

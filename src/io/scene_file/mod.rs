@@ -79,6 +79,7 @@ impl SettingsFile {
             boxes: c.boxes.clone(),
             solver: c.solver,
             contacts: c.contacts,
+            culling: c.culling,
             check_invariants_every_frame: c.check_invariants_every_frame,
             memory_budget_gb: c.memory_budget_gb,
         }
@@ -95,6 +96,7 @@ impl SettingsFile {
             boxes: self.boxes.clone(),
             solver: self.solver,
             contacts: self.contacts,
+            culling: self.culling,
             seed,
             check_invariants_every_frame: self.check_invariants_every_frame,
             memory_budget_gb: self.memory_budget_gb,

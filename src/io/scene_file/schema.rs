@@ -64,6 +64,8 @@ pub struct SettingsFile {
     pub solver: SolverMode,
     /// Whether particles collide with each other.
     pub contacts: bool,
+    /// Conservative culling of contact pairs and tool tests (exact; on by default).
+    pub culling: bool,
     /// Check the invariants after every frame (slow; for tests).
     pub check_invariants_every_frame: bool,
     /// Memory one body may take, in GB.

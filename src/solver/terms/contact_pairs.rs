@@ -1,18 +1,20 @@
-//! Finding contact pairs, once per substep.
+//! Finding contact pairs: the cell search that builds the candidate list of
+//! [`super::contact_list`].
 //!
 //! **Who takes part.** Only particles on a piece's surface (fewer than six live lattice
 //! neighbours): balls of radius h/2 on a lattice of spacing h touch, so a surface is a
 //! closed wall of balls and nothing reaches an inner particle without first meeting the
 //! surface. This skips most particles of a large body.
 //!
-//! **Pairs (once per substep).** Sorted cells: each taking-part particle gets the key of
-//! its cell (cells of side `2.5 r_max`, the key linear in the cell coordinates, x
-//! fastest), the particles are sorted by key, and each cell meets the particles of its
-//! forward half of neighbour cells (x + 1 in its row, three cells in each of the four
-//! rows after it: each pair once) as five runs of consecutive keys. Because the key of
-//! each run is the cell's key plus a constant, the cells are visited in key order with
-//! one cursor per run that only moves forward: no hashing, no search, cost linear in
-//! particles. Each pair is then listed under both its particles by a counting sort.
+//! **Pairs (when the list is built).** Sorted cells: each taking-part particle gets the
+//! key of its cell (cells of side `2.5 r_max` plus the list's skin, the key linear in the
+//! cell coordinates, x fastest), the particles are sorted by key, and each cell meets the
+//! particles of its forward half of neighbour cells (x + 1 in its row, three cells in
+//! each of the four rows after it: each pair once) as five runs of consecutive keys.
+//! Because the key of each run is the cell's key plus a constant, the cells are visited
+//! in key order with one cursor per run that only moves forward: no hashing, no search,
+//! cost linear in particles. Each substep's pairs are then listed under both their
+//! particles by a counting sort ([`super::contacts`]).
 //! A pair is kept when its balls are closer than the sum of their radii plus a margin of
 //! `r_max / 2` (the iterations move particles), and when the particles are in different
 //! groups (pieces), or in one group with self-contact on and more than two lattice cells
@@ -35,6 +37,14 @@ pub(super) const PAIR_MARGIN: f32 = 0.5;
 /// Lattice distance (cells, largest axis) up to which two particles of one piece are
 /// neighbours in the material and never a contact pair.
 pub const SELF_CONTACT_EXCLUSION: i32 = 2;
+
+/// Whether balls at `a` and `b` whose radii and margin add up to `reach` are close
+/// enough to pair: the test both the search and the candidate filter of
+/// [`super::contact_list`] decide by.
+#[inline]
+pub(super) fn within(a: Vec3A, b: Vec3A, reach: f32) -> bool {
+    (a - b).length_squared() < reach * reach
+}
 
 /// Contact properties of one group (a piece of a body).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -91,38 +101,19 @@ impl ContactParticles {
             && (p.coord[a] - p.coord[b]).abs().max_element() > SELF_CONTACT_EXCLUSION
     }
 
-    /// Every pair of particles that may touch and whose balls at `positions` are closer
-    /// than their radii plus the margin, each once, in an order fixed for any thread
-    /// count (per task, in the order the task met them); `max_radius` is the largest
-    /// radius.
+    /// Every pair of particles that may touch and whose balls at `points` (one per
+    /// particle, by contact index) are closer than their radii plus `margin`, each once,
+    /// in an order fixed for any thread count (per task, in the order the task met
+    /// them). `grid` sorts the same points into cells no smaller than the largest reach.
     pub(super) fn close_pairs(
         &self,
         groups: &[ContactGroup],
-        max_radius: f32,
-        positions: &[Vec3A],
+        grid: &CellGrid,
+        points: &[Vec3A],
+        margin: f32,
     ) -> Vec<Vec<(u32, u32)>> {
         let p = self;
-        let margin = PAIR_MARGIN * max_radius;
-        let cell = 2.0 * max_radius + margin;
-        let inv_cell = 1.0 / cell;
-        let key_of = |x: Vec3A| -> u64 {
-            if !x.is_finite() {
-                return u64::MAX;
-            }
-            let c = (x * inv_cell).floor();
-            let axis = |v: f32| (v as i64 + CELL_BIAS).clamp(1, 2 * CELL_BIAS - 2) as u64;
-            axis(c.x) | axis(c.y) << 21 | axis(c.z) << 42
-        };
-        let mut sorted: Vec<(u64, u32)> = p
-            .dense
-            .par_iter()
-            .enumerate()
-            .map(|(k, d)| (key_of(positions[*d as usize]), k as u32))
-            .collect();
-        sorted.sort_unstable();
-        // non-finite positions sort last and take no part
-        let usable = sorted.partition_point(|(key, _)| *key != u64::MAX);
-        let sorted = &sorted[..usable];
+        let sorted = &grid.sorted[..];
         // tasks start on a cell boundary, so each cell is handled by one task
         let mut task_starts = vec![0usize];
         while let Some(&last) = task_starts.last() {
@@ -139,7 +130,7 @@ impl ContactParticles {
         // each particle's position and radius in sorted order, read in sequence below
         let ball: Vec<Vec4> = sorted
             .par_iter()
-            .map(|(_, k)| positions[p.dense[*k as usize] as usize].extend(p.radius[*k as usize]))
+            .map(|(_, k)| points[*k as usize].extend(p.radius[*k as usize]))
             .collect();
         // the forward half of the 26 neighbour cells, so that each pair is met once:
         // x + 1 in the cell's own row, and x − 1 … x + 1 in the four rows after it
@@ -161,9 +152,8 @@ impl ContactParticles {
                 let check = |i: usize, j: usize, pairs: &mut Vec<(u32, u32)>| {
                     let (x, y) = (ball[i], ball[j]);
                     let reach = x.w + y.w + margin;
-                    let apart = x.truncate() - y.truncate();
                     let (a, b) = (sorted[i].1, sorted[j].1);
-                    if apart.length_squared() < reach * reach
+                    if within(Vec3A::from_vec4(x), Vec3A::from_vec4(y), reach)
                         && this.may_pair(groups, a as usize, b as usize)
                     {
                         pairs.push((a, b));
@@ -208,5 +198,85 @@ impl ContactParticles {
                 pairs
             })
             .collect()
+    }
+}
+
+/// Particles sorted by the cell their point lies in (cubes of one side, the key linear
+/// in the cell coordinates, x fastest), so that a cell's neighbours are found as runs of
+/// consecutive keys.
+#[derive(Clone, Debug, Default)]
+pub(super) struct CellGrid {
+    inv_cell: f32,
+    /// `(cell key, particle)`, ascending; particles at non-finite points are left out.
+    sorted: Vec<(u64, u32)>,
+}
+
+impl CellGrid {
+    /// The particles at `points` (by index) in cells of side `cell`.
+    pub(super) fn new(points: &[Vec3A], cell: f32) -> Self {
+        let mut grid = Self {
+            inv_cell: 1.0 / cell,
+            sorted: Vec::new(),
+        };
+        grid.sorted = points
+            .par_iter()
+            .enumerate()
+            .map(|(k, x)| (grid.key(*x), k as u32))
+            .filter(|(key, _)| *key != u64::MAX)
+            .collect();
+        grid.sorted.par_sort_unstable();
+        grid
+    }
+
+    /// The key of the cell `x` lies in (`u64::MAX` for a non-finite `x`).
+    fn key(&self, x: Vec3A) -> u64 {
+        if !x.is_finite() {
+            return u64::MAX;
+        }
+        let c = (x * self.inv_cell).floor();
+        let axis = |v: f32| (v as i64 + CELL_BIAS).clamp(1, 2 * CELL_BIAS - 2) as u64;
+        axis(c.x) | axis(c.y) << 21 | axis(c.z) << 42
+    }
+
+    /// Moves the particles flagged in `moved` to the cells of their `points` now.
+    pub(super) fn update(&mut self, moved: &[u32], flagged: &[bool], points: &[Vec3A]) {
+        let mut fresh: Vec<(u64, u32)> = moved
+            .iter()
+            .map(|&k| (self.key(points[k as usize]), k))
+            .filter(|(key, _)| *key != u64::MAX)
+            .collect();
+        fresh.sort_unstable();
+        let kept = self.sorted.iter().filter(|(_, k)| !flagged[*k as usize]);
+        let mut merged = Vec::with_capacity(self.sorted.len());
+        let mut fresh = fresh.into_iter().peekable();
+        for entry in kept {
+            while let Some(f) = fresh.next_if(|f| f < entry) {
+                merged.push(f);
+            }
+            merged.push(*entry);
+        }
+        merged.extend(fresh);
+        self.sorted = merged;
+    }
+
+    /// Calls `f` with every particle in the cell of `x` and its 26 neighbours.
+    pub(super) fn around(&self, x: Vec3A, mut f: impl FnMut(u32)) {
+        let key = self.key(x);
+        if key == u64::MAX {
+            return;
+        }
+        for dz in [-1i64, 0, 1] {
+            for dy in [-1i64, 0, 1] {
+                let centre = key as i64 + (dy << 21) + (dz << 42);
+                let (lo, hi) = ((centre - 1) as u64, (centre + 1) as u64);
+                let first = self.sorted.partition_point(|e| e.0 < lo);
+                for &(k, i) in &self.sorted[first..] {
+                    if k > hi {
+                        break;
+                    }
+                    f(i);
+                }
+            }
+        }
     }
 }

@@ -3,7 +3,8 @@
 //! Position-based, with Coulomb friction (Macklin et al. 2014, "Unified particle
 //! physics for real-time applications", §6–7).
 //!
-//! Who takes part and how pairs are found: [`super::contact_pairs`].
+//! Who takes part and how pairs are found: [`super::contact_pairs`]; how the pairs are
+//! kept across substeps: [`super::contact_list`].
 //!
 //! **Projection (every iteration).** Jacobi-style, reading only positions: each pair,
 //! once, computes the correction along its normal (the overlap) and against its slip
@@ -15,6 +16,7 @@
 //! overlaps persist (an average per particle would not keep it, and a persistent overlap
 //! would then accelerate the bodies).
 
+use super::contact_list::ContactList;
 use super::contact_pairs::{ContactGroup, ContactParticles};
 use crate::body::lattice::Lattice;
 use crate::config::Material;
@@ -76,7 +78,9 @@ pub struct Contacts {
     groups: Vec<ContactGroup>,
     /// Largest radius.
     max_radius: f32,
-    /// This substep's pairs, each once.
+    /// The candidate pairs kept across substeps.
+    list: ContactList,
+    /// This substep's pairs, each once, ascending by their contact indices.
     pairs: Vec<Pair>,
     /// The pairs by particle: `owners[o]` (a contact index) is in the pairs
     /// `refs[starts[o]..starts[o + 1]]` (a pair index, [`SECOND`] set where it is `b`).
@@ -101,10 +105,23 @@ impl Contacts {
         self.max_radius = particles.radius.iter().copied().fold(0.0, f32::max);
         self.particles = particles;
         self.groups = groups;
+        self.list.clear();
         self.pairs.clear();
         self.owners.clear();
         self.starts.clear();
         self.refs.clear();
+    }
+
+    /// Turns conservative culling of the pairs on or off (the simulation's `culling`
+    /// setting; the pairs are the same either way, see [`super::contact_list`]).
+    pub fn set_culling(&mut self, culling: bool) {
+        self.list.set_culling(culling);
+    }
+
+    /// How often the candidate list was built in full, and how often it was updated
+    /// where particles moved, since the particles last changed.
+    pub fn list_updates(&self) -> (u64, u64) {
+        self.list.updates()
     }
 
     /// Turns contacts on or off (the simulation's `contacts` setting); returns whether
@@ -161,16 +178,14 @@ impl Contacts {
     /// Finds this substep's pairs from `positions` (see the module docs).
     fn find_pairs(&mut self, positions: &[Vec3A]) {
         let found = self
-            .particles
-            .close_pairs(&self.groups, self.max_radius, positions);
+            .list
+            .pairs(&self.particles, &self.groups, self.max_radius, positions);
         let p = &self.particles;
-        // each pair once, then listed under both its particles (a counting sort: the
-        // pairs of a particle keep the order in which the tasks met them, fixed for any
-        // thread count)
+        // then listed under both their particles (a counting sort: the pairs of a
+        // particle keep the pairs' order, fixed for any thread count)
         let n = p.len();
         self.pairs.clear();
-        self.pairs.extend(found.iter().flatten().map(|&(a, b)| {
-            let (a, b) = (a.min(b), a.max(b));
+        self.pairs.extend(found.iter().map(|&(a, b)| {
             let (ga, gb) = (
                 self.groups[p.group[a as usize] as usize],
                 self.groups[p.group[b as usize] as usize],

@@ -1,0 +1,216 @@
+//! A tool ready for the detect stage's tests: its motion since the last frame as
+//! translations ([`crate::cut::tool::Sweep`]), what it reaches, and the distances from
+//! points, segments and balls to it — exact for a translating tool, whatever its speed,
+//! and conservative by the sweep's slack for a turning one.
+
+use crate::cut::tool::{BladePlane, CutMode, Pose, Sweep, ToolShape};
+use crate::ecs::components::Tool;
+use crate::geometry::convex::Convex;
+use glam::Vec3;
+
+/// A tool ready for point and edge tests: its motion since the last frame as
+/// translations, its convex core and radius, its reach (half the cut width), and the
+/// bounding box of everything it can touch.
+#[derive(Clone, Debug)]
+pub struct ToolSweep {
+    core: Convex,
+    radius: f32,
+    reach: f32,
+    mode: CutMode,
+    sweep: Sweep,
+    min: Vec3,
+    max: Vec3,
+    /// Largest coordinate magnitude of the sweep's positions plus the tool's size: the
+    /// scale of the rounding in a distance computed against this tool.
+    scale: f32,
+    /// A blade's plane at the end of the motion.
+    plane: Option<BladePlane>,
+    /// Whether a blade stays in that one plane throughout the motion (turning about
+    /// its normal, moving along the plane).
+    in_plane: bool,
+    /// Where the motion starts and ends.
+    last: Pose,
+    current: Pose,
+    /// How far from its position a point the tool reaches can be: a turn by θ moves
+    /// such a point by at most θ times this.
+    lever: f32,
+}
+
+impl ToolSweep {
+    /// The sweep of `tool` from pose `last` to `current`; `None` for a tool that cannot
+    /// cut (invalid shape, cut width not finite and positive, or a non-finite pose).
+    pub fn new(tool: &Tool, last: &Pose, current: &Pose) -> Option<Self> {
+        let valid = tool.shape.validate().is_ok()
+            && tool.cut_width.is_finite()
+            && tool.cut_width > 0.0
+            && current.is_finite()
+            && last.is_finite();
+        if !valid {
+            return None;
+        }
+        let reach = tool.cut_width * 0.5;
+        let bounding = tool.shape.bounding_radius();
+        let sweep = Sweep::new(last, current, bounding, reach);
+        let extent = Vec3::splat(bounding + reach + sweep.slack);
+        let (lo, hi) = (
+            last.position.min(current.position),
+            last.position.max(current.position),
+        );
+        let far = lo.abs().max(hi.abs()).max_element();
+        let (core, radius) = tool.shape.core();
+        let plane = matches!(tool.shape, ToolShape::Blade { .. }).then(|| {
+            let normal = current.rotation.normalize() * Vec3::Z;
+            BladePlane {
+                normal,
+                offset: normal.dot(current.position),
+            }
+        });
+        // a blade that turns about its normal and moves along its plane never leaves
+        // it: then only an edge with its ends on both sides can be separated — a test
+        // that also keeps the sweep's slack from severing edges that lie along the
+        // plane (which would free the particles on it)
+        let in_plane = plane.is_some_and(|p| {
+            let before = last.rotation.normalize() * Vec3::Z;
+            let moved = current.position - last.position;
+            before.dot(p.normal) > 1.0 - 1e-6 && p.normal.dot(moved).abs() <= 1e-6 * (1.0 + far)
+        });
+        Some(Self {
+            plane,
+            in_plane,
+            core,
+            radius,
+            reach,
+            mode: tool.mode,
+            min: lo - extent,
+            max: hi + extent,
+            scale: far + bounding + reach,
+            sweep,
+            last: *last,
+            current: *current,
+            lever: bounding + reach,
+        })
+    }
+
+    /// The tool's cut mode.
+    pub fn mode(&self) -> CutMode {
+        self.mode
+    }
+
+    /// A blade's plane where the motion ends (`None` for a sphere or a capsule): a
+    /// particle it splits is split by side of this plane.
+    pub fn blade_plane(&self) -> Option<BladePlane> {
+        self.plane
+    }
+
+    /// Whether the point `x` comes within reach of the tool at some time of its motion.
+    pub fn hits(&self, x: Vec3) -> bool {
+        x.cmpge(self.min).all()
+            && x.cmple(self.max).all()
+            && self.sweep.point_distance(&self.core, x) - self.radius <= self.reach
+    }
+
+    /// Whether the tool's surface crosses the segment `a`–`b` with neither end inside
+    /// the tool at any time of its motion: a blade (which has no inside) slicing between
+    /// two particles, or a sphere grazing an edge past both its ends. The edges from a
+    /// particle inside the tool to one outside are the carving's (see [`crate::cut::carve`]).
+    /// The cut width plays no part: severing removes no material.
+    pub fn separates(&self, a: Vec3, b: Vec3) -> bool {
+        self.separates_at((a, self.surface_distance(a)), (b, self.surface_distance(b)))
+    }
+
+    /// Whether the segment `a`–`b` comes within reach of the tool at some time of its
+    /// motion.
+    pub fn reaches_segment(&self, a: Vec3, b: Vec3) -> bool {
+        self.touches_box(a.min(b), a.max(b))
+            && self.sweep.segment_distance(&self.core, a, b) - self.radius <= self.reach
+    }
+
+    /// [`Self::separates`] for ends whose [`Self::surface_distance`]s are known.
+    pub fn separates_at(&self, (a, da): (Vec3, f32), (b, db): (Vec3, f32)) -> bool {
+        if da < 0.0 || db < 0.0 {
+            return false;
+        }
+        if let Some(plane) = self.plane.filter(|_| self.in_plane) {
+            let (sa, sb) = (plane.distance(a), plane.distance(b));
+            if !(sa < 0.0 && sb >= 0.0 || sb < 0.0 && sa >= 0.0) {
+                return false;
+            }
+        }
+        // every point of the segment lies within half its length of an end: when both
+        // ends are farther than that, the segment cannot touch the tool (and the point
+        // tests spare most edges the parallelogram test). The margin covers the
+        // rounding of the distances: a segment crossing the blade at its middle has
+        // both ends at exactly half its length.
+        let margin = 1e-3 * a.distance(b) + self.rounding(a.abs().max(b.abs()).max_element());
+        da.min(db) <= 0.5 * a.distance(b) + margin
+            && self.sweep.segment_distance(&self.core, a, b) <= self.radius
+    }
+
+    /// A bound, with room to spare, on the rounding of a distance from this tool to a
+    /// point whose largest coordinate magnitude is `magnitude`.
+    fn rounding(&self, magnitude: f32) -> f32 {
+        64.0 * f32::EPSILON * (magnitude + self.scale)
+    }
+
+    /// Whether `x` is inside the tool at some time of its motion (never for a blade).
+    pub fn contains(&self, x: Vec3) -> bool {
+        self.radius > 0.0 && self.surface_distance(x) < 0.0
+    }
+
+    /// Whether the tool has an inside (a sphere or a capsule: it carves when it severs).
+    pub fn carves(&self) -> bool {
+        self.radius > 0.0
+    }
+
+    /// The least distance from `x` to the tool's surface over the motion, negative when
+    /// `x` is inside the tool at some time (never for a blade, whose distance is ≥ 0).
+    pub fn surface_distance(&self, x: Vec3) -> f32 {
+        let d = self.sweep.point_distance(&self.core, x) - self.radius;
+        if self.radius > 0.0 { d } else { d.max(0.0) }
+    }
+
+    fn touches_box(&self, lo: Vec3, hi: Vec3) -> bool {
+        hi.cmpge(self.min).all() && lo.cmple(self.max).all()
+    }
+
+    /// A margin well above the rounding of the distances from a ball `(centre,
+    /// radius)` to this tool.
+    fn margin(&self, centre: Vec3, radius: f32) -> f32 {
+        1e-4 * (radius + self.reach) + self.rounding(centre.abs().max_element())
+    }
+
+    /// Whether some point of the ball `(centre, radius)` may come within reach of the
+    /// tool; false only when none does. The ball is grown by a margin well above the
+    /// rounding of the distances, so that a point [`Self::hits`] accepts is never
+    /// culled.
+    pub(super) fn may_hit_ball(&self, centre: Vec3, radius: f32) -> bool {
+        let r = Vec3::splat(radius + self.margin(centre, radius));
+        self.touches_box(centre - r, centre + r) && self.gap(centre, radius) <= radius
+    }
+
+    /// The least distance from `centre` to what the tool reaches over its motion, less
+    /// the margin of a ball of `radius` there: no point of that ball comes within reach
+    /// when this is above `radius` (see [`crate::cut::culling`]).
+    pub fn gap(&self, centre: Vec3, radius: f32) -> f32 {
+        self.sweep.point_distance(&self.core, centre)
+            - self.radius
+            - self.reach
+            - self.margin(centre, radius)
+    }
+
+    /// How far its sweep stands off its poses (see [`crate::cut::tool::Sweep::slack`]).
+    pub fn slack(&self) -> f32 {
+        self.sweep.slack
+    }
+
+    /// How far, at most, what the tool reaches has moved from where it was at pose
+    /// `before` to anywhere in this motion: the move from `before` to where the motion
+    /// starts, and the motion itself, each a translation plus the turn times the lever.
+    pub fn travel_from(&self, before: &Pose) -> f32 {
+        let step = |a: &Pose, b: &Pose| {
+            let angle = a.rotation.normalize().angle_between(b.rotation.normalize());
+            a.position.distance(b.position) + angle * self.lever
+        };
+        step(before, &self.last) + step(&self.last, &self.current)
+    }
+}
