@@ -41,7 +41,6 @@ pub fn detect(
             let id = FollowedTool {
                 id: entity.to_bits(),
                 changed: tool.is_changed(),
-                last: pose.last,
                 current: pose.current,
             };
             Some((id, sweep))

@@ -43,8 +43,6 @@ pub struct FollowedTool {
     pub id: u64,
     /// Whether its shape, width or mode changed since the last frame.
     pub changed: bool,
-    /// Where its motion of this frame starts and ends.
-    pub last: Pose,
     /// Where its motion of this frame ends.
     pub current: Pose,
 }
@@ -227,11 +225,10 @@ fn own_ball(positions: &[Vec3A], live: &[bool]) -> Option<(Vec3A, f32)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::body::shape::Shape;
-    use crate::cut::detection::{edges_separated, particles_hit};
+    use crate::cut::detection::{edges_separated, morton_cube, particles_hit};
     use crate::cut::tool::{CutMode, ToolShape};
     use crate::ecs::components::Tool;
-    use glam::{Quat, UVec3};
+    use glam::Quat;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -239,22 +236,8 @@ mod tests {
     fn culled_tests_find_exactly_what_full_tests_find_while_skipping_far_blocks() {
         // a 16³ block in the layout's Morton order, its particles drifting and a few
         // jumping; a sphere and a turning blade wander from far away through it and out
-        let lattice = Shape::cuboid(UVec3::splat(16)).voxelise(0.1).unwrap();
-        let order = lattice.live_in_morton_order();
-        let mut dense = vec![u32::MAX; lattice.len()];
-        for (d, &p) in order.iter().enumerate() {
-            dense[p as usize] = d as u32;
-        }
-        let partners = |i: usize| {
-            [1, 3, 5].map(|d| match lattice.link(order[i], d) {
-                u32::MAX => u32::MAX,
-                n => dense[n as usize],
-            })
-        };
-        let mut positions: Vec<Vec3A> = order
-            .iter()
-            .map(|&p| Vec3A::from(lattice.rest_position(p)))
-            .collect();
+        let (mut positions, partner_table) = morton_cube(16);
+        let partners = |i: usize| partner_table[i];
         let live: Vec<bool> = (0..positions.len()).map(|i| i % 13 != 0).collect();
         let tools = [
             Tool {
@@ -299,7 +282,6 @@ mod tests {
                     let followed = FollowedTool {
                         id: k as u64,
                         changed: false,
-                        last,
                         current,
                     };
                     (followed, ToolSweep::new(tool, &last, &current).unwrap())

@@ -200,6 +200,35 @@ fn bounding_ball(positions: &[Vec3A], live: &[bool]) -> (Vec3, Option<f32>) {
     (Vec3::from(centre), Some((hi - centre).length()))
 }
 
+/// An n³ cube of spacing 0.1 in the layout's Morton order: its rest positions and
+/// each particle's +x, +y, +z partners (dense indices, `u32::MAX` for none).
+#[cfg(test)]
+pub(crate) fn morton_cube(n: u32) -> (Vec<Vec3A>, Vec<[u32; 3]>) {
+    use crate::body::shape::Shape;
+    let lattice = Shape::cuboid(glam::UVec3::splat(n))
+        .voxelise(0.1)
+        .expect("a small cube");
+    let order = lattice.live_in_morton_order();
+    let mut dense = vec![u32::MAX; lattice.len()];
+    for (d, &p) in order.iter().enumerate() {
+        dense[p as usize] = d as u32;
+    }
+    let positions = order
+        .iter()
+        .map(|&p| Vec3A::from(lattice.rest_position(p)))
+        .collect();
+    let partners = order
+        .iter()
+        .map(|&p| {
+            [1, 3, 5].map(|d| match lattice.link(p, d) {
+                u32::MAX => u32::MAX,
+                n => dense[n as usize],
+            })
+        })
+        .collect();
+    (positions, partners)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -292,24 +321,9 @@ mod tests {
 
     #[test]
     fn edges_found_by_blocks_are_the_edges_that_cross_the_blade() {
-        use crate::body::shape::Shape;
-        let lattice = Shape::cuboid(glam::UVec3::splat(8)).voxelise(0.1).unwrap();
-        let order = lattice.live_in_morton_order();
-        let mut dense = vec![u32::MAX; lattice.len()];
-        for (d, &p) in order.iter().enumerate() {
-            dense[p as usize] = d as u32;
-        }
-        let positions: Vec<Vec3A> = order
-            .iter()
-            .map(|&p| Vec3A::from(lattice.rest_position(p)))
-            .collect();
+        let (positions, partner_table) = morton_cube(8);
         let live = vec![true; positions.len()];
-        let partners = |i: usize| {
-            [1, 3, 5].map(|d| match lattice.link(order[i], d) {
-                u32::MAX => u32::MAX,
-                n => dense[n as usize],
-            })
-        };
+        let partners = |i: usize| partner_table[i];
         let mut rng = ChaCha8Rng::seed_from_u64(9);
         for case in 0..40 {
             // the first case: a blade on the plane x = 0 between two layers of cells,
