@@ -183,12 +183,13 @@ impl ContactList {
         self.candidates
             .retain(|key| !flagged[(key >> 32) as usize] && !flagged[*key as u32 as usize]);
         let (reference, grid, radius) = (&self.reference, &self.grid, &particles.radius);
-        let mut found: Vec<u64> = moved
-            .par_iter()
-            .with_min_len(256)
-            .flat_map_iter(|&k| {
-                let (x, mut near) = (reference[k as usize], Vec::new());
-                grid.around(x, |j| {
+        let entries = grid.flagged(&flagged);
+        let mut found: Vec<u64> = entries
+            .par_chunks(256)
+            .flat_map_iter(|chunk| {
+                let mut near = Vec::new();
+                grid.around_each(chunk, |k, j| {
+                    let x = reference[k as usize];
                     // a pair of two moved particles is found from its lower one
                     let once = !flagged[j as usize] || k < j;
                     if once

@@ -259,22 +259,39 @@ impl CellGrid {
         self.sorted = merged;
     }
 
-    /// Calls `f` with every particle in the cell of `x` and its 26 neighbours.
-    pub(super) fn around(&self, x: Vec3A, mut f: impl FnMut(u32)) {
-        let key = self.key(x);
-        if key == u64::MAX {
+    /// The entries of the particles `flagged`, in cell order.
+    pub(super) fn flagged(&self, flagged: &[bool]) -> Vec<(u64, u32)> {
+        self.sorted
+            .iter()
+            .filter(|(_, k)| flagged[*k as usize])
+            .copied()
+            .collect()
+    }
+
+    /// Calls `f(k, j)` for each entry `(key, k)` of `entries` (in cell order, as
+    /// [`Self::flagged`] gives them) and every particle `j` in the cell `key` and its 26
+    /// neighbours. The nine rows of three cells around consecutive entries start at
+    /// keys that only grow, so each row is followed by one cursor that only moves
+    /// forward: no search per entry.
+    pub(super) fn around_each(&self, entries: &[(u64, u32)], mut f: impl FnMut(u32, u32)) {
+        let Some(&(first, _)) = entries.first() else {
             return;
-        }
-        for dz in [-1i64, 0, 1] {
-            for dy in [-1i64, 0, 1] {
-                let centre = key as i64 + (dy << 21) + (dz << 42);
-                let (lo, hi) = ((centre - 1) as u64, (centre + 1) as u64);
-                let first = self.sorted.partition_point(|e| e.0 < lo);
-                for &(k, i) in &self.sorted[first..] {
-                    if k > hi {
-                        break;
-                    }
-                    f(i);
+        };
+        let rows: [i64; 9] = std::array::from_fn(|r| {
+            let (dy, dz) = (r as i64 % 3 - 1, r as i64 / 3 - 1);
+            (dy << 21) + (dz << 42) - 1
+        });
+        let sorted = &self.sorted;
+        let mut cursors =
+            rows.map(|row| sorted.partition_point(|e| e.0 < (first as i64 + row) as u64));
+        for &(key, k) in entries {
+            for (cursor, row) in cursors.iter_mut().zip(rows) {
+                let lo = (key as i64 + row) as u64;
+                while *cursor < sorted.len() && sorted[*cursor].0 < lo {
+                    *cursor += 1;
+                }
+                for &(_, j) in sorted[*cursor..].iter().take_while(|e| e.0 <= lo + 2) {
+                    f(k, j);
                 }
             }
         }
