@@ -118,12 +118,6 @@ impl Contacts {
         self.list.set_culling(culling);
     }
 
-    /// How often the candidate list was built in full, and how often it was updated
-    /// where particles moved, since the particles last changed.
-    pub fn list_updates(&self) -> (u64, u64) {
-        self.list.updates()
-    }
-
     /// Turns contacts on or off (the simulation's `contacts` setting); returns whether
     /// that changed anything (the particles are then chosen again at the next topology
     /// change).
