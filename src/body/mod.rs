@@ -6,5 +6,6 @@ pub mod edits;
 pub mod graph;
 pub mod lattice;
 mod morton;
+pub mod patches;
 pub mod pieces;
 pub mod shape;

@@ -58,6 +58,23 @@ pub struct Material {
     /// [`Material::compliance`]) and stiff edges a body bends easily but barely
     /// stretches; 0 makes every edge hard.
     pub edge_compliance: Option<f32>,
+    /// Rings of the surface patches that shape keeping holds (1–8, default 2): each
+    /// surface particle centres a patch of the surface particles within this many rings
+    /// (see [`crate::solver::terms::patches`]).
+    pub patch_rings: u32,
+    /// Compliance of each patch's mean displacement along its rest normal, `1/E` in
+    /// 1/Pa as [`Material::compliance`] (a patch of the material, h² in section and h
+    /// deep: `α = patch_normal_compliance / h` m/N); 0 holds it hard. `None` (the
+    /// default): no patch constraints while the body simulates; relaxation
+    /// ([`crate::sim::relax`]) then holds the patches with the material's compliance.
+    pub patch_normal_compliance: Option<f32>,
+    /// Compliance of each patch's mean displacement across its rest normal, 1/Pa;
+    /// `None`: 100 times the normal compliance, so the surface keeps its place far more
+    /// firmly than it may slide along itself.
+    pub patch_tangent_compliance: Option<f32>,
+    /// The normal displacement, in lattice spacings (> 0, default 0.1), past which a
+    /// patch's normal stiffness grows, as the square of the displacement over it.
+    pub patch_threshold: f32,
 }
 
 /// Rubber ([`Material::rubber`]): a body a newcomer spawns deforms where it lands.
@@ -79,6 +96,10 @@ impl Default for Material {
             tear_budget: 64,
             tear_min_piece: 8,
             edge_compliance: None,
+            patch_rings: 2,
+            patch_normal_compliance: None,
+            patch_tangent_compliance: None,
+            patch_threshold: 0.1,
         }
     }
 }
@@ -143,6 +164,15 @@ impl Material {
     /// Distance between neighbouring cluster centres, in lattice cells.
     pub fn cluster_stride(&self) -> u32 {
         2 * self.cluster_radius + 1 - self.cluster_overlap
+    }
+
+    /// The patch constraints' compliances `(normal, tangent)` in 1/Pa when they are on
+    /// (see [`Material::patch_normal_compliance`]): `normal` stands in for an unset
+    /// normal compliance.
+    pub fn patch_compliances(&self, normal: f32) -> (f32, f32) {
+        let normal = self.patch_normal_compliance.unwrap_or(normal);
+        let tangent = self.patch_tangent_compliance.unwrap_or(100.0 * normal);
+        (normal, tangent)
     }
 
     /// Checks every field; the error names the field and its allowed range.
@@ -240,6 +270,34 @@ impl Material {
             )?;
         }
         for (field, value) in [
+            (
+                "material.patch_normal_compliance",
+                self.patch_normal_compliance,
+            ),
+            (
+                "material.patch_tangent_compliance",
+                self.patch_tangent_compliance,
+            ),
+        ] {
+            if let Some(c) = value {
+                check_range(field, c, 0.0, 1.0, "0 ≤ compliance ≤ 1 (1/Pa)")?;
+            }
+        }
+        if !(1..=crate::body::patches::MAX_RINGS).contains(&self.patch_rings) {
+            return Err(out_of_range(
+                "material.patch_rings",
+                self.patch_rings,
+                "1 ≤ patch_rings ≤ 8",
+            ));
+        }
+        if !(self.patch_threshold > 0.0 && self.patch_threshold <= 1000.0) {
+            return Err(out_of_range(
+                "material.patch_threshold",
+                self.patch_threshold,
+                "0 < patch_threshold ≤ 1000 (lattice spacings)",
+            ));
+        }
+        for (field, value) in [
             ("material.tear_budget", self.tear_budget),
             ("material.tear_min_piece", self.tear_min_piece),
         ] {
@@ -318,6 +376,48 @@ mod tests {
                     ..Default::default()
                 },
                 "material.particle_mass",
+            ),
+            (
+                Material {
+                    patch_rings: 0,
+                    ..Default::default()
+                },
+                "material.patch_rings",
+            ),
+            (
+                Material {
+                    patch_rings: 9,
+                    ..Default::default()
+                },
+                "material.patch_rings",
+            ),
+            (
+                Material {
+                    patch_threshold: 0.0,
+                    ..Default::default()
+                },
+                "material.patch_threshold",
+            ),
+            (
+                Material {
+                    patch_threshold: f32::NAN,
+                    ..Default::default()
+                },
+                "material.patch_threshold",
+            ),
+            (
+                Material {
+                    patch_normal_compliance: Some(-1e-6),
+                    ..Default::default()
+                },
+                "material.patch_normal_compliance",
+            ),
+            (
+                Material {
+                    patch_tangent_compliance: Some(f32::NAN),
+                    ..Default::default()
+                },
+                "material.patch_tangent_compliance",
             ),
             (
                 Material {

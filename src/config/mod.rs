@@ -1,4 +1,4 @@
-//! Simulation settings, with validation of every field; a body's material is in [`material`].
+//! Simulation settings, with validation of every field; a body's material is [`Material`].
 
 use crate::error::{MAX_COORDINATE, Result, check_range, check_vec_within, out_of_range};
 use glam::Vec3;

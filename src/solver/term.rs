@@ -145,6 +145,27 @@ impl Topology<'_> {
         let d = *body.dense.get(key.local as usize)?;
         (d != NO_DENSE && body.lattice.is_live(key.local)).then_some(d)
     }
+
+    /// A term's per-body data after this change: the `kept` entry (ordered by body id,
+    /// as [`Topology::bodies`]) of every body that did not change, `build` for every body
+    /// that did (all of them after a rebuild), none for bodies that are gone.
+    pub fn rebuild_bodies<T>(
+        &self,
+        kept: Vec<T>,
+        id: impl Fn(&T) -> u64,
+        mut build: impl FnMut(&BodyTopology) -> Option<T>,
+    ) -> Vec<T> {
+        let mut out = Vec::with_capacity(self.bodies.len());
+        let mut old = kept.into_iter().peekable();
+        for body in self.bodies {
+            while old.next_if(|o| id(o) < body.id).is_some() {}
+            match old.next_if(|o| id(o) == body.id) {
+                Some(entry) if !body.changed && !self.relaid => out.push(entry),
+                _ => out.extend(build(body)),
+            }
+        }
+        out
+    }
 }
 
 /// The unknowns of projective dynamics' global solve: every particle that can move

@@ -108,6 +108,30 @@ pub fn edge_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D
         None => Ok(None),
     }
 }
+pub fn patch_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
+    match Option::<f32>::deserialize(d)? {
+        Some(c) => range::<D>(c, (0.0..=1.0).contains(&c), "0 ≤ compliance ≤ 1 (1/Pa)").map(Some),
+        None => Ok(None),
+    }
+}
+pub fn patch_rings<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    let v = u32::deserialize(d)?;
+    if (1..=crate::body::patches::MAX_RINGS).contains(&v) {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "{v} is out of range (allowed: 1 ≤ patch_rings ≤ 8)"
+        )))
+    }
+}
+pub fn patch_threshold<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(
+        v,
+        v > 0.0 && v <= 1000.0,
+        "0 < patch_threshold ≤ 1000 (lattice spacings)",
+    )
+}
 pub fn attachment_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;
     range::<D>(v, v >= 0.0, "finite and ≥ 0 (m/N; 0: hard)")

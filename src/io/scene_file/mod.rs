@@ -122,6 +122,10 @@ impl MaterialFile {
             tear_budget: m.tear_budget,
             tear_min_piece: m.tear_min_piece,
             edge_compliance: m.edge_compliance,
+            patch_rings: m.patch_rings,
+            patch_normal_compliance: m.patch_normal_compliance,
+            patch_tangent_compliance: m.patch_tangent_compliance,
+            patch_threshold: m.patch_threshold,
         }
     }
 
@@ -142,6 +146,10 @@ impl MaterialFile {
             tear_budget: self.tear_budget,
             tear_min_piece: self.tear_min_piece,
             edge_compliance: self.edge_compliance,
+            patch_rings: self.patch_rings,
+            patch_normal_compliance: self.patch_normal_compliance,
+            patch_tangent_compliance: self.patch_tangent_compliance,
+            patch_threshold: self.patch_threshold,
         }
     }
 }

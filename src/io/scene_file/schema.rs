@@ -229,6 +229,19 @@ pub struct MaterialFile {
     /// Compliance of the lattice edges' distance constraints, 1/Pa; `None`: none.
     #[serde(deserialize_with = "super::check::edge_compliance")]
     pub edge_compliance: Option<f32>,
+    /// Rings of the shape-keeping surface patches (1–8).
+    #[serde(deserialize_with = "super::check::patch_rings")]
+    pub patch_rings: u32,
+    /// Compliance of a patch's normal displacement, 1/Pa; `None`: no patch constraints
+    /// (relaxation uses the material's compliance).
+    #[serde(deserialize_with = "super::check::patch_compliance")]
+    pub patch_normal_compliance: Option<f32>,
+    /// Compliance of a patch's tangential displacement, 1/Pa; `None`: 100 × the normal.
+    #[serde(deserialize_with = "super::check::patch_compliance")]
+    pub patch_tangent_compliance: Option<f32>,
+    /// Normal displacement (lattice spacings, > 0) past which a patch stiffens.
+    #[serde(deserialize_with = "super::check::patch_threshold")]
+    pub patch_threshold: f32,
 }
 
 impl Default for MaterialFile {

@@ -137,18 +137,8 @@ impl Term for Edges {
     /// Takes the edges of every body that changed (all, after a rebuild) from its
     /// lattice again; forgets the bodies that are gone.
     fn topology(&mut self, change: &Topology) {
-        let mut bodies = Vec::with_capacity(change.bodies.len());
-        let mut old = std::mem::take(&mut self.bodies).into_iter().peekable();
-        for body in change.bodies {
-            while old.next_if(|o| o.id < body.id).is_some() {}
-            let kept = old.next_if(|o| o.id == body.id);
-            let edges = match kept {
-                Some(edges) if !body.changed && !change.relaid => Some(edges),
-                _ => body_edges(body),
-            };
-            bodies.extend(edges);
-        }
-        self.bodies = bodies;
+        let kept = std::mem::take(&mut self.bodies);
+        self.bodies = change.rebuild_bodies(kept, |b| b.id, body_edges);
         self.version += 1;
     }
 

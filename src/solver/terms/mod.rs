@@ -8,3 +8,4 @@ pub mod contact_list;
 pub mod contact_pairs;
 pub mod contacts;
 pub mod edges;
+pub mod patches;
