@@ -5,7 +5,9 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 mod material;
+mod relax;
 pub use material::Material;
+pub use relax::RelaxOptions;
 
 /// Which scheme solves each substep's constraints. All three solve the same problem —
 /// one implicit Euler step of the clusters' elastic energy (see [`Material::compliance`])
@@ -85,6 +87,10 @@ pub struct SimConfig {
     /// tool cannot have reached since the last test. Exact: a run is bit for bit the same
     /// with culling on and off; off only for checking that.
     pub culling: bool,
+    /// Relax every body of a scene before its first frame
+    /// ([`crate::sim::Simulation::from_scene`]; see [`crate::sim::relax`]); `None` (the
+    /// default): the bodies start as spawned.
+    pub relax: Option<RelaxOptions>,
     /// Seed for every random choice (clustering offsets, merges, splits, expansion).
     pub seed: u64,
     /// Run `check_invariants` after every frame and panic on a violation (tests, debugging).
@@ -111,6 +117,7 @@ impl Default for SimConfig {
             solver: SolverMode::Jacobi,
             contacts: true,
             culling: true,
+            relax: None,
             seed: 0,
             check_invariants_every_frame: false,
             memory_budget_gb: crate::body::shape::DEFAULT_MEMORY_BUDGET_GB,
@@ -156,6 +163,9 @@ impl SimConfig {
             1000.0,
             "0 ≤ damping ≤ 1000 (per second)",
         )?;
+        if let Some(relax) = &self.relax {
+            relax.validate()?;
+        }
         if let Some(g) = &self.ground {
             check_range(
                 "config.ground.height",

@@ -102,6 +102,11 @@ pub struct BodyDesc {
     pub render_mesh: Option<Arc<TriangleMesh>>,
     /// How the body's lattice surface is drawn.
     pub surface: SurfaceOptions,
+    /// Largest distance, in lattice spacings (0–0.5; default 0), each particle is moved
+    /// from its lattice place when spawned, in a random direction drawn from the
+    /// simulation's seeded stream: a body out of its rest shape, for relaxation
+    /// ([`crate::sim::relax`]) to settle.
+    pub jitter: f32,
 }
 
 /// How a body's lattice surface is drawn.
@@ -126,6 +131,7 @@ impl BodyDesc {
             attachments: Vec::new(),
             render_mesh: None,
             surface: SurfaceOptions::default(),
+            jitter: 0.0,
         }
     }
 }

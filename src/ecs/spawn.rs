@@ -147,6 +147,28 @@ fn check_surface_budget(lattice: &Lattice, budget_gb: f32) -> Result<()> {
     Ok(())
 }
 
+/// `count` offsets, each uniform in the ball of radius `radius` (rejection from its
+/// cube), drawn from `rng`; all zero, drawing nothing, when `radius` is 0.
+fn jitter_offsets(count: usize, radius: f32, rng: &mut impl rand::Rng) -> Vec<Vec3> {
+    if radius == 0.0 {
+        return vec![Vec3::ZERO; count];
+    }
+    (0..count)
+        .map(|_| {
+            loop {
+                let v = Vec3::new(
+                    rng.random_range(-1.0..=1.0),
+                    rng.random_range(-1.0..=1.0),
+                    rng.random_range(-1.0..=1.0),
+                );
+                if v.length_squared() <= 1.0 {
+                    break v * radius;
+                }
+            }
+        })
+        .collect()
+}
+
 /// Spawns a body into any world prepared with [`crate::systems::install`].
 pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     desc.material.validate()?;
@@ -217,6 +239,13 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         a.path.validate(&field)?;
     }
     check_range(
+        "body.jitter",
+        desc.jitter,
+        0.0,
+        0.5,
+        "0 ≤ jitter ≤ 0.5 (lattice spacings)",
+    )?;
+    check_range(
         "material.particle_mass",
         desc.material.mass_at_spacing(desc.spacing),
         1e-9,
@@ -282,9 +311,14 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     // batch, so that the table is sized once instead of grown by doubling.
     let order = lattice.live_in_morton_order();
     let inv_mass = 1.0 / desc.material.mass_at_spacing(desc.spacing);
-    let spawned = world.spawn_batch(order.iter().map(|&i| {
-        let x = placed(i);
-        let pin = desc.pins.iter().find(|r| r.contains(x));
+    let jitter = jitter_offsets(
+        order.len(),
+        desc.jitter * desc.spacing,
+        &mut world.resource_mut::<SimRng>().0,
+    );
+    let spawned = world.spawn_batch(order.iter().zip(jitter).map(|(&i, jitter)| {
+        let x = placed(i) + jitter;
+        let pin = desc.pins.iter().find(|r| r.contains(placed(i)));
         (
             Particle { body, index: i },
             Position(x),

@@ -3,4 +3,5 @@
 pub mod interact;
 #[cfg(feature = "bevy_app")]
 pub mod plugin;
+pub mod relax;
 pub mod simulation;

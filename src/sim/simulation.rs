@@ -29,17 +29,28 @@ impl Simulation {
     }
 
     /// A simulation of `scene`: its settings, then its bodies, tools and colliders
-    /// spawned in order (the first error stops it).
+    /// spawned in order (the first error stops it), then, if its settings ask for it
+    /// ([`SimConfig::relax`]), every body relaxed in turn
+    /// ([`Simulation::relax`]; the reports in [`Simulation::relax_reports`]).
     pub fn from_scene(scene: &crate::ecs::desc::Scene) -> Result<Self> {
         let mut sim = Self::new(scene.config.clone())?;
+        let mut bodies = Vec::with_capacity(scene.bodies.len());
         for b in &scene.bodies {
-            sim.spawn_body(b)?;
+            bodies.push(sim.spawn_body(b)?);
         }
         for t in &scene.tools {
             sim.spawn_tool(t)?;
         }
         for c in &scene.colliders {
             sim.spawn_collider(c)?;
+        }
+        if let Some(options) = &scene.config.relax {
+            let mut reports = Vec::with_capacity(bodies.len());
+            for body in bodies {
+                reports.push((body, sim.relax(body, options)?));
+            }
+            sim.world
+                .insert_resource(crate::sim::relax::RelaxReports(reports));
         }
         Ok(sim)
     }

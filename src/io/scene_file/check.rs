@@ -132,6 +132,23 @@ pub fn patch_threshold<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error>
         "0 < patch_threshold ≤ 1000 (lattice spacings)",
     )
 }
+pub fn relax<'de, D: Deserializer<'de>>(
+    d: D,
+) -> Result<Option<crate::config::RelaxOptions>, D::Error> {
+    let v = Option::<crate::config::RelaxOptions>::deserialize(d)?;
+    if let Some(options) = &v {
+        options.validate().map_err(D::Error::custom)?;
+    }
+    Ok(v)
+}
+pub fn jitter<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(
+        v,
+        (0.0..=0.5).contains(&v),
+        "0 ≤ jitter ≤ 0.5 (lattice spacings)",
+    )
+}
 pub fn attachment_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;
     range::<D>(v, v >= 0.0, "finite and ≥ 0 (m/N; 0: hard)")

@@ -80,6 +80,7 @@ impl SettingsFile {
             solver: c.solver,
             contacts: c.contacts,
             culling: c.culling,
+            relax: c.relax.clone(),
             check_invariants_every_frame: c.check_invariants_every_frame,
             memory_budget_gb: c.memory_budget_gb,
         }
@@ -97,6 +98,7 @@ impl SettingsFile {
             solver: self.solver,
             contacts: self.contacts,
             culling: self.culling,
+            relax: self.relax.clone(),
             seed,
             check_invariants_every_frame: self.check_invariants_every_frame,
             memory_budget_gb: self.memory_budget_gb,
@@ -194,6 +196,7 @@ impl SceneFile {
                     surface: SurfaceFile {
                         smooth: b.surface.smooth,
                     },
+                    jitter: b.jitter,
                 })
             })
             .collect::<Option<Vec<_>>>()?;
@@ -288,6 +291,7 @@ impl SceneFile {
                 surface: SurfaceOptions {
                     smooth: b.surface.smooth,
                 },
+                jitter: b.jitter,
             });
         }
         let tools = self

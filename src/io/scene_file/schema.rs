@@ -66,6 +66,10 @@ pub struct SettingsFile {
     pub contacts: bool,
     /// Conservative culling of contact pairs and tool tests (exact; on by default).
     pub culling: bool,
+    /// Relax every body before the first frame: `relax: Some((tolerance: 1e-3))`, every
+    /// field optional (see [`crate::config::RelaxOptions`]).
+    #[serde(deserialize_with = "super::check::relax")]
+    pub relax: Option<crate::config::RelaxOptions>,
     /// Check the invariants after every frame (slow; for tests).
     pub check_invariants_every_frame: bool,
     /// Memory one body may take, in GB.
@@ -120,6 +124,10 @@ pub struct BodyFile {
     /// How the lattice's surface is drawn: `surface: (smooth: true)`.
     #[serde(default)]
     pub surface: SurfaceFile,
+    /// Largest random displacement of each particle from its lattice place when
+    /// spawned, in lattice spacings (0–0.5): a body out of its rest shape.
+    #[serde(default, deserialize_with = "super::check::jitter")]
+    pub jitter: f32,
 }
 
 /// How a body's lattice surface is drawn.
