@@ -12,7 +12,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// Names and one-line descriptions of the built-in scenes.
-pub const BUILTIN_SCENES: [(&str, &str); 14] = [
+pub const BUILTIN_SCENES: [(&str, &str); 15] = [
     ("drop", "a 16×8×8 box falls on the ground and settles"),
     (
         "cantilever",
@@ -65,6 +65,10 @@ pub const BUILTIN_SCENES: [(&str, &str); 14] = [
     (
         "soft_beam",
         "a 32×3×3 bar of very soft clusters and stiff edges, pinned at one end: it bends like a chain and barely stretches",
+    ),
+    (
+        "jittered",
+        "a soft block and ball spawned with every particle jittered by 0.3 h, relaxed into their rest shapes, then dropped",
     ),
 ];
 
@@ -245,6 +249,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
             }
         }
         "tear" | "notch" => pulled_bar(config, name == "notch"),
+        "jittered" => crate::io::relax_scenes::jittered_scene(config),
         "cantilever" => {
             let mut body = rigid_body(Shape::cuboid(UVec3::new(24, 6, 6)), H);
             body.position = Vec3::new(0.0, 1.0, 0.0);

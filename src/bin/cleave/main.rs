@@ -29,91 +29,99 @@ struct Cli {
     command: Command,
 }
 
+/// The flags of `cleave run` (and `cleave relax`).
+#[derive(clap::Args)]
+struct RunFlags {
+    /// Built-in scene name (see `cleave scenes`) or a `.ron` scene file.
+    scene: String,
+    /// Frames to simulate (default: the scene's; 0 for `cleave relax`).
+    #[arg(long, value_parser = whole::<u32>, allow_negative_numbers = true)]
+    frames: Option<u32>,
+    /// Output directory for summary.json.
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+    /// Random seed (default: the scene's; 0 for built-ins).
+    #[arg(long, value_parser = whole::<u64>, allow_negative_numbers = true)]
+    seed: Option<u64>,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = whole::<usize>, allow_negative_numbers = true)]
+    threads: Option<usize>,
+    /// Write the final state (cleave-state/2 JSON) to this file.
+    #[arg(long)]
+    dump_state: Option<PathBuf>,
+    /// Save the simulation at the end to this file (binary; `--load-state` resumes it).
+    #[arg(long)]
+    save_state: Option<PathBuf>,
+    /// Start from a simulation saved with `--save-state` instead of the scene's start
+    /// (the scene still names the run; `--frames` counts the frames run on).
+    #[arg(long)]
+    load_state: Option<PathBuf>,
+    /// Write a PNG every N frames (0: none).
+    #[arg(long, default_value_t = 30, value_parser = whole::<u32>, allow_negative_numbers = true)]
+    png_every: u32,
+    /// Add a frame to `run.gif` every N frames (0: no GIF).
+    #[arg(long, default_value_t = 3, value_parser = whole::<u32>, allow_negative_numbers = true)]
+    gif_every: u32,
+    /// Colour particles by piece or by cluster.
+    #[arg(long, value_enum, default_value = "pieces")]
+    color: ColorArg,
+    /// Image width in pixels.
+    #[arg(long, default_value_t = 640, value_parser = whole::<u32>, allow_negative_numbers = true)]
+    width: u32,
+    /// Image height in pixels.
+    #[arg(long, default_value_t = 480, value_parser = whole::<u32>, allow_negative_numbers = true)]
+    height: u32,
+    /// What stands for a body in the pictures: its surface, its particles, or both.
+    #[arg(long, value_enum, default_value = "surfaces")]
+    draw: DrawArg,
+    /// Also export, comma-separated: point clouds (`ply`: DIR/ply/frame_NNNNN.ply,
+    /// every `--ply-every` frames) and the surfaces with every PNG (`obj`:
+    /// DIR/obj/frame_NNNNN.obj, a group per piece; `gltf`: DIR/gltf/frame_NNNNN.glb,
+    /// a mesh per piece).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    export: Vec<ExportArg>,
+    /// With `--export ply`: a point cloud every N frames.
+    #[arg(long, default_value_t = 10, value_parser = whole::<u32>, allow_negative_numbers = true)]
+    ply_every: u32,
+    /// Print milliseconds per stage (predict, shape-match, detect, cut, regroup,
+    /// split, expand).
+    #[arg(long)]
+    profile: bool,
+    /// No progress bar and no report table.
+    #[arg(long)]
+    quiet: bool,
+    /// Solver scheme, overriding the scene's: jacobi, gauss-seidel or projective.
+    #[arg(long)]
+    solver: Option<SolverMode>,
+    /// Substeps per frame, overriding the scene's (1–1000).
+    #[arg(long, value_parser = whole::<u32>, allow_negative_numbers = true)]
+    substeps: Option<u32>,
+    /// Solver iterations per substep, overriding the scene's (1–10000).
+    #[arg(long, value_parser = whole::<u32>, allow_negative_numbers = true)]
+    iterations: Option<u32>,
+    /// What every tool of the scene does where it passes: remove (particles), sever
+    /// (edges; no mass is lost) or split (particles in two, by the blade's side).
+    #[arg(long)]
+    cut_mode: Option<CutMode>,
+    /// Turn conservative culling off (contact pairs and tool tests redone in full
+    /// every time): the result is the same bit for bit, only slower.
+    #[arg(long)]
+    no_culling: bool,
+    /// After this frame (0: before the first), replace every body's clusters by a
+    /// fresh clustering of its geometry, to compare a cut body with the same shape
+    /// built fresh.
+    #[arg(long, value_parser = whole::<u32>, allow_negative_numbers = true)]
+    recluster_at: Option<u32>,
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Run a built-in scene or a scene file and write a summary and pictures.
-    Run {
-        /// Built-in scene name (see `cleave scenes`) or a `.ron` scene file.
-        scene: String,
-        /// Frames to simulate (default: the scene's).
-        #[arg(long, value_parser = whole::<u32>, allow_negative_numbers = true)]
-        frames: Option<u32>,
-        /// Output directory for summary.json.
-        #[arg(long, default_value = "out")]
-        out: PathBuf,
-        /// Random seed (default: the scene's; 0 for built-ins).
-        #[arg(long, value_parser = whole::<u64>, allow_negative_numbers = true)]
-        seed: Option<u64>,
-        /// Worker threads (default: all cores).
-        #[arg(long, value_parser = whole::<usize>, allow_negative_numbers = true)]
-        threads: Option<usize>,
-        /// Write the final state (cleave-state/2 JSON) to this file.
-        #[arg(long)]
-        dump_state: Option<PathBuf>,
-        /// Save the simulation at the end to this file (binary; `--load-state` resumes it).
-        #[arg(long)]
-        save_state: Option<PathBuf>,
-        /// Start from a simulation saved with `--save-state` instead of the scene's start
-        /// (the scene still names the run; `--frames` counts the frames run on).
-        #[arg(long)]
-        load_state: Option<PathBuf>,
-        /// Write a PNG every N frames (0: none).
-        #[arg(long, default_value_t = 30, value_parser = whole::<u32>, allow_negative_numbers = true)]
-        png_every: u32,
-        /// Add a frame to `run.gif` every N frames (0: no GIF).
-        #[arg(long, default_value_t = 3, value_parser = whole::<u32>, allow_negative_numbers = true)]
-        gif_every: u32,
-        /// Colour particles by piece or by cluster.
-        #[arg(long, value_enum, default_value = "pieces")]
-        color: ColorArg,
-        /// Image width in pixels.
-        #[arg(long, default_value_t = 640, value_parser = whole::<u32>, allow_negative_numbers = true)]
-        width: u32,
-        /// Image height in pixels.
-        #[arg(long, default_value_t = 480, value_parser = whole::<u32>, allow_negative_numbers = true)]
-        height: u32,
-        /// What stands for a body in the pictures: its surface, its particles, or both.
-        #[arg(long, value_enum, default_value = "surfaces")]
-        draw: DrawArg,
-        /// Also export, comma-separated: point clouds (`ply`: DIR/ply/frame_NNNNN.ply,
-        /// every `--ply-every` frames) and the surfaces with every PNG (`obj`:
-        /// DIR/obj/frame_NNNNN.obj, a group per piece; `gltf`: DIR/gltf/frame_NNNNN.glb,
-        /// a mesh per piece).
-        #[arg(long, value_enum, value_delimiter = ',')]
-        export: Vec<ExportArg>,
-        /// With `--export ply`: a point cloud every N frames.
-        #[arg(long, default_value_t = 10, value_parser = whole::<u32>, allow_negative_numbers = true)]
-        ply_every: u32,
-        /// Print milliseconds per stage (predict, shape-match, detect, cut, regroup,
-        /// split, expand).
-        #[arg(long)]
-        profile: bool,
-        /// No progress bar and no report table.
-        #[arg(long)]
-        quiet: bool,
-        /// Solver scheme, overriding the scene's: jacobi, gauss-seidel or projective.
-        #[arg(long)]
-        solver: Option<SolverMode>,
-        /// Substeps per frame, overriding the scene's (1–1000).
-        #[arg(long, value_parser = whole::<u32>, allow_negative_numbers = true)]
-        substeps: Option<u32>,
-        /// Solver iterations per substep, overriding the scene's (1–10000).
-        #[arg(long, value_parser = whole::<u32>, allow_negative_numbers = true)]
-        iterations: Option<u32>,
-        /// What every tool of the scene does where it passes: remove (particles), sever
-        /// (edges; no mass is lost) or split (particles in two, by the blade's side).
-        #[arg(long)]
-        cut_mode: Option<CutMode>,
-        /// Turn conservative culling off (contact pairs and tool tests redone in full
-        /// every time): the result is the same bit for bit, only slower.
-        #[arg(long)]
-        no_culling: bool,
-        /// After this frame (0: before the first), replace every body's clusters by a
-        /// fresh clustering of its geometry, to compare a cut body with the same shape
-        /// built fresh.
-        #[arg(long, value_parser = whole::<u32>, allow_negative_numbers = true)]
-        recluster_at: Option<u32>,
-    },
+    Run(RunFlags),
+    /// Relax every body of a scene into its rest shape (the scene's `settings.relax`, or
+    /// the defaults), then run it as `cleave run` does (`--frames`, default 0) and write
+    /// the same outputs; the summary reports each relaxation.
+    Relax(RunFlags),
     /// Compare cut bodies' rebuilt clusters with fresh clusterings of the same geometry:
     /// a block cut N times (cluster counts, sizes, memberships, extents) and the
     /// cantilever with 20 scoops (static tip sag).
@@ -274,9 +282,86 @@ where
     }
 }
 
+/// `cleave run`, or with `relax` `cleave relax`.
+fn run_command(flags: RunFlags, relax: bool) -> Result<(), String> {
+    let RunFlags {
+        scene,
+        frames,
+        out,
+        seed,
+        threads,
+        dump_state,
+        save_state,
+        load_state,
+        png_every,
+        gif_every,
+        color,
+        draw,
+        width,
+        height,
+        export,
+        ply_every,
+        profile,
+        quiet,
+        solver,
+        substeps,
+        iterations,
+        cut_mode,
+        no_culling,
+        recluster_at,
+    } = flags;
+    let args = run::RunArgs {
+        scene,
+        relax,
+        recluster_at,
+        overrides: run::SceneOverrides {
+            solver,
+            substeps,
+            iterations,
+            cut_mode,
+            no_culling,
+        },
+        frames,
+        out,
+        seed,
+        dump_state,
+        save_state,
+        load_state,
+        pictures: pictures::PictureOptions {
+            png_every,
+            gif_every,
+            ply_every: if export.contains(&ExportArg::Ply) {
+                ply_every
+            } else {
+                0
+            },
+            obj: export.contains(&ExportArg::Obj),
+            gltf: export.contains(&ExportArg::Gltf),
+            color: match color {
+                ColorArg::Pieces => ColorMode::Pieces,
+                ColorArg::Clusters => ColorMode::Clusters,
+            },
+            draw: match draw {
+                DrawArg::Surfaces => Draw::Surfaces,
+                DrawArg::Particles => Draw::Particles,
+                DrawArg::Both => Draw::Both,
+            },
+            width,
+            height,
+            dt: 1.0 / 60.0,
+        },
+        profile,
+        quiet,
+    };
+    with_threads(threads, |threads| run::run(&args, threads))
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    notices::install(matches!(cli.command, Command::Run { quiet: true, .. }));
+    notices::install(matches!(
+        &cli.command,
+        Command::Run(RunFlags { quiet: true, .. }) | Command::Relax(RunFlags { quiet: true, .. })
+    ));
     let result = match cli.command {
         Command::Scenes { action: None } => {
             for (name, description) in BUILTIN_SCENES {
@@ -291,76 +376,8 @@ fn main() -> ExitCode {
             print!("{}", file.to_ron());
             Ok(())
         }),
-        Command::Run {
-            scene,
-            frames,
-            out,
-            seed,
-            threads,
-            dump_state,
-            save_state,
-            load_state,
-            png_every,
-            gif_every,
-            color,
-            draw,
-            width,
-            height,
-            export,
-            ply_every,
-            profile,
-            quiet,
-            solver,
-            substeps,
-            iterations,
-            cut_mode,
-            no_culling,
-            recluster_at,
-        } => {
-            let args = run::RunArgs {
-                scene,
-                recluster_at,
-                overrides: run::SceneOverrides {
-                    solver,
-                    substeps,
-                    iterations,
-                    cut_mode,
-                    no_culling,
-                },
-                frames,
-                out,
-                seed,
-                dump_state,
-                save_state,
-                load_state,
-                pictures: pictures::PictureOptions {
-                    png_every,
-                    gif_every,
-                    ply_every: if export.contains(&ExportArg::Ply) {
-                        ply_every
-                    } else {
-                        0
-                    },
-                    obj: export.contains(&ExportArg::Obj),
-                    gltf: export.contains(&ExportArg::Gltf),
-                    color: match color {
-                        ColorArg::Pieces => ColorMode::Pieces,
-                        ColorArg::Clusters => ColorMode::Clusters,
-                    },
-                    draw: match draw {
-                        DrawArg::Surfaces => Draw::Surfaces,
-                        DrawArg::Particles => Draw::Particles,
-                        DrawArg::Both => Draw::Both,
-                    },
-                    width,
-                    height,
-                    dt: 1.0 / 60.0,
-                },
-                profile,
-                quiet,
-            };
-            with_threads(threads, |threads| run::run(&args, threads))
-        }
+        Command::Run(flags) => run_command(flags, false),
+        Command::Relax(flags) => run_command(flags, true),
         Command::Fidelity {
             cuts,
             seed,

@@ -153,4 +153,29 @@ impl Pictures {
         self.ms += start.elapsed().as_secs_f64() * 1e3;
         Ok(())
     }
+
+    /// Writes one picture, `NAME.png`, of the state now (with the camera every frame
+    /// uses): a state before the frames, such as a body before relaxation.
+    pub fn still(&mut self, world: &mut World, name: &str) -> Result<(), String> {
+        if self.options.png_every == 0 {
+            return Ok(());
+        }
+        let start = Instant::now();
+        let o = &self.options;
+        let snap = snapshot(world, o.color, o.draw);
+        let (width, height) = (o.width, o.height);
+        let camera = *self
+            .camera
+            .get_or_insert_with(|| frame_camera(&snap, width, height));
+        let canvas = render(&snap, &camera, width, height).ok_or("cannot allocate image")?;
+        write_png(
+            &self.dir.join(format!("{name}.png")),
+            width,
+            height,
+            canvas.pixmap.data(),
+        )?;
+        self.files += 1;
+        self.ms += start.elapsed().as_secs_f64() * 1e3;
+        Ok(())
+    }
 }

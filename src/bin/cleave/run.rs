@@ -7,7 +7,7 @@ use bevy_ecs::prelude::*;
 use cleave::analysis::bench::median;
 use cleave::analysis::profile::{StageProfile, solver_table};
 use cleave::analysis::stats::BodyStats;
-use cleave::config::{SimConfig, SolverMode};
+use cleave::config::{RelaxOptions, SimConfig, SolverMode};
 use cleave::cut::tool::CutMode;
 use cleave::ecs::check::check_invariants;
 use cleave::ecs::components::BodyLattice;
@@ -99,6 +99,9 @@ impl SceneOverrides {
 pub struct RunArgs {
     /// Built-in scene name.
     pub scene: String,
+    /// Relax every body before the first frame even if the scene does not ask for it
+    /// (`cleave relax`; then the frames default to 0).
+    pub relax: bool,
     /// Frame after which every body is clustered afresh.
     pub recluster_at: Option<u32>,
     /// Solver settings overriding the scene's.
@@ -205,7 +208,10 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         }
     }
     let seed_given = seed.is_some();
-    let frames = frames.unwrap_or(scene.frames);
+    if args.relax && scene.config.relax.is_none() {
+        scene.config.relax = Some(RelaxOptions::default());
+    }
+    let frames = frames.unwrap_or(if args.relax { 0 } else { scene.frames });
     if let Some(at) = args.recluster_at
         && at > frames
     {
@@ -227,19 +233,6 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
                 .map_or(1.0, |l| l.lattice.spacing())
         })
         .collect();
-    let mut tracked = Vec::with_capacity(bodies.len());
-    for (body, h) in bodies.iter().zip(&spacings) {
-        tracked.push(Tracked::new(&mut sim, *body, *h)?);
-    }
-    let h = spacings.iter().copied().fold(f32::INFINITY, f32::min);
-    let h_first = spacings.first().copied().unwrap_or(1.0);
-    let mut step_ms = Vec::new();
-    let mut cut_particles = 0;
-    let mut min_gap: Option<f64> = None;
-    let mut cursor = sim
-        .world()
-        .resource::<Messages<ParticlesCut>>()
-        .get_cursor();
     let mut pictures = Pictures::new(
         &out,
         PictureOptions {
@@ -253,6 +246,35 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         sim.drop_surfaces();
     }
     sim.update_surfaces().map_err(|e| e.to_string())?;
+    // a resumed run was relaxed, if at all, before it was saved
+    let relaxing = scene
+        .config
+        .relax
+        .as_ref()
+        .filter(|_| args.load_state.is_none());
+    if relaxing.is_some() {
+        pictures.still(sim.world_mut(), "before_relax")?;
+    }
+    let mut tracked = Vec::with_capacity(bodies.len());
+    for (i, (body, h)) in bodies.iter().zip(&spacings).enumerate() {
+        let relaxed = match relaxing {
+            Some(options) => Some(
+                sim.relax(*body, options)
+                    .map_err(|e| format!("{scene_name}: settings.relax: bodies[{i}]: {e}"))?,
+            ),
+            None => None,
+        };
+        tracked.push(Tracked::new(&mut sim, *body, *h, relaxed)?);
+    }
+    let h = spacings.iter().copied().fold(f32::INFINITY, f32::min);
+    let h_first = spacings.first().copied().unwrap_or(1.0);
+    let mut step_ms = Vec::new();
+    let mut cut_particles = 0;
+    let mut min_gap: Option<f64> = None;
+    let mut cursor = sim
+        .world()
+        .resource::<Messages<ParticlesCut>>()
+        .get_cursor();
     pictures.frame(sim.world_mut(), 0)?;
     let recluster = |sim: &mut Simulation, frame: u32| -> Result<(), String> {
         if args.recluster_at == Some(frame) {
@@ -332,7 +354,7 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         memberships: total(|s| s.memberships),
         pieces: total(|s| s.pieces),
         cut_particles,
-        simulate_ms_total: step_ms.iter().sum(),
+        simulate_ms_total: step_ms.iter().fold(0.0, |sum, ms| sum + ms),
         pictures_ms_total: pictures.ms,
         pictures_written: pictures.files,
         median_ms_per_step: median(&mut step_ms),

@@ -7,6 +7,7 @@ use cleave::analysis::stats::{
 };
 use cleave::ecs::attach::pinned_particles;
 use cleave::ecs::components::{BodyLattice, Position};
+use cleave::sim::relax::RelaxReport;
 use cleave::sim::simulation::Simulation;
 use serde::Serialize;
 use std::path::Path;
@@ -55,6 +56,8 @@ pub(crate) struct Summary {
 /// What the summary reports of one body.
 #[derive(Serialize)]
 pub(crate) struct BodySummary {
+    /// The relaxation before the first frame, if the body was relaxed.
+    pub(crate) relax: Option<RelaxReport>,
     pub(crate) before: BodyStats,
     pub(crate) half_time: BodyStats,
     pub(crate) after: BodyStats,
@@ -78,10 +81,17 @@ pub(crate) struct Tracked {
     pub(crate) before: BodyStats,
     pub(crate) half: BodyStats,
     pub(crate) tip_half: f64,
+    pub(crate) relax: Option<RelaxReport>,
 }
 
 impl Tracked {
-    pub(crate) fn new(sim: &mut Simulation, body: Entity, h: f32) -> Result<Self, String> {
+    /// Starts following `body` (relaxed by `relax`, if it was).
+    pub(crate) fn new(
+        sim: &mut Simulation,
+        body: Entity,
+        h: f32,
+        relax: Option<RelaxReport>,
+    ) -> Result<Self, String> {
         let lattice = sim
             .world()
             .get::<BodyLattice>(body)
@@ -102,6 +112,7 @@ impl Tracked {
             half: BodyStats::default(),
             tip_half: 0.0,
             lattice,
+            relax,
         };
         tracked.tip_start = tracked.position(sim, tip);
         tracked.pinned = pinned_particles(sim.world_mut(), body)
@@ -155,9 +166,11 @@ impl Tracked {
             &self.all_positions(sim),
             self.h,
         );
+        let tip_drop_h_end = self.tip_drop(sim);
         Ok(BodySummary {
+            relax: self.relax,
             tip_drop_h_half: self.tip_half,
-            tip_drop_h_end: self.tip_drop(sim),
+            tip_drop_h_end,
             pinned_max_displacement_h: pinned_max,
             piece_separation_start_h: separation.0,
             piece_separation_end_h: separation.1,
@@ -260,6 +273,18 @@ pub(crate) fn print_table(s: &Summary, path: &Path, out: &Path) {
     for (i, b) in s.bodies.iter().enumerate() {
         if s.bodies.len() > 1 {
             println!("  body {i}");
+        }
+        if let Some(r) = &b.relax {
+            println!(
+                "  relaxed in {} frames{}: shape error {:.4} h → {:.4} h, boundary drift {:.1e} h over {} sets, rms speed {:.4} h/s",
+                r.frames,
+                if r.converged { "" } else { " (not converged)" },
+                r.shape_error_before,
+                r.shape_error,
+                r.boundary_drift,
+                r.boundary_sets,
+                r.rms_speed
+            );
         }
         for (name, f) in &rows {
             println!("  {name:<28} {:>12.3} {:>12.3}", f(&b.before), f(&b.after));
