@@ -57,7 +57,7 @@ pub enum SimStage {
     /// Forces, damping, predicted positions (in [`SubstepSchedule`]).
     Predict,
     /// Constraint iterations: cluster shape matching, then every other term
-    /// (attachments, edges, contacts, colliders) in each iteration (in
+    /// (attachments, patches, centroid holds, edges, contacts, colliders) in each iteration (in
     /// [`SubstepSchedule`]).
     ShapeMatch,
     /// Advances keyframed colliders to the end of the frame (in [`CleaveSchedule`]).

@@ -7,7 +7,7 @@ use cleave::body::shape::Shape;
 use cleave::config::{Material, RelaxOptions, SimConfig};
 use cleave::ecs::components::{Attachment, Body, Velocity};
 use cleave::ecs::desc::BodyDesc;
-use cleave::sim::relax::RelaxReport;
+use cleave::sim::relax_report::RelaxReport;
 use cleave::sim::simulation::Simulation;
 use glam::{UVec3, Vec3};
 
@@ -200,5 +200,22 @@ fn bad_options_and_entities_are_errors_naming_what_is_wrong() -> cleave::error::
         })
         .unwrap_err();
     assert!(e.to_string().contains("body.jitter"), "{e}");
+    Ok(())
+}
+
+#[test]
+fn a_scene_that_asks_for_it_is_relaxed_when_it_is_built() -> cleave::error::Result<()> {
+    let scene = cleave::io::scene::builtin("jittered", 0).expect("a built-in");
+    let sim = Simulation::from_scene(&scene)?;
+    let reports = sim.relax_reports();
+    assert_eq!(reports.len(), 2);
+    for (body, report) in reports {
+        assert!(report.converged && report.shape_error < 0.05, "{report:?}");
+        assert!(sim.positions(*body)?.len() > 1000);
+    }
+    // and one that does not ask is not
+    let mut plain = scene.clone();
+    plain.config.relax = None;
+    assert!(Simulation::from_scene(&plain)?.relax_reports().is_empty());
     Ok(())
 }

@@ -4,4 +4,5 @@ pub mod interact;
 #[cfg(feature = "bevy_app")]
 pub mod plugin;
 pub mod relax;
+pub mod relax_report;
 pub mod simulation;

@@ -50,7 +50,7 @@ impl Simulation {
                 reports.push((body, sim.relax(body, options)?));
             }
             sim.world
-                .insert_resource(crate::sim::relax::RelaxReports(reports));
+                .insert_resource(crate::sim::relax_report::RelaxReports(reports));
         }
         Ok(sim)
     }

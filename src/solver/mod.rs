@@ -4,7 +4,8 @@
 //! - [`particles`]: the particles' dense state within a frame (prediction, velocities).
 //! - [`clusters`]: cluster shape matching, the dense SIMD core.
 //! - [`term`] and [`registry`]: what a term is, and the registered ones in order.
-//! - [`terms`]: attachments, edge distances, contacts, colliders.
+//! - [`terms`]: attachments, surface patches, centroid holds, edge distances, contacts,
+//!   colliders.
 //! - [`schemes`]: Jacobi, coloured Gauss–Seidel and projective dynamics, which differ in
 //!   how the clusters move the particles and how the other terms join in.
 //! - [`solve`]: the iteration that runs them, timed per term.

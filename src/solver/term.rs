@@ -27,7 +27,8 @@
 //! next pass does not undo them. Projective dynamics puts every term that gives a
 //! [`ProjectiveTerm`] into its global matrix (`w AᵀA` beside the clusters' and the
 //! masses') and solves all of them in one linear solve per iteration; the others
-//! (contacts, colliders: their constraints change every substep) are projected after it.
+//! (contacts, colliders, patches, centroid holds: their constraints change every substep or
+//! couple many particles) are projected after it.
 //!
 //! ## Particles, and how a term names them
 //!

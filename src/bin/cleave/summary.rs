@@ -7,7 +7,7 @@ use cleave::analysis::stats::{
 };
 use cleave::ecs::attach::pinned_particles;
 use cleave::ecs::components::{BodyLattice, Position};
-use cleave::sim::relax::RelaxReport;
+use cleave::sim::relax_report::RelaxReport;
 use cleave::sim::simulation::Simulation;
 use serde::Serialize;
 use std::path::Path;
