@@ -164,32 +164,13 @@ fn relaxing_leaves_the_rest_of_the_world_as_it_was() -> cleave::error::Result<()
 fn bad_options_and_entities_are_errors_naming_what_is_wrong() -> cleave::error::Result<()> {
     let mut sim = Simulation::new(SimConfig::default())?;
     let body = sim.spawn_body(&jittered(Shape::cuboid(UVec3::new(4, 4, 4))))?;
-    for (options, field) in [
-        (
-            RelaxOptions {
-                tolerance: 0.0,
-                ..Default::default()
-            },
-            "relax.tolerance",
-        ),
-        (
-            RelaxOptions {
-                tolerance: f32::NAN,
-                ..Default::default()
-            },
-            "relax.tolerance",
-        ),
-        (
-            RelaxOptions {
-                max_frames: 0,
-                ..Default::default()
-            },
-            "relax.max_frames",
-        ),
-    ] {
-        let e = sim.relax(body, &options).unwrap_err().to_string();
-        assert!(e.contains(field), "{e}");
-    }
+    // (every field's check is `RelaxOptions::validate`'s, tested with it)
+    let bad = RelaxOptions {
+        tolerance: f32::NAN,
+        ..Default::default()
+    };
+    let e = sim.relax(body, &bad).unwrap_err().to_string();
+    assert!(e.contains("relax.tolerance"), "{e}");
     let nothing = sim.world_mut().spawn_empty().id();
     let e = sim.relax(nothing, &RelaxOptions::default()).unwrap_err();
     assert!(e.to_string().contains("is not a body"), "{e}");

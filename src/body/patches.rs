@@ -34,18 +34,48 @@ pub struct Patch {
     pub frame: Vec<u32>,
 }
 
+/// Marks of visited particles, cleared in O(1) by a new generation.
+struct Visits {
+    mark: Vec<u32>,
+    generation: u32,
+}
+
+impl Visits {
+    fn new(len: usize) -> Self {
+        Self {
+            mark: vec![0; len],
+            generation: 0,
+        }
+    }
+
+    fn clear(&mut self) {
+        self.generation += 1;
+    }
+
+    /// Marks `i`; whether it was unmarked.
+    fn visit(&mut self, i: u32) -> bool {
+        let mark = &mut self.mark[i as usize];
+        std::mem::replace(mark, self.generation) != self.generation
+    }
+
+    fn seen(&self, i: u32) -> bool {
+        self.mark[i as usize] == self.generation
+    }
+}
+
 /// The particles reached from `start` in at most `depth` steps along the lattice's
-/// links that `admit` lets through, each with its step count, in breadth-first order.
+/// links that `admit` lets through, each with its step count, in breadth-first order;
+/// they are left marked in `visits`.
 fn rings(
     lattice: &Lattice,
     start: u32,
     depth: u32,
     admit: impl Fn(u32) -> bool,
-    seen: &mut Vec<u32>,
+    visits: &mut Visits,
 ) -> Vec<(u32, u32)> {
     let mut found = vec![(start, 0)];
-    seen.clear();
-    seen.push(start);
+    visits.clear();
+    visits.visit(start);
     let mut next = 0;
     while next < found.len() {
         let (i, ring) = found[next];
@@ -54,8 +84,7 @@ fn rings(
             continue;
         }
         for j in lattice.links(i) {
-            if j != NO_PARTICLE && admit(j) && !seen.contains(&j) {
-                seen.push(j);
+            if j != NO_PARTICLE && admit(j) && visits.visit(j) {
                 found.push((j, ring + 1));
             }
         }
@@ -80,13 +109,19 @@ fn open_directions(lattice: &Lattice, i: u32) -> Vec3 {
 /// patch. Ordered by centre.
 pub fn surface_patches(lattice: &Lattice, rings: u32) -> Vec<Patch> {
     let rings = rings.clamp(1, MAX_RINGS);
-    let mut seen = Vec::new();
+    let (mut visits, mut members_of) = (Visits::new(lattice.len()), Visits::new(lattice.len()));
     let mut patches = Vec::new();
     for centre in lattice.live_particles() {
         if !lattice.is_surface(centre) {
             continue;
         }
-        let reached = self::rings(lattice, centre, rings, |j| lattice.is_surface(j), &mut seen);
+        let reached = self::rings(
+            lattice,
+            centre,
+            rings,
+            |j| lattice.is_surface(j),
+            &mut members_of,
+        );
         let tent = |ring: u32| (rings + 1 - ring) as f32 / (rings + 1) as f32;
         let total: f32 = reached.iter().map(|&(_, r)| tent(r)).sum();
         let members: Vec<(u32, f32)> = reached.iter().map(|&(j, r)| (j, tent(r) / total)).collect();
@@ -98,10 +133,10 @@ pub fn surface_patches(lattice: &Lattice, rings: u32) -> Vec<Patch> {
         if normal.length() < 0.25 * members[0].1 {
             continue;
         }
-        let frame = self::rings(lattice, centre, rings + 1, |_| true, &mut seen)
+        let frame = self::rings(lattice, centre, rings + 1, |_| true, &mut visits)
             .into_iter()
             .map(|(j, _)| j)
-            .filter(|j| !members.iter().any(|m| m.0 == *j))
+            .filter(|j| !members_of.seen(*j))
             .collect();
         patches.push(Patch {
             centre,

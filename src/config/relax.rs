@@ -23,7 +23,8 @@ pub struct RelaxOptions {
     pub centroids: bool,
     /// Hold the surface patches (default true), with the material's patch compliances,
     /// or its compliance when it sets none (see
-    /// [`crate::config::Material::patch_normal_compliance`]).
+    /// [`crate::config::Material::patch_normal_compliance`]); false: no patches while
+    /// relaxing, not even the material's own.
     pub patches: bool,
     /// Side of the boundary sets' blocks, in lattice cells (1–1024; default 4).
     pub boundary_cells: u32,

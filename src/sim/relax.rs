@@ -11,8 +11,9 @@
 //!
 //! until its particles' rms speed falls under the tolerance. Only the body moves: the
 //! other bodies are held still by hard attachments for the while (and get their
-//! positions and velocities back), no tool or collider moves, nothing is cut, and the simulation's
-//! clock does not advance. Everything the relaxation set up is taken down afterwards.
+//! positions and velocities back), no tool or collider moves, nothing is cut, and the
+//! simulation's clock does not advance. Everything the relaxation set up is taken down
+//! afterwards.
 
 use crate::analysis::stats::rigid_fit_error;
 use crate::body::patches::boundary_sets;
@@ -150,6 +151,9 @@ impl Simulation {
         let mut others = Vec::new();
         for other in self.bodies().into_iter().filter(|&b| b != body) {
             let held = BodyParticles::of(self.world(), other)?;
+            if held.local.is_empty() {
+                continue;
+            }
             let state = (
                 held.read::<Position>(self.world())?,
                 held.read::<Velocity>(self.world())?,

@@ -4,7 +4,8 @@
 use bevy_ecs::prelude::*;
 use serde::Serialize;
 
-/// What a relaxation did ([`crate::sim::simulation::Simulation::relax`]). Distances are in lattice spacings.
+/// What a relaxation did ([`crate::sim::simulation::Simulation::relax`]). Distances are
+/// in lattice spacings.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RelaxReport {
     /// Frames run.
@@ -26,7 +27,7 @@ pub struct RelaxReport {
     pub boundary_drift: f64,
 }
 
-/// The reports of the relaxations [`crate::sim::simulation::Simulation::from_scene`] ran (a scene's
-/// `settings.relax`), by body; not saved.
+/// The reports of the relaxations [`crate::sim::simulation::Simulation::from_scene`]
+/// ran (a scene's `settings.relax`), by body; not saved.
 #[derive(Resource, Clone, Debug, Default)]
 pub struct RelaxReports(pub Vec<(Entity, RelaxReport)>);
