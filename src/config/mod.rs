@@ -88,7 +88,7 @@ pub struct SimConfig {
     /// with culling on and off; off only for checking that.
     pub culling: bool,
     /// Relax every body of a scene before its first frame
-    /// ([`crate::sim::Simulation::from_scene`]; see [`crate::sim::relax`]); `None` (the
+    /// ([`crate::sim::simulation::Simulation::from_scene`]; see [`crate::sim::relax`]); `None` (the
     /// default): the bodies start as spawned.
     pub relax: Option<RelaxOptions>,
     /// Seed for every random choice (clustering offsets, merges, splits, expansion).

@@ -4,7 +4,7 @@
 use crate::error::{Result, check_range, out_of_range};
 use serde::{Deserialize, Serialize};
 
-/// Options of [`crate::sim::Simulation::relax`] (scene files: `settings.relax`).
+/// Options of [`crate::sim::simulation::Simulation::relax`] (scene files: `settings.relax`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RelaxOptions {
