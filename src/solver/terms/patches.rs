@@ -339,6 +339,7 @@ mod tests {
         let normal = restoring(&material, Vec3::new(0.0, 0.0, -small));
         let tangent = restoring(&material, Vec3::new(small, 0.0, 0.0));
         assert!(normal > 0.0 && tangent > 0.0, "{normal} {tangent}");
+        eprintln!("restoring correction per unit displacement: normal {normal}, tangent {tangent}");
         assert!(
             normal >= 10.0 * tangent,
             "normal {normal}, tangent {tangent}"
@@ -347,6 +348,7 @@ mod tests {
         let soft = holding(1e-4);
         let shallow = restoring(&soft, Vec3::new(0.0, 0.0, -small));
         let deep = restoring(&soft, Vec3::new(0.0, 0.0, -0.5 * H));
+        eprintln!("soft normal: {deep} per unit at 0.5 h deep, {shallow} at 0.02 h");
         assert!(deep > 5.0 * shallow, "{deep} against {shallow}");
     }
 }
