@@ -166,13 +166,12 @@ impl Material {
         2 * self.cluster_radius + 1 - self.cluster_overlap
     }
 
-    /// The patch constraints' compliances `(normal, tangent)` in 1/Pa when they are on
-    /// (see [`Material::patch_normal_compliance`]): `normal` stands in for an unset
-    /// normal compliance.
-    pub fn patch_compliances(&self, normal: f32) -> (f32, f32) {
-        let normal = self.patch_normal_compliance.unwrap_or(normal);
+    /// The patch constraints' compliances `(normal, tangent)` in 1/Pa, or `None` when
+    /// the material holds no patches (see [`Material::patch_normal_compliance`]).
+    pub fn patch_compliances(&self) -> Option<(f32, f32)> {
+        let normal = self.patch_normal_compliance?;
         let tangent = self.patch_tangent_compliance.unwrap_or(100.0 * normal);
-        (normal, tangent)
+        Some((normal, tangent))
     }
 
     /// Checks every field; the error names the field and its allowed range.

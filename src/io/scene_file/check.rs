@@ -96,33 +96,32 @@ pub fn compliance<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;
     range::<D>(v, (0.0..=1.0).contains(&v), "0 ≤ compliance ≤ 1 (1/Pa)")
 }
-pub fn edge_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
-    let v = Option::<f32>::deserialize(d)?;
-    match v {
+/// An optional material compliance (1/Pa) named `name`, within 0..=1.
+fn optional_compliance<'de, D: Deserializer<'de>>(
+    d: D,
+    name: &str,
+) -> Result<Option<f32>, D::Error> {
+    match Option::<f32>::deserialize(d)? {
         Some(c) => range::<D>(
             c,
             (0.0..=1.0).contains(&c),
-            "0 ≤ edge_compliance ≤ 1 (1/Pa)",
+            &format!("0 ≤ {name} ≤ 1 (1/Pa)"),
         )
         .map(Some),
         None => Ok(None),
     }
 }
-pub fn patch_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
-    match Option::<f32>::deserialize(d)? {
-        Some(c) => range::<D>(c, (0.0..=1.0).contains(&c), "0 ≤ compliance ≤ 1 (1/Pa)").map(Some),
-        None => Ok(None),
-    }
+pub fn edge_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
+    optional_compliance(d, "edge_compliance")
+}
+pub fn patch_normal_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
+    optional_compliance(d, "patch_normal_compliance")
+}
+pub fn patch_tangent_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
+    optional_compliance(d, "patch_tangent_compliance")
 }
 pub fn patch_rings<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    let v = u32::deserialize(d)?;
-    if (1..=crate::body::patches::MAX_RINGS).contains(&v) {
-        Ok(v)
-    } else {
-        Err(D::Error::custom(format!(
-            "{v} is out of range (allowed: 1 ≤ patch_rings ≤ 8)"
-        )))
-    }
+    count(d, 1, crate::body::patches::MAX_RINGS, "patch_rings")
 }
 pub fn patch_threshold<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;

@@ -242,10 +242,10 @@ pub struct MaterialFile {
     pub patch_rings: u32,
     /// Compliance of a patch's normal displacement, 1/Pa; `None`: no patch constraints
     /// (relaxation uses the material's compliance).
-    #[serde(deserialize_with = "super::check::patch_compliance")]
+    #[serde(deserialize_with = "super::check::patch_normal_compliance")]
     pub patch_normal_compliance: Option<f32>,
     /// Compliance of a patch's tangential displacement, 1/Pa; `None`: 100 × the normal.
-    #[serde(deserialize_with = "super::check::patch_compliance")]
+    #[serde(deserialize_with = "super::check::patch_tangent_compliance")]
     pub patch_tangent_compliance: Option<f32>,
     /// Normal displacement (lattice spacings, > 0) past which a patch stiffens.
     #[serde(deserialize_with = "super::check::patch_threshold")]

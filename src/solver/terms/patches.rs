@@ -91,8 +91,7 @@ impl Patches {
 /// The patches of one body, or `None` when its material holds none.
 fn body_patches(body: &BodyTopology) -> Option<BodyPatches> {
     let material = body.material;
-    material.patch_normal_compliance?;
-    let (normal, tangent) = material.patch_compliances(material.compliance);
+    let (normal, tangent) = material.patch_compliances()?;
     let h = body.lattice.spacing();
     let mut out = BodyPatches {
         id: body.id,
