@@ -208,6 +208,12 @@ impl StaticProblem {
         (rigid_fit_error(&self.rest, &current) / self.spacing) as f64
     }
 
+    /// The residual: the root-sum-square net force on the free particles, newtons
+    /// ([`Solver::residual`]).
+    pub fn residual(&self) -> f64 {
+        self.solver.residual(&self.particles, &static_step(0))
+    }
+
     /// Iterates until the sag moves less than `tolerance` spacings in a block (at most
     /// `max_blocks` blocks); returns the sag.
     pub fn settled_sag(&mut self, max_blocks: u32, tolerance: f64) -> f64 {

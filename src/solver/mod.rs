@@ -9,6 +9,7 @@
 //! - [`schemes`]: Jacobi, coloured Gauss–Seidel and projective dynamics, which differ in
 //!   how the clusters move the particles and how the other terms join in.
 //! - [`solve`]: the iteration that runs them, timed per term.
+//! - [`residual`]: how far a solve is from its solution (the net force on each particle).
 //!
 //! Every scheme is deterministic for any number of threads: every sum runs in a fixed
 //! order.
@@ -17,6 +18,7 @@ pub mod clusters;
 pub(crate) mod disjoint;
 pub mod particles;
 pub mod registry;
+pub mod residual;
 pub mod schemes;
 pub mod solve;
 pub mod term;

@@ -1,6 +1,8 @@
 //! `cleave bench`: the report of [`cleave::analysis::bench`] as a table or as JSON lines.
 
-use cleave::analysis::bench::{ConvergenceOptions, bench_edges, bench_size, convergence};
+use cleave::analysis::bench::{
+    CONVERGED_RESIDUAL, ConvergenceOptions, bench_edges, bench_size, convergence,
+};
 use cleave::analysis::bench_pile::bench_pile;
 use cleave::analysis::bench_surface::bench_surface;
 use cleave::config::SimConfig;
@@ -238,38 +240,44 @@ pub fn bench_convergence(options: ConvergenceOptions, json: bool) -> Result<(), 
     let rows = convergence(options).map_err(|e| e.to_string())?;
     if !json {
         println!(
-            "convergence of static solves, material `cantilever`, {} thread(s): (a) twisted \
-             {n}³ box to below 0.1 h shape error; (b) `cantilever` to within 1 % of its static \
-             tip sag",
+            "convergence of static solves, material `cantilever`, {} thread(s), each to a \
+             {CONVERGED_RESIDUAL:e} relative residual (net force on the particles): (a) \
+             twisted {n}³ box; (b) `cantilever` from straight, to {target:.2e} (no \
+             lower than twice its converged solution's, f32's floor)",
             rayon::current_num_threads(),
             n = options.box_size,
+            target = rows.first().map_or(0.0, |r| r.cantilever_target_residual),
         );
         println!(
-            "{:>13} {:>10} {:>11} {:>10} {:>10} {:>11} {:>9} {:>9}",
+            "{:>13} {:>10} {:>11} {:>10} {:>8} {:>10} {:>11} {:>10} {:>8} {:>9}",
             "solver",
             "(a) ms",
             "iterations",
+            "residual",
             "error h",
             "(b) ms",
             "iterations",
+            "residual",
             "sag h",
             "static h"
         );
     }
     let cell = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.1}"));
     let count = |v: Option<u32>| v.map_or("—".to_string(), |v| v.to_string());
-    for row in rows {
+    for row in &rows {
         if json {
-            print_json(&row)?;
+            print_json(row)?;
         } else {
             println!(
-                "{:>13} {:>10} {:>11} {:>10.4} {:>10} {:>11} {:>9.3} {:>9.3}",
+                "{:>13} {:>10} {:>11} {:>10.2e} {:>8.4} {:>10} {:>11} {:>10.2e} {:>8.3} {:>9.3}",
                 row.solver,
                 cell(row.twisted_box_ms),
                 count(row.twisted_box_iterations),
+                row.twisted_box_final_residual,
                 row.twisted_box_final_error_h,
                 cell(row.cantilever_ms),
                 count(row.cantilever_iterations),
+                row.cantilever_final_residual,
                 row.cantilever_final_sag_h,
                 row.cantilever_static_sag_h
             );
