@@ -141,12 +141,12 @@ fn a_body_whose_surface_would_pass_the_budget_is_refused_with_the_estimate() {
 
 #[test]
 fn a_projective_factor_past_the_memory_budget_falls_back_to_jacobi_with_a_warning() {
-    // 10³ particles take 0.6 MB of a 1 MB budget (their surface 0.2 MB more); their
-    // factor would take about 2 MB
-    let settings = "frames: 2, settings: (memory_budget_gb: 0.001, solver: \"projective\"),";
+    // 24³ particles take 8.3 MB of a 9.5 MB budget (their surface 1 MB more); their
+    // factor would take about 2.8 MB
+    let settings = "frames: 2, settings: (memory_budget_gb: 0.0095, solver: \"projective\"),";
     let text = GOOD
         .replace("frames: 2,", settings)
-        .replace("Cells(cells: (4, 4, 4))", "Cells(cells: (10, 10, 10))");
+        .replace("Cells(cells: (4, 4, 4))", "Cells(cells: (24, 24, 24))");
     let (code, err) = run_file("factor_over_budget.ron", &text);
     assert_eq!(code, Some(0), "{err}");
     assert_mentions(
@@ -158,7 +158,7 @@ fn a_projective_factor_past_the_memory_budget_falls_back_to_jacobi_with_a_warnin
         ],
     );
     // within the budget, it factors and says so only as a note
-    let text = text.replace("memory_budget_gb: 0.001", "memory_budget_gb: 1.0");
+    let text = text.replace("memory_budget_gb: 0.0095", "memory_budget_gb: 1.0");
     let (code, err) = run_file("factor_within_budget.ron", &text);
     assert_eq!(code, Some(0), "{err}");
     assert!(!err.contains("warning"), "{err}");
