@@ -6,11 +6,11 @@
 //! (attachments, edges). The global step then solves the substep's objective for all
 //! positions at once with the projections held. Its Hessian (see [`matrix`]) is
 //! constant while the clusters, terms, masses and time step are, so it is factored once
-//! (sparse Cholesky, faer, with its fill-reducing ordering) and x, y and z share the
-//! factor, solved together. Written for the increment `Δ = x − p`, the right-hand side
-//! is the clusters' weighted pulls, the terms' forces `w SᵀAᵀ(p − A S x)`, and the
-//! inertia `(mᵢ/dt²)(sᵢ + kᵢ − pᵢ)` — Jacobi is this solve with the particles' block of
-//! the matrix replaced by its diagonal. Particles of inverse mass 0 are not unknowns
+//! ([`SparseCholesky`]) and x, y and z share the factor, solved together. Written for
+//! the increment `Δ = x − p`, the right-hand side is the clusters' weighted pulls, the
+//! terms' forces `w SᵀAᵀ(p − A S x)`, and the inertia `(mᵢ/dt²)(sᵢ + kᵢ − pᵢ)` — Jacobi
+//! is this solve with the clusters' Hessian on the particles replaced by its diagonal.
+//! Particles of inverse mass 0 are not unknowns
 //! (their increment is 0); the clusters' centres are, with a zero right-hand side (the
 //! fitted centres are their energy's minimum), and their increments are dropped.
 //!
@@ -20,11 +20,11 @@
 //! the elastic solve distributes, not a displacement it undoes.
 //!
 //! A hard constraint (a rigid cluster, a hard edge) has no finite stiffness: the matrix
-//! takes it as [`STIFFEST`](crate::solver::term::STIFFEST) times its particles' mean `m/dt²`. A compliant material
-//! keeps its stiffness; where `κ dt²/m` is far above [`STIFFEST`](crate::solver::term::STIFFEST) and contacts push its
-//! particles, they can pile up into velocity: such a material wants more substeps, or
-//! Jacobi. The factor is sequential (faer without threads), so the result is the same
-//! for any thread count.
+//! takes it as [`STIFFEST`](crate::solver::term::STIFFEST) times its particles' mean
+//! `m/dt²`. A compliant material keeps its stiffness; where `κ dt²/m` is far above
+//! `STIFFEST` and contacts push its particles, they can pile up into velocity: such a
+//! material wants more substeps, or Jacobi. The factor and its solves are sequential,
+//! so the result is the same for any thread count.
 
 mod matrix;
 
