@@ -4,13 +4,14 @@
 //! each cluster's pull `gᵢₖ − pᵢ` to its members), and so are the projections of every
 //! term that gives a [`ProjectiveTerm`](crate::solver::term::ProjectiveTerm)
 //! (attachments, edges). The global step then solves the substep's objective for all
-//! positions at once with the projections held. Its Hessian (see [`matrix`]) is
-//! constant while the clusters, terms, masses and time step are, so it is factored once
-//! ([`SparseCholesky`]) and x, y and z share the factor, solved together. Written for
-//! the increment `Δ = x − p`, the right-hand side is the clusters' weighted pulls, the
-//! terms' forces `w SᵀAᵀ(p − A S x)`, and the inertia `(mᵢ/dt²)(sᵢ + kᵢ − pᵢ)` — Jacobi
-//! is this solve with the clusters' Hessian on the particles replaced by its diagonal.
-//! Particles of inverse mass 0 are not unknowns
+//! positions at once with the projections held. Its Hessian (assembled in `matrix.rs`:
+//! the masses, each cluster with its centre as an unknown of its own, each term's
+//! `w AᵀA`) is constant while the clusters, terms, masses and time step are, so it is
+//! factored once ([`SparseCholesky`]) and x, y and z share the factor, solved together.
+//! Written for the increment `Δ = x − p`, the right-hand side is the clusters' weighted
+//! pulls, the terms' forces `w SᵀAᵀ(p − A S x)`, and the inertia
+//! `(mᵢ/dt²)(sᵢ + kᵢ − pᵢ)` — Jacobi is this solve with the clusters' Hessian on the
+//! particles replaced by its diagonal. Particles of inverse mass 0 are not unknowns
 //! (their increment is 0); the clusters' centres are, with a zero right-hand side (the
 //! fitted centres are their energy's minimum), and their increments are dropped.
 //!
