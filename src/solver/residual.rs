@@ -9,11 +9,11 @@
 //! The terms count through their projective form (attachments, edges: `w SᵀAᵀ(p − A S
 //! x)`); contacts and colliders, whose constraints change every substep, have none and
 //! are left out, as is a term's hard constraint beyond the stiffness projective
-//! dynamics gives it ([`STIFFEST`]).
+//! dynamics gives it ([`STIFFEST`](super::term::STIFFEST)).
 
 use super::particles::Particles;
 use super::solve::Solver;
-use super::term::{NO_DENSE, STIFFEST, Substep, Unknowns};
+use super::term::{NO_DENSE, Substep, Unknowns};
 use crate::math::rotation::extract_rotation;
 use glam::{DMat3, DVec3, Mat3A};
 
@@ -38,6 +38,19 @@ impl Solver {
                 }
             })
             .collect();
+        let row_of: Vec<u32> = (0..n as u32)
+            .map(|i| {
+                if particles.inv_mass[i as usize] > 0.0 {
+                    i
+                } else {
+                    NO_DENSE
+                }
+            })
+            .collect();
+        let unknowns = Unknowns {
+            row_of: &row_of,
+            inv_mass: &particles.inv_mass,
+        };
         let clusters = &self.clusters;
         for (k, members) in clusters.clusters() {
             let weight = |m: u32| clusters.weight(m) as f64;
@@ -66,18 +79,7 @@ impl Solver {
                 FIT_ITERATIONS,
             )
             .as_dquat();
-            let kappa = match clusters.compliance[k] as f64 {
-                c if c > 0.0 => 1.0 / c,
-                _ => {
-                    let free: Vec<f64> = members
-                        .iter()
-                        .filter(|&&m| particles.inv_mass[m as usize] > 0.0)
-                        .map(|&m| mass(m as usize))
-                        .collect();
-                    let mean_mass = free.iter().sum::<f64>() / free.len().max(1) as f64;
-                    STIFFEST * mean_mass * inv_dt2
-                }
-            };
+            let kappa = unknowns.weight(clusters.compliance[k], members, step.dt);
             for &m in members {
                 let i = m as usize;
                 if particles.inv_mass[i] > 0.0 {
@@ -86,19 +88,6 @@ impl Solver {
                 }
             }
         }
-        let row_of: Vec<u32> = (0..n as u32)
-            .map(|i| {
-                if particles.inv_mass[i as usize] > 0.0 {
-                    i
-                } else {
-                    NO_DENSE
-                }
-            })
-            .collect();
-        let unknowns = Unknowns {
-            row_of: &row_of,
-            inv_mass: &particles.inv_mass,
-        };
         for term in self.terms.iter() {
             if let Some(form) = term.projective() {
                 form.add_forces(step, &unknowns, &particles.positions, &mut forces);

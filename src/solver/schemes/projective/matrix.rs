@@ -14,7 +14,7 @@
 
 use crate::solver::clusters::term::ClusterTerm;
 use crate::solver::registry::Terms;
-use crate::solver::term::{NO_DENSE, STIFFEST, Substep, Unknowns};
+use crate::solver::term::{NO_DENSE, Substep, Unknowns};
 use faer::sparse::Triplet;
 
 /// The global matrix's lower triangle and what it was built from.
@@ -53,28 +53,17 @@ pub(super) fn assemble(
         .map(|(row, &i)| Triplet::new(row, row, mass(i as usize) * inv_dt2))
         .collect();
     let mut stiffness_sum = vec![0.0f64; n];
-    // Cluster k's energy κ Σᵢ wᵢ |xᵢ − cₖ − R rᵢ|² with its centre cₖ an unknown of its
-    // own: minimised over cₖ it is the cluster's energy, and eliminating cₖ gives back
-    // the dense block κ (W − w wᵀ/Σw) on the members. Kept, it couples each member to
-    // one centre only, so the matrix holds one row per cluster more but a member's row
-    // has an entry per cluster instead of one per fellow member.
+    let unknowns = Unknowns {
+        row_of: &row_of,
+        inv_mass,
+    };
+    // each cluster couples its members to its centre, a row of its own (module docs)
     let mut centre_rows = particle_of.len();
     for (k, members) in clusters.clusters() {
         if members.iter().all(|&m| row_of[m as usize] == NO_DENSE) {
             continue;
         }
-        let free: Vec<u32> = members
-            .iter()
-            .copied()
-            .filter(|&m| row_of[m as usize] != NO_DENSE)
-            .collect();
-        let mean_mass = free.iter().map(|&m| mass(m as usize)).sum::<f64>() / free.len() as f64;
-        let compliance = clusters.compliance[k] as f64;
-        let kappa = if compliance > 0.0 {
-            1.0 / compliance
-        } else {
-            STIFFEST * mean_mass * inv_dt2
-        };
+        let kappa = unknowns.weight(clusters.compliance[k], members, step.dt);
         let centre = centre_rows;
         centre_rows += 1;
         let mut total = 0.0;
@@ -91,10 +80,6 @@ pub(super) fn assemble(
         }
         entries.push(Triplet::new(centre, centre, kappa * total));
     }
-    let unknowns = Unknowns {
-        row_of: &row_of,
-        inv_mass,
-    };
     let mut term_entries = Vec::new();
     for term in terms.iter() {
         if let Some(form) = term.projective() {
