@@ -142,19 +142,28 @@ impl SparseCholesky {
     /// # Panics
     /// If `rhs` does not have one entry per row of the matrix.
     pub fn solve_in_place<const K: usize>(&self, rhs: &mut [[f64; K]]) {
+        self.solve_in_place_with(rhs, &mut SolveScratch::default());
+    }
+
+    /// [`SparseCholesky::solve_in_place`] with buffers kept from one solve to the next
+    /// (a solver that solves every iteration allocates nothing).
+    pub fn solve_in_place_with<const K: usize>(
+        &self,
+        rhs: &mut [[f64; K]],
+        scratch: &mut SolveScratch<K>,
+    ) {
         let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw() else {
             unreachable!("SparseCholesky::new asks for a supernodal factor")
         };
         assert_eq!(rhs.len(), symbolic.nrows(), "one right-hand side per row");
         let factor = SupernodalLltRef::new(symbolic, &self.values);
         // into the factor's order, where L Lᵀ is the matrix
-        let mut x: Vec<[f64; K]> = match self.symbolic.perm() {
-            Some(perm) => perm.arrays().0.iter().map(|&i| rhs[i]).collect(),
-            None => rhs.to_vec(),
-        };
-        // The rows of a supernode's pattern, side by side (gathered once per supernode,
-        // so each column's products run over contiguous memory).
-        let mut below: Vec<[f64; K]> = Vec::new();
+        let SolveScratch { x, below } = scratch;
+        x.clear();
+        match self.symbolic.perm() {
+            Some(perm) => x.extend(perm.arrays().0.iter().map(|&i| rhs[i])),
+            None => x.extend_from_slice(rhs),
+        }
         // L y = b, supernode by supernode: its diagonal block solved in place, then the
         // rows of its pattern updated once
         for s in 0..symbolic.n_supernodes() {
@@ -174,7 +183,7 @@ impl SparseCholesky {
                     sub_scaled(b, l, &xj);
                 }
             }
-            for (&i, b) in pattern.iter().zip(&below) {
+            for (&i, b) in pattern.iter().zip(below.iter()) {
                 add(&mut x[i], b);
             }
         }
@@ -199,11 +208,30 @@ impl SparseCholesky {
         }
         match self.symbolic.perm() {
             Some(perm) => {
-                for (&i, xi) in perm.arrays().0.iter().zip(&x) {
+                for (&i, xi) in perm.arrays().0.iter().zip(x.iter()) {
                     rhs[i] = *xi;
                 }
             }
-            None => rhs.copy_from_slice(&x),
+            None => rhs.copy_from_slice(x),
+        }
+    }
+}
+
+/// The buffers of a solve with `K` right-hand sides per row.
+#[derive(Clone, Debug)]
+pub struct SolveScratch<const K: usize> {
+    /// The right-hand sides in the factor's order, solved there.
+    x: Vec<[f64; K]>,
+    /// The rows of a supernode's pattern, side by side (gathered once per supernode, so
+    /// each column's products run over contiguous memory).
+    below: Vec<[f64; K]>,
+}
+
+impl<const K: usize> Default for SolveScratch<K> {
+    fn default() -> Self {
+        Self {
+            x: Vec::new(),
+            below: Vec::new(),
         }
     }
 }

@@ -31,7 +31,7 @@ mod matrix;
 
 use super::jacobi::Jacobi;
 use crate::body::shape::{BYTES_PER_PARTICLE, DEFAULT_MEMORY_BUDGET_GB};
-use crate::math::sparse_cholesky::{FactorError, SparseCholesky};
+use crate::math::sparse_cholesky::{FactorError, SolveScratch, SparseCholesky};
 use crate::solver::clusters::term::ClusterTerm;
 use crate::solver::particles::{PARTICLES_PER_TASK, Particles};
 use crate::solver::registry::Terms;
@@ -89,8 +89,9 @@ struct GlobalSolve {
     inv_mass: Vec<f32>,
     cluster_epoch: u64,
     term_versions: Vec<u64>,
-    /// Right-hand sides, x y z side by side per row (reused).
+    /// Right-hand sides, x y z side by side per row, and the solve's buffers (reused).
     rhs: Vec<[f64; 3]>,
+    scratch: SolveScratch<3>,
 }
 
 /// Each projective term's version, in registered order.
@@ -187,7 +188,7 @@ impl Projective {
         }
         // the cluster centres' rows: their gradient is zero at the fitted centres
         global.rhs[global.particle_of.len()..].fill([0.0; 3]);
-        factor.solve_in_place(&mut global.rhs);
+        factor.solve_in_place_with(&mut global.rhs, &mut global.scratch);
         let (rhs, row_of) = (&global.rhs, &global.row_of);
         particles
             .positions
@@ -262,6 +263,7 @@ fn build(
         cluster_epoch: clusters.carry_epoch,
         term_versions: term_versions(terms),
         rhs: vec![[0.0; 3]; rows],
+        scratch: SolveScratch::default(),
     }
 }
 
