@@ -67,6 +67,7 @@ pub mod body;
 pub mod clusters;
 pub mod config;
 pub mod cut;
+pub mod deform;
 pub mod ecs;
 pub mod error;
 pub mod geometry;

@@ -1,0 +1,250 @@
+//! Handle deformation against cases outside the code: affine maps reproduced, point
+//! handles interpolated, a clamped bar's centreline against the cubic Hermite curve,
+//! ARAP's energy and rigid motions, reduced ARAP against full ARAP.
+
+use cleave::body::lattice::Lattice;
+use cleave::body::shape::Shape;
+use cleave::deform::handles::{Handle, HandleSet, HandleTarget};
+use cleave::deform::weights::Weights;
+use glam::{Affine3A, Mat3, Quat, UVec3, Vec3};
+
+const H: f32 = 0.1;
+const NO_LIMIT: u64 = u64::MAX;
+
+fn rest(lattice: &Lattice) -> Vec<Vec3> {
+    (0..lattice.len() as u32)
+        .map(|i| lattice.rest_position(i))
+        .collect()
+}
+
+/// The live particles whose coordinate passes `keep`.
+fn select(lattice: &Lattice, keep: impl Fn(glam::IVec3) -> bool) -> Vec<u32> {
+    lattice
+        .live_particles()
+        .filter(|&i| keep(lattice.coord(i)))
+        .collect()
+}
+
+fn pose(weights: &Weights, set: &HandleSet, rest: &[Vec3], targets: &[HandleTarget]) -> Vec<Vec3> {
+    let dh = set.displacements(rest, targets).unwrap();
+    let mut out = vec![Vec3::ZERO; rest.len()];
+    weights.pose(&dh, &mut out);
+    out
+}
+
+#[test]
+fn one_affine_map_on_every_handle_moves_every_particle_by_it() {
+    let lattice = Shape::Sphere { radius: 0.5 }.voxelise(H).unwrap();
+    let rest = rest(&lattice);
+    let caps = |sign: i32| select(&lattice, move |c| c.y * sign >= 3);
+    let points: Vec<u32> = select(&lattice, |c| {
+        c.y.abs() <= 1 && (c.x.abs() == 4 || c.z.abs() == 4)
+    })
+    .into_iter()
+    .step_by(5)
+    .take(4)
+    .collect();
+    let mut handles = vec![Handle::Region(caps(1)), Handle::Region(caps(-1))];
+    handles.extend(points.iter().map(|&p| Handle::Point(p)));
+    let set = HandleSet::new(&lattice, handles, &[]).unwrap();
+    let weights = Weights::compute(&lattice, &rest, &set, NO_LIMIT).unwrap();
+    let map = Affine3A::from_mat3_translation(
+        Mat3::from_quat(Quat::from_axis_angle(
+            Vec3::new(1.0, 2.0, 0.5).normalize(),
+            0.7,
+        )) * Mat3::from_cols(
+            Vec3::new(1.2, 0.1, 0.0),
+            Vec3::new(0.0, 0.9, 0.05),
+            Vec3::new(0.0, 0.0, 1.1),
+        ),
+        Vec3::new(0.3, -0.2, 0.4),
+    );
+    let targets: Vec<HandleTarget> = set
+        .handles()
+        .iter()
+        .map(|h| match h {
+            Handle::Point(p) => HandleTarget::Point(map.transform_point3(rest[*p as usize])),
+            Handle::Region(_) => HandleTarget::Affine(map),
+        })
+        .collect();
+    let posed = pose(&weights, &set, &rest, &targets);
+    let worst = lattice
+        .live_particles()
+        .map(|i| posed[i as usize].distance(map.transform_point3(rest[i as usize])))
+        .fold(0.0f32, f32::max);
+    eprintln!("affine reproduction: worst {:e} h", worst / H);
+    assert!(worst < 1e-5 * H, "worst {:e} h", worst / H);
+}
+
+#[test]
+fn point_handles_are_interpolated_exactly() {
+    let lattice = Shape::cuboid(UVec3::new(10, 6, 5)).voxelise(H).unwrap();
+    let rest = rest(&lattice);
+    let corners = select(&lattice, |c| {
+        [-5, 4].contains(&c.x) && [-3, 2].contains(&c.y) && [-2, 2].contains(&c.z)
+    });
+    assert_eq!(corners.len(), 8);
+    let set = HandleSet::new(
+        &lattice,
+        corners.iter().map(|&p| Handle::Point(p)).collect(),
+        &[],
+    )
+    .unwrap();
+    let weights = Weights::compute(&lattice, &rest, &set, NO_LIMIT).unwrap();
+    let targets: Vec<HandleTarget> = corners
+        .iter()
+        .enumerate()
+        .map(|(k, &p)| {
+            HandleTarget::Point(
+                rest[p as usize] + Vec3::new(0.1 * k as f32, -0.05, 0.02 * (k * k) as f32),
+            )
+        })
+        .collect();
+    let posed = pose(&weights, &set, &rest, &targets);
+    for (&p, t) in corners.iter().zip(&targets) {
+        let HandleTarget::Point(t) = t else {
+            unreachable!()
+        };
+        assert!(posed[p as usize].distance(*t) < 1e-6 * H);
+    }
+    // and the weights are a partition of unity (constant precision)
+    for i in lattice.live_particles() {
+        let sum: f32 = weights.row(i).iter().sum();
+        assert!((sum - 1.0).abs() < 1e-5, "particle {i}: Σw = {sum}");
+    }
+}
+
+#[test]
+fn a_bar_clamped_at_both_ends_bends_along_the_cubic_hermite_curve() {
+    let length = 48;
+    let lattice = Shape::cuboid(UVec3::new(length, 4, 4)).voxelise(H).unwrap();
+    let rest = rest(&lattice);
+    let lo = lattice
+        .live_particles()
+        .map(|i| lattice.coord(i).x)
+        .min()
+        .unwrap();
+    let hi = lo + length as i32 - 1;
+    let left = select(&lattice, |c| c.x <= lo + 1);
+    let right = select(&lattice, |c| c.x >= hi - 1);
+    let set = HandleSet::new(
+        &lattice,
+        vec![Handle::Region(left), Handle::Region(right)],
+        &[],
+    )
+    .unwrap();
+    let weights = Weights::compute(&lattice, &rest, &set, NO_LIMIT).unwrap();
+    let delta = 0.8f32;
+    let targets = [
+        HandleTarget::Affine(Affine3A::IDENTITY),
+        HandleTarget::Affine(Affine3A::from_translation(Vec3::new(0.0, delta, 0.0))),
+    ];
+    let posed = pose(&weights, &set, &rest, &targets);
+    // the clamps hold at the middle of each two-layer end region
+    let (x0, x1) = (lo as f32 + 0.5, hi as f32 - 0.5);
+    let mut worst = 0.0f32;
+    for x in lo..=hi {
+        let layer = select(&lattice, |c| c.x == x);
+        let sag: f32 = layer
+            .iter()
+            .map(|&i| posed[i as usize].y - rest[i as usize].y)
+            .sum::<f32>()
+            / layer.len() as f32;
+        let s = ((x as f32 - x0) / (x1 - x0)).clamp(0.0, 1.0);
+        let hermite = delta * s * s * (3.0 - 2.0 * s);
+        worst = worst.max((sag - hermite).abs());
+    }
+    eprintln!(
+        "Hermite: centreline within {:.3} % of δ",
+        100.0 * worst / delta
+    );
+    assert!(
+        worst < 0.02 * delta,
+        "centreline off the Hermite curve by {:.2} % of δ",
+        100.0 * worst / delta
+    );
+}
+
+#[test]
+fn bad_handles_are_errors_naming_the_handle() {
+    let mut lattice = Shape::cuboid(UVec3::new(4, 4, 4)).voxelise(H).unwrap();
+    let check = |lattice: &Lattice, handles: Vec<Handle>, pinned: &[u32], want: &str| {
+        let e = HandleSet::new(lattice, handles, pinned)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(want), "{e:?} should say {want:?}");
+    };
+    check(&lattice, vec![], &[], "at least one handle");
+    check(
+        &lattice,
+        vec![Handle::Point(0), Handle::Region(vec![])],
+        &[],
+        "handles[1]: selects no particle",
+    );
+    check(
+        &lattice,
+        vec![Handle::Region(vec![1, 2]), Handle::Point(2)],
+        &[],
+        "handles[1]: overlaps handles[0]",
+    );
+    check(
+        &lattice,
+        vec![Handle::Point(3)],
+        &[3],
+        "handles[0]: particle 3 is pinned",
+    );
+    check(
+        &lattice,
+        vec![Handle::Point(999)],
+        &[],
+        "not a live particle",
+    );
+    check(
+        &lattice,
+        (0..64).map(Handle::Point).collect(),
+        &[],
+        "fewer parameters than particles",
+    );
+    lattice.remove(5);
+    check(
+        &lattice,
+        vec![Handle::Point(5)],
+        &[],
+        "handles[0]: particle 5 is not a live particle",
+    );
+    let set = HandleSet::new(&lattice, vec![Handle::Region(vec![0, 1, 2, 3])], &[]).unwrap();
+    let rest = rest(&lattice);
+    let nan = Affine3A::from_translation(Vec3::new(f32::NAN, 0.0, 0.0));
+    let e = set
+        .displacements(&rest, &[HandleTarget::Affine(nan)])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("targets[0]") && e.contains("not finite"), "{e}");
+}
+
+#[test]
+fn a_piece_without_a_handle_follows_its_nearest_handle() {
+    let mut lattice = Shape::cuboid(UVec3::new(12, 4, 4)).voxelise(H).unwrap();
+    let lo = lattice
+        .live_particles()
+        .map(|i| lattice.coord(i).x)
+        .min()
+        .unwrap();
+    // cut the bar in two across x = lo + 6
+    for (a, b) in lattice.edges() {
+        if lattice.coord(a).x == lo + 5 && lattice.coord(b).x == lo + 6 {
+            lattice.sever(a, b);
+        }
+    }
+    let rest = rest(&lattice);
+    let left = select(&lattice, |c| c.x <= lo + 1);
+    let set = HandleSet::new(&lattice, vec![Handle::Region(left)], &[]).unwrap();
+    let weights = Weights::compute(&lattice, &rest, &set, NO_LIMIT).unwrap();
+    let map =
+        Affine3A::from_rotation_translation(Quat::from_rotation_z(0.4), Vec3::new(0.1, 0.2, 0.0));
+    let posed = pose(&weights, &set, &rest, &[HandleTarget::Affine(map)]);
+    for i in lattice.live_particles() {
+        let want = map.transform_point3(rest[i as usize]);
+        assert!(posed[i as usize].distance(want) < 1e-5, "particle {i}");
+    }
+}
