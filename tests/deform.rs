@@ -109,7 +109,7 @@ fn point_handles_are_interpolated_exactly() {
     }
     // and the weights are a partition of unity (constant precision)
     for i in lattice.live_particles() {
-        let sum: f32 = weights.row(i).iter().sum();
+        let sum: f64 = weights.row(i).iter().sum();
         assert!((sum - 1.0).abs() < 1e-5, "particle {i}: Σw = {sum}");
     }
 }
@@ -246,5 +246,204 @@ fn a_piece_without_a_handle_follows_its_nearest_handle() {
     for i in lattice.live_particles() {
         let want = map.transform_point3(rest[i as usize]);
         assert!(posed[i as usize].distance(want) < 1e-5, "particle {i}");
+    }
+}
+
+use cleave::deform::arap::{Arap, ArapOptions};
+use cleave::deform::reduced::arap::ReducedArap;
+use cleave::deform::reduced::auto_handles;
+use cleave::deform::reduced::dynamics::ReducedDynamics;
+
+/// A 32×4×4 bar held by its two end regions (two layers each), the right one moved by
+/// `map` about its centroid.
+struct Bar {
+    lattice: Lattice,
+    rest: Vec<Vec3>,
+    set: HandleSet,
+    targets: Vec<HandleTarget>,
+}
+
+fn bent_bar(turn: Quat, stretch: f32) -> Bar {
+    let lattice = Shape::cuboid(UVec3::new(32, 4, 4)).voxelise(H).unwrap();
+    let rest = rest(&lattice);
+    let lo = lattice
+        .live_particles()
+        .map(|i| lattice.coord(i).x)
+        .min()
+        .unwrap();
+    let hi = lo + 31;
+    let left = select(&lattice, |c| c.x <= lo + 1);
+    let right = select(&lattice, |c| c.x >= hi - 1);
+    let set = HandleSet::new(
+        &lattice,
+        vec![Handle::Region(left), Handle::Region(right)],
+        &[],
+    )
+    .unwrap();
+    let c = set.rest_centroid(1, &rest);
+    let map = Affine3A::from_translation(c + Vec3::new(stretch, 0.0, 0.0))
+        * Affine3A::from_quat(turn)
+        * Affine3A::from_translation(-c);
+    let targets = vec![
+        HandleTarget::Affine(Affine3A::IDENTITY),
+        HandleTarget::Affine(map),
+    ];
+    Bar {
+        lattice,
+        rest,
+        set,
+        targets,
+    }
+}
+
+fn assert_never_rises(energies: &[f64]) {
+    for (k, w) in energies.windows(2).enumerate() {
+        assert!(
+            w[1] <= w[0] * (1.0 + 1e-12),
+            "step {k}: energy rose {:e} → {:e}",
+            w[0],
+            w[1]
+        );
+    }
+}
+
+#[test]
+fn arap_energy_never_rises_while_it_bends_and_twists_a_bar() {
+    let bar = bent_bar(Quat::from_rotation_z(1.0) * Quat::from_rotation_x(1.2), 0.0);
+    let arap = Arap::new(&bar.lattice, &bar.rest, &bar.set, NO_LIMIT).unwrap();
+    let mut x = bar.rest.clone();
+    let options = ArapOptions {
+        tolerance: 0.0,
+        max_iterations: 60,
+    };
+    let report = arap
+        .solve(&bar.set, &bar.targets, &mut x, &options)
+        .unwrap();
+    assert_never_rises(&report.energies);
+    let (first, last) = (report.energies[1], *report.energies.last().unwrap());
+    assert!(
+        last < 0.5 * first,
+        "ARAP barely moved: {first:e} → {last:e}"
+    );
+}
+
+#[test]
+fn a_rigid_motion_of_every_handle_gives_that_rigid_motion() {
+    let bar = bent_bar(Quat::IDENTITY, 0.0);
+    let motion = Affine3A::from_rotation_translation(
+        Quat::from_axis_angle(Vec3::new(0.3, 1.0, -0.2).normalize(), 0.5),
+        Vec3::new(0.2, -0.1, 0.3),
+    );
+    let targets = vec![HandleTarget::Affine(motion); 2];
+    let arap = Arap::new(&bar.lattice, &bar.rest, &bar.set, NO_LIMIT).unwrap();
+    // from the linear subspace's pose, ARAP's first guess (from the rest pose a long
+    // bar takes thousands of iterations to turn: 8e-6 after 400)
+    let weights = Weights::compute(&bar.lattice, &bar.rest, &bar.set, NO_LIMIT).unwrap();
+    let mut x = pose(&weights, &bar.set, &bar.rest, &targets);
+    let options = ArapOptions {
+        tolerance: 0.0,
+        max_iterations: 20,
+    };
+    let report = arap.solve(&bar.set, &targets, &mut x, &options).unwrap();
+    let energy = *report.energies.last().unwrap();
+    let worst = bar
+        .lattice
+        .live_particles()
+        .map(|i| x[i as usize].distance(motion.transform_point3(bar.rest[i as usize])))
+        .fold(0.0f32, f32::max);
+    eprintln!("rigid motion: energy {energy:e}, worst {:e} h", worst / H);
+    assert!(energy < 1e-8, "energy {energy:e}");
+    assert!(worst < 1e-4 * H, "worst {:e} h", worst / H);
+}
+
+/// Root mean square distance between two poses of the live particles.
+fn rms(lattice: &Lattice, a: &[Vec3], b: &[Vec3]) -> f32 {
+    let (sum, n) = lattice.live_particles().fold((0.0f32, 0), |(s, n), i| {
+        (s + a[i as usize].distance_squared(b[i as usize]), n + 1)
+    });
+    (sum / n as f32).sqrt()
+}
+
+#[test]
+fn reduced_arap_is_within_five_percent_of_full_arap_on_a_bent_twisted_stretched_bar() {
+    let bar = bent_bar(Quat::from_rotation_z(0.9) * Quat::from_rotation_x(1.0), 0.3);
+    let length = 3.2;
+    let arap = Arap::new(&bar.lattice, &bar.rest, &bar.set, NO_LIMIT).unwrap();
+    let mut full = bar.rest.clone();
+    let options = ArapOptions {
+        tolerance: 1e-7,
+        max_iterations: 2000,
+    };
+    arap.solve(&bar.set, &bar.targets, &mut full, &options)
+        .unwrap();
+    // the user's handles, then 24 placed automatically
+    let mut handles = bar.set.handles().to_vec();
+    handles.extend(auto_handles(&bar.lattice, &bar.rest, &handles, 24));
+    let all = HandleSet::new(&bar.lattice, handles, &[]).unwrap();
+    let weights = Weights::compute(&bar.lattice, &bar.rest, &all, NO_LIMIT).unwrap();
+    let fixed = bar.set.columns();
+    let reduced = ReducedArap::new(&bar.lattice, &bar.rest, &weights, fixed, 2).unwrap();
+    let mut dh = bar.set.displacements(&bar.rest, &bar.targets).unwrap();
+    dh.resize(all.columns(), Vec3::ZERO);
+    let report = reduced.solve(
+        &mut dh,
+        &ArapOptions {
+            tolerance: 1e-7,
+            max_iterations: 500,
+        },
+    );
+    assert_never_rises(&report.energies);
+    let mut posed = vec![Vec3::ZERO; bar.rest.len()];
+    weights.pose(&dh, &mut posed);
+    let off = rms(&bar.lattice, &posed, &full) / length;
+    // the linear subspace alone (no ARAP) is much further off
+    let mut linear = vec![Vec3::ZERO; bar.rest.len()];
+    let mut plain = bar.set.displacements(&bar.rest, &bar.targets).unwrap();
+    plain.resize(all.columns(), Vec3::ZERO);
+    let two = Weights::compute(&bar.lattice, &bar.rest, &bar.set, NO_LIMIT).unwrap();
+    two.pose(&plain[..fixed], &mut linear);
+    let linear_off = rms(&bar.lattice, &linear, &full) / length;
+    eprintln!(
+        "reduced ARAP {:.2} % of the bar's length from full ARAP ({} iterations); the \
+         linear subspace alone {:.2} %",
+        100.0 * off,
+        report.iterations,
+        100.0 * linear_off
+    );
+    assert!(off < 0.05, "{:.2} %", 100.0 * off);
+}
+
+#[test]
+fn a_reduced_body_falls_freely_as_implicit_euler_would() {
+    let lattice = Shape::cuboid(UVec3::new(12, 4, 4)).voxelise(H).unwrap();
+    let rest = rest(&lattice);
+    let clusters = cleave::clusters::clustering::clusters_on_grid(
+        &lattice,
+        &cleave::config::Material::default(),
+        glam::IVec3::ZERO,
+    )
+    .into_clusters();
+    let handles = auto_handles(&lattice, &rest, &[], 12);
+    let set = HandleSet::new(&lattice, handles, &[]).unwrap();
+    let weights = Weights::compute(&lattice, &rest, &set, NO_LIMIT).unwrap();
+    let dt = 1.0 / 60.0;
+    let g = Vec3::new(0.0, -9.81, 0.0);
+    // free: every column falls as the body would, ½ g t²
+    let free = ReducedDynamics::new(&weights, &rest, &clusters, 0.01, 1e4, dt, 0).unwrap();
+    let mut state = free.rest_state();
+    for _ in 0..30 {
+        free.step(&mut state, &[], g, 10);
+    }
+    let mut posed = vec![Vec3::ZERO; rest.len()];
+    weights.pose(&state.displacements(), &mut posed);
+    let t = 30.0 * dt;
+    for i in lattice.live_particles() {
+        let fall = posed[i as usize] - rest[i as usize];
+        // implicit Euler: the fall of step k is g dt² k(k+1)/2
+        let want = g.y * (dt * dt) as f32 * 30.0 * 31.0 / 2.0;
+        assert!(
+            (fall.y - want).abs() < 1e-4 && fall.x.abs() < 1e-4,
+            "{fall} vs {want} at t = {t}"
+        );
     }
 }

@@ -5,6 +5,8 @@
 //! ([`reduced`]). Plain data on a body's lattice; the ECS components that pose a body
 //! each frame are in [`crate::ecs`].
 
+pub mod arap;
 pub mod handles;
+pub mod reduced;
 pub mod smoothness;
 pub mod weights;

@@ -118,12 +118,19 @@ impl Weights {
         self.columns
     }
 
-    /// Particle `i`'s row of `W`.
-    pub fn row(&self, i: u32) -> Vec<f32> {
+    /// Particle `i`'s row of `W`, into `out` (one entry per column).
+    pub fn row_into(&self, i: u32, out: &mut [f64]) {
         let (b, l) = (i as usize / LANES, i as usize % LANES);
-        (0..self.columns)
-            .map(|c| self.blocks[b * self.columns + c].to_array()[l])
-            .collect()
+        for (c, o) in out.iter_mut().enumerate().take(self.columns) {
+            *o = self.blocks[b * self.columns + c].to_array()[l] as f64;
+        }
+    }
+
+    /// Particle `i`'s row of `W`.
+    pub fn row(&self, i: u32) -> Vec<f64> {
+        let mut out = vec![0.0; self.columns];
+        self.row_into(i, &mut out);
+        out
     }
 
     /// The posed positions `V = V̄ + W ΔH` (by particle index; removed particles at
