@@ -2,6 +2,7 @@
 //! clusters, static solves, the benchmarks behind `cleave bench`, per-stage profiles.
 
 pub mod bench;
+pub mod bench_deform;
 pub mod bench_pile;
 pub mod bench_surface;
 pub mod cluster_shape;

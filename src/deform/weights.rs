@@ -84,8 +84,9 @@ impl Weights {
         Ok(Self::from_dense(&dense, h, rest))
     }
 
-    /// Lays a dense row-major `W` out in blocks of eight particles.
-    fn from_dense(dense: &[f64], columns: usize, rest: &[Vec3]) -> Self {
+    /// Weights from a dense row-major `W` (`columns` entries per particle) for
+    /// particles resting at `rest`, laid out in blocks of eight particles.
+    pub fn from_dense(dense: &[f64], columns: usize, rest: &[Vec3]) -> Self {
         let particles = rest.len();
         let block_count = particles.div_ceil(LANES);
         let mut blocks = vec![f32x8::ZERO; block_count * columns];

@@ -86,20 +86,35 @@ impl ReducedArap {
         })
     }
 
+    /// One rotation per group, each the identity: the rotations to start from at rest.
+    pub fn rest_rotations(&self) -> Vec<DMat3> {
+        vec![DMat3::IDENTITY; self.groups.len()]
+    }
+
     /// Solves for the free columns of `dh` (one displacement per column: the held ones
-    /// given, the free ones the first guess in and the result out).
-    pub fn solve(&self, dh: &mut [Vec3], options: &ArapOptions) -> ArapReport {
+    /// given, the free ones the first guess in and the result out), the groups'
+    /// `rotations` fitted from where they are (the previous frame's, or
+    /// [`ReducedArap::rest_rotations`]).
+    ///
+    /// # Panics
+    /// If `rotations` does not hold one rotation per group.
+    pub fn solve(
+        &self,
+        dh: &mut [Vec3],
+        rotations: &mut [DMat3],
+        options: &ArapOptions,
+    ) -> ArapReport {
+        assert_eq!(rotations.len(), self.groups.len(), "one rotation per group");
         let mut x: Vec<DVec3> = dh.iter().map(|d| d.as_dvec3()).collect();
-        let mut rotations = vec![DMat3::IDENTITY; self.groups.len()];
+        let (fixed, h) = (self.fixed, x.len());
+        let mut loads = self.groups.rotated_loads(rotations);
         let mut report = ArapReport {
-            energies: vec![self.groups.energy(&x, &rotations)],
+            energies: vec![self.groups.energy(&x, rotations, &loads)],
             iterations: 0,
         };
-        let (fixed, h) = (self.fixed, x.len());
         while report.iterations < options.max_iterations {
-            self.groups.fit(&x, &mut rotations);
-            report.energies.push(self.groups.energy(&x, &rotations));
-            let loads = self.groups.rotated_loads(&rotations);
+            self.groups.fit(&x, rotations);
+            loads = self.groups.rotated_loads(rotations);
             let mut rhs: Vec<DVec3> = (fixed..h)
                 .map(|r| {
                     loads[r]
@@ -110,12 +125,15 @@ impl ReducedArap {
                 .collect();
             self.factor.solve(&mut rhs);
             x[fixed..].copy_from_slice(&rhs);
-            let energy = self.groups.energy(&x, &rotations);
-            report.energies.push(energy);
             report.iterations += 1;
-            let before = report.energies[report.energies.len() - 3];
-            if before - energy <= options.tolerance * before {
-                break;
+            // the energy is only needed to stop early, and at the end
+            if options.tolerance > 0.0 || report.iterations == options.max_iterations {
+                let energy = self.groups.energy(&x, rotations, &loads);
+                let before = *report.energies.last().expect("the first energy");
+                report.energies.push(energy);
+                if before - energy <= options.tolerance * before {
+                    break;
+                }
             }
         }
         for (d, x) in dh.iter_mut().zip(&x) {

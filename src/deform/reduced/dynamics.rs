@@ -10,6 +10,29 @@ use crate::deform::weights::Weights;
 use crate::error::{CleaveError, Result};
 use glam::{DMat3, DVec3, Vec3};
 
+/// A cubature of `clusters`: in each block of `cells`³ lattice cells (by the cell of a
+/// cluster's first member, `coords` by particle), the first cluster, standing for all
+/// the block's (its weight their count), so that a reduced step fits one rotation per
+/// block instead of one per cluster.
+pub fn cubature(clusters: &[Vec<u32>], coords: &[glam::IVec3], cells: u32) -> Vec<(f64, Vec<u32>)> {
+    let mut kept: Vec<(f64, Vec<u32>)> = Vec::new();
+    let mut index: std::collections::HashMap<glam::IVec3, usize> = Default::default();
+    for members in clusters {
+        let Some(&first) = members.first() else {
+            continue;
+        };
+        let key = coords[first as usize].div_euclid(glam::IVec3::splat(cells.max(1) as i32));
+        match index.get(&key) {
+            Some(&k) => kept[k].0 += 1.0,
+            None => {
+                index.insert(key, kept.len());
+                kept.push((1.0, members.clone()));
+            }
+        }
+    }
+    kept
+}
+
 /// A body's projective dynamics in a subspace whose first `fixed` columns are held by
 /// the user's handles.
 #[derive(Clone, Debug)]
@@ -43,13 +66,14 @@ impl ReducedState {
 
 impl ReducedDynamics {
     /// Precomputes the reduced dynamics of particles resting at `rest` in the subspace
-    /// `weights` (first `fixed` columns held) for the clusters `clusters`, each
-    /// particle of mass `mass` (kg), the clusters' stiffness `stiffness` (1/s²: force per
-    /// unit mass and displacement) and the time step `dt` (s).
+    /// `weights` (first `fixed` columns held) for the clusters `clusters` (each with
+    /// the weight it stands for: 1, or more for a [`cubature`]'s), each particle of mass
+    /// `mass` (kg), the clusters' stiffness `stiffness` (1/s²: force per unit mass and
+    /// displacement) and the time step `dt` (s).
     pub fn new(
         weights: &Weights,
         rest: &[Vec3],
-        clusters: &[Vec<u32>],
+        clusters: &[(f64, Vec<u32>)],
         mass: f64,
         stiffness: f64,
         dt: f64,
@@ -73,12 +97,12 @@ impl ReducedDynamics {
                 "reduced dynamics: the subspace has no column to solve for".into(),
             ));
         }
-        let w = stiffness * mass;
         let mut groups = Groups::new(clusters.len(), h);
-        let mut membership = vec![0u32; rest.len()];
+        let mut membership = vec![0.0f64; rest.len()];
         let mut means = Vec::with_capacity(clusters.len());
         let (mut row, mut d) = (vec![0.0; h], vec![0.0; h]);
-        for (k, members) in clusters.iter().enumerate() {
+        for (k, (weight, members)) in clusters.iter().enumerate() {
+            let w = stiffness * mass * weight;
             let mut mean = vec![0.0; h];
             let mut centre = DVec3::ZERO;
             for &j in members {
@@ -87,7 +111,7 @@ impl ReducedDynamics {
                     *m += r;
                 }
                 centre += rest[j as usize].as_dvec3();
-                membership[j as usize] += 1;
+                membership[j as usize] += w;
             }
             let n = members.len().max(1) as f64;
             mean.iter_mut().for_each(|m| *m /= n);
@@ -99,21 +123,22 @@ impl ReducedDynamics {
                 }
                 groups.add(k, w, &d, rest[j as usize].as_dvec3() - centre);
             }
-            means.push((n, mean));
+            means.push((w * n, mean));
         }
-        // G = Σ_k w Σ_j (W_j − W̄_k)ᵀ(W_j − W̄_k) = Σ_j w n_j W_jᵀW_j − Σ_k w |k| W̄_kᵀW̄_k
+        // G = Σ_k w_k Σ_j (W_j − W̄_k)ᵀ(W_j − W̄_k)
+        //   = Σ_j (Σ_{k∋j} w_k) W_jᵀW_j − Σ_k w_k |k| W̄_kᵀW̄_k
         let particles: Vec<u32> = (0..rest.len() as u32)
-            .filter(|&j| membership[j as usize] > 0)
+            .filter(|&j| membership[j as usize] > 0.0)
             .collect();
         let mut g = weighted_gram(&particles, h, |j, a, b| {
             weights.row_into(j, a);
             b.copy_from_slice(a);
-            w * membership[j as usize] as f64
+            membership[j as usize]
         });
-        for (n, mean) in &means {
+        for (wn, mean) in &means {
             for r in 0..h {
                 for c in 0..h {
-                    g[r * h + c] -= w * n * mean[r] * mean[c];
+                    g[r * h + c] -= wn * mean[r] * mean[c];
                 }
             }
         }

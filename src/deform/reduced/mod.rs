@@ -160,22 +160,18 @@ impl Groups {
         sum
     }
 
-    /// The energy of `dh` with `rotations`.
-    pub(crate) fn energy(&self, dh: &[DVec3], rotations: &[DMat3]) -> f64 {
+    /// The energy of `dh` with `rotations`, given `loads` (what
+    /// [`Groups::rotated_loads`] gives for these rotations): the cross terms
+    /// `Σ_g ΔH · (I − R_g) P_g` are `−ΔH · loads`.
+    pub(crate) fn energy(&self, dh: &[DVec3], rotations: &[DMat3], loads: &[DVec3]) -> f64 {
         let h = self.columns;
-        let mut e = 0.0;
-        for (g, r) in rotations.iter().enumerate() {
-            let q = self.q[g];
-            let rq = *r * q;
-            e += 2.0 * (q.x_axis.x + q.y_axis.y + q.z_axis.z)
-                - 2.0 * (rq.x_axis.x + rq.y_axis.y + rq.z_axis.z);
-            let m = DMat3::IDENTITY - *r;
-            e += 2.0
-                * dh.iter()
-                    .zip(self.p(g))
-                    .map(|(d, p)| d.dot(m * *p))
-                    .sum::<f64>();
-        }
+        let trace = |m: DMat3| m.x_axis.x + m.y_axis.y + m.z_axis.z;
+        let mut e: f64 = rotations
+            .iter()
+            .zip(&self.q)
+            .map(|(r, q)| 2.0 * trace(*q) - 2.0 * trace(*r * *q))
+            .sum();
+        e -= 2.0 * dh.iter().zip(loads).map(|(d, l)| d.dot(*l)).sum::<f64>();
         for r in 0..h {
             for c in 0..h {
                 e += self.g[r * h + c] * dh[r].dot(dh[c]);
