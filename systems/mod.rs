@@ -4,7 +4,9 @@
 //! [`CleaveSchedule`] runs once per frame, its stages chained in this order:
 //!
 //! 1. [`SimStage::MoveColliders`] and 2. [`SimStage::MoveAttachments`]: kinematic
-//!    colliders and attachment targets placed for the frame's end;
+//!    colliders and attachment targets placed for the frame's end, and
+//!    [`SimStage::PoseHandles`]: bodies posed by handles given the velocities that take
+//!    their kinematic particles to the pose ([`pose_handles`]);
 //! 3. [`SimStage::Sync`]: an exclusive system that runs [`SyncSchedule`] — the solver
 //!    layout brought up to date ([`layout_sync`]), the terms told what changed and
 //!    where the attachments' targets go ([`term_sync`]), the particles' state loaded
@@ -33,6 +35,7 @@ pub mod load;
 pub mod move_attachments;
 pub mod move_colliders;
 pub mod move_tools;
+pub mod pose_handles;
 pub mod predict;
 pub mod regroup;
 pub mod settle_poses;
@@ -64,6 +67,8 @@ pub enum SimStage {
     MoveColliders,
     /// Advances attachment targets (paths, velocities) to the end of the frame.
     MoveAttachments,
+    /// Bodies posed by handles: their particles' velocities toward the frame's pose.
+    PoseHandles,
     /// Runs the substep schedule (in [`CleaveSchedule`]).
     Substeps,
     /// Writes the particles' state back to their components.
@@ -145,6 +150,7 @@ pub fn build_schedule() -> Schedule {
         (
             SimStage::MoveColliders,
             SimStage::MoveAttachments,
+            SimStage::PoseHandles,
             SimStage::Sync,
             SimStage::Substeps,
             SimStage::Store,
@@ -163,6 +169,7 @@ pub fn build_schedule() -> Schedule {
     s.add_systems(run_sync.in_set(SimStage::Sync));
     s.add_systems(move_colliders::move_colliders.in_set(SimStage::MoveColliders));
     s.add_systems(move_attachments::move_attachments.in_set(SimStage::MoveAttachments));
+    s.add_systems(pose_handles::pose_handles.in_set(SimStage::PoseHandles));
     s.add_systems(run_substeps.in_set(SimStage::Substeps));
     s.add_systems(store::store_particles.in_set(SimStage::Store));
     s.add_systems(move_tools::move_tools.in_set(SimStage::MoveTools));

@@ -7,6 +7,7 @@
 
 pub mod arap;
 pub mod handles;
+pub mod keys;
 pub mod reduced;
 pub mod smoothness;
 pub mod weights;

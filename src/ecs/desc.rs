@@ -75,6 +75,24 @@ pub struct AttachmentDesc {
     pub hold: Hold,
 }
 
+/// A handle of a body (SPEC §6.3): the particles in `region` when the body is spawned
+/// (a point handle: the one nearest the region's centre), moved along `path`. A
+/// simulated body is driven by its handles as soft attachments of `compliance` (their
+/// keys then move rigidly: no scale); a posed body ([`crate::ecs::handles::pose_by_handles`])
+/// follows them exactly.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct HandleDesc {
+    /// World-space region (after the body is placed) whose particles the handle moves;
+    /// it must hold at least one.
+    pub region: Region,
+    /// A point handle (one particle) instead of a region handle (an affine map).
+    pub point: bool,
+    /// Keyframes of the handle's target (empty: it stays at rest).
+    pub path: crate::deform::keys::HandlePath,
+    /// Compliance of each particle's spring while simulating, m/N (≥ 0; 0: hard).
+    pub compliance: f32,
+}
+
 /// Everything needed to spawn a body.
 #[derive(Clone, Debug)]
 pub struct BodyDesc {
@@ -95,6 +113,8 @@ pub struct BodyDesc {
     pub pins: Vec<PinRegion>,
     /// Attachments of the body's particles (world space, after placement).
     pub attachments: Vec<AttachmentDesc>,
+    /// Handles of the body's particles (world space, after placement).
+    pub handles: Vec<HandleDesc>,
     /// A closed mesh (in the shape's local frame) to draw instead of the lattice's
     /// surface, carried by the particles and opened by cuts
     /// ([`crate::surface::embed`]). A body voxelised from a mesh draws that mesh when
@@ -129,6 +149,7 @@ impl BodyDesc {
             material: Material::default(),
             pins: Vec::new(),
             attachments: Vec::new(),
+            handles: Vec::new(),
             render_mesh: None,
             surface: SurfaceOptions::default(),
             jitter: 0.0,

@@ -238,6 +238,9 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         check_compliance(&field, a.compliance)?;
         a.path.validate(&field)?;
     }
+    let mut handles = desc.handles.clone();
+    crate::ecs::handles::check_handles(&mut handles)?;
+    crate::ecs::handles::check_rigid_keys(&handles)?;
     check_range(
         "body.jitter",
         desc.jitter,
@@ -290,6 +293,9 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             "a region holding at least one of the body's particles",
         ));
     }
+    let live: Vec<u32> = lattice.live_particles().collect();
+    let held = crate::ecs::handles::select_handles(&handles, &live, placed)?;
+    let held_at: Vec<Vec3> = (0..lattice.len() as u32).map(placed).collect();
     let pinned: Vec<Vec<u32>> = desc.pins.iter().map(|p| in_region(p.region())).collect();
     let positions_of = |lists: &[Vec<u32>]| -> Vec<Vec<Vec3>> {
         lists
@@ -377,6 +383,8 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             motion,
         );
     }
+    let at = |i: u32| held_at[i as usize];
+    crate::ecs::handles::spawn_handle_attachments(world, body, &handles, held, at);
     Ok(body)
 }
 

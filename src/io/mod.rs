@@ -2,6 +2,7 @@
 //! pictures, point clouds and surface meshes (OBJ, glTF).
 
 pub mod cut_scenes;
+pub mod deform_scenes;
 pub mod dump;
 #[cfg(feature = "render")]
 pub mod export;

@@ -12,7 +12,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// Names and one-line descriptions of the built-in scenes.
-pub const BUILTIN_SCENES: [(&str, &str); 15] = [
+pub const BUILTIN_SCENES: [(&str, &str); 17] = [
     ("drop", "a 16×8×8 box falls on the ground and settles"),
     (
         "cantilever",
@@ -69,6 +69,14 @@ pub const BUILTIN_SCENES: [(&str, &str); 15] = [
     (
         "jittered",
         "a soft block and ball spawned with every particle jittered by 0.3 h, relaxed into their rest shapes, then dropped",
+    ),
+    (
+        "bend",
+        "a 32×4×4 bar posed by its two end regions: bent, twisted, stretched (`cleave deform bend`)",
+    ),
+    (
+        "grab",
+        "a 10×10×10 block dragged through the air by one point handle while it simulates",
     ),
 ];
 
@@ -250,6 +258,8 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
         }
         "tear" | "notch" => pulled_bar(config, name == "notch"),
         "jittered" => crate::io::relax_scenes::jittered_scene(config),
+        "bend" => crate::io::deform_scenes::bend_scene(config),
+        "grab" => crate::io::deform_scenes::grab_scene(config),
         "cantilever" => {
             let mut body = rigid_body(Shape::cuboid(UVec3::new(24, 6, 6)), H);
             body.position = Vec3::new(0.0, 1.0, 0.0);

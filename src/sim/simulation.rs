@@ -86,6 +86,20 @@ impl Simulation {
         spawn_body(&mut self.world, desc)
     }
 
+    /// Poses `body` by `handles` from now on: its particles become kinematic and follow
+    /// the handles each frame by `method` (see [`crate::ecs::handles`]); game code may
+    /// move handles without a path through [`HandlePose::targets`].
+    ///
+    /// [`HandlePose::targets`]: crate::ecs::handles::HandlePose::targets
+    pub fn pose_by_handles(
+        &mut self,
+        body: Entity,
+        handles: &[crate::ecs::desc::HandleDesc],
+        method: crate::ecs::handles::PoseMethod,
+    ) -> Result<()> {
+        crate::ecs::handles::pose_by_handles(&mut self.world, body, handles, method)
+    }
+
     /// Spawns a cutting tool; returns its entity.
     pub fn spawn_tool(&mut self, desc: &ToolDesc) -> Result<Entity> {
         spawn_tool(&mut self.world, desc)

@@ -217,6 +217,49 @@ pub fn bench_surfaces(
     Ok(())
 }
 
+/// `cleave bench --deform`: the figures of
+/// [`cleave::analysis::bench_deform::bench_deform`], one run.
+pub fn bench_deform(steps: usize, json: bool) -> Result<(), String> {
+    let r = cleave::analysis::bench_deform::bench_deform(steps).map_err(|e| e.to_string())?;
+    if json {
+        return print_json(&r);
+    }
+    println!(
+        "cleave bench --deform: {} timed runs each, {} thread(s)",
+        steps.max(1),
+        r.threads
+    );
+    println!(
+        "  W precompute, 10 point handles:   16³ {:.1} ms, 32³ {:.1} ms",
+        r.weights_16_ms, r.weights_32_ms
+    );
+    println!(
+        "  V = V̄ + WΔH at 64³, 20 handles:  {:.2} ms (W interpolated from 32³ in {:.0} ms)",
+        r.pose_64_ms, r.weights_64_ms
+    );
+    println!(
+        "  full ARAP at 32³:                 {:.1} ms per iteration",
+        r.arap_32_iteration_ms
+    );
+    println!(
+        "  reduced ARAP at 64³:              {:.2} ms per frame ({} iterations, {} columns, {} groups; precompute {:.0} ms)",
+        r.reduced_arap_frame_ms,
+        r.reduced_iterations,
+        r.reduced_columns,
+        r.reduced_arap_groups,
+        r.reduced_arap_precompute_ms
+    );
+    println!(
+        "  reduced projective dynamics, 64³: {:.2} ms per frame ({} iterations, {} of {} clusters; precompute {:.0} ms)",
+        r.reduced_dynamics_frame_ms,
+        r.reduced_iterations,
+        r.reduced_dynamics_cubature,
+        r.reduced_dynamics_clusters,
+        r.reduced_dynamics_precompute_ms
+    );
+    Ok(())
+}
+
 /// Prints `row` as one line of JSON.
 fn print_json(row: &impl serde::Serialize) -> Result<(), String> {
     println!("{}", serde_json::to_string(row).map_err(|e| e.to_string())?);

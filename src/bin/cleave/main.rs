@@ -12,6 +12,7 @@ mod view;
 use clap::{Parser, Subcommand};
 use cleave::config::{SimConfig, SolverMode};
 use cleave::cut::tool::CutMode;
+use cleave::ecs::handles::PoseMethod;
 use cleave::io::render::{ColorMode, Draw};
 use cleave::io::scene::BUILTIN_SCENES;
 use cleave::io::scene_file::SceneFile;
@@ -122,6 +123,17 @@ enum Command {
     /// the defaults), then run it as `cleave run` does (`--frames`, default 0) and write
     /// the same outputs; the summary reports each relaxation.
     Relax(RunFlags),
+    /// Pose a scene's bodies by their handles instead of simulating them (each body
+    /// with `handles` follows them exactly, its particles kinematic; other bodies
+    /// simulate), with the pictures and summary of `cleave run`.
+    Deform {
+        #[command(flatten)]
+        flags: RunFlags,
+        /// How a posed body follows its handles: `linear` (the linear subspace `V̄ +
+        /// W ΔH`) or `arap` (as rigid as possible, from the subspace's pose).
+        #[arg(long, value_enum, default_value = "linear")]
+        method: MethodArg,
+    },
     /// Compare cut bodies' rebuilt clusters with fresh clusterings of the same geometry:
     /// a block cut N times (cluster counts, sizes, memberships, extents) and the
     /// cantilever with 20 scoops (static tip sag).
@@ -199,6 +211,11 @@ enum Command {
         /// Turn conservative culling off (to compare: the results are the same).
         #[arg(long)]
         no_culling: bool,
+        /// Instead of the engine rows: what handle deformation costs (the subspace's
+        /// weights at 16³ and 32³, the pose at 64³, full ARAP at 32³, reduced ARAP and
+        /// reduced projective dynamics at 64³), in one run.
+        #[arg(long)]
+        deform: bool,
     },
     /// Serve an interactive page: the simulation runs here, the browser draws it; orbit,
     /// cut with a mouse stroke, grab and drag.
@@ -230,6 +247,13 @@ enum ScenesAction {
         /// Built-in scene name.
         name: String,
     },
+}
+
+/// How `cleave deform` poses a body.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum MethodArg {
+    Linear,
+    Arap,
 }
 
 /// Particle colours on the command line.
@@ -283,7 +307,7 @@ where
 }
 
 /// `cleave run`, or with `relax` `cleave relax`.
-fn run_command(flags: RunFlags, relax: bool) -> Result<(), String> {
+fn run_command(flags: RunFlags, relax: bool, pose: Option<PoseMethod>) -> Result<(), String> {
     let RunFlags {
         scene,
         frames,
@@ -313,6 +337,7 @@ fn run_command(flags: RunFlags, relax: bool) -> Result<(), String> {
     let args = run::RunArgs {
         scene,
         relax,
+        pose,
         recluster_at,
         overrides: run::SceneOverrides {
             solver,
@@ -360,7 +385,12 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     notices::install(matches!(
         &cli.command,
-        Command::Run(RunFlags { quiet: true, .. }) | Command::Relax(RunFlags { quiet: true, .. })
+        Command::Run(RunFlags { quiet: true, .. })
+            | Command::Relax(RunFlags { quiet: true, .. })
+            | Command::Deform {
+                flags: RunFlags { quiet: true, .. },
+                ..
+            }
     ));
     let result = match cli.command {
         Command::Scenes { action: None } => {
@@ -376,8 +406,15 @@ fn main() -> ExitCode {
             print!("{}", file.to_ron());
             Ok(())
         }),
-        Command::Run(flags) => run_command(flags, false),
-        Command::Relax(flags) => run_command(flags, true),
+        Command::Run(flags) => run_command(flags, false, None),
+        Command::Relax(flags) => run_command(flags, true, None),
+        Command::Deform { flags, method } => {
+            let method = match method {
+                MethodArg::Linear => PoseMethod::Linear,
+                MethodArg::Arap => PoseMethod::Arap(Default::default()),
+            };
+            run_command(flags, false, Some(method))
+        }
         Command::Fidelity {
             cuts,
             seed,
@@ -410,7 +447,11 @@ fn main() -> ExitCode {
             no_edges,
             surface,
             no_culling,
+            deform,
         } => with_threads(threads, |_| {
+            if deform {
+                return bench::bench_deform(steps, json);
+            }
             let config = SimConfig {
                 solver,
                 substeps,

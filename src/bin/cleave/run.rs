@@ -12,6 +12,7 @@ use cleave::cut::tool::CutMode;
 use cleave::ecs::check::check_invariants;
 use cleave::ecs::components::BodyLattice;
 use cleave::ecs::desc::Scene;
+use cleave::ecs::handles::PoseMethod;
 use cleave::ecs::resources::{CutTimings, ParticlesCut, SolverCache};
 use cleave::io::dump::dump_world;
 use cleave::io::render::Draw;
@@ -102,6 +103,9 @@ pub struct RunArgs {
     /// Relax every body before the first frame even if the scene does not ask for it
     /// (`cleave relax`; then the frames default to 0).
     pub relax: bool,
+    /// Pose the bodies with handles by them (`cleave deform`) instead of simulating
+    /// them driven by them.
+    pub pose: Option<PoseMethod>,
     /// Frame after which every body is clustered afresh.
     pub recluster_at: Option<u32>,
     /// Solver settings overriding the scene's.
@@ -128,7 +132,11 @@ pub struct RunArgs {
 
 /// A new simulation of `scene` (errors name the scene, the entry's line and column in a
 /// scene file, and the entry); returns it and its bodies.
-fn start(scene: &Scene, scene_name: &str) -> Result<(Simulation, Vec<Entity>), String> {
+fn start(
+    scene: &Scene,
+    scene_name: &str,
+    pose: Option<PoseMethod>,
+) -> Result<(Simulation, Vec<Entity>), String> {
     let mut sim = Simulation::new(scene.config.clone()).map_err(|e| e.to_string())?;
     sim.set_label(scene_name);
     let fail = |what: &str, i: usize, e: cleave::error::CleaveError| {
@@ -140,7 +148,18 @@ fn start(scene: &Scene, scene_name: &str) -> Result<(Simulation, Vec<Entity>), S
     };
     let mut bodies = Vec::with_capacity(scene.bodies.len());
     for (i, b) in scene.bodies.iter().enumerate() {
-        bodies.push(sim.spawn_body(b).map_err(|e| fail("bodies", i, e))?);
+        match pose {
+            // posed: spawned without its handles' attachments, then posed by them
+            Some(method) if !b.handles.is_empty() => {
+                let mut bare = b.clone();
+                let handles = std::mem::take(&mut bare.handles);
+                let body = sim.spawn_body(&bare).map_err(|e| fail("bodies", i, e))?;
+                sim.pose_by_handles(body, &handles, method)
+                    .map_err(|e| fail("bodies", i, e))?;
+                bodies.push(body);
+            }
+            _ => bodies.push(sim.spawn_body(b).map_err(|e| fail("bodies", i, e))?),
+        }
     }
     for (i, t) in scene.tools.iter().enumerate() {
         sim.spawn_tool(t).map_err(|e| fail("tools", i, e))?;
@@ -221,7 +240,7 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     }
     let (mut sim, bodies) = match &args.load_state {
         Some(path) => resume(path, args, seed_given)?,
-        None => start(&scene, scene_name)?,
+        None => start(&scene, scene_name, args.pose)?,
     };
     let seed = sim.config().seed;
     let dt = sim.config().dt;

@@ -379,6 +379,29 @@ pub fn keys<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(f32, PoseFile)>, D::
     }
     Ok(keys)
 }
+pub fn handle_keys<'de, D: Deserializer<'de>>(
+    d: D,
+) -> Result<Vec<(f32, super::schema::HandleKeyFile)>, D::Error> {
+    let keys = Vec::<(f32, super::schema::HandleKeyFile)>::deserialize(d)?;
+    for (i, (t, _)) in keys.iter().enumerate() {
+        if !t.is_finite() || (i > 0 && *t <= keys[i - 1].0) {
+            return Err(D::Error::custom(format!(
+                "key {i}: time {t} is out of range (allowed: finite, strictly ascending times)"
+            )));
+        }
+    }
+    Ok(keys)
+}
+pub fn scale<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
+    let v = Vec3::deserialize(d)?;
+    if v.is_finite() && v.min_element() > 0.0 {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "{v} is out of range (allowed: each component finite and > 0)"
+        )))
+    }
+}
 pub fn friction<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;
     range::<D>(v, (0.0..=100.0).contains(&v), "0 ≤ friction ≤ 100")

@@ -5,9 +5,12 @@
 use crate::body::shape::Shape;
 use crate::config::{Material, SimConfig};
 use crate::cut::tool::{Path as ToolPath, Pose};
+use crate::deform::keys::{HandleKey, HandlePath};
 use crate::ecs::components::Hold;
 use crate::ecs::desc::Scene;
-use crate::ecs::desc::{AttachmentDesc, BodyDesc, ColliderDesc, SurfaceOptions, ToolDesc};
+use crate::ecs::desc::{
+    AttachmentDesc, BodyDesc, ColliderDesc, HandleDesc, SurfaceOptions, ToolDesc,
+};
 use crate::geometry::collider::ColliderShape;
 use crate::geometry::mesh::TriangleMesh;
 use glam::Vec3;
@@ -192,6 +195,7 @@ impl SceneFile {
                     pins: b.pins.clone(),
                     attachments: attachment_files(&b.attachments, Hold::Each),
                     centroids: attachment_files(&b.attachments, Hold::Centroid),
+                    handles: b.handles.iter().map(handle_file).collect(),
                     render_mesh: None,
                     surface: SurfaceFile {
                         smooth: b.surface.smooth,
@@ -287,6 +291,7 @@ impl SceneFile {
                         })
                     })
                     .collect(),
+                handles: b.handles.iter().map(handle_desc).collect(),
                 render_mesh,
                 surface: SurfaceOptions {
                     smooth: b.surface.smooth,
@@ -364,6 +369,51 @@ impl SceneFile {
 
 /// A keyframed path and the pose before it starts (default: the first key's, else the
 /// origin).
+/// A handle as a scene file gives it.
+fn handle_file(h: &HandleDesc) -> HandleFile {
+    HandleFile {
+        region: h.region,
+        point: h.point,
+        path: h
+            .path
+            .keys
+            .iter()
+            .map(|(t, k)| {
+                let key = HandleKeyFile {
+                    position: k.position,
+                    rotation: k.rotation,
+                    scale: k.scale,
+                };
+                (*t, key)
+            })
+            .collect(),
+        compliance: h.compliance,
+    }
+}
+
+/// A handle from its scene file form.
+fn handle_desc(h: &HandleFile) -> HandleDesc {
+    HandleDesc {
+        region: h.region,
+        point: h.point,
+        path: HandlePath {
+            keys: h
+                .path
+                .iter()
+                .map(|(t, k)| {
+                    let key = HandleKey {
+                        position: k.position,
+                        rotation: k.rotation,
+                        scale: k.scale,
+                    };
+                    (*t, key)
+                })
+                .collect(),
+        },
+        compliance: h.compliance,
+    }
+}
+
 /// The attachments of `list` that hold by `hold`, as a scene file lists them.
 fn attachment_files(list: &[AttachmentDesc], hold: Hold) -> Vec<AttachmentFile> {
     list.iter()

@@ -116,6 +116,12 @@ pub struct BodyFile {
     /// attachments' form: `(region: …, path: […], compliance: …)`.
     #[serde(default)]
     pub centroids: Vec<AttachmentFile>,
+    /// Handles: `(region: …, point: false, path: [(0.0, (position: …, rotation: …,
+    /// scale: …))], compliance: 0.0)` — a region's particles (a point handle: the one
+    /// nearest its centre) moved along the path; `cleave deform` poses the body by them,
+    /// `cleave run` drives it by them as attachments of `compliance`.
+    #[serde(default)]
+    pub handles: Vec<HandleFile>,
     /// A closed OBJ mesh (path relative to the scene file, in the shape's local frame)
     /// drawn instead of the lattice's surface: `render_mesh: Some("part.obj")`. A body
     /// whose shape is a mesh draws that mesh without it.
@@ -154,6 +160,43 @@ pub struct AttachmentFile {
     /// Compliance of each particle's spring, m/N (≥ 0; 0: hard).
     #[serde(deserialize_with = "super::check::attachment_compliance")]
     pub compliance: f32,
+}
+
+/// A handle (see [`crate::ecs::desc::HandleDesc`]).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HandleFile {
+    /// The region whose particles the handle moves (it must hold at least one).
+    #[serde(deserialize_with = "super::check::region")]
+    pub region: Region,
+    /// One particle (the nearest the region's centre) instead of the region.
+    #[serde(default)]
+    pub point: bool,
+    /// Keyframes `(time, key)`, strictly ascending times.
+    #[serde(default, deserialize_with = "super::check::handle_keys")]
+    pub path: Vec<(f32, HandleKeyFile)>,
+    /// Compliance of each particle's spring while simulating, m/N (≥ 0; 0: hard).
+    #[serde(default, deserialize_with = "super::check::attachment_compliance")]
+    pub compliance: f32,
+}
+
+/// A handle's key: where its rest centroid goes, turned and scaled about it.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HandleKeyFile {
+    /// Position of the handle's centroid.
+    #[serde(deserialize_with = "super::check::coordinates")]
+    pub position: Vec3,
+    /// Rotation about it, a quaternion (x, y, z, w).
+    #[serde(default, deserialize_with = "super::check::rotation")]
+    pub rotation: Quat,
+    /// Scale along the body's axes about it (each > 0).
+    #[serde(default = "unit_scale", deserialize_with = "super::check::scale")]
+    pub scale: Vec3,
+}
+
+fn unit_scale() -> Vec3 {
+    Vec3::ONE
 }
 
 /// A shape.

@@ -1,0 +1,328 @@
+//! A body's handles in the simulation. Simulated, a body is driven by its handles as
+//! soft attachments (spawned with it, [`spawn_handle_attachments`]). Posed
+//! ([`pose_by_handles`]), its particles are kinematic and follow the handles exactly:
+//! each frame the pose stage (`systems/pose_handles.rs`) places them at the subspace's
+//! pose `V̄ + W ΔH` or at ARAP's, by giving each the velocity that brings it there by
+//! the frame's end; contacts and other bodies meet it as a kinematic mover.
+
+use crate::body::lattice::Lattice;
+use crate::cut::tool::{Path, Pose};
+use crate::deform::arap::{Arap, ArapOptions};
+use crate::deform::handles::{Handle, HandleSet, HandleTarget};
+use crate::deform::keys::HandlePath;
+use crate::deform::weights::Weights;
+use crate::ecs::attach::{TargetMotion, check_compliance, pinned_particles, spawn_attachment};
+use crate::ecs::components::*;
+use crate::ecs::desc::HandleDesc;
+use crate::ecs::resources::SimSettings;
+use crate::error::{CleaveError, Result, check_finite_vec};
+use bevy_ecs::prelude::*;
+use glam::Vec3;
+
+/// How a posed body follows its handles.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum PoseMethod {
+    /// The linear subspace's pose `V̄ + W ΔH` (SPEC §6.3).
+    #[default]
+    Linear,
+    /// As rigid as possible (SPEC §6.4), from the subspace's pose, to these options.
+    Arap(ArapOptions),
+}
+
+/// A body posed by its handles: the handles, their paths, the precomputed subspace
+/// (and ARAP problem), rebuilt when a cut changes the body.
+#[derive(Component, Debug)]
+pub struct HandlePose {
+    /// The handles, checked against the body.
+    pub set: HandleSet,
+    /// Each handle's path (an empty one leaves the target to game code).
+    pub paths: Vec<HandlePath>,
+    /// Each handle's target: set from its path each frame, or by game code.
+    pub targets: Vec<HandleTarget>,
+    /// How the body follows them.
+    pub method: PoseMethod,
+    /// The particles' rest positions `V̄` (world space, when posing began), by index.
+    pub rest: Vec<Vec3>,
+    pub(crate) weights: Weights,
+    pub(crate) arap: Option<Arap>,
+    /// The lattice's live particles and links when the subspace was computed.
+    pub(crate) topology: (usize, usize),
+}
+
+/// Checks a body's handle descriptions (finite regions, compliances, paths); errors
+/// name `body.handles[i]`.
+pub fn check_handles(handles: &mut [HandleDesc]) -> Result<()> {
+    for (i, h) in handles.iter_mut().enumerate() {
+        let field = format!("body.handles[{i}]");
+        check_finite_vec(&format!("{field}.region.min"), h.region.min)?;
+        check_finite_vec(&format!("{field}.region.max"), h.region.max)?;
+        check_compliance(&field, h.compliance)?;
+        h.path.validate(&field, h.point)?;
+    }
+    Ok(())
+}
+
+/// The particles of each handle: those of `live` whose position `at(i)` lies in its
+/// region (a point handle: the one nearest the region's centre; ties to the lowest
+/// index). A handle that selects none is an error naming it.
+pub fn select_handles(
+    handles: &[HandleDesc],
+    live: &[u32],
+    at: impl Fn(u32) -> Vec3,
+) -> Result<Vec<Vec<u32>>> {
+    let mut out = Vec::with_capacity(handles.len());
+    for (i, h) in handles.iter().enumerate() {
+        let inside: Vec<u32> = live
+            .iter()
+            .copied()
+            .filter(|&p| h.region.contains(at(p)))
+            .collect();
+        if inside.is_empty() {
+            return Err(crate::error::out_of_range(
+                &format!("body.handles[{i}].region"),
+                (h.region.min, h.region.max),
+                "a region holding at least one of the body's particles",
+            ));
+        }
+        out.push(if h.point {
+            let centre = 0.5 * (h.region.min + h.region.max);
+            let nearest = inside.iter().copied().fold(inside[0], |best, p| {
+                if at(p).distance_squared(centre) < at(best).distance_squared(centre) {
+                    p
+                } else {
+                    best
+                }
+            });
+            vec![nearest]
+        } else {
+            inside
+        });
+    }
+    Ok(out)
+}
+
+/// Checks that a simulated body's handles move rigidly: a key that scales is an error
+/// (attachments hold particles to a rigid pose; `cleave deform` poses by scaling).
+pub fn check_rigid_keys(handles: &[HandleDesc]) -> Result<()> {
+    for (i, h) in handles.iter().enumerate() {
+        if let Some(k) = h
+            .path
+            .keys
+            .iter()
+            .position(|(_, key)| key.scale != Vec3::ONE)
+        {
+            return Err(CleaveError::InvalidEntity(format!(
+                "body.handles[{i}].path[{k}].scale: a simulated body's handle moves it rigidly \
+                 (scale 1); `cleave deform` poses a body by scaling handles"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Spawns a simulated body's handles as soft attachments: each holds its particles to
+/// a target at their centroid that its path moves (checked by [`check_rigid_keys`]).
+pub fn spawn_handle_attachments(
+    world: &mut World,
+    body: Entity,
+    handles: &[HandleDesc],
+    particles: Vec<Vec<u32>>,
+    at: impl Fn(u32) -> Vec3,
+) {
+    for (h, particles) in handles.iter().zip(particles) {
+        let positions: Vec<Vec3> = particles.iter().map(|&p| at(p)).collect();
+        let centroid = positions.iter().sum::<Vec3>() / positions.len() as f32;
+        let path = Path {
+            keys: h
+                .path
+                .keys
+                .iter()
+                .map(|(t, key)| {
+                    (
+                        *t,
+                        Pose {
+                            position: key.position,
+                            rotation: key.rotation,
+                        },
+                    )
+                })
+                .collect(),
+        };
+        let motion = if path.keys.is_empty() {
+            TargetMotion::Still
+        } else {
+            TargetMotion::Path(path)
+        };
+        spawn_attachment(
+            world,
+            body,
+            particles,
+            &positions,
+            h.compliance,
+            Hold::Each,
+            Pose::at(centroid),
+            motion,
+        );
+    }
+}
+
+/// The particles' positions of `body` now, by index (removed ones at their last).
+fn positions(world: &World, lattice: &BodyLattice) -> Vec<Vec3> {
+    lattice
+        .particles
+        .iter()
+        .map(|&e| world.get::<Position>(e).map_or(Vec3::ZERO, |p| p.0))
+        .collect()
+}
+
+/// Poses `body` by `handles` from now on: its particles become kinematic (inverse mass
+/// 0) and follow the handles by `method` each frame; the handles' particles are chosen
+/// where the particles are now, which is also the rest pose `V̄`.
+pub fn pose_by_handles(
+    world: &mut World,
+    body: Entity,
+    handles: &[HandleDesc],
+    method: PoseMethod,
+) -> Result<()> {
+    let mut handles = handles.to_vec();
+    check_handles(&mut handles)?;
+    let pinned = pinned_particles(world, body);
+    let lattice = world
+        .get::<BodyLattice>(body)
+        .ok_or_else(|| CleaveError::not_a("a body", body))?;
+    let rest = positions(world, lattice);
+    let live: Vec<u32> = lattice.lattice.live_particles().collect();
+    let selected = select_handles(&handles, &live, |p| rest[p as usize])?;
+    let list = handles
+        .iter()
+        .zip(selected)
+        .map(|(h, ps)| {
+            if h.point {
+                Handle::Point(ps[0])
+            } else {
+                Handle::Region(ps)
+            }
+        })
+        .collect();
+    let set = HandleSet::new(&lattice.lattice, list, &pinned)?;
+    let limit = memory_limit(world);
+    let (weights, arap) = precompute(&lattice.lattice, &rest, &set, method, limit)?;
+    let targets = set
+        .handles()
+        .iter()
+        .enumerate()
+        .map(|(k, h)| handles[k].path.target(h, set.rest_centroid(k, &rest), 0.0))
+        .collect();
+    let topology = signature(&lattice.lattice);
+    let entities: Vec<Entity> = live
+        .iter()
+        .map(|&p| lattice.particles[p as usize])
+        .collect();
+    for e in entities {
+        if let Some(mut w) = world.get_mut::<InvMass>(e) {
+            w.0 = 0.0;
+        }
+    }
+    world.entity_mut(body).insert(HandlePose {
+        set,
+        paths: handles.into_iter().map(|h| h.path).collect(),
+        targets,
+        method,
+        rest,
+        weights,
+        arap,
+        topology,
+    });
+    Ok(())
+}
+
+/// The memory a body's factor may take, bytes.
+pub(crate) fn memory_limit(world: &World) -> u64 {
+    let gb = world
+        .get_resource::<SimSettings>()
+        .map_or(crate::body::shape::DEFAULT_MEMORY_BUDGET_GB, |s| {
+            s.0.memory_budget_gb
+        });
+    (gb as f64 * 1e9) as u64
+}
+
+/// The subspace (and the ARAP problem) of `set` on `lattice`.
+pub(crate) fn precompute(
+    lattice: &Lattice,
+    rest: &[Vec3],
+    set: &HandleSet,
+    method: PoseMethod,
+    limit: u64,
+) -> Result<(Weights, Option<Arap>)> {
+    let weights = Weights::compute(lattice, rest, set, limit)?;
+    let arap = match method {
+        PoseMethod::Linear => None,
+        PoseMethod::Arap(_) => Some(Arap::new(lattice, rest, set, limit)?),
+    };
+    Ok((weights, arap))
+}
+
+/// What a cut changes of a lattice: its live particles and its links.
+pub(crate) fn signature(lattice: &Lattice) -> (usize, usize) {
+    let links = lattice
+        .live_particles()
+        .map(|i| lattice.neighbours(i).len())
+        .sum();
+    (lattice.live_count(), links)
+}
+
+impl HandlePose {
+    /// The handles' targets at time `t` from their paths (handles without a path keep
+    /// the targets game code gave them).
+    pub fn follow_paths(&mut self, t: f32) {
+        for (k, (path, target)) in self.paths.iter().zip(&mut self.targets).enumerate() {
+            if !path.keys.is_empty() {
+                let centroid = self.set.rest_centroid(k, &self.rest);
+                *target = path.target(&self.set.handles()[k], centroid, t);
+            }
+        }
+    }
+
+    /// After a cut: the handles keep their surviving particles (a handle left with none
+    /// is dropped, with its path) and the subspace is computed again for the pieces.
+    pub(crate) fn rebuild(&mut self, lattice: &Lattice, memory: u64) -> Result<()> {
+        let mut kept = Vec::new();
+        for (k, h) in self.set.handles().iter().enumerate() {
+            let live: Vec<u32> = h
+                .particles()
+                .iter()
+                .copied()
+                .filter(|&p| lattice.is_live(p))
+                .collect();
+            if live.is_empty() {
+                continue;
+            }
+            let handle = match h {
+                Handle::Point(_) => Handle::Point(live[0]),
+                Handle::Region(_) => Handle::Region(live),
+            };
+            kept.push((handle, self.paths[k].clone(), self.targets[k]));
+        }
+        let set = HandleSet::new(lattice, kept.iter().map(|k| k.0.clone()).collect(), &[])?;
+        let (weights, arap) = precompute(lattice, &self.rest, &set, self.method, memory)?;
+        self.paths = kept.iter().map(|k| k.1.clone()).collect();
+        self.targets = kept.iter().map(|k| k.2).collect();
+        self.set = set;
+        self.weights = weights;
+        self.arap = arap;
+        self.topology = signature(lattice);
+        Ok(())
+    }
+
+    /// Where the body's particles go for the current targets (by index), from their
+    /// positions `now` (ARAP's first guess is the subspace's pose).
+    pub fn posed(&self) -> Result<Vec<Vec3>> {
+        let dh = self.set.displacements(&self.rest, &self.targets)?;
+        let mut out = vec![Vec3::ZERO; self.rest.len()];
+        self.weights.pose(&dh, &mut out);
+        if let (PoseMethod::Arap(options), Some(arap)) = (self.method, &self.arap) {
+            arap.solve(&self.set, &self.targets, &mut out, &options)?;
+        }
+        Ok(out)
+    }
+}
