@@ -100,11 +100,13 @@ pub mod prelude {
     pub use crate::body::shape::{SdfShape, Shape};
     pub use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
     pub use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
+    pub use crate::deform::keys::{HandleKey, HandlePath};
     pub use crate::ecs::check::check_invariants;
     pub use crate::ecs::components::*;
     pub use crate::ecs::desc::{
-        AttachmentDesc, BodyDesc, ColliderDesc, PinRegion, Region, ToolDesc,
+        AttachmentDesc, BodyDesc, ColliderDesc, HandleDesc, PinRegion, Region, ToolDesc,
     };
+    pub use crate::ecs::handles::{HandlePose, PoseMethod};
     pub use crate::ecs::resources::{
         BodySplit, ClustersRebuilt, EdgesSevered, ParticlesCut, ParticlesRepaired,
     };

@@ -455,3 +455,33 @@ fn a_reduced_body_falls_freely_as_implicit_euler_would() {
         );
     }
 }
+
+#[test]
+fn two_pieces_each_follow_their_own_handle_exactly() {
+    let mut lattice = Shape::cuboid(UVec3::new(16, 4, 4)).voxelise(H).unwrap();
+    for (a, b) in lattice.edges() {
+        if lattice.coord(a).x == -1 && lattice.coord(b).x == 0 {
+            lattice.sever(a, b);
+        }
+    }
+    let rest = rest(&lattice);
+    let left = select(&lattice, |c| c.x <= -7);
+    let right = select(&lattice, |c| c.x >= 6);
+    let set = HandleSet::new(
+        &lattice,
+        vec![Handle::Region(left), Handle::Region(right)],
+        &[],
+    )
+    .unwrap();
+    let weights = Weights::compute(&lattice, &rest, &set, NO_LIMIT).unwrap();
+    let maps = [
+        Affine3A::from_rotation_translation(Quat::from_rotation_y(0.5), Vec3::new(0.0, 0.3, 0.0)),
+        Affine3A::from_rotation_translation(Quat::from_rotation_x(-0.7), Vec3::new(0.2, 0.0, 0.1)),
+    ];
+    let posed = pose(&weights, &set, &rest, &maps.map(HandleTarget::Affine));
+    for i in lattice.live_particles() {
+        let map = maps[usize::from(lattice.coord(i).x >= 0)];
+        let want = map.transform_point3(rest[i as usize]);
+        assert!(posed[i as usize].distance(want) < 1e-5, "particle {i}");
+    }
+}

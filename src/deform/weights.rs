@@ -62,9 +62,14 @@ impl Weights {
         let n = lattice.len();
         let a = smoothness_matrix(lattice);
         let rows = classify(lattice, rest, handles);
-        let free: Vec<u32> = (0..n as u32)
-            .filter(|&i| matches!(rows[i as usize], Row::Free(_)))
-            .collect();
+        // the unknowns in the order `classify` numbered them
+        let mut free = Vec::new();
+        for (i, row) in rows.iter().enumerate() {
+            if let Row::Free(f) = *row {
+                free.resize(free.len().max(f + 1), 0);
+                free[f] = i as u32;
+            }
+        }
         let h = handles.columns();
         let mut dense = vec![0.0f64; n * h];
         for i in 0..n as u32 {
