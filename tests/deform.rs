@@ -25,6 +25,27 @@ fn select(lattice: &Lattice, keep: impl Fn(glam::IVec3) -> bool) -> Vec<u32> {
         .collect()
 }
 
+/// A `length`×4×4 bar and its two end regions (two layers each) as handles.
+fn clamped_bar(length: u32) -> (Lattice, Vec<Vec3>, HandleSet) {
+    let lattice = Shape::cuboid(UVec3::new(length, 4, 4)).voxelise(H).unwrap();
+    let rest = rest(&lattice);
+    let lo = lattice
+        .live_particles()
+        .map(|i| lattice.coord(i).x)
+        .min()
+        .unwrap();
+    let hi = lo + length as i32 - 1;
+    let left = select(&lattice, |c| c.x <= lo + 1);
+    let right = select(&lattice, |c| c.x >= hi - 1);
+    let set = HandleSet::new(
+        &lattice,
+        vec![Handle::Region(left), Handle::Region(right)],
+        &[],
+    )
+    .unwrap();
+    (lattice, rest, set)
+}
+
 fn pose(weights: &Weights, set: &HandleSet, rest: &[Vec3], targets: &[HandleTarget]) -> Vec<Vec3> {
     let dh = set.displacements(rest, targets).unwrap();
     let mut out = vec![Vec3::ZERO; rest.len()];
@@ -116,23 +137,13 @@ fn point_handles_are_interpolated_exactly() {
 
 #[test]
 fn a_bar_clamped_at_both_ends_bends_along_the_cubic_hermite_curve() {
-    let length = 48;
-    let lattice = Shape::cuboid(UVec3::new(length, 4, 4)).voxelise(H).unwrap();
-    let rest = rest(&lattice);
+    let (lattice, rest, set) = clamped_bar(48);
     let lo = lattice
         .live_particles()
         .map(|i| lattice.coord(i).x)
         .min()
         .unwrap();
-    let hi = lo + length as i32 - 1;
-    let left = select(&lattice, |c| c.x <= lo + 1);
-    let right = select(&lattice, |c| c.x >= hi - 1);
-    let set = HandleSet::new(
-        &lattice,
-        vec![Handle::Region(left), Handle::Region(right)],
-        &[],
-    )
-    .unwrap();
+    let hi = lo + 47;
     let weights = Weights::compute(&lattice, &rest, &set, NO_LIMIT).unwrap();
     let delta = 0.8f32;
     let targets = [
@@ -264,22 +275,7 @@ struct Bar {
 }
 
 fn bent_bar(turn: Quat, stretch: f32) -> Bar {
-    let lattice = Shape::cuboid(UVec3::new(32, 4, 4)).voxelise(H).unwrap();
-    let rest = rest(&lattice);
-    let lo = lattice
-        .live_particles()
-        .map(|i| lattice.coord(i).x)
-        .min()
-        .unwrap();
-    let hi = lo + 31;
-    let left = select(&lattice, |c| c.x <= lo + 1);
-    let right = select(&lattice, |c| c.x >= hi - 1);
-    let set = HandleSet::new(
-        &lattice,
-        vec![Handle::Region(left), Handle::Region(right)],
-        &[],
-    )
-    .unwrap();
+    let (lattice, rest, set) = clamped_bar(32);
     let c = set.rest_centroid(1, &rest);
     let map = Affine3A::from_translation(c + Vec3::new(stretch, 0.0, 0.0))
         * Affine3A::from_quat(turn)

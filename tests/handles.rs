@@ -19,6 +19,18 @@ fn posed_bend(method: PoseMethod) -> (Simulation, Entity, Vec<HandleDesc>) {
     (sim, body, handles)
 }
 
+/// The affine map of the bar's right end region (`handles[1]`, its particles at `rest`)
+/// at time `t`.
+fn right_end_map(rest: &[(u32, Vec3)], handles: &[HandleDesc], t: f32) -> glam::Affine3A {
+    let right: Vec<Vec3> = rest
+        .iter()
+        .filter(|(_, x)| handles[1].region.contains(*x))
+        .map(|(_, x)| *x)
+        .collect();
+    let centroid = right.iter().sum::<Vec3>() / right.len() as f32;
+    handles[1].path.sample(t).unwrap().map(centroid)
+}
+
 fn spacing(sim: &Simulation, body: Entity) -> f32 {
     sim.world()
         .get::<BodyLattice>(body)
@@ -90,15 +102,7 @@ fn arap_keeps_the_end_regions_on_their_targets_and_the_bar_its_length() {
     let rest = sim.positions(body).unwrap();
     sim.run(60); // bent a quarter turn
     let posed = sim.positions(body).unwrap();
-    let map = {
-        let right: Vec<Vec3> = rest
-            .iter()
-            .filter(|(_, x)| handles[1].region.contains(*x))
-            .map(|(_, x)| *x)
-            .collect();
-        let centroid = right.iter().sum::<Vec3>() / right.len() as f32;
-        handles[1].path.sample(1.0).unwrap().map(centroid)
-    };
+    let map = right_end_map(&rest, &handles, 1.0);
     for ((_, r), (_, x)) in rest.iter().zip(&posed) {
         assert!(x.is_finite());
         if handles[0].region.contains(*r) {
@@ -179,15 +183,7 @@ fn a_cut_through_a_posed_bar_leaves_each_piece_following_its_own_handle() {
     let sizes: Vec<usize> = pieces.iter().map(Vec::len).collect();
     assert_eq!(pieces.len(), 2, "the blade cuts the bar in two: {sizes:?}");
     let posed = sim.positions(body).unwrap();
-    let map = {
-        let right: Vec<Vec3> = rest
-            .iter()
-            .filter(|(_, x)| handles[1].region.contains(*x))
-            .map(|(_, x)| *x)
-            .collect();
-        let centroid = right.iter().sum::<Vec3>() / right.len() as f32;
-        handles[1].path.sample(1.5).unwrap().map(centroid)
-    };
+    let map = right_end_map(&rest, &handles, 1.5);
     // the piece of the right end is carried rigidly by its handle, the other stays with
     // the still left handle
     let right_end = rest
