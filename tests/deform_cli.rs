@@ -18,7 +18,7 @@ fn cleave(args: &[&str]) -> std::process::Output {
 #[test]
 fn deform_bend_poses_the_bar_and_writes_pictures_and_a_summary() {
     let dir = std::env::temp_dir().join(format!("cleave-deform-{}", std::process::id()));
-    for method in ["linear", "arap"] {
+    for method in ["linear", "arap", "reduced"] {
         let out = dir.join(method);
         let run = cleave(&[
             "deform",

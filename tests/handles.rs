@@ -280,3 +280,35 @@ fn bad_handles_are_errors_naming_them() {
     assert!(e.contains("body.handles[0].path[1].position"), "{e}");
     assert!(sim.bodies().is_empty(), "no body spawned half");
 }
+
+#[test]
+fn reduced_arap_poses_the_bent_bar_within_five_percent_of_full_arap() {
+    // bent a quarter turn (frame 60), then bent and twisted a quarter turn (frame 180)
+    for frames in [60, 180] {
+        let pose_at = |method| {
+            let (mut sim, body, _) = posed_bend(method);
+            sim.run(frames);
+            sim.positions(body).unwrap()
+        };
+        let full = pose_at(PoseMethod::Arap(Default::default()));
+        let reduced = pose_at(PoseMethod::reduced());
+        let linear = pose_at(PoseMethod::Linear);
+        let rms = |a: &[(u32, Vec3)], b: &[(u32, Vec3)]| {
+            let sum: f32 = a
+                .iter()
+                .zip(b)
+                .map(|((_, x), (_, y))| x.distance_squared(*y))
+                .sum();
+            (sum / a.len() as f32).sqrt()
+        };
+        let length = 32.0 * 0.05;
+        let (off, linear_off) = (rms(&reduced, &full) / length, rms(&linear, &full) / length);
+        eprintln!(
+            "bend at frame {frames}: reduced ARAP {:.2} % of the bar's length from full ARAP, \
+             the linear subspace {:.2} %",
+            100.0 * off,
+            100.0 * linear_off
+        );
+        assert!(off < 0.05, "frame {frames}: {:.2} %", 100.0 * off);
+    }
+}

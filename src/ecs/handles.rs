@@ -2,14 +2,17 @@
 //! soft attachments (spawned with it, [`spawn_handle_attachments`]). Posed
 //! ([`pose_by_handles`]), its particles are kinematic and follow the handles exactly:
 //! each frame the pose stage (`systems/pose_handles.rs`) places them at the subspace's
-//! pose `V̄ + W ΔH` or at ARAP's, by giving each the velocity that brings it there by
-//! the frame's end; contacts and other bodies meet it as a kinematic mover.
+//! pose `V̄ + W ΔH`, at ARAP's, or at reduced ARAP's, by giving each the velocity that
+//! brings it there by the frame's end; contacts and other bodies meet it as a
+//! kinematic mover.
 
 use crate::body::lattice::Lattice;
 use crate::cut::tool::{Path, Pose};
 use crate::deform::arap::{Arap, ArapOptions};
 use crate::deform::handles::{Handle, HandleSet, HandleTarget};
 use crate::deform::keys::HandlePath;
+use crate::deform::reduced::arap::ReducedArap;
+use crate::deform::reduced::auto_handles;
 use crate::deform::weights::Weights;
 use crate::ecs::attach::{TargetMotion, check_compliance, pinned_particles, spawn_attachment};
 use crate::ecs::components::*;
@@ -17,7 +20,7 @@ use crate::ecs::desc::HandleDesc;
 use crate::ecs::resources::SimSettings;
 use crate::error::{CleaveError, Result, check_finite_vec};
 use bevy_ecs::prelude::*;
-use glam::Vec3;
+use glam::{DMat3, Vec3};
 
 /// How a posed body follows its handles.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -27,6 +30,50 @@ pub enum PoseMethod {
     Linear,
     /// As rigid as possible (SPEC §6.4), from the subspace's pose, to these options.
     Arap(ArapOptions),
+    /// As rigid as possible in the span of the subspace (SPEC §6.3's reduction):
+    /// `auto_handles` point handles placed automatically are solved for, one rotation
+    /// per block of `group_cells`³ cells, each frame from the last.
+    Reduced {
+        /// Point handles placed automatically (farthest-point sampling).
+        auto_handles: usize,
+        /// Edge of a rotation group's block, in cells.
+        group_cells: u32,
+        /// When each frame's solve stops.
+        options: ArapOptions,
+    },
+}
+
+impl PoseMethod {
+    /// Reduced ARAP with 24 automatic handles and groups of 2³ cells, 10 iterations a
+    /// frame.
+    pub fn reduced() -> Self {
+        PoseMethod::Reduced {
+            auto_handles: 24,
+            group_cells: 2,
+            options: ArapOptions {
+                tolerance: 0.0,
+                max_iterations: 10,
+            },
+        }
+    }
+}
+
+/// What poses a body: the subspace's weights, and what solves on them.
+#[derive(Debug)]
+pub(crate) enum Poser {
+    /// `V̄ + W ΔH`.
+    Linear(Weights),
+    /// ARAP from `V̄ + W ΔH`.
+    Arap(Weights, Arap, ArapOptions),
+    /// Reduced ARAP: the weights of the user's handles and the automatic ones, the
+    /// solver, and the last frame's parameters and rotations to start from.
+    Reduced {
+        weights: Weights,
+        solver: ReducedArap,
+        options: ArapOptions,
+        dh: Vec<Vec3>,
+        rotations: Vec<DMat3>,
+    },
 }
 
 /// A body posed by its handles: the handles, their paths, the precomputed subspace
@@ -43,8 +90,7 @@ pub struct HandlePose {
     pub method: PoseMethod,
     /// The particles' rest positions `V̄` (world space, when posing began), by index.
     pub rest: Vec<Vec3>,
-    pub(crate) weights: Weights,
-    pub(crate) arap: Option<Arap>,
+    pub(crate) poser: Poser,
     /// The lattice's live particles and links when the subspace was computed.
     pub(crate) topology: (usize, usize),
 }
@@ -206,7 +252,7 @@ pub fn pose_by_handles(
         .collect();
     let set = HandleSet::new(&lattice.lattice, list, &pinned)?;
     let limit = memory_limit(world);
-    let (weights, arap) = precompute(&lattice.lattice, &rest, &set, method, limit)?;
+    let poser = precompute(&lattice.lattice, &rest, &set, method, limit)?;
     let targets = set
         .handles()
         .iter()
@@ -229,8 +275,7 @@ pub fn pose_by_handles(
         targets,
         method,
         rest,
-        weights,
-        arap,
+        poser,
         topology,
     });
     Ok(())
@@ -246,20 +291,42 @@ pub(crate) fn memory_limit(world: &World) -> u64 {
     (gb as f64 * 1e9) as u64
 }
 
-/// The subspace (and the ARAP problem) of `set` on `lattice`.
+/// The subspace (and what solves on it) of `set` on `lattice`.
 pub(crate) fn precompute(
     lattice: &Lattice,
     rest: &[Vec3],
     set: &HandleSet,
     method: PoseMethod,
     limit: u64,
-) -> Result<(Weights, Option<Arap>)> {
-    let weights = Weights::compute(lattice, rest, set, limit)?;
-    let arap = match method {
-        PoseMethod::Linear => None,
-        PoseMethod::Arap(_) => Some(Arap::new(lattice, rest, set, limit)?),
-    };
-    Ok((weights, arap))
+) -> Result<Poser> {
+    Ok(match method {
+        PoseMethod::Linear => Poser::Linear(Weights::compute(lattice, rest, set, limit)?),
+        PoseMethod::Arap(options) => Poser::Arap(
+            Weights::compute(lattice, rest, set, limit)?,
+            Arap::new(lattice, rest, set, limit)?,
+            options,
+        ),
+        PoseMethod::Reduced {
+            auto_handles: count,
+            group_cells,
+            options,
+        } => {
+            // as many automatic handles as the particles leave room for
+            let room = lattice.live_count().saturating_sub(set.columns() + 1);
+            let mut all = set.handles().to_vec();
+            all.extend(auto_handles(lattice, rest, set.handles(), count.min(room)));
+            let all = HandleSet::new(lattice, all, &[])?;
+            let weights = Weights::compute(lattice, rest, &all, limit)?;
+            let solver = ReducedArap::new(lattice, rest, &weights, set.columns(), group_cells)?;
+            Poser::Reduced {
+                dh: vec![Vec3::ZERO; all.columns()],
+                rotations: solver.rest_rotations(),
+                weights,
+                solver,
+                options,
+            }
+        }
+    })
 }
 
 /// What a cut changes of a lattice: its live particles and its links.
@@ -304,24 +371,37 @@ impl HandlePose {
             kept.push((handle, self.paths[k].clone(), self.targets[k]));
         }
         let set = HandleSet::new(lattice, kept.iter().map(|k| k.0.clone()).collect(), &[])?;
-        let (weights, arap) = precompute(lattice, &self.rest, &set, self.method, memory)?;
+        let poser = precompute(lattice, &self.rest, &set, self.method, memory)?;
         self.paths = kept.iter().map(|k| k.1.clone()).collect();
         self.targets = kept.iter().map(|k| k.2).collect();
         self.set = set;
-        self.weights = weights;
-        self.arap = arap;
+        self.poser = poser;
         self.topology = signature(lattice);
         Ok(())
     }
 
-    /// Where the body's particles go for the current targets (by index), from their
-    /// positions `now` (ARAP's first guess is the subspace's pose).
-    pub fn posed(&self) -> Result<Vec<Vec3>> {
+    /// Where the body's particles go for the current targets (by index). Reduced ARAP
+    /// starts from the last frame's solution and keeps this one for the next.
+    pub fn posed(&mut self) -> Result<Vec<Vec3>> {
         let dh = self.set.displacements(&self.rest, &self.targets)?;
         let mut out = vec![Vec3::ZERO; self.rest.len()];
-        self.weights.pose(&dh, &mut out);
-        if let (PoseMethod::Arap(options), Some(arap)) = (self.method, &self.arap) {
-            arap.solve(&self.set, &self.targets, &mut out, &options)?;
+        match &mut self.poser {
+            Poser::Linear(weights) => weights.pose(&dh, &mut out),
+            Poser::Arap(weights, arap, options) => {
+                weights.pose(&dh, &mut out);
+                arap.solve(&self.set, &self.targets, &mut out, options)?;
+            }
+            Poser::Reduced {
+                weights,
+                solver,
+                options,
+                dh: all,
+                rotations,
+            } => {
+                all[..dh.len()].copy_from_slice(&dh);
+                solver.solve(all, rotations, options);
+                weights.pose(all, &mut out);
+            }
         }
         Ok(out)
     }

@@ -130,7 +130,8 @@ enum Command {
         #[command(flatten)]
         flags: RunFlags,
         /// How a posed body follows its handles: `linear` (the linear subspace `V̄ +
-        /// W ΔH`) or `arap` (as rigid as possible, from the subspace's pose).
+        /// W ΔH`), `arap` (as rigid as possible, from the subspace's pose) or `reduced`
+        /// (ARAP in the subspace of the handles and 24 automatic ones).
         #[arg(long, value_enum, default_value = "linear")]
         method: MethodArg,
     },
@@ -254,6 +255,7 @@ enum ScenesAction {
 enum MethodArg {
     Linear,
     Arap,
+    Reduced,
 }
 
 /// Particle colours on the command line.
@@ -412,6 +414,7 @@ fn main() -> ExitCode {
             let method = match method {
                 MethodArg::Linear => PoseMethod::Linear,
                 MethodArg::Arap => PoseMethod::Arap(Default::default()),
+                MethodArg::Reduced => PoseMethod::reduced(),
             };
             run_command(flags, false, Some(method))
         }
