@@ -481,3 +481,64 @@ fn two_pieces_each_follow_their_own_handle_exactly() {
         assert!(posed[i as usize].distance(want) < 1e-5, "particle {i}");
     }
 }
+
+#[test]
+fn a_reduced_cantilever_settles_with_a_sag_inverse_to_its_stiffness() {
+    // linear elasticity: a small static deflection under gravity scales as 1/k (stiff
+    // enough for small deflections: at k = 4e4 the tip sags 7 h, past linearity)
+    let lattice = Shape::cuboid(UVec3::new(16, 4, 4)).voxelise(H).unwrap();
+    let rest = rest(&lattice);
+    let clusters: Vec<(f64, Vec<u32>)> = cleave::clusters::clustering::clusters_on_grid(
+        &lattice,
+        &cleave::config::Material::default(),
+        glam::IVec3::ZERO,
+    )
+    .into_clusters()
+    .into_iter()
+    .map(|c| (1.0, c))
+    .collect();
+    let lo = lattice
+        .live_particles()
+        .map(|i| lattice.coord(i).x)
+        .min()
+        .unwrap();
+    let held = vec![Handle::Region(select(&lattice, |c| c.x <= lo + 1))];
+    let mut handles = held.clone();
+    handles.extend(auto_handles(&lattice, &rest, &held, 16));
+    let set = HandleSet::new(&lattice, handles, &[]).unwrap();
+    let weights = Weights::compute(&lattice, &rest, &set, NO_LIMIT).unwrap();
+    let tip = select(&lattice, |c| c.x == lo + 15);
+    let sag = |stiffness: f64| {
+        let dynamics =
+            ReducedDynamics::new(&weights, &rest, &clusters, 0.01, stiffness, 1.0 / 60.0, 4)
+                .unwrap();
+        let mut state = dynamics.rest_state();
+        for _ in 0..300 {
+            dynamics.step(&mut state, &[Vec3::ZERO; 4], Vec3::new(0.0, -9.81, 0.0), 10);
+        }
+        let speed = state
+            .velocity
+            .iter()
+            .map(|v| v.length())
+            .fold(0.0, f64::max);
+        assert!(speed < 1e-6, "k = {stiffness}: still moving at {speed:e}");
+        let mut posed = vec![Vec3::ZERO; rest.len()];
+        weights.pose(&state.displacements(), &mut posed);
+        -tip.iter()
+            .map(|&i| posed[i as usize].y - rest[i as usize].y)
+            .sum::<f32>()
+            / tip.len() as f32
+    };
+    let (stiff, soft) = (sag(4e6), sag(2e6));
+    eprintln!(
+        "tip sag: {:.4} h at k = 4e6, {:.4} h at k = 2e6",
+        stiff / H,
+        soft / H
+    );
+    assert!(stiff > 0.0 && stiff < 0.5 * H, "{stiff}");
+    assert!(
+        (soft / stiff - 2.0).abs() < 0.1,
+        "sag ratio {}",
+        soft / stiff
+    );
+}
