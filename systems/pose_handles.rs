@@ -1,7 +1,8 @@
 //! The pose stage: every body posed by handles ([`crate::ecs::handles::HandlePose`])
 //! has its handles' targets moved to the frame's end, its subspace rebuilt if a cut
-//! changed it, and each of its (kinematic) particles given the velocity that carries it
-//! to its posed place by the frame's end. Writes particle velocities and the poses'
+//! changed it (a particle the cut made resting where it was made), and each of its
+//! (kinematic) particles given the velocity that carries it to its posed place by the
+//! frame's end. Writes particle velocities and the poses'
 //! own data only.
 
 use crate::ecs::components::{BodyLattice, Position, Velocity};
@@ -20,6 +21,12 @@ pub fn pose_handles(
     let end = (clock.time + dt as f64) as f32;
     let memory = (settings.0.memory_budget_gb as f64 * 1e9) as u64;
     for (lattice, mut pose) in &mut bodies {
+        // a particle a cut made (a split's new half) rests where it was made
+        while pose.rest.len() < lattice.lattice.len() {
+            let e = lattice.particles[pose.rest.len()];
+            let at = particles.get(e).map_or(glam::Vec3::ZERO, |(x, _)| x.0);
+            pose.rest.push(at);
+        }
         if signature(&lattice.lattice) != pose.topology
             && let Err(e) = pose.rebuild(&lattice.lattice, memory)
         {

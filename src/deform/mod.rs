@@ -2,8 +2,9 @@
 //! regions — through the linear subspace of Wang et al. 2015 (`V = W H`, with `W`
 //! from the linearly precise smoothness energy of [`smoothness`]), as rigid as possible
 //! (Sorkine & Alexa 2007, [`arap`]), or by non-linear solves reduced to the subspace
-//! ([`reduced`]). Plain data on a body's lattice; the ECS components that pose a body
-//! each frame are in [`crate::ecs`].
+//! ([`reduced`]). The handles and their keyframes are in [`handles`] and [`keys`].
+//! Plain data on a body's lattice; the ECS component that poses a body each frame is
+//! [`crate::ecs::handles::HandlePose`].
 
 pub mod arap;
 pub mod handles;

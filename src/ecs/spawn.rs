@@ -295,7 +295,10 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     }
     let live: Vec<u32> = lattice.live_particles().collect();
     let held = crate::ecs::handles::select_handles(&handles, &live, placed)?;
-    let held_at: Vec<Vec3> = (0..lattice.len() as u32).map(placed).collect();
+    let held_at: Vec<Vec3> = match handles.is_empty() {
+        true => Vec::new(),
+        false => (0..lattice.len() as u32).map(placed).collect(),
+    };
     let pinned: Vec<Vec<u32>> = desc.pins.iter().map(|p| in_region(p.region())).collect();
     let positions_of = |lists: &[Vec<u32>]| -> Vec<Vec<Vec3>> {
         lists
