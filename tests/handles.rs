@@ -328,3 +328,29 @@ fn reduced_arap_poses_the_bent_bar_within_five_percent_of_full_arap() {
         assert!(off < 0.05, "frame {frames}: {:.2} %", 100.0 * off);
     }
 }
+
+#[test]
+fn game_code_moves_a_posed_body_by_its_handles_targets() {
+    let mut scene = builtin("bend", 0).unwrap();
+    let mut handles = std::mem::take(&mut scene.bodies[0].handles);
+    handles[1].path.keys.clear(); // the right end is left to game code
+    let mut sim = Simulation::from_scene(&scene).unwrap();
+    let body = sim.bodies()[0];
+    sim.pose_by_handles(body, &handles, PoseMethod::Linear)
+        .unwrap();
+    let rest = sim.positions(body).unwrap();
+    let lift = glam::Affine3A::from_translation(Vec3::new(0.0, 0.3, 0.0));
+    sim.world_mut().get_mut::<HandlePose>(body).unwrap().targets[1] =
+        cleave::deform::handles::HandleTarget::Affine(lift);
+    sim.run(2);
+    let posed = sim.positions(body).unwrap();
+    let h = spacing(&sim, body);
+    for ((_, r), (_, x)) in rest.iter().zip(&posed) {
+        if handles[1].region.contains(*r) {
+            assert!(x.distance(lift.transform_point3(*r)) < 1e-4 * h);
+        }
+        if handles[0].region.contains(*r) {
+            assert!(x.distance(*r) < 1e-4 * h);
+        }
+    }
+}
