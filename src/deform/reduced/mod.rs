@@ -16,11 +16,22 @@
 pub mod arap;
 pub mod dynamics;
 
-use super::arap::fit_rotation;
 use super::handles::Handle;
 use crate::body::lattice::Lattice;
-use glam::{DMat3, DVec3, Vec3};
+use crate::math::lanes::{LANES, Mat3x8, Quatx8, Vec3x8};
+use crate::math::rotation::{extract_rotation_x8, warm_start};
+use glam::{DMat3, DVec3, Quat, Vec3, Vec3A};
 use rayon::prelude::*;
+use wide::f32x8;
+
+/// Steps of the rotation extraction per fit (the fits of one solve carry on from each
+/// other's).
+const FIT_STEPS: u32 = 4;
+
+/// `tr(Rᵀ S)`: how well `r` fits `s`.
+fn score(s: &DMat3, r: &DMat3) -> f64 {
+    r.x_axis.dot(s.x_axis) + r.y_axis.dot(s.y_axis) + r.z_axis.dot(s.z_axis)
+}
 
 /// `count` point handles placed by farthest-point sampling over the live particles,
 /// away from the particles of `user`'s handles and from each other (deterministic: ties
@@ -121,15 +132,47 @@ impl Groups {
         &self.p[g * self.columns..][..self.columns]
     }
 
-    /// Each group's rotation fitted to `dh` (kept where the fit is no better).
+    /// Each group's rotation fitted to `dh`, eight groups at a time: `S_g` in double
+    /// precision, a few steps of the eight-lane rotation extraction from the current
+    /// rotations (an iteration's fits carry on from the last one's), and a rotation
+    /// kept where the new one would not raise `tr(RᵀS_g)`, so no fit raises the energy.
     pub(crate) fn fit(&self, dh: &[DVec3], rotations: &mut [DMat3]) {
-        rotations.par_iter_mut().enumerate().for_each(|(g, r)| {
-            let mut s = self.q[g];
-            for (d, p) in dh.iter().zip(self.p(g)) {
-                s += DMat3::from_cols(*d * p.x, *d * p.y, *d * p.z);
-            }
-            *r = fit_rotation(s, *r);
-        });
+        rotations
+            .par_chunks_mut(LANES)
+            .enumerate()
+            .for_each(|(chunk, rotations)| {
+                let mut s = [DMat3::ZERO; LANES];
+                for (k, s) in s.iter_mut().enumerate().take(rotations.len()) {
+                    // S_g = Q_g + ΔHᵀ P_g, column by column
+                    let g = chunk * LANES + k;
+                    let (mut x, mut y, mut z) = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO);
+                    for (d, p) in dh.iter().zip(self.p(g)) {
+                        x += *d * p.x;
+                        y += *d * p.y;
+                        z += *d * p.z;
+                    }
+                    *s = self.q[g] + DMat3::from_cols(x, y, z);
+                }
+                let column = |f: fn(&DMat3) -> DVec3| {
+                    Vec3x8::<f32x8>::from_lanes(s.map(|m| Vec3A::from(f(&m).as_vec3())))
+                };
+                let a = Mat3x8 {
+                    x_axis: column(|m| m.x_axis),
+                    y_axis: column(|m| m.y_axis),
+                    z_axis: column(|m| m.z_axis),
+                };
+                let mut warm = [Quat::IDENTITY; LANES];
+                for (w, r) in warm.iter_mut().zip(rotations.iter()) {
+                    *w = warm_start(Quat::from_mat3(&r.as_mat3()));
+                }
+                let q = extract_rotation_x8(&a, Quatx8::from_lanes(warm), FIT_STEPS);
+                for (k, r) in rotations.iter_mut().enumerate() {
+                    let fitted = DMat3::from_quat(q.lane(k).as_dquat().normalize());
+                    if score(&s[k], &fitted) > score(&s[k], r) {
+                        *r = fitted;
+                    }
+                }
+            });
     }
 
     /// `Σ_g (R_g − I) P_g`, one vector per column: summed in fixed chunks of groups,
