@@ -46,6 +46,20 @@ fn clamped_bar(length: u32) -> (Lattice, Vec<Vec3>, HandleSet) {
     (lattice, rest, set)
 }
 
+/// The clusters a body of `lattice` spawns with (seed grid at the origin), each of
+/// weight 1.
+fn unit_clusters(lattice: &Lattice) -> Vec<(f64, Vec<u32>)> {
+    cleave::clusters::clustering::clusters_on_grid(
+        lattice,
+        &cleave::config::Material::default(),
+        glam::IVec3::ZERO,
+    )
+    .into_clusters()
+    .into_iter()
+    .map(|c| (1.0, c))
+    .collect()
+}
+
 fn pose(weights: &Weights, set: &HandleSet, rest: &[Vec3], targets: &[HandleTarget]) -> Vec<Vec3> {
     let dh = set.displacements(rest, targets).unwrap();
     let mut out = vec![Vec3::ZERO; rest.len()];
@@ -418,15 +432,7 @@ fn reduced_arap_is_within_five_percent_of_full_arap_on_a_bent_twisted_stretched_
 fn a_reduced_body_falls_freely_as_implicit_euler_would() {
     let lattice = Shape::cuboid(UVec3::new(12, 4, 4)).voxelise(H).unwrap();
     let rest = rest(&lattice);
-    let clusters = cleave::clusters::clustering::clusters_on_grid(
-        &lattice,
-        &cleave::config::Material::default(),
-        glam::IVec3::ZERO,
-    )
-    .into_clusters()
-    .into_iter()
-    .map(|c| (1.0, c))
-    .collect::<Vec<_>>();
+    let clusters = unit_clusters(&lattice);
     let handles = auto_handles(&lattice, &rest, &[], 12);
     let set = HandleSet::new(&lattice, handles, &[]).unwrap();
     let weights = Weights::compute(&lattice, &rest, &set, NO_LIMIT).unwrap();
@@ -488,15 +494,7 @@ fn a_reduced_cantilever_settles_with_a_sag_inverse_to_its_stiffness() {
     // enough for small deflections: at k = 4e4 the tip sags 7 h, past linearity)
     let lattice = Shape::cuboid(UVec3::new(16, 4, 4)).voxelise(H).unwrap();
     let rest = rest(&lattice);
-    let clusters: Vec<(f64, Vec<u32>)> = cleave::clusters::clustering::clusters_on_grid(
-        &lattice,
-        &cleave::config::Material::default(),
-        glam::IVec3::ZERO,
-    )
-    .into_clusters()
-    .into_iter()
-    .map(|c| (1.0, c))
-    .collect();
+    let clusters = unit_clusters(&lattice);
     let lo = lattice
         .live_particles()
         .map(|i| lattice.coord(i).x)

@@ -31,6 +31,14 @@ fn right_end_map(rest: &[(u32, Vec3)], handles: &[HandleDesc], t: f32) -> glam::
     handles[1].path.sample(t).unwrap().map(centroid)
 }
 
+fn lattice_of(sim: &Simulation, body: Entity) -> cleave::body::lattice::Lattice {
+    sim.world()
+        .get::<BodyLattice>(body)
+        .unwrap()
+        .lattice
+        .clone()
+}
+
 fn spacing(sim: &Simulation, body: Entity) -> f32 {
     sim.world()
         .get::<BodyLattice>(body)
@@ -45,12 +53,7 @@ fn a_posed_bar_lands_on_the_subspace_pose_computed_apart() {
     let rest: Vec<(u32, Vec3)> = sim.positions(body).unwrap();
     let h = spacing(&sim, body);
     // the same pose from the plain algorithm: handles chosen by the same regions
-    let lattice = sim
-        .world()
-        .get::<BodyLattice>(body)
-        .unwrap()
-        .lattice
-        .clone();
+    let lattice = lattice_of(&sim, body);
     let mut at = vec![Vec3::ZERO; lattice.len()];
     for &(i, x) in &rest {
         at[i as usize] = x;
@@ -124,12 +127,7 @@ fn arap_keeps_the_end_regions_on_their_targets_and_the_bar_its_length() {
         sim.run(60);
         (sim.positions(body).unwrap(), body, handles)
     };
-    let lattice = sim
-        .world()
-        .get::<BodyLattice>(body)
-        .unwrap()
-        .lattice
-        .clone();
+    let lattice = lattice_of(&sim, body);
     let worst = |pose: &[(u32, Vec3)]| {
         let at = |i: u32| pose.iter().find(|(j, _)| *j == i).unwrap().1;
         lattice
