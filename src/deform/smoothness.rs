@@ -194,6 +194,7 @@ mod tests {
         }
         for (name, lattice) in [("sphere", sphere), ("bar", bar), ("notched", notched)] {
             let r = worst_linear_residual(&lattice);
+            eprintln!("{name}: |A·f| = {r:e} of ‖A‖·‖f‖");
             assert!(r < 1e-10, "{name}: |A·f| = {r:e} of ‖A‖·‖f‖");
         }
     }
