@@ -352,3 +352,13 @@ fn game_code_moves_a_posed_body_by_its_handles_targets() {
         }
     }
 }
+
+#[test]
+fn a_simulated_handle_faster_than_any_path_may_go_is_refused() {
+    let mut scene = builtin("grab", 0).unwrap();
+    let body = &mut scene.bodies[0];
+    body.handles[0].path.keys[1].1.position = Vec3::new(1e5, 0.0, 0.0);
+    let mut sim = Simulation::new(scene.config.clone()).unwrap();
+    let e = sim.spawn_body(body).unwrap_err().to_string();
+    assert!(e.contains("body.handles[0].path"), "{e}");
+}

@@ -147,8 +147,9 @@ pub fn select_handles(
     Ok(out)
 }
 
-/// Checks that a simulated body's handles move rigidly: a key that scales is an error
-/// (attachments hold particles to a rigid pose; `cleave deform` poses by scaling).
+/// Checks that a simulated body's handles move rigidly (a key that scales is an error:
+/// attachments hold particles to a rigid pose; `cleave deform` poses by scaling) and
+/// as an attachment's path may (no faster than [`crate::error::MAX_SPEED`]).
 pub fn check_rigid_keys(handles: &[HandleDesc]) -> Result<()> {
     for (i, h) in handles.iter().enumerate() {
         if let Some(k) = h
@@ -162,8 +163,23 @@ pub fn check_rigid_keys(handles: &[HandleDesc]) -> Result<()> {
                  (scale 1); `cleave deform` poses a body by scaling handles"
             )));
         }
+        rigid_path(h).validate(&format!("body.handles[{i}]"))?;
     }
     Ok(())
+}
+
+/// A handle's keys as an attachment's path (position and rotation).
+fn rigid_path(h: &HandleDesc) -> Path {
+    let keys = h.path.keys.iter().map(|(t, key)| {
+        let pose = Pose {
+            position: key.position,
+            rotation: key.rotation,
+        };
+        (*t, pose)
+    });
+    Path {
+        keys: keys.collect(),
+    }
 }
 
 /// Spawns a simulated body's handles as soft attachments: each holds its particles to
@@ -178,22 +194,7 @@ pub fn spawn_handle_attachments(
     for (h, particles) in handles.iter().zip(particles) {
         let positions: Vec<Vec3> = particles.iter().map(|&p| at(p)).collect();
         let centroid = positions.iter().sum::<Vec3>() / positions.len() as f32;
-        let path = Path {
-            keys: h
-                .path
-                .keys
-                .iter()
-                .map(|(t, key)| {
-                    (
-                        *t,
-                        Pose {
-                            position: key.position,
-                            rotation: key.rotation,
-                        },
-                    )
-                })
-                .collect(),
-        };
+        let path = rigid_path(h);
         let motion = if path.keys.is_empty() {
             TargetMotion::Still
         } else {
@@ -223,7 +224,9 @@ fn positions(world: &World, lattice: &BodyLattice) -> Vec<Vec3> {
 
 /// Poses `body` by `handles` from now on: its particles become kinematic (inverse mass
 /// 0) and follow the handles by `method` each frame; the handles' particles are chosen
-/// where the particles are now, which is also the rest pose `V̄`.
+/// where the particles are now, which is also the rest pose `V̄`. The body's hard
+/// attachments (pins) still place their particles, and a handle may not hold one;
+/// spawn a body to be posed without handles of its own (they would be attachments).
 pub fn pose_by_handles(
     world: &mut World,
     body: Entity,
