@@ -272,21 +272,7 @@ impl Path {
 
     /// Pose at time `t`, or `None` for an empty path.
     pub fn sample(&self, t: f32) -> Option<Pose> {
-        let (first, last) = (self.keys.first()?, self.keys.last()?);
-        if t <= first.0 {
-            return Some(first.1);
-        }
-        if t >= last.0 {
-            return Some(last.1);
-        }
-        let i = self.keys.partition_point(|(kt, _)| *kt <= t);
-        let ((t0, p0), (t1, p1)) = (self.keys[i - 1], self.keys[i]);
-        let span = t1 - t0;
-        Some(if span > 0.0 {
-            p0.lerp(&p1, (t - t0) / span)
-        } else {
-            p1
-        })
+        crate::util::keyframes::sample(&self.keys, t, |a, b, s| a.lerp(b, s))
     }
 }
 

@@ -99,17 +99,7 @@ impl HandlePath {
     /// The key at time `t`: positions and scales interpolated linearly, rotations by
     /// slerp; `None` for an empty path.
     pub fn sample(&self, t: f32) -> Option<HandleKey> {
-        let (first, last) = (self.keys.first()?, self.keys.last()?);
-        if t <= first.0 {
-            return Some(first.1);
-        }
-        if t >= last.0 {
-            return Some(last.1);
-        }
-        let k = self.keys.partition_point(|(time, _)| *time <= t);
-        let ((t0, a), (t1, b)) = (self.keys[k - 1], self.keys[k]);
-        let s = (t - t0) / (t1 - t0);
-        Some(HandleKey {
+        crate::util::keyframes::sample(&self.keys, t, |a, b, s| HandleKey {
             position: a.position.lerp(b.position, s),
             rotation: a.rotation.slerp(b.rotation, s),
             scale: a.scale.lerp(b.scale, s),
