@@ -5,7 +5,7 @@
 use crate::body::shape::Shape;
 use crate::config::{Material, SimConfig};
 use crate::cut::tool::{Path as ToolPath, Pose};
-use crate::deform::keys::{HandleKey, HandlePath};
+use crate::deform::keys::HandlePath;
 use crate::ecs::components::Hold;
 use crate::ecs::desc::Scene;
 use crate::ecs::desc::{
@@ -367,26 +367,12 @@ impl SceneFile {
     }
 }
 
-/// A keyframed path and the pose before it starts (default: the first key's, else the
-/// origin).
 /// A handle as a scene file gives it.
 fn handle_file(h: &HandleDesc) -> HandleFile {
     HandleFile {
         region: h.region,
         point: h.point,
-        path: h
-            .path
-            .keys
-            .iter()
-            .map(|(t, k)| {
-                let key = HandleKeyFile {
-                    position: k.position,
-                    rotation: k.rotation,
-                    scale: k.scale,
-                };
-                (*t, key)
-            })
-            .collect(),
+        path: h.path.keys.iter().map(|(t, k)| (*t, (*k).into())).collect(),
         compliance: h.compliance,
     }
 }
@@ -397,18 +383,7 @@ fn handle_desc(h: &HandleFile) -> HandleDesc {
         region: h.region,
         point: h.point,
         path: HandlePath {
-            keys: h
-                .path
-                .iter()
-                .map(|(t, k)| {
-                    let key = HandleKey {
-                        position: k.position,
-                        rotation: k.rotation,
-                        scale: k.scale,
-                    };
-                    (*t, key)
-                })
-                .collect(),
+            keys: h.path.iter().map(|(t, k)| (*t, (*k).into())).collect(),
         },
         compliance: h.compliance,
     }
@@ -426,6 +401,8 @@ fn attachment_files(list: &[AttachmentDesc], hold: Hold) -> Vec<AttachmentFile> 
         .collect()
 }
 
+/// A keyframed path and the pose before it starts (default: the first key's, else the
+/// origin).
 fn path_and_pose(keys: &[(f32, PoseFile)], pose: Option<PoseFile>) -> (ToolPath, Pose) {
     let keys: Vec<(f32, Pose)> = keys.iter().map(|(k, p)| (*k, (*p).into())).collect();
     let pose = pose

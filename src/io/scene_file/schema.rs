@@ -3,6 +3,7 @@
 
 use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
 use crate::cut::tool::{CutMode, Pose, ToolShape};
+use crate::deform::keys::HandleKey;
 use crate::ecs::desc::{PinRegion, Region};
 use glam::{Quat, UVec3, Vec3};
 use serde::{Deserialize, Serialize};
@@ -401,6 +402,26 @@ pub struct PoseFile {
     /// Rotation, a quaternion (x, y, z, w).
     #[serde(default, deserialize_with = "super::check::rotation")]
     pub rotation: Quat,
+}
+
+impl From<HandleKey> for HandleKeyFile {
+    fn from(k: HandleKey) -> Self {
+        Self {
+            position: k.position,
+            rotation: k.rotation,
+            scale: k.scale,
+        }
+    }
+}
+
+impl From<HandleKeyFile> for HandleKey {
+    fn from(k: HandleKeyFile) -> Self {
+        Self {
+            position: k.position,
+            rotation: k.rotation,
+            scale: k.scale,
+        }
+    }
 }
 
 impl From<Pose> for PoseFile {
