@@ -14,7 +14,7 @@ use bevy_ecs::prelude::*;
 pub fn pose_handles(
     clock: Res<SimClock>,
     settings: Res<SimSettings>,
-    mut bodies: Query<(&BodyLattice, &mut HandlePose)>,
+    mut bodies: Query<(Ref<BodyLattice>, &mut HandlePose)>,
     mut particles: Query<(&Position, &mut Velocity)>,
 ) {
     let dt = settings.0.dt;
@@ -27,7 +27,9 @@ pub fn pose_handles(
             let at = particles.get(e).map_or(glam::Vec3::ZERO, |(x, _)| x.0);
             pose.rest.push(at);
         }
-        if signature(&lattice.lattice) != pose.topology
+        // only an edited lattice can have a new topology: the signature walks the body
+        if lattice.is_changed()
+            && signature(&lattice.lattice) != pose.topology
             && let Err(e) = pose.rebuild(&lattice.lattice, memory)
         {
             tracing::warn!("a posed body's handles after a cut: {e}; the body stays still");
