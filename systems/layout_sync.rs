@@ -81,7 +81,7 @@ pub fn sync_solver(
         }
     }
     // (a rebuilt or a loaded solver starts from the default)
-    cache.solver.projective.budget_bytes = (config.memory_budget_gb as f64 * 1e9) as u64;
+    cache.solver.projective.budget_bytes = config.memory_budget_bytes();
 }
 
 /// Cluster data as the shape-match stage reads it.

@@ -19,7 +19,7 @@ pub fn pose_handles(
 ) {
     let dt = settings.0.dt;
     let end = (clock.time + dt as f64) as f32;
-    let memory = (settings.0.memory_budget_gb as f64 * 1e9) as u64;
+    let memory = settings.0.memory_budget_bytes();
     for (lattice, mut pose) in &mut bodies {
         // a particle a cut made (a split's new half) rests where it was made
         while pose.rest.len() < lattice.lattice.len() {

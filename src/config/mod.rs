@@ -126,6 +126,11 @@ impl Default for SimConfig {
 }
 
 impl SimConfig {
+    /// [`SimConfig::memory_budget_gb`] in bytes.
+    pub fn memory_budget_bytes(&self) -> u64 {
+        (self.memory_budget_gb as f64 * 1e9) as u64
+    }
+
     /// Checks every field; the error names the field and its allowed range.
     pub fn validate(&self) -> Result<()> {
         check_range("config.dt", self.dt, 1e-6, 1.0, "1e-6 ≤ dt ≤ 1 (seconds)")?;

@@ -7,6 +7,7 @@
 //! kinematic mover.
 
 use crate::body::lattice::Lattice;
+use crate::config::SimConfig;
 use crate::cut::tool::{Path, Pose};
 use crate::deform::arap::{Arap, ArapOptions};
 use crate::deform::handles::{Handle, HandleSet, HandleTarget};
@@ -286,12 +287,10 @@ pub fn pose_by_handles(
 
 /// The memory a body's factor may take, bytes.
 pub(crate) fn memory_limit(world: &World) -> u64 {
-    let gb = world
-        .get_resource::<SimSettings>()
-        .map_or(crate::body::shape::DEFAULT_MEMORY_BUDGET_GB, |s| {
-            s.0.memory_budget_gb
-        });
-    (gb as f64 * 1e9) as u64
+    world.get_resource::<SimSettings>().map_or_else(
+        || SimConfig::default().memory_budget_bytes(),
+        |s| s.0.memory_budget_bytes(),
+    )
 }
 
 /// The subspace (and what solves on it) of `set` on `lattice`.
