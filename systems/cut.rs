@@ -12,7 +12,8 @@ use crate::cut::carve::carve;
 use crate::cut::particle_split::{Pairs, SPLIT_GAP, apply_splits, split_positions};
 use crate::cut::tear::sever_keeping_pieces;
 use crate::ecs::components::{
-    Body, BodyLattice, InvMass, Particle, ParticleClusters, Position, Velocity,
+    AngularVelocity, Body, BodyLattice, InvMass, Orientation, Particle, ParticleClusters, Position,
+    Velocity,
 };
 use crate::ecs::resources::{
     BodyCut, BodyCutReport, BodySplit, CutList, CutReport, EdgesSevered, ParticlesCut,
@@ -27,6 +28,8 @@ use std::borrow::Cow;
 type ParticleState = (
     &'static mut Position,
     &'static Velocity,
+    &'static Orientation,
+    &'static AngularVelocity,
     &'static mut InvMass,
 );
 
@@ -188,7 +191,7 @@ fn split(
         .collect();
     let owner = cut.body;
     for (&(old, new), placed) in pairs.iter().zip(placed) {
-        let (Some((kept, far)), Ok((mut x, v, mut inv_mass))) =
+        let (Some((kept, far)), Ok((mut x, v, q, w, mut inv_mass))) =
             (placed, particles.get_mut(body.particles[old as usize]))
         else {
             continue;
@@ -204,6 +207,8 @@ fn split(
                 },
                 Position(far),
                 Velocity(v.0),
+                *q,
+                *w,
                 InvMass(inv_mass.0),
             ))
             .id();

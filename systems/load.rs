@@ -1,10 +1,10 @@
 //! Stage load (the end of [`crate::systems::SyncSchedule`]): copies every particle's
-//! position, velocity and inverse mass from its components into the solver's dense
+//! position, velocity, orientation, angular velocity and inverse mass from its components into the solver's dense
 //! arrays, where they stay for the frame's substeps, and gives the particles a term
 //! holds kinematic (a hard attachment's) inverse mass 0 there. Writes the solver cache
 //! only.
 
-use crate::ecs::components::{InvMass, Position, Velocity};
+use crate::ecs::components::{AngularVelocity, InvMass, Orientation, Position, Velocity};
 use crate::ecs::resources::SolverCache;
 use crate::ecs::table_rows::ParticleColumns;
 use bevy_ecs::prelude::*;
@@ -15,6 +15,8 @@ type ParticleData = (
     Entity,
     &'static Position,
     &'static Velocity,
+    &'static Orientation,
+    &'static AngularVelocity,
     &'static InvMass,
 );
 
@@ -27,11 +29,13 @@ pub fn load_particles(mut cache: ResMut<SolverCache>, particles: Query<ParticleD
         .expect("particle components are stored in tables")
         .filter(|(entities, ..)| !entities.is_empty());
     match (tables.next(), tables.next()) {
-        (Some((entities, positions, velocities, inv_mass)), None) => {
+        (Some((entities, positions, velocities, orientations, spins, inv_mass)), None) => {
             let table = ParticleColumns {
                 entities,
                 positions,
                 velocities,
+                orientations,
+                spins,
                 inv_mass,
             };
             cache.rows.load(
@@ -42,7 +46,7 @@ pub fn load_particles(mut cache: ResMut<SolverCache>, particles: Query<ParticleD
             );
         }
         _ => {
-            for (e, x, v, inv_mass) in &particles {
+            for (e, x, v, q, w, inv_mass) in &particles {
                 if let Some(&d) = cache.dense_of.get(e.index_u32() as usize)
                     && d != u32::MAX
                     && cache.entities[d as usize] == e
@@ -50,6 +54,8 @@ pub fn load_particles(mut cache: ResMut<SolverCache>, particles: Query<ParticleD
                     let d = d as usize;
                     cache.particles.positions[d] = Vec3A::from(x.0);
                     cache.particles.velocities[d] = Vec3A::from(v.0);
+                    cache.particles.orientations[d] = q.0;
+                    cache.particles.spins[d] = Vec3A::from(w.0);
                     cache.particles.inv_mass[d] = inv_mass.0;
                 }
             }

@@ -1,4 +1,5 @@
-//! ECS components. Particle side: [`Particle`], [`Position`], [`Velocity`], [`InvMass`],
+//! ECS components. Particle side: [`Particle`], [`Position`], [`Velocity`],
+//! [`Orientation`], [`AngularVelocity`], [`InvMass`],
 //! and the body's [`BodyLattice`] (which holds what never changes: lattice coordinates
 //! and rest positions). Cluster side: [`ClusterMembers`], [`ClusterOf`], [`Compliance`],
 //! and the body's [`ParticleClusters`] index. Attachments: [`Attachment`],
@@ -16,7 +17,7 @@ use crate::config::Material;
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::geometry::collider::ColliderShape;
 use bevy_ecs::prelude::*;
-use glam::{IVec3, Vec3};
+use glam::{IVec3, Quat, Vec3};
 
 /// A particle: its body and its body-local index (stable for the body's life).
 ///
@@ -38,6 +39,18 @@ pub struct Position(pub Vec3);
 /// Velocity.
 #[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Velocity(pub Vec3);
+
+/// Orientation: the turn of the particle's frame from its rest frame (a unit
+/// quaternion; identity at rest). In the oriented model the groups' shape matching turns
+/// it ([`crate::solver::terms::oriented`]); in the cluster model it follows the
+/// particle's clusters ([`crate::solver::clusters::term::ClusterTerm::blend_orientations`]).
+/// Renderers and skinning read it in both.
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Orientation(pub Quat);
+
+/// Angular velocity of the particle's frame, in rad/s (world frame).
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AngularVelocity(pub Vec3);
 
 /// Inverse mass. 0 makes the particle kinematic: it keeps its velocity whatever acts
 /// on it (an [`Attachment`] pins particles without changing their mass).

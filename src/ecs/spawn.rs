@@ -21,7 +21,7 @@ use crate::math::rotation::unit_quaternion;
 use crate::solver::clusters::term::MAX_SOLVER_PARTICLES;
 use crate::surface::embed::EmbeddedMesh;
 use bevy_ecs::prelude::*;
-use glam::Vec3;
+use glam::{Quat, Vec3};
 
 /// Spawns a cutting tool into any world prepared with [`crate::systems::install`].
 pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
@@ -332,6 +332,8 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             Particle { body, index: i },
             Position(x),
             Velocity(pin.map_or(desc.velocity, |r| r.velocity)),
+            Orientation(Quat::IDENTITY),
+            AngularVelocity(Vec3::ZERO),
             InvMass(inv_mass),
         )
     }));

@@ -9,7 +9,7 @@
 //! rebuilt when the table changed: particles despawned by a cut, or entities spawned
 //! into the same table.
 
-use crate::ecs::components::{InvMass, Position, Velocity};
+use crate::ecs::components::{AngularVelocity, InvMass, Orientation, Position, Velocity};
 use crate::solver::particles::Particles;
 use bevy_ecs::prelude::Entity;
 use glam::{Vec3, Vec3A};
@@ -29,8 +29,24 @@ pub struct ParticleColumns<'a> {
     pub positions: &'a [Position],
     /// Velocities.
     pub velocities: &'a [Velocity],
+    /// Orientations.
+    pub orientations: &'a [Orientation],
+    /// Angular velocities.
+    pub spins: &'a [AngularVelocity],
     /// Inverse masses.
     pub inv_mass: &'a [InvMass],
+}
+
+/// The columns of one ECS table that [`TableRows::store`] writes, row by row.
+pub struct StoredColumns<'a> {
+    /// Positions.
+    pub positions: &'a mut [Position],
+    /// Velocities.
+    pub velocities: &'a mut [Velocity],
+    /// Orientations.
+    pub orientations: &'a mut [Orientation],
+    /// Angular velocities.
+    pub spins: &'a mut [AngularVelocity],
 }
 
 /// Rows ↔ solver slots of one particle table (see the module docs).
@@ -43,7 +59,8 @@ pub struct TableRows {
 }
 
 impl TableRows {
-    /// Copies the table's particle state (positions, velocities, inverse masses) into
+    /// Copies the table's particle state (positions, velocities, orientations, angular
+    /// velocities, inverse masses) into
     /// `particles`. `slots` is the particle entity of
     /// each solver slot, `slot_of_index` the slot of each entity index (`u32::MAX` for
     /// none). Rows of entities the layout does not hold are skipped; so are slots whose
@@ -62,25 +79,25 @@ impl TableRows {
         }
     }
 
-    /// Writes the particles' positions and velocities into the table's columns (the
-    /// rows of the last [`TableRows::load`]).
-    pub fn store(
-        &self,
-        particles: &Particles,
-        positions: &mut [Position],
-        velocities: &mut [Velocity],
-    ) {
+    /// Writes the particles' positions, velocities, orientations and angular velocities
+    /// into the table's columns (the rows of the last [`TableRows::load`]).
+    pub fn store(&self, particles: &Particles, table: StoredColumns) {
         (
-            positions.par_chunks_mut(CHUNK),
-            velocities.par_chunks_mut(CHUNK),
+            table.positions.par_chunks_mut(CHUNK),
+            table.velocities.par_chunks_mut(CHUNK),
+            table.orientations.par_chunks_mut(CHUNK),
+            table.spins.par_chunks_mut(CHUNK),
             self.slot_of_row.par_chunks(CHUNK),
         )
             .into_par_iter()
-            .for_each(|(x, v, slots)| {
-                for ((x, v), &slot) in x.iter_mut().zip(v).zip(slots) {
+            .for_each(|(x, v, q, w, slots)| {
+                for ((((x, v), q), w), &slot) in x.iter_mut().zip(v).zip(q).zip(w).zip(slots) {
                     if slot != NONE {
-                        x.0 = Vec3::from(particles.positions[slot as usize]);
-                        v.0 = Vec3::from(particles.velocities[slot as usize]);
+                        let slot = slot as usize;
+                        x.0 = Vec3::from(particles.positions[slot]);
+                        v.0 = Vec3::from(particles.velocities[slot]);
+                        q.0 = particles.orientations[slot];
+                        w.0 = Vec3::from(particles.spins[slot]);
                     }
                 }
             });
@@ -107,14 +124,18 @@ impl TableRows {
         (
             particles.positions.par_chunks_mut(CHUNK),
             particles.velocities.par_chunks_mut(CHUNK),
+            particles.orientations.par_chunks_mut(CHUNK),
+            particles.spins.par_chunks_mut(CHUNK),
             particles.inv_mass.par_chunks_mut(CHUNK),
             self.row_of_slot.par_chunks(CHUNK),
             slots.par_chunks(CHUNK),
         )
             .into_par_iter()
-            .all(|(x, v, inv_mass, rows, entities)| {
-                let slots = x.iter_mut().zip(v).zip(inv_mass).zip(rows).zip(entities);
-                for ((((x, v), inv_mass), &row), entity) in slots {
+            .all(|(x, v, q, w, inv_mass, rows, entities)| {
+                let slots = x.iter_mut().zip(v).zip(q).zip(w).zip(inv_mass);
+                for (((((x, v), q), w), inv_mass), (&row, entity)) in
+                    slots.zip(rows.iter().zip(entities))
+                {
                     if row == NONE {
                         continue;
                     }
@@ -124,6 +145,8 @@ impl TableRows {
                     }
                     *x = Vec3A::from(table.positions[row].0);
                     *v = Vec3A::from(table.velocities[row].0);
+                    *q = table.orientations[row].0;
+                    *w = Vec3A::from(table.spins[row].0);
                     *inv_mass = table.inv_mass[row].0;
                 }
                 true
@@ -156,6 +179,7 @@ impl TableRows {
 mod tests {
     use super::*;
     use bevy_ecs::world::World;
+    use glam::Quat;
 
     /// Particles of `n` slots and the entity of each slot.
     fn particles_and_slots(world: &mut World, n: usize) -> (Particles, Vec<Entity>, Vec<u32>) {
@@ -174,15 +198,33 @@ mod tests {
     }
 
     /// Table columns whose values name the entity they belong to (its index).
-    fn columns(rows: &[Entity]) -> (Vec<Position>, Vec<Velocity>, Vec<InvMass>) {
+    struct Columns {
+        x: Vec<Position>,
+        v: Vec<Velocity>,
+        q: Vec<Orientation>,
+        w: Vec<AngularVelocity>,
+        m: Vec<InvMass>,
+    }
+
+    fn columns(rows: &[Entity]) -> Columns {
         let id = |e: &Entity| e.index_u32() as f32;
-        (
-            rows.iter().map(|e| Position(Vec3::splat(id(e)))).collect(),
-            rows.iter()
+        Columns {
+            x: rows.iter().map(|e| Position(Vec3::splat(id(e)))).collect(),
+            v: rows
+                .iter()
                 .map(|e| Velocity(Vec3::new(id(e), 0.0, -1.0)))
                 .collect(),
-            rows.iter().map(|e| InvMass(id(e) + 0.5)).collect(),
-        )
+            q: rows.iter().map(|e| Orientation(turned(id(e)))).collect(),
+            w: rows
+                .iter()
+                .map(|e| AngularVelocity(Vec3::new(0.0, id(e), 1.0)))
+                .collect(),
+            m: rows.iter().map(|e| InvMass(id(e) + 0.5)).collect(),
+        }
+    }
+
+    fn turned(id: f32) -> Quat {
+        Quat::from_rotation_z(id * 1e-3)
     }
 
     fn load(
@@ -192,12 +234,14 @@ mod tests {
         map: &[u32],
         table: &[Entity],
     ) {
-        let (x, v, m) = columns(table);
+        let c = columns(table);
         let columns = ParticleColumns {
             entities: table,
-            positions: &x,
-            velocities: &v,
-            inv_mass: &m,
+            positions: &c.x,
+            velocities: &c.v,
+            orientations: &c.q,
+            spins: &c.w,
+            inv_mass: &c.m,
         };
         rows.load(particles, slots, map, columns);
     }
@@ -208,6 +252,8 @@ mod tests {
             let id = e.index_u32() as f32;
             assert_eq!(particles.positions[s], Vec3A::splat(id), "slot {s}");
             assert_eq!(particles.velocities[s], Vec3A::new(id, 0.0, -1.0));
+            assert_eq!(particles.orientations[s], turned(id));
+            assert_eq!(particles.spins[s], Vec3A::new(0.0, id, 1.0));
             assert_eq!(particles.inv_mass[s], id + 0.5);
         }
     }
@@ -243,7 +289,7 @@ mod tests {
         // rows trading places (same length) are noticed too
         table.swap(0, n / 2);
         load(&mut rows, &mut particles, &slots, &map, &table);
-        let (x, ..) = columns(&table);
+        let Columns { x, .. } = columns(&table);
         for (row, e) in table.iter().enumerate() {
             if let Some(s) = slots.iter().position(|p| p == e) {
                 assert_eq!(Vec3::from(particles.positions[s]), x[row].0);
@@ -255,20 +301,47 @@ mod tests {
         for (s, v) in particles.velocities.iter_mut().enumerate() {
             *v = Vec3A::new(s as f32, 1.0, 0.0);
         }
-        let (mut x, mut v, _) = columns(&table);
+        for (s, q) in particles.orientations.iter_mut().enumerate() {
+            *q = Quat::from_rotation_x(s as f32 * 1e-3);
+        }
+        let Columns {
+            mut x,
+            mut v,
+            mut q,
+            mut w,
+            ..
+        } = columns(&table);
         let at = table.iter().position(|e| *e == stranger).unwrap();
         x[at] = Position(Vec3::splat(123.0));
         v[at] = Velocity(Vec3::splat(9.0));
-        rows.store(&particles, &mut x, &mut v);
+        let stored = StoredColumns {
+            positions: &mut x,
+            velocities: &mut v,
+            orientations: &mut q,
+            spins: &mut w,
+        };
+        rows.store(&particles, stored);
         for (row, e) in table.iter().enumerate() {
-            let (position, velocity) = match slots.iter().position(|p| p == e) {
-                None => (Vec3::splat(123.0), Vec3::splat(9.0)),
+            let (position, velocity, orientation) = match slots.iter().position(|p| p == e) {
+                None => (
+                    Vec3::splat(123.0),
+                    Vec3::splat(9.0),
+                    turned(stranger.index_u32() as f32),
+                ),
                 Some(s) => {
                     let id = e.index_u32() as f32;
-                    (Vec3::splat(2.0 * id), Vec3::new(s as f32, 1.0, 0.0))
+                    (
+                        Vec3::splat(2.0 * id),
+                        Vec3::new(s as f32, 1.0, 0.0),
+                        Quat::from_rotation_x(s as f32 * 1e-3),
+                    )
                 }
             };
-            assert_eq!((x[row].0, v[row].0), (position, velocity), "row {row}");
+            assert_eq!(
+                (x[row].0, v[row].0, q[row].0),
+                (position, velocity, orientation),
+                "row {row}"
+            );
         }
     }
 
@@ -304,8 +377,15 @@ mod tests {
         particles.positions[2] = Vec3A::splat(-1.0);
         load(&mut rows, &mut particles, &slots, &map, &table);
         assert_eq!(particles.positions[2], Vec3A::splat(-1.0));
-        let (mut x, mut v, _) = columns(&table);
-        rows.store(&particles, &mut x, &mut v);
+        let mut c = columns(&table);
+        let stored = StoredColumns {
+            positions: &mut c.x,
+            velocities: &mut c.v,
+            orientations: &mut c.q,
+            spins: &mut c.w,
+        };
+        rows.store(&particles, stored);
+        let x = c.x;
         assert_eq!(
             x[2].0,
             Vec3::splat(reused.index_u32() as f32),

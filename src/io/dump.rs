@@ -1,6 +1,7 @@
 //! The state dump (`cleave-state/2`, JSON), the format other tools check the engine
 //! with: the frame and time, then per body its spacing, the configuration an invariant
-//! checker needs, its live particles (lattice coordinate, position, mass), its live
+//! checker needs, its live particles (lattice coordinate, position, orientation, mass),
+//! its live
 //! lattice edges and its clusters. Ids are derived from the state, not from entities, so
 //! that the same state dumps to the same bytes however it was reached (straight, or
 //! saved and loaded): a body's id is its rank among the bodies (entity order), a
@@ -41,8 +42,16 @@ pub struct DumpParticle {
     pub lattice: [i32; 3],
     /// Position.
     pub position: [f32; 3],
+    /// Orientation, a unit quaternion `[x, y, z, w]` (absent in dumps written before
+    /// particles had one: identity).
+    #[serde(default = "identity")]
+    pub orientation: [f32; 4],
     /// Mass (also for a pinned particle, which the solver treats as immovable).
     pub mass: f32,
+}
+
+fn identity() -> [f32; 4] {
+    [0.0, 0.0, 0.0, 1.0]
 }
 
 /// One cluster in the dump.
@@ -129,6 +138,9 @@ pub fn dump_body(world: &mut World, body: Entity, rank: u64) -> Option<DumpBody>
             position: world
                 .get::<Position>(lattice.particles[i as usize])
                 .map_or([f32::NAN; 3], |p| p.0.to_array()),
+            orientation: world
+                .get::<Orientation>(lattice.particles[i as usize])
+                .map_or([f32::NAN; 4], |q| q.0.to_array()),
             // (a split particle's half has half the mass; one made kinematic by hand,
             // inverse mass 0, the material's)
             mass: match world.get::<InvMass>(lattice.particles[i as usize]) {

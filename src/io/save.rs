@@ -56,6 +56,8 @@ struct ParticleState {
     particle: Particle,
     position: Position,
     velocity: Velocity,
+    orientation: Orientation,
+    spin: AngularVelocity,
     inv_mass: InvMass,
 }
 
@@ -193,14 +195,24 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
         .collect();
     bodies.sort_unstable_by_key(|b| b.entity);
     let particles = world
-        .query::<(Entity, &Particle, &Position, &Velocity, &InvMass)>()
+        .query::<(
+            Entity,
+            &Particle,
+            &Position,
+            &Velocity,
+            &Orientation,
+            &AngularVelocity,
+            &InvMass,
+        )>()
         .iter(world)
-        .map(|(entity, p, x, v, w)| ParticleState {
+        .map(|(entity, p, x, v, q, w, m)| ParticleState {
             entity,
             particle: *p,
             position: *x,
             velocity: *v,
-            inv_mass: *w,
+            orientation: *q,
+            spin: *w,
+            inv_mass: *m,
         })
         .collect();
     let clusters = world
@@ -372,10 +384,14 @@ fn restore(snapshot: Snapshot) -> Result<World> {
         map.0.insert(b.entity, world.spawn_empty().id());
     }
     for p in particles {
-        let finite = p.position.0.is_finite() && p.velocity.0.is_finite();
+        let finite = p.position.0.is_finite()
+            && p.velocity.0.is_finite()
+            && p.spin.0.is_finite()
+            && p.orientation.0.is_finite()
+            && (p.orientation.0.length() - 1.0).abs() < 1e-3;
         if !(finite && p.inv_mass.0.is_finite() && p.inv_mass.0 >= 0.0) {
             return Err(invalid(format!(
-                "particles: particle {} of its body has a non-finite state",
+                "particles: particle {} of its body has a non-finite state or a non-unit orientation",
                 p.particle.index
             )));
         }
@@ -384,7 +400,14 @@ fn restore(snapshot: Snapshot) -> Result<World> {
             ..p.particle
         };
         let e = world
-            .spawn((particle, p.position, p.velocity, p.inv_mass))
+            .spawn((
+                particle,
+                p.position,
+                p.velocity,
+                p.orientation,
+                p.spin,
+                p.inv_mass,
+            ))
             .id();
         map.0.insert(p.entity, e);
     }

@@ -1,11 +1,11 @@
-//! The particles' state in the solver's dense order: positions, velocities and inverse
-//! masses, and what a substep derives from them. The ECS components hold a particle's
+//! The particles' state in the solver's dense order: positions, velocities, orientations,
+//! angular velocities and inverse masses, and what a substep derives from them. The ECS components hold a particle's
 //! state between frames; within a frame these arrays do — loaded once at its start,
 //! advanced by every substep (prediction, solve, velocities), written back after the
 //! substeps.
 
 use super::term::ParticleState;
-use glam::{Vec3, Vec3A};
+use glam::{Quat, Vec3, Vec3A};
 use rayon::prelude::*;
 
 /// Particles per parallel task.
@@ -30,6 +30,13 @@ pub struct Particles {
     pub corrections: Vec<Vec3A>,
     /// The predictions the last solve started from.
     pub predicted: Vec<Vec3A>,
+    /// Orientations (unit quaternions; rest: identity), predicted from the angular
+    /// velocities, then set by the solve where a term or the clusters turn them.
+    pub orientations: Vec<Quat>,
+    /// Orientations at the start of the substep.
+    pub previous_orientations: Vec<Quat>,
+    /// Angular velocities (rad/s, world frame).
+    pub spins: Vec<Vec3A>,
 }
 
 impl Particles {
@@ -44,6 +51,9 @@ impl Particles {
             corrections: vec![Vec3A::ZERO; n],
             predicted: positions.clone(),
             positions,
+            orientations: vec![Quat::IDENTITY; n],
+            previous_orientations: vec![Quat::IDENTITY; n],
+            spins: vec![Vec3A::ZERO; n],
         }
     }
 
@@ -58,7 +68,10 @@ impl Particles {
     }
 
     /// The prediction of a substep of `dt`: `v ← (v + g·dt)·e^(−damping·dt)`,
-    /// `x_prev ← x`, `x ← x + v·dt`; a particle of inverse mass 0 keeps its velocity.
+    /// `x_prev ← x`, `x ← x + v·dt`, and likewise `ω ← ω·e^(−damping·dt)`,
+    /// `q_prev ← q`, `q ← exp(ω dt) q` (the exact turn at constant `ω`, so that a free
+    /// particle's spin survives the round trip through [`Particles::update_velocities`]);
+    /// a particle of inverse mass 0 keeps its velocity and spin.
     pub fn predict(&mut self, dt: f32, gravity: Vec3, damping: f32) {
         let keep = (-damping * dt).exp();
         let dv = Vec3A::from(gravity * dt);
@@ -75,19 +88,42 @@ impl Particles {
                 }
                 *x += *v * dt;
             });
+        self.orientations
+            .par_iter_mut()
+            .zip(self.previous_orientations.par_iter_mut())
+            .zip(self.spins.par_iter_mut())
+            .zip(self.inv_mass.par_iter())
+            .with_min_len(PARTICLES_PER_TASK)
+            .for_each(|(((q, prev), w), inv_mass)| {
+                *prev = *q;
+                if *inv_mass != 0.0 {
+                    *w *= keep;
+                }
+                if *w != Vec3A::ZERO {
+                    *q = (Quat::from_scaled_axis(Vec3::from(*w * dt)) * *q).normalize();
+                }
+            });
     }
 
-    /// Adds the last solve's corrections to the velocities: `v += Σ Δp / dt`.
+    /// Adds the last solve's corrections to the velocities, `v += Σ Δp / dt`, and sets
+    /// each angular velocity to the substep's turn, `ω = log(q q_prev⁻¹) / dt`.
     ///
     /// Deriving velocity from the corrections rather than from `(p − p_prev) / dt` keeps
     /// the rounding of large absolute positions out of the velocities, so momentum is
-    /// conserved to the precision of the (small) corrections.
+    /// conserved to the precision of the (small) corrections. Orientations have no such
+    /// offset, so their turn is read off directly.
     pub fn update_velocities(&mut self, inv_dt: f32) {
         self.velocities
             .par_iter_mut()
             .zip(&self.corrections)
             .with_min_len(PARTICLES_PER_TASK)
             .for_each(|(v, c)| *v += *c * inv_dt);
+        self.spins
+            .par_iter_mut()
+            .zip(&self.orientations)
+            .zip(&self.previous_orientations)
+            .with_min_len(PARTICLES_PER_TASK)
+            .for_each(|((w, q), prev)| *w = Vec3A::from(turn(*prev, *q)) * inv_dt);
     }
 
     /// The arrays as a term sees them.
@@ -97,6 +133,7 @@ impl Particles {
             previous: &self.previous,
             inv_mass: &self.inv_mass,
             corrections: &mut self.corrections,
+            orientations: &mut self.orientations,
         }
     }
 
@@ -143,9 +180,20 @@ impl Particles {
             self.positions[d] = at;
             self.previous[d] = at;
             self.velocities[d] = Vec3A::ZERO;
+            self.orientations[d] = self.previous_orientations[d];
+            self.spins[d] = Vec3A::ZERO;
         }
         bad
     }
+}
+
+/// The turn from `from` to `to` as a rotation vector (axis × angle, the shorter way
+/// round); zero when either is not finite.
+pub fn turn(from: Quat, to: Quat) -> Vec3 {
+    let r = to * from.conjugate();
+    let r = if r.w < 0.0 { -r } else { r };
+    let v = r.to_scaled_axis();
+    if v.is_finite() { v } else { Vec3::ZERO }
 }
 
 #[cfg(test)]
@@ -184,5 +232,26 @@ mod tests {
         assert_eq!(p.positions[0], Vec3A::new(0.0, -2.5, 0.0));
         assert_eq!(p.positions[1], Vec3A::new(1.0, 0.0, 1.0));
         assert_eq!(p.previous[1], Vec3A::X);
+    }
+
+    #[test]
+    fn a_free_spin_is_kept_through_prediction_and_velocity_update() {
+        let mut p = Particles::at_rest(&[Vec3::ZERO]);
+        let spin = Vec3A::new(0.0, 2.0 * std::f32::consts::TAU, 1.0);
+        p.spins[0] = spin;
+        let dt = 1.0 / 120.0;
+        for _ in 0..240 {
+            p.predict(dt, Vec3::ZERO, 0.0);
+            p.corrections[0] = Vec3A::ZERO;
+            p.update_velocities(1.0 / dt);
+        }
+        assert!(
+            (p.spins[0] - spin).length() < 1e-3 * spin.length(),
+            "{}",
+            p.spins[0]
+        );
+        // two seconds at (0, 2 rev/s, 1 rad/s): the exact turn, up to rounding
+        let exact = Quat::from_scaled_axis(Vec3::from(spin) * 2.0);
+        assert!(p.orientations[0].dot(exact).abs() > 1.0 - 1e-5);
     }
 }

@@ -88,9 +88,17 @@ impl Solver {
                 }
             }
         }
+        // (the residual leaves the particles' orientations as they are)
+        let mut orientations = particles.orientations.clone();
         for term in self.terms.iter() {
             if let Some(form) = term.projective() {
-                form.add_forces(step, &unknowns, &particles.positions, &mut forces);
+                form.add_forces(
+                    step,
+                    &unknowns,
+                    &particles.positions,
+                    &mut orientations,
+                    &mut forces,
+                );
             }
         }
         for (force, &w) in forces.iter_mut().zip(&particles.inv_mass) {

@@ -185,6 +185,8 @@ impl Solver {
         for (c, carry) in particles.corrections.iter_mut().zip(&self.clusters.carry) {
             *c += *carry;
         }
+        self.clusters
+            .blend_orientations(&mut particles.orientations);
         self.drop_rounding_noise(particles);
         for term in self.terms.iter() {
             if !term.is_empty() {

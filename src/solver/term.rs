@@ -41,7 +41,7 @@
 
 use crate::body::lattice::Lattice;
 use crate::config::Material;
-use glam::{DVec3, Vec3A};
+use glam::{DVec3, Quat, Vec3A};
 
 /// Stiffness a hard constraint (compliance 0) gets in projective dynamics' global
 /// matrix, relative to its particles' mean `m/dt²`. A direct solve could take any
@@ -85,6 +85,9 @@ pub struct ParticleState<'a> {
     /// Each particle's total correction in this substep: a term adds every move it makes
     /// here ([`ParticleState::shift`]); velocities are derived from it (`v += Σ Δp / dt`).
     pub corrections: &'a mut [Vec3A],
+    /// Orientations (predicted at the start of the substep); a term that turns particles
+    /// sets them here, and angular velocities are derived from the substep's turn.
+    pub orientations: &'a mut [Quat],
 }
 
 impl ParticleState<'_> {
@@ -227,12 +230,15 @@ pub trait ProjectiveTerm {
 
     /// The local step and the right-hand side at once: adds `Σ w SᵀAᵀ(p − A S x)` at the
     /// positions `x` (each constraint's projection taken there), by dense particle, to
-    /// `forces`: the force the term's springs exert with the projections held.
+    /// `forces`: the force the term's springs exert with the projections held. A term
+    /// whose projections are rotations sets the orientations they give particles in
+    /// `orientations`.
     fn add_forces(
         &self,
         step: &Substep,
         unknowns: &Unknowns,
         positions: &[Vec3A],
+        orientations: &mut [Quat],
         forces: &mut [DVec3],
     );
 }

@@ -371,6 +371,36 @@ impl ClusterTerm {
         &self.rotations
     }
 
+    /// Turns every particle that is in a cluster to the blend of its clusters' rotations:
+    /// their normalised sum, each taken on the side of the particle's current
+    /// orientation (a quaternion and its negative are one rotation), so a particle in
+    /// clusters that turn alike turns with them, and one between clusters turning apart
+    /// takes the turn between. The clusters' rotations are their fits' of this substep
+    /// (the turn from rest), so a rigid motion turns every particle with it. Particles in
+    /// no cluster keep theirs. Memberships are summed in slot order: the same for any
+    /// thread count.
+    pub fn blend_orientations(&self, orientations: &mut [Quat]) {
+        let mut sums = vec![glam::Vec4::ZERO; self.rest.len()];
+        for (range, rotation) in self.cluster_range.iter().zip(&self.rotations) {
+            let r = glam::Vec4::from(*rotation);
+            for &m in &self.member_particle[range[0] as usize..range[1] as usize] {
+                let m = m as usize;
+                let side = glam::Vec4::from(orientations[m]).dot(r);
+                sums[m] += if side < 0.0 { -r } else { r };
+            }
+        }
+        orientations
+            .par_iter_mut()
+            .zip(&sums)
+            .with_min_len(PARTICLES_PER_TASK)
+            .for_each(|(q, sum)| {
+                let length = sum.length();
+                if length > 1e-6 {
+                    *q = Quat::from_vec4(*sum / length);
+                }
+            });
+    }
+
     /// Brings the per-particle coefficients up to date (after a change of clusters),
     /// computes this substep's step coefficients and warm-start weights for particles of
     /// inverse masses `inv_mass`, and starts every particle from its prediction plus its

@@ -223,6 +223,7 @@ impl ProjectiveTerm for Attachments {
         step: &Substep,
         unknowns: &Unknowns,
         positions: &[Vec3A],
+        _orientations: &mut [glam::Quat],
         forces: &mut [DVec3],
     ) {
         for (h, target) in self.soft.iter().zip(&self.targets) {

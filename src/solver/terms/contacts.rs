@@ -354,6 +354,7 @@ mod tests {
             previous: &previous,
             inv_mass: &inv_mass,
             corrections: &mut corrections,
+            orientations: &mut vec![glam::Quat::IDENTITY; previous.len()],
         };
         c.begin_substep(&step(1), &mut state);
         for _ in 0..iterations {
@@ -482,6 +483,7 @@ mod tests {
                 previous: &previous,
                 inv_mass: &[0.0, 1.0],
                 corrections: &mut corrections,
+                orientations: &mut [glam::Quat::IDENTITY; 2],
             };
             c.begin_substep(&step(1), &mut state);
             c.project(&step(1), &mut state);

@@ -222,6 +222,7 @@ impl ProjectiveTerm for Edges {
         step: &Substep,
         unknowns: &Unknowns,
         positions: &[Vec3A],
+        _orientations: &mut [glam::Quat],
         forces: &mut [DVec3],
     ) {
         for (a, b, rest, compliance) in self.iter() {

@@ -284,6 +284,7 @@ mod tests {
             previous: &previous,
             inv_mass: &inv_mass,
             corrections: &mut corrections,
+            orientations: &mut vec![glam::Quat::IDENTITY; previous.len()],
         };
         term.begin_substep(&step, &mut state);
         term.project(&step, &mut state);

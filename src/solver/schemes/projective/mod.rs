@@ -172,7 +172,13 @@ impl Projective {
         for (term, seconds) in terms.iter_timed() {
             if let Some(form) = term.projective() {
                 let start = std::time::Instant::now();
-                form.add_forces(step, &unknowns, &particles.positions, &mut self.forces);
+                form.add_forces(
+                    step,
+                    &unknowns,
+                    &particles.positions,
+                    &mut particles.orientations,
+                    &mut self.forces,
+                );
                 *seconds += start.elapsed().as_secs_f64();
             }
         }
