@@ -6,6 +6,7 @@
 //! one store's edits. [`BodyClusters`] is the system parameter the reconstruction stages
 //! open a body's store from.
 
+use crate::body::groups::ParticleGroups;
 use crate::body::lattice::Lattice;
 use crate::clusters::edits::{ClusterEdits, diff_into};
 use crate::clusters::index::ClusterIndex;
@@ -14,6 +15,7 @@ use crate::config::Material;
 use crate::ecs::components::{
     Body, BodyLattice, ClusterKeys, ClusterMembers, ClusterOf, Compliance, ParticleClusters,
 };
+use crate::ecs::groups::cluster_compliance;
 use bevy_ecs::prelude::*;
 use bevy_ecs::system::SystemParam;
 use rustc_hash::{FxHashMap, FxHashSet};
@@ -79,7 +81,11 @@ impl<'w, 's> BodyClusters<'w, 's> {
         index.grow(lattice.lattice.len());
         let store = EcsClusterStore {
             body,
-            compliance: b.material.cluster_compliance(lattice.lattice.spacing()),
+            compliance: ClusterCompliance {
+                material: b.material.clone(),
+                groups: b.groups.clone(),
+                spacing: lattice.lattice.spacing(),
+            },
             index,
             keys,
             clusters: &mut self.clusters,
@@ -91,11 +97,19 @@ impl<'w, 's> BodyClusters<'w, 's> {
     }
 }
 
+/// A body's material, groups and spacing, from which a new cluster's compliance follows
+/// ([`cluster_compliance`]).
+struct ClusterCompliance {
+    material: Material,
+    groups: ParticleGroups,
+    spacing: f32,
+}
+
 /// The clusters of one body, editable by the reconstruction algorithms.
 pub struct EcsClusterStore<'a, 'w, 's> {
     body: Entity,
-    /// Compliance of the clusters this store creates.
-    compliance: f32,
+    /// What gives the clusters this store creates their compliance.
+    compliance: ClusterCompliance,
     index: &'a mut ClusterIndex,
     keys: &'a mut ClusterKeys,
     clusters: &'a mut Query<'w, 's, &'static mut ClusterMembers>,
@@ -149,13 +163,19 @@ impl EcsClusterStore<'_, '_, '_> {
         let mut created: Vec<(u32, (Entity, Vec<u32>))> = self.created.into_iter().collect();
         created.sort_unstable_by_key(|(k, _)| *k);
         for (key, (e, members)) in created {
+            let compliance = cluster_compliance(
+                &self.compliance.material,
+                &self.compliance.groups,
+                &members,
+                self.compliance.spacing,
+            );
             self.commands.entity(e).insert((
                 ClusterMembers(members),
                 ClusterOf {
                     body: self.body,
                     key,
                 },
-                Compliance(self.compliance),
+                Compliance(compliance),
             ));
         }
     }

@@ -60,6 +60,7 @@ pub fn sync_terms(
                     lattice: &lattice.lattice,
                     dense: &b.dense,
                     material: &body.material,
+                    groups: &body.groups,
                     pieces: lattice.pieces,
                     changed: pending.relaid || pending.bodies.contains(&b.body),
                 })

@@ -87,6 +87,7 @@ impl StaticProblem {
             lattice,
             dense: &dense,
             material: &desc.material,
+            groups: &Default::default(),
             pieces: lattice.piece_count(),
             changed: true,
         };

@@ -4,6 +4,7 @@
 
 pub mod edits;
 pub mod graph;
+pub mod groups;
 pub mod lattice;
 mod morton;
 pub mod patches;

@@ -63,11 +63,15 @@ pub fn seed_grid_offset(material: &Material, rng: &mut impl Rng) -> IVec3 {
 
 /// The initial clustering of `lattice` with its seed grid at `offset` (see
 /// [`seed_grid_offset`]): the clusters a body of this geometry gets when it is spawned,
-/// and the fresh-clustering reference for a body that was cut to this geometry.
+/// and the fresh-clustering reference for a body that was cut to this geometry. A body
+/// of the oriented model has no clusters (its groups are its lattice neighbourhoods).
 pub fn clusters_on_grid(lattice: &Lattice, material: &Material, offset: IVec3) -> ClusterTable {
     let stride = material.cluster_stride() as i32;
     let max = material.max_cluster_size as usize;
     let mut table = ClusterTable::new(lattice.len());
+    if material.model == crate::config::Model::Oriented {
+        return table;
+    }
     let mut covered = vec![false; lattice.len()];
     let on_grid = |c: IVec3| (c - offset).rem_euclid(IVec3::splat(stride)) == IVec3::ZERO;
     let seeds: Vec<u32> = lattice

@@ -24,6 +24,11 @@ pub enum Violation {
         /// The removed particle.
         particle: u32,
     },
+    /// A body of the oriented model holds a cluster.
+    ClusterOfOrientedBody {
+        /// The cluster.
+        cluster: u64,
+    },
     /// A live particle is in no cluster.
     Uncovered {
         /// The particle.
@@ -81,6 +86,12 @@ impl fmt::Display for Violation {
                 write!(f, "cluster {cluster} has removed particle {particle}")
             }
             Violation::Uncovered { particle } => write!(f, "particle {particle} is in no cluster"),
+            Violation::ClusterOfOrientedBody { cluster } => {
+                write!(
+                    f,
+                    "cluster {cluster} belongs to a body of the oriented model"
+                )
+            }
             Violation::Isolated {
                 piece_particle,
                 components,

@@ -2,7 +2,22 @@
 //! keeping, with validation of every field.
 
 use crate::error::{Result, check_range, out_of_range};
+use glam::Vec3;
 use serde::{Deserialize, Serialize};
+
+/// How a body's elasticity is modelled.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Model {
+    /// Overlapping clusters of particles, each a shape-matching constraint (SPEC §2).
+    #[default]
+    Clusters,
+    /// Oriented particles (SPEC §5): one implicit shape-matching group per particle —
+    /// the particle and its live lattice neighbours — with generalised shape matching,
+    /// so that bodies one particle thick hold their shape; explicit groups make rigid
+    /// parts. See [`crate::solver::terms::oriented`].
+    Oriented,
+}
 
 /// Material and clustering parameters of one body.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -75,6 +90,12 @@ pub struct Material {
     /// The normal displacement, in lattice spacings (> 0, default 0.1), past which a
     /// patch's normal stiffness grows, as the square of the displacement over it.
     pub patch_threshold: f32,
+    /// How the body's elasticity is modelled (default: clusters).
+    pub model: Model,
+    /// Radii of each particle's ellipsoid along its own axes, in metres (> 0), whose
+    /// moment matrix generalised shape matching adds (oriented model); `None`: a sphere
+    /// of half the lattice spacing.
+    pub particle_radii: Option<Vec3>,
 }
 
 /// Rubber ([`Material::rubber`]): a body a newcomer spawns deforms where it lands.
@@ -100,6 +121,8 @@ impl Default for Material {
             patch_normal_compliance: None,
             patch_tangent_compliance: None,
             patch_threshold: 0.1,
+            model: Model::Clusters,
+            particle_radii: None,
         }
     }
 }
@@ -147,8 +170,14 @@ impl Material {
     /// [`Material::compliance`]): `σ²/(E·V)` with `V = spacing³` and
     /// `σ² = spacing²·r(r+1)/3`, the per-axis spread of a full `(2r+1)³` cluster.
     pub fn cluster_compliance(&self, spacing: f32) -> f32 {
+        self.cluster_compliance_of(self.compliance, spacing)
+    }
+
+    /// [`Material::cluster_compliance`] of a cluster of material compliance
+    /// `compliance` (1/Pa) instead of the material's (a stiffness region's).
+    pub fn cluster_compliance_of(&self, compliance: f32, spacing: f32) -> f32 {
         let r = self.cluster_radius as f32;
-        self.compliance * r * (r + 1.0) / (3.0 * spacing)
+        compliance * r * (r + 1.0) / (3.0 * spacing)
     }
 
     /// Members of the largest cluster the initial clustering builds: a full `(2r+1)³`
@@ -164,6 +193,12 @@ impl Material {
     /// Distance between neighbouring cluster centres, in lattice cells.
     pub fn cluster_stride(&self) -> u32 {
         2 * self.cluster_radius + 1 - self.cluster_overlap
+    }
+
+    /// The radii of a particle's ellipsoid on a lattice with this spacing (see
+    /// [`Material::particle_radii`]).
+    pub fn particle_radii_at(&self, spacing: f32) -> Vec3 {
+        self.particle_radii.unwrap_or(Vec3::splat(0.5 * spacing))
     }
 
     /// The patch constraints' compliances `(normal, tangent)` in 1/Pa, or `None` when
@@ -281,6 +316,15 @@ impl Material {
             if let Some(c) = value {
                 check_range(field, c, 0.0, 1.0, "0 ≤ compliance ≤ 1 (1/Pa)")?;
             }
+        }
+        if let Some(r) = self.particle_radii
+            && !(r.is_finite() && r.cmpgt(Vec3::ZERO).all())
+        {
+            return Err(out_of_range(
+                "material.particle_radii",
+                r,
+                "each radius finite and > 0 (metres)",
+            ));
         }
         if !(1..=crate::body::patches::MAX_RINGS).contains(&self.patch_rings) {
             return Err(out_of_range(
@@ -424,6 +468,20 @@ mod tests {
                     ..Default::default()
                 },
                 "material.max_cluster_size",
+            ),
+            (
+                Material {
+                    particle_radii: Some(Vec3::new(0.1, 0.0, 0.1)),
+                    ..Default::default()
+                },
+                "material.particle_radii",
+            ),
+            (
+                Material {
+                    particle_radii: Some(Vec3::new(0.1, f32::NAN, 0.1)),
+                    ..Default::default()
+                },
+                "material.particle_radii",
             ),
         ] {
             let e = m.validate().unwrap_err().to_string();

@@ -2,6 +2,7 @@
 //! its particle → clusters index, finite positions.
 
 use crate::clusters::invariants::{Violation, check_body, check_index};
+use crate::config::Model;
 use crate::ecs::components::*;
 use bevy_ecs::prelude::*;
 
@@ -31,12 +32,20 @@ pub fn check_invariants(world: &World) -> Vec<(Entity, Violation)> {
             let violations = check_index(listed.iter().copied(), clusters.index.iter());
             out.extend(violations.into_iter().map(|v| (e, v)));
         }
-        for v in check_body(
-            &lattice.lattice,
-            listed.iter().map(|(k, m)| (*k as u64, *m)),
-            body.material.max_cluster_size as usize,
-        ) {
-            out.push((e, v));
+        if body.material.model == Model::Oriented {
+            // its groups are derived from the lattice; it holds no clusters
+            out.extend(listed.iter().map(|(k, _)| {
+                let cluster = *k as u64;
+                (e, Violation::ClusterOfOrientedBody { cluster })
+            }));
+        } else {
+            for v in check_body(
+                &lattice.lattice,
+                listed.iter().map(|(k, m)| (*k as u64, *m)),
+                body.material.max_cluster_size as usize,
+            ) {
+                out.push((e, v));
+            }
         }
         for i in lattice.lattice.live_particles() {
             let position = world.get::<Position>(lattice.particles[i as usize]);

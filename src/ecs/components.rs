@@ -11,6 +11,7 @@
 //! dense arrays do (loaded at the frame's start, written back after its substeps), so a
 //! game reads and writes them between frames.
 
+use crate::body::groups::ParticleGroups;
 use crate::body::lattice::Lattice;
 use crate::clusters::index::ClusterIndex;
 use crate::config::Material;
@@ -67,6 +68,8 @@ pub struct Body {
     /// current geometry ([`crate::ecs::spawn::recluster`]) places it there too, so that it
     /// differs from the spawned clusters only where the body was cut.
     pub seed_grid: IVec3,
+    /// Explicit groups and per-particle compliances (stiffness regions).
+    pub groups: ParticleGroups,
 }
 
 /// Particle data of a body: the lattice (coordinate ↔ index, live flags), the entity of

@@ -5,6 +5,7 @@ use crate::body::shape::Shape;
 use crate::config::{Material, SimConfig};
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::ecs::components::Hold;
+use crate::ecs::groups::{GroupDesc, StiffnessRegion};
 use crate::geometry::collider::ColliderShape;
 use crate::geometry::mesh::TriangleMesh;
 use glam::{Quat, Vec3};
@@ -115,6 +116,10 @@ pub struct BodyDesc {
     pub attachments: Vec<AttachmentDesc>,
     /// Handles of the body's particles (world space, after placement).
     pub handles: Vec<HandleDesc>,
+    /// Explicit shape-matching groups (oriented model; world space, after placement).
+    pub groups: Vec<GroupDesc>,
+    /// Regions of particles with their own compliance (world space, after placement).
+    pub stiffness_regions: Vec<StiffnessRegion>,
     /// A closed mesh (in the shape's local frame) to draw instead of the lattice's
     /// surface, carried by the particles and opened by cuts
     /// ([`crate::surface::embed`]). A body voxelised from a mesh draws that mesh when
@@ -150,6 +155,8 @@ impl BodyDesc {
             pins: Vec::new(),
             attachments: Vec::new(),
             handles: Vec::new(),
+            groups: Vec::new(),
+            stiffness_regions: Vec::new(),
             render_mesh: None,
             surface: SurfaceOptions::default(),
             jitter: 0.0,

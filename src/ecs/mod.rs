@@ -6,6 +6,7 @@ pub mod attach;
 pub mod check;
 pub mod components;
 pub mod desc;
+pub mod groups;
 pub mod handles;
 pub mod poses;
 pub mod resources;

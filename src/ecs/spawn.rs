@@ -11,6 +11,7 @@ use crate::cut::tool::{Path, Pose};
 use crate::ecs::attach::{TargetMotion, centroid_pose, check_compliance, spawn_attachment};
 use crate::ecs::components::*;
 use crate::ecs::desc::{BodyDesc, ColliderDesc, Region, ToolDesc};
+use crate::ecs::groups::cluster_compliance;
 use crate::ecs::resources::*;
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::{
@@ -307,12 +308,20 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             .collect()
     };
     let (pinned_at, attached_at) = (positions_of(&pinned), positions_of(&attached));
+    let groups = crate::ecs::groups::select_groups(
+        &desc.groups,
+        &desc.stiffness_regions,
+        &desc.material,
+        &live,
+        placed,
+    )?;
     let seed_grid = seed_grid_offset(&desc.material, &mut world.resource_mut::<SimRng>().0);
     let table = clusters_on_grid(&lattice, &desc.material, seed_grid);
     let body = world
         .spawn(Body {
             material: desc.material.clone(),
             seed_grid,
+            groups: groups.clone(),
         })
         .id();
     // In the solver layout's (Morton) order, so that the particle table's rows and the
@@ -341,7 +350,8 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     for (&i, e) in order.iter().zip(spawned) {
         particles[i as usize] = e;
     }
-    let compliance = desc.material.cluster_compliance(desc.spacing);
+    let compliance =
+        |members: &[u32]| cluster_compliance(&desc.material, &groups, members, desc.spacing);
     let (clusters, _) = spawn_clusters(world, body, &table, lattice.len(), compliance);
     let pieces = lattice.piece_count();
     world.entity_mut(body).insert((
@@ -400,7 +410,7 @@ fn spawn_clusters(
     body: Entity,
     table: &ClusterTable,
     particles: usize,
-    compliance: f32,
+    compliance: impl Fn(&[u32]) -> f32,
 ) -> (ParticleClusters, Vec<Entity>) {
     let mut clusters = ParticleClusters {
         index: ClusterIndex::new(particles),
@@ -414,7 +424,7 @@ fn spawn_clusters(
             .spawn((
                 ClusterMembers(members.to_vec()),
                 ClusterOf { body, key },
-                Compliance(compliance),
+                Compliance(compliance(members)),
             ))
             .id();
         let named = clusters.keys.insert(e);
@@ -433,7 +443,7 @@ fn spawn_clusters(
 /// solver layout is rebuilt at the next step. Returns the new cluster entities.
 pub fn recluster(world: &mut World, body: Entity) -> Result<Vec<Entity>> {
     let not_a_body = || CleaveError::not_a("a body", body);
-    let (table, particles, compliance) = {
+    let (table, particles, material, groups, spacing) = {
         let b = world.get::<Body>(body).ok_or_else(not_a_body)?;
         let lattice = &world
             .get::<BodyLattice>(body)
@@ -442,9 +452,12 @@ pub fn recluster(world: &mut World, body: Entity) -> Result<Vec<Entity>> {
         (
             clusters_on_grid(lattice, &b.material, b.seed_grid),
             lattice.len(),
-            b.material.cluster_compliance(lattice.spacing()),
+            b.material.clone(),
+            b.groups.clone(),
+            lattice.spacing(),
         )
     };
+    let compliance = |members: &[u32]| cluster_compliance(&material, &groups, members, spacing);
     let old: Vec<Entity> = world
         .query::<(Entity, &ClusterOf)>()
         .iter(world)

@@ -39,6 +39,7 @@
 //! one routine through which every kind hears that particles were removed, edges
 //! severed or particles split, and that the dense indices moved.
 
+use crate::body::groups::ParticleGroups;
 use crate::body::lattice::Lattice;
 use crate::config::Material;
 use glam::{DVec3, Quat, Vec3A};
@@ -122,6 +123,8 @@ pub struct BodyTopology<'a> {
     pub dense: &'a [u32],
     /// Its material.
     pub material: &'a Material,
+    /// Its explicit groups and per-particle compliances.
+    pub groups: &'a ParticleGroups,
     /// Its number of connected pieces.
     pub pieces: usize,
     /// Whether its particles or links changed since the terms last heard (every body

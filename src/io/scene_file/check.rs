@@ -123,6 +123,15 @@ pub fn patch_tangent_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<Optio
 pub fn patch_rings<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
     count(d, 1, crate::body::patches::MAX_RINGS, "patch_rings")
 }
+pub fn particle_radii<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Vec3>, D::Error> {
+    let v = Option::<Vec3>::deserialize(d)?;
+    match v {
+        Some(r) if !(r.is_finite() && r.cmpgt(Vec3::ZERO).all()) => Err(D::Error::custom(format!(
+            "particle_radii {r} is out of range (allowed: each radius finite and > 0, metres)"
+        ))),
+        _ => Ok(v),
+    }
+}
 pub fn patch_threshold<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;
     range::<D>(

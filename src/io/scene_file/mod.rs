@@ -11,6 +11,7 @@ use crate::ecs::desc::Scene;
 use crate::ecs::desc::{
     AttachmentDesc, BodyDesc, ColliderDesc, HandleDesc, SurfaceOptions, ToolDesc,
 };
+use crate::ecs::groups::{GroupDesc, StiffnessRegion};
 use crate::geometry::collider::ColliderShape;
 use crate::geometry::mesh::TriangleMesh;
 use glam::Vec3;
@@ -131,6 +132,8 @@ impl MaterialFile {
             patch_normal_compliance: m.patch_normal_compliance,
             patch_tangent_compliance: m.patch_tangent_compliance,
             patch_threshold: m.patch_threshold,
+            model: m.model,
+            particle_radii: m.particle_radii,
         }
     }
 
@@ -155,6 +158,8 @@ impl MaterialFile {
             patch_normal_compliance: self.patch_normal_compliance,
             patch_tangent_compliance: self.patch_tangent_compliance,
             patch_threshold: self.patch_threshold,
+            model: self.model,
+            particle_radii: self.particle_radii,
         }
     }
 }
@@ -196,6 +201,22 @@ impl SceneFile {
                     attachments: attachment_files(&b.attachments, Hold::Each),
                     centroids: attachment_files(&b.attachments, Hold::Centroid),
                     handles: b.handles.iter().map(handle_file).collect(),
+                    groups: b
+                        .groups
+                        .iter()
+                        .map(|g| RegionCompliance {
+                            region: g.region,
+                            compliance: g.compliance,
+                        })
+                        .collect(),
+                    stiffness_regions: b
+                        .stiffness_regions
+                        .iter()
+                        .map(|g| RegionCompliance {
+                            region: g.region,
+                            compliance: g.compliance,
+                        })
+                        .collect(),
                     render_mesh: None,
                     surface: SurfaceFile {
                         smooth: b.surface.smooth,
@@ -292,6 +313,22 @@ impl SceneFile {
                     })
                     .collect(),
                 handles: b.handles.iter().map(handle_desc).collect(),
+                groups: b
+                    .groups
+                    .iter()
+                    .map(|g| GroupDesc {
+                        region: g.region,
+                        compliance: g.compliance,
+                    })
+                    .collect(),
+                stiffness_regions: b
+                    .stiffness_regions
+                    .iter()
+                    .map(|g| StiffnessRegion {
+                        region: g.region,
+                        compliance: g.compliance,
+                    })
+                    .collect(),
                 render_mesh,
                 surface: SurfaceOptions {
                     smooth: b.surface.smooth,

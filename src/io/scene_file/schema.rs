@@ -1,7 +1,7 @@
 //! The scene file's schema: every struct and enum a RON scene file is read into, each
 //! field checked while it is read ([`super::check`]).
 
-use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
+use crate::config::{GroundPlane, Material, Model, SimConfig, SolverMode, StaticBox};
 use crate::cut::tool::{CutMode, Pose, ToolShape};
 use crate::deform::keys::HandleKey;
 use crate::ecs::desc::{PinRegion, Region};
@@ -123,6 +123,15 @@ pub struct BodyFile {
     /// `cleave run` drives it by them as attachments of `compliance`.
     #[serde(default)]
     pub handles: Vec<HandleFile>,
+    /// Explicit shape-matching groups (oriented model): `(region: (min: …, max: …),
+    /// compliance: …)`, compliance in 1/Pa (0: a rigid part). Particles in two or more
+    /// groups turn freely: a joint.
+    #[serde(default)]
+    pub groups: Vec<RegionCompliance>,
+    /// Regions whose particles take their own compliance (1/Pa) instead of the
+    /// material's, in the groups' form: `(region: …, compliance: …)`.
+    #[serde(default)]
+    pub stiffness_regions: Vec<RegionCompliance>,
     /// A closed OBJ mesh (path relative to the scene file, in the shape's local frame)
     /// drawn instead of the lattice's surface: `render_mesh: Some("part.obj")`. A body
     /// whose shape is a mesh draws that mesh without it.
@@ -144,6 +153,19 @@ pub struct SurfaceFile {
     /// Round the voxel staircase (rest space, once per topology change).
     #[serde(default)]
     pub smooth: bool,
+}
+
+/// A world-space region (after placement) with a compliance in 1/Pa: an explicit group
+/// or a stiffness region.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionCompliance {
+    /// The region (it must hold at least one of the body's particles).
+    #[serde(deserialize_with = "super::check::region")]
+    pub region: Region,
+    /// Compliance `1/E` in 1/Pa (0–1; 0: rigid).
+    #[serde(deserialize_with = "super::check::compliance")]
+    pub compliance: f32,
 }
 
 /// An attachment: the particles in a world-space region (after placement), each held
@@ -294,6 +316,12 @@ pub struct MaterialFile {
     /// Normal displacement (lattice spacings, > 0) past which a patch stiffens.
     #[serde(deserialize_with = "super::check::patch_threshold")]
     pub patch_threshold: f32,
+    /// `"clusters"` (the default) or `"oriented"` (oriented particles, SPEC §5).
+    pub model: Model,
+    /// Radii `(x, y, z)` in metres of each particle's ellipsoid (oriented model); `None`:
+    /// a sphere of half the spacing.
+    #[serde(deserialize_with = "super::check::particle_radii")]
+    pub particle_radii: Option<Vec3>,
 }
 
 impl Default for MaterialFile {

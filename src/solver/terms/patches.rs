@@ -254,6 +254,7 @@ mod tests {
             lattice: &lattice,
             dense: &dense,
             material,
+            groups: &Default::default(),
             pieces: 1,
             changed: true,
         };

@@ -240,6 +240,7 @@ pub(super) mod tests {
             lattice: &lattice,
             dense: &dense_map,
             material: &material,
+            groups: &Default::default(),
             pieces: 1,
             changed: true,
         };

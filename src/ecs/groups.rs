@@ -1,0 +1,107 @@
+//! A spawning body's explicit groups and stiffness regions (SPEC §5): the regions a
+//! description gives, checked and turned into the particle lists the body keeps
+//! ([`ParticleGroups`]), and the compliance a cluster takes from its particles.
+
+use crate::body::groups::{ExplicitGroup, ParticleGroups};
+use crate::config::{Material, Model};
+use crate::ecs::desc::Region;
+use crate::error::{Result, check_finite_vec, check_range, out_of_range};
+use glam::Vec3;
+
+/// An explicit shape-matching group: the body's particles in `region` (world space,
+/// after placement) move as one part of `compliance` (1/Pa, as the material's; 0: a
+/// rigid part) and all take its rotation. Particles in two or more groups are
+/// non-oriented, so two parts that share them turn freely about each other (a joint).
+/// Oriented model only.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct GroupDesc {
+    /// Where the group's particles are.
+    pub region: Region,
+    /// Compliance `1/E` in 1/Pa (≥ 0; 0: rigid).
+    pub compliance: f32,
+}
+
+/// A region whose particles take their own compliance instead of the material's (both
+/// models; where regions overlap, the last one given).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StiffnessRegion {
+    /// Where the particles are.
+    pub region: Region,
+    /// Compliance `1/E` in 1/Pa (0–1; 0: rigid).
+    pub compliance: f32,
+}
+
+/// The groups and compliances of a body of `material` whose live particles `live` sit
+/// at `placed(i)`. Errors name the field (`body.groups[i]…`,
+/// `body.stiffness_regions[i]…`): a region that holds none of the body's particles, a
+/// compliance out of range, groups on a body of the cluster model.
+pub fn select_groups(
+    groups: &[GroupDesc],
+    regions: &[StiffnessRegion],
+    material: &Material,
+    live: &[u32],
+    placed: impl Fn(u32) -> Vec3,
+) -> Result<ParticleGroups> {
+    if !groups.is_empty() && material.model != Model::Oriented {
+        return Err(out_of_range(
+            "body.groups",
+            groups.len(),
+            "none unless material.model is \"oriented\"",
+        ));
+    }
+    let select = |field: String, region: &Region, compliance: f32| -> Result<Vec<u32>> {
+        check_finite_vec(&format!("{field}.region.min"), region.min)?;
+        check_finite_vec(&format!("{field}.region.max"), region.max)?;
+        check_range(
+            &format!("{field}.compliance"),
+            compliance,
+            0.0,
+            1.0,
+            "0 ≤ compliance ≤ 1 (1/Pa)",
+        )?;
+        let members: Vec<u32> = live
+            .iter()
+            .copied()
+            .filter(|&i| region.contains(placed(i)))
+            .collect();
+        if members.is_empty() {
+            return Err(out_of_range(
+                &format!("{field}.region"),
+                (region.min, region.max),
+                "a region holding at least one of the body's particles",
+            ));
+        }
+        Ok(members)
+    };
+    let mut out = ParticleGroups::default();
+    for (i, g) in groups.iter().enumerate() {
+        let mut members = select(format!("body.groups[{i}]"), &g.region, g.compliance)?;
+        members.sort_unstable();
+        out.explicit.push(ExplicitGroup {
+            members,
+            compliance: g.compliance,
+        });
+    }
+    for (i, r) in regions.iter().enumerate() {
+        let field = format!("body.stiffness_regions[{i}]");
+        let members = select(field, &r.region, r.compliance)?;
+        let len = live.iter().max().map_or(0, |m| *m as usize + 1);
+        out.compliance.resize(len, f32::NAN);
+        for m in members {
+            out.compliance[m as usize] = r.compliance;
+        }
+    }
+    Ok(out)
+}
+
+/// The compliance `1/κ` (m/N) of a cluster of particles `members` of a body: the
+/// material's cluster compliance at the mean of its particles' compliances.
+pub fn cluster_compliance(
+    material: &Material,
+    groups: &ParticleGroups,
+    members: &[u32],
+    spacing: f32,
+) -> f32 {
+    let mean = groups.mean_compliance(members, material.compliance);
+    material.cluster_compliance_of(mean, spacing)
+}
