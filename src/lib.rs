@@ -98,7 +98,7 @@ pub use bevy_app;
 /// [`error::Result`]), so it can be glob-imported beside bevy's prelude.
 pub mod prelude {
     pub use crate::body::shape::{SdfShape, Shape};
-    pub use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
+    pub use crate::config::{GroundPlane, Material, Model, SimConfig, SolverMode, StaticBox};
     pub use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
     pub use crate::deform::keys::{HandleKey, HandlePath};
     pub use crate::ecs::check::check_invariants;
@@ -106,6 +106,7 @@ pub mod prelude {
     pub use crate::ecs::desc::{
         AttachmentDesc, BodyDesc, ColliderDesc, HandleDesc, PinRegion, Region, ToolDesc,
     };
+    pub use crate::ecs::groups::{GroupDesc, StiffnessRegion};
     pub use crate::ecs::handles::{HandlePose, PoseMethod};
     pub use crate::ecs::resources::{
         BodySplit, ClustersRebuilt, EdgesSevered, ParticlesCut, ParticlesRepaired,

@@ -53,12 +53,10 @@ pub fn max_edge_strain(lattice: &Lattice, positions: &[Vec3]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// RMS distance between `current` and the best rigid transform of `rest`.
-pub fn rigid_fit_error(rest: &[Vec3], current: &[Vec3]) -> f32 {
-    if rest.is_empty() {
-        return 0.0;
-    }
-    let n = rest.len() as f32;
+/// The best rigid transform from `rest` to `current` (paired points): its rotation and
+/// the two centroids.
+pub fn rigid_fit(rest: &[Vec3], current: &[Vec3]) -> (Quat, Vec3, Vec3) {
+    let n = rest.len().max(1) as f32;
     let (rc, cc) = (
         rest.iter().sum::<Vec3>() / n,
         current.iter().sum::<Vec3>() / n,
@@ -69,6 +67,16 @@ pub fn rigid_fit_error(rest: &[Vec3], current: &[Vec3]) -> f32 {
         a += Mat3::from_cols(p * q.x, p * q.y, p * q.z);
     }
     let rot = extract_rotation(glam::Mat3A::from(a), Quat::IDENTITY, 200);
+    (rot, rc, cc)
+}
+
+/// RMS distance between `current` and the best rigid transform of `rest`.
+pub fn rigid_fit_error(rest: &[Vec3], current: &[Vec3]) -> f32 {
+    if rest.is_empty() {
+        return 0.0;
+    }
+    let n = rest.len() as f32;
+    let (rot, rc, cc) = rigid_fit(rest, current);
     let sum: f32 = rest
         .iter()
         .zip(current)

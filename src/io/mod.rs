@@ -8,6 +8,7 @@ pub mod dump;
 pub mod export;
 #[cfg(feature = "render")]
 pub mod gltf;
+pub mod oriented_scenes;
 pub mod relax_scenes;
 #[cfg(feature = "render")]
 pub mod render;

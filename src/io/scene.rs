@@ -12,7 +12,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// Names and one-line descriptions of the built-in scenes.
-pub const BUILTIN_SCENES: [(&str, &str); 17] = [
+pub const BUILTIN_SCENES: [(&str, &str); 19] = [
     ("drop", "a 16×8×8 box falls on the ground and settles"),
     (
         "cantilever",
@@ -77,6 +77,14 @@ pub const BUILTIN_SCENES: [(&str, &str); 17] = [
     (
         "grab",
         "a 10×10×10 block dragged through the air by one point handle while it simulates",
+    ),
+    (
+        "rod",
+        "a 24×1×1 rod of oriented particles clamped at its root holds out under gravity",
+    ),
+    (
+        "sheet",
+        "a 24×24×1 sheet of oriented particles clamped along one edge holds out under gravity",
     ),
 ];
 
@@ -260,6 +268,8 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
         "jittered" => crate::io::relax_scenes::jittered_scene(config),
         "bend" => crate::io::deform_scenes::bend_scene(config),
         "grab" => crate::io::deform_scenes::grab_scene(config),
+        "rod" => crate::io::oriented_scenes::rod_scene(config),
+        "sheet" => crate::io::oriented_scenes::sheet_scene(config),
         "cantilever" => {
             let mut body = rigid_body(Shape::cuboid(UVec3::new(24, 6, 6)), H);
             body.position = Vec3::new(0.0, 1.0, 0.0);

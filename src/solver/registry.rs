@@ -6,6 +6,7 @@ use super::terms::centroids::Centroids;
 use super::terms::colliders::Colliders;
 use super::terms::contacts::Contacts;
 use super::terms::edges::Edges;
+use super::terms::oriented::Oriented;
 use super::terms::patches::Patches;
 use std::any::Any;
 
@@ -27,12 +28,14 @@ impl std::fmt::Debug for Terms {
 
 impl Terms {
     /// The built-in kinds: one line each. Attachments first, so that the particles they
-    /// hold are in place before anything reads them; patches before the centroid holds,
+    /// hold are in place before anything reads them; then the oriented particles' groups,
+    /// the elasticity of their bodies as the clusters are of the others; patches before the centroid holds,
     /// so that a hard hold is met after the soft patches have moved its particles;
     /// colliders last, so that no other kind leaves a particle inside one.
     pub fn builtin() -> Self {
         let mut terms = Terms::default();
         terms.register(Attachments::default());
+        terms.register(Oriented::default());
         terms.register(Patches::default());
         terms.register(Centroids::default());
         terms.register(Edges::default());

@@ -197,6 +197,12 @@ impl Unknowns<'_> {
     /// The weight `w = 1/α` a constraint of compliance `α` on particles `particles` takes
     /// in the global matrix; a hard one ([`STIFFEST`] times their mean `m/dt²`).
     pub fn weight(&self, compliance: f32, particles: &[u32], dt: f32) -> f64 {
+        self.weight_up_to(compliance, particles, dt, STIFFEST)
+    }
+
+    /// [`Unknowns::weight`] with a hard constraint `stiffest` times its particles' mean
+    /// `m/dt²` instead of [`STIFFEST`] times.
+    pub fn weight_up_to(&self, compliance: f32, particles: &[u32], dt: f32, stiffest: f64) -> f64 {
         if compliance > 0.0 {
             return 1.0 / compliance as f64;
         }
@@ -209,7 +215,7 @@ impl Unknowns<'_> {
             }
         }
         let mean = sum / count.max(1) as f64;
-        STIFFEST * mean / (dt as f64 * dt as f64)
+        stiffest * mean / (dt as f64 * dt as f64)
     }
 }
 

@@ -464,11 +464,13 @@ impl ClusterTerm {
                             inv_mass,
                         );
                         // (a particle held still, or a carry a repaired particle left, starts
-                        // afresh)
+                        // afresh; one in no cluster — of the oriented model — is moved by
+                        // terms whose local steps lag the global step, so it takes the
+                        // share that keeps a lagging mode stable)
                         *weight = if inv_mass == 0.0 || !carry.is_finite() {
                             0.0
                         } else {
-                            warm_start_weight(*anchor, iterations, global)
+                            warm_start_weight(*anchor, iterations, global && inv_count > 0.0)
                         };
                         *carry *= *weight;
                         *p += *carry;

@@ -8,4 +8,5 @@ pub mod contact_list;
 pub mod contact_pairs;
 pub mod contacts;
 pub mod edges;
+pub mod oriented;
 pub mod patches;
