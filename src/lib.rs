@@ -104,9 +104,9 @@ pub mod prelude {
     pub use crate::ecs::check::check_invariants;
     pub use crate::ecs::components::*;
     pub use crate::ecs::desc::{
-        AttachmentDesc, BodyDesc, ColliderDesc, HandleDesc, PinRegion, Region, ToolDesc,
+        AttachmentDesc, BodyDesc, ColliderDesc, GroupDesc, HandleDesc, PinRegion, Region,
+        StiffnessRegion, ToolDesc,
     };
-    pub use crate::ecs::groups::{GroupDesc, StiffnessRegion};
     pub use crate::ecs::handles::{HandlePose, PoseMethod};
     pub use crate::ecs::resources::{
         BodySplit, ClustersRebuilt, EdgesSevered, ParticlesCut, ParticlesRepaired,

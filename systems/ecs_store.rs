@@ -70,12 +70,16 @@ impl<'w, 's> BodyClusters<'w, 's> {
     }
 
     /// The store of `body`'s clusters, with its material and lattice; `None` if `body`
-    /// is not a body.
+    /// is not a body, or one of the oriented model (its groups follow its lattice, and
+    /// the reconstruction keeps them so by leaving it alone).
     pub fn open(
         &mut self,
         body: Entity,
     ) -> Option<(EcsClusterStore<'_, 'w, 's>, &Material, &Lattice)> {
         let (_, b, lattice, clusters) = self.bodies.get_mut(body).ok()?;
+        if b.material.model == crate::config::Model::Oriented {
+            return None;
+        }
         let ParticleClusters { index, keys } = clusters.into_inner();
         // (particles split by the cut have their slots from here on)
         index.grow(lattice.lattice.len());

@@ -137,6 +137,7 @@ fn bench_json_has_one_consistent_line_per_size() {
             [
                 "clusters",
                 "attachments",
+                "oriented",
                 "patches",
                 "centroids",
                 "edges",

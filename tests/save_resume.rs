@@ -2,7 +2,7 @@
 //! is bit for bit the run that was never interrupted, with cuts in progress, under
 //! every solver; and what is not a saved simulation is refused with a clear error.
 
-use cleave::config::SolverMode;
+use cleave::config::{Model, SolverMode};
 use cleave::ecs::desc::Scene;
 use cleave::io::save::SECTIONS;
 use cleave::io::scene::builtin;
@@ -28,6 +28,9 @@ fn state(sim: &mut Simulation) -> Vec<u64> {
         for (_, v) in sim.velocities(body).unwrap() {
             out.extend(v.to_array().map(|c| c.to_bits() as u64));
         }
+        for (_, q) in sim.orientations(body).unwrap() {
+            out.extend(q.to_array().map(|c| c.to_bits() as u64));
+        }
         let mut clusters: Vec<Vec<u32>> = sim
             .clusters(body)
             .unwrap()
@@ -46,13 +49,43 @@ fn state(sim: &mut Simulation) -> Vec<u64> {
 
 #[test]
 fn a_saved_run_resumes_bit_for_bit() {
-    for (name, solver, cut_mode) in [
-        ("random", SolverMode::Jacobi, CutMode::Remove),
-        ("cuts", SolverMode::GaussSeidel, CutMode::Sever),
-        ("random", SolverMode::Projective, CutMode::Split),
+    for (name, solver, cut_mode, model) in [
+        (
+            "random",
+            SolverMode::Jacobi,
+            CutMode::Remove,
+            Model::Clusters,
+        ),
+        (
+            "cuts",
+            SolverMode::GaussSeidel,
+            CutMode::Sever,
+            Model::Clusters,
+        ),
+        (
+            "random",
+            SolverMode::Projective,
+            CutMode::Split,
+            Model::Clusters,
+        ),
+        (
+            "random",
+            SolverMode::GaussSeidel,
+            CutMode::Sever,
+            Model::Oriented,
+        ),
+        (
+            "random",
+            SolverMode::Projective,
+            CutMode::Remove,
+            Model::Oriented,
+        ),
     ] {
         let mut scene = builtin(name, 7).unwrap();
         scene.config.solver = solver;
+        for b in &mut scene.bodies {
+            b.material.model = model;
+        }
         for t in &mut scene.tools {
             t.cut_mode = cut_mode;
         }

@@ -56,6 +56,8 @@ fn ids(world: &mut World) -> (Vec<ComponentId>, Vec<ComponentId>) {
         world.register_component::<Velocity>(),
         world.register_component::<InvMass>(),
         world.register_component::<BodyLattice>(),
+        world.register_component::<Orientation>(),
+        world.register_component::<AngularVelocity>(),
     ];
     let cluster = vec![
         world.register_component::<ClusterMembers>(),
@@ -96,12 +98,13 @@ fn predict_shape_match_load_and_the_term_sync_write_only_the_solver() {
 }
 
 #[test]
-fn store_writes_positions_and_velocities_only() {
+fn store_writes_the_particles_motion_only() {
     let mut w = world();
     let (particle, _) = ids(&mut w);
     let mut access = access_of(&mut w, store::store_particles);
     access.writes.sort();
-    let mut expected = vec![particle[1], particle[2]];
+    // positions, velocities, orientations, angular velocities
+    let mut expected = vec![particle[1], particle[2], particle[5], particle[6]];
     expected.sort();
     assert_eq!(access.writes, expected);
     assert!(!access.deferred);

@@ -103,6 +103,7 @@ impl ProjectiveTerm for Tether {
         step: &Substep,
         unknowns: &Unknowns,
         positions: &[Vec3A],
+        _orientations: &mut [cleave::glam::Quat],
         forces: &mut [DVec3],
     ) {
         if let Some(d) = self.dense {

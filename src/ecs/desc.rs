@@ -5,7 +5,6 @@ use crate::body::shape::Shape;
 use crate::config::{Material, SimConfig};
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::ecs::components::Hold;
-use crate::ecs::groups::{GroupDesc, StiffnessRegion};
 use crate::geometry::collider::ColliderShape;
 use crate::geometry::mesh::TriangleMesh;
 use glam::{Quat, Vec3};
@@ -26,6 +25,29 @@ impl Region {
     pub fn contains(&self, x: Vec3) -> bool {
         x.cmpge(self.min).all() && x.cmple(self.max).all()
     }
+}
+
+/// An explicit shape-matching group: the body's particles in `region` (world space,
+/// after placement) move as one part of `compliance` (1/Pa, as the material's; 0: a
+/// rigid part) and all take its rotation. Particles in two or more groups are
+/// non-oriented, so two parts that share them turn freely about each other (a joint).
+/// Oriented model only.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct GroupDesc {
+    /// Where the group's particles are.
+    pub region: Region,
+    /// Compliance `1/E` in 1/Pa (≥ 0; 0: rigid).
+    pub compliance: f32,
+}
+
+/// A region whose particles take their own compliance instead of the material's (both
+/// models; where regions overlap, the last one given).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StiffnessRegion {
+    /// Where the particles are.
+    pub region: Region,
+    /// Compliance `1/E` in 1/Pa (0–1; 0: rigid).
+    pub compliance: f32,
 }
 
 /// An axis-aligned world-space region whose particles are pinned: a hard attachment

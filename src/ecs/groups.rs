@@ -1,35 +1,12 @@
-//! A spawning body's explicit groups and stiffness regions (SPEC §5): the regions a
-//! description gives, checked and turned into the particle lists the body keeps
+//! A spawning body's explicit groups and stiffness regions (SPEC §5): the regions its
+//! description gives ([`GroupDesc`], [`StiffnessRegion`]), checked and turned into the particle lists the body keeps
 //! ([`ParticleGroups`]), and the compliance a cluster takes from its particles.
 
 use crate::body::groups::{ExplicitGroup, ParticleGroups};
 use crate::config::{Material, Model};
-use crate::ecs::desc::Region;
+use crate::ecs::desc::{GroupDesc, Region, StiffnessRegion};
 use crate::error::{Result, check_finite_vec, check_range, out_of_range};
 use glam::Vec3;
-
-/// An explicit shape-matching group: the body's particles in `region` (world space,
-/// after placement) move as one part of `compliance` (1/Pa, as the material's; 0: a
-/// rigid part) and all take its rotation. Particles in two or more groups are
-/// non-oriented, so two parts that share them turn freely about each other (a joint).
-/// Oriented model only.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct GroupDesc {
-    /// Where the group's particles are.
-    pub region: Region,
-    /// Compliance `1/E` in 1/Pa (≥ 0; 0: rigid).
-    pub compliance: f32,
-}
-
-/// A region whose particles take their own compliance instead of the material's (both
-/// models; where regions overlap, the last one given).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct StiffnessRegion {
-    /// Where the particles are.
-    pub region: Region,
-    /// Compliance `1/E` in 1/Pa (0–1; 0: rigid).
-    pub compliance: f32,
-}
 
 /// The groups and compliances of a body of `material` whose live particles `live` sit
 /// at `placed(i)`. Errors name the field (`body.groups[i]…`,

@@ -34,6 +34,7 @@ use crate::io::save_file::{SaveReader, SaveWriter};
 use crate::solver::clusters::term::ClusterTerm;
 use crate::solver::particles::Particles;
 use crate::solver::schemes::gauss_seidel::GaussSeidel;
+use crate::solver::terms::oriented::Oriented;
 use crate::systems::{SyncSchedule, install};
 use bevy_ecs::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -104,6 +105,8 @@ struct AttachmentState {
 struct CacheState {
     clusters_term: ClusterTerm,
     gauss_seidel: GaussSeidel,
+    /// The oriented particles' warm start ([`Oriented::warm_start`]).
+    oriented_warm_start: (Vec<glam::Vec3A>, f32),
     particles: Particles,
     entities: Vec<Entity>,
     locals: Vec<u32>,
@@ -282,6 +285,15 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
         cache: CacheState {
             clusters_term: cache.solver.clusters.clone(),
             gauss_seidel: cache.solver.gauss_seidel.clone(),
+            oriented_warm_start: cache
+                .solver
+                .terms
+                .get::<Oriented>()
+                .map(|o| {
+                    let (moved, dt) = o.warm_start();
+                    (moved.to_vec(), dt)
+                })
+                .unwrap_or_default(),
             particles: cache.particles.clone(),
             entities: cache.entities.clone(),
             locals: cache.locals.clone(),
@@ -505,6 +517,12 @@ fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Resul
     }
     let state = &saved.particles;
     let finite = |v: &[glam::Vec3A]| v.iter().all(|x| x.is_finite());
+    let (warm, warm_dt) = saved.oriented_warm_start;
+    if !(warm.is_empty() || warm.len() == slots && finite(&warm) && warm_dt.is_finite()) {
+        return Err(invalid(
+            "the oriented particles' warm start does not fit the layout",
+        ));
+    }
     let masses = state.inv_mass.iter().all(|w| w.is_finite() && *w >= 0.0);
     if !(masses && finite(&state.positions) && finite(&state.previous) && finite(&state.velocities))
     {
@@ -531,6 +549,9 @@ fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Resul
     let mut cache = world.resource_mut::<SolverCache>();
     cache.solver.clusters = saved.clusters_term;
     cache.solver.gauss_seidel = saved.gauss_seidel;
+    if let Some(term) = cache.solver.terms.get_mut::<Oriented>() {
+        term.resume_warm_start(warm, warm_dt);
+    }
     cache.particles = saved.particles;
     cache.slot_of = ClusterSlots::from_clusters(&clusters);
     cache.entities = particles;

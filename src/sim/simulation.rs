@@ -12,7 +12,7 @@ use crate::solver::term::Term;
 use crate::systems::{CleaveSchedule, install};
 use bevy_ecs::message::{Message, Messages, message_update_system};
 use bevy_ecs::prelude::*;
-use glam::Vec3;
+use glam::{Quat, Vec3};
 
 /// A headless simulation: a [`World`] with the cleave resources and schedules.
 pub struct Simulation {
@@ -301,6 +301,12 @@ impl Simulation {
     /// index order.
     pub fn velocities(&self, body: Entity) -> Result<Vec<(u32, Vec3)>> {
         self.read_particles(body, |e| e.get::<Velocity>().map(|v| v.0))
+    }
+
+    /// Orientations of the live particles of `body` (see [`Orientation`]), with their
+    /// body-local indices, in index order.
+    pub fn orientations(&self, body: Entity) -> Result<Vec<(u32, Quat)>> {
+        self.read_particles(body, |e| e.get::<Orientation>().map(|q| q.0))
     }
 
     /// The pieces of `body` (connected components of its live particles), each as its

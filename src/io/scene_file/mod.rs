@@ -9,9 +9,9 @@ use crate::deform::keys::HandlePath;
 use crate::ecs::components::Hold;
 use crate::ecs::desc::Scene;
 use crate::ecs::desc::{
-    AttachmentDesc, BodyDesc, ColliderDesc, HandleDesc, SurfaceOptions, ToolDesc,
+    AttachmentDesc, BodyDesc, ColliderDesc, GroupDesc, HandleDesc, StiffnessRegion, SurfaceOptions,
+    ToolDesc,
 };
-use crate::ecs::groups::{GroupDesc, StiffnessRegion};
 use crate::geometry::collider::ColliderShape;
 use crate::geometry::mesh::TriangleMesh;
 use glam::Vec3;

@@ -138,18 +138,30 @@ mod tests {
 
     const SPHERE: Vec3A = Vec3A::splat(0.25 * 0.25 / 5.0);
 
+    /// The fit after `n` solver iterations, each warm-started from the last (as the
+    /// sweeps do: a group's centre keeps the rotation it was given).
+    fn settled(n: usize, one: impl Fn(Quat) -> Fit) -> Fit {
+        let mut f = one(Quat::IDENTITY);
+        for _ in 1..n {
+            f = one(f.rotation);
+        }
+        f
+    }
+
     #[test]
     fn a_lone_particle_keeps_its_orientation() {
         let q = Quat::from_euler(glam::EulerRot::XYZ, 0.3, -1.1, 2.0);
-        let f = fit(
-            &[0],
-            &[Vec3A::ZERO],
-            &[Vec3A::new(0.01, 0.02, 0.03)],
-            |_| 1.0,
-            |_| Vec3A::new(4.0, 5.0, 6.0),
-            |_| q,
-            Quat::IDENTITY,
-        );
+        let f = settled(10, |warm| {
+            fit(
+                &[0],
+                &[Vec3A::ZERO],
+                &[Vec3A::new(0.01, 0.02, 0.03)],
+                |_| 1.0,
+                |_| Vec3A::new(4.0, 5.0, 6.0),
+                |_| q,
+                warm,
+            )
+        });
         assert!(
             f.rotation.dot(q).abs() > 1.0 - 1e-6,
             "{:?} vs {q:?}",
@@ -165,15 +177,17 @@ mod tests {
             .collect();
         let at = Vec3A::new(100.0, -20.0, 3.0);
         let members = [0, 1, 2, 3, 4];
-        let f = fit(
-            &members,
-            &rest,
-            &[SPHERE; 5],
-            |_| 1.0,
-            |d| at + turn * rest[d],
-            |_| turn,
-            Quat::IDENTITY,
-        );
+        let f = settled(10, |warm| {
+            fit(
+                &members,
+                &rest,
+                &[SPHERE; 5],
+                |_| 1.0,
+                |d| at + turn * rest[d],
+                |_| turn,
+                warm,
+            )
+        });
         assert!(f.rotation.dot(turn).abs() > 1.0 - 1e-6);
         for (d, r) in rest.iter().enumerate() {
             assert!((f.goal(*r) - (at + turn * rest[d])).length() < 1e-4);
@@ -195,11 +209,9 @@ mod tests {
             |_| Quat::IDENTITY,
             Quat::IDENTITY,
         );
-        assert!(
-            (f.goal(rest[2]) - rest[2]).length() < 1e-3,
-            "{}",
-            f.goal(rest[2])
-        );
+        // (the held pair weighs a thousand times the third: 0.1 % of the sag is left)
+        let left = (f.goal(rest[2]) - rest[2]).length() / 0.3;
+        assert!(left < 0.01, "{left}");
     }
 
     #[test]
@@ -208,15 +220,19 @@ mod tests {
         // nothing about that turn, the ellipsoids do
         let twist = Quat::from_rotation_x(0.9);
         let offsets = [Vec3A::NEG_X, Vec3A::ZERO, Vec3A::X];
-        let f = fit(
-            &[0, 1, 2],
-            &offsets,
-            &[SPHERE; 3],
-            |_| 1.0,
-            |d| offsets[d],
-            |_| twist,
-            Quat::IDENTITY,
-        );
+        // (the positions barely weigh on the turn about the axis, so the warm-started
+        // extraction takes it in small steps: the solver's iterations and substeps)
+        let f = settled(300, |warm| {
+            fit(
+                &[0, 1, 2],
+                &offsets,
+                &[SPHERE; 3],
+                |_| 1.0,
+                |d| offsets[d],
+                |_| twist,
+                warm,
+            )
+        });
         assert!(f.rotation.dot(twist).abs() > 1.0 - 1e-5, "{:?}", f.rotation);
         // and a bent chain turns the fit about the bend, whatever the members say
         let bend = Quat::from_rotation_z(0.4);

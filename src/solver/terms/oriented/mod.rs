@@ -56,6 +56,8 @@ pub struct Oriented {
     moved: Vec<Vec3A>,
     /// The time step `moved` was made with (a change drops it).
     moved_dt: f32,
+    /// A saved warm start to take up at the next topology change.
+    resumed: Option<(Vec<Vec3A>, f32)>,
 }
 
 /// How far past its goal a sweep moves each member (successive over-relaxation, below
@@ -81,6 +83,18 @@ impl Oriented {
     /// Number of memberships (the sum of the groups' sizes).
     pub fn membership_count(&self) -> usize {
         self.bodies.iter().map(|b| b.members.len()).sum()
+    }
+
+    /// The warm start a saved simulation keeps: each dense particle's move by the groups
+    /// in the last substep, and that substep's time step.
+    pub fn warm_start(&self) -> (&[Vec3A], f32) {
+        (&self.moved, self.moved_dt)
+    }
+
+    /// Takes up a saved warm start ([`Oriented::warm_start`]) at the next topology change:
+    /// a loaded simulation's first, which lays out the particles as they were saved.
+    pub fn resume_warm_start(&mut self, moved: Vec<Vec3A>, dt: f32) {
+        self.resumed = Some((moved, dt));
     }
 
     /// Every group of the body `id` as its dense members, in the term's order.
@@ -186,8 +200,9 @@ impl Term for Oriented {
         let kept = std::mem::take(&mut self.bodies);
         self.bodies = change.rebuild_bodies(kept, |b| b.id, BodyGroups::build);
         self.version += 1;
-        // (dense indices and groups changed: the last moves no longer fit)
-        self.moved.clear();
+        // (dense indices and groups changed: the last moves no longer fit, unless they
+        // were saved with this very layout)
+        (self.moved, self.moved_dt) = self.resumed.take().unwrap_or_default();
     }
 
     fn begin_substep(&mut self, step: &Substep, state: &mut ParticleState) {

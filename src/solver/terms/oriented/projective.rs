@@ -6,7 +6,7 @@
 //! hard membership: the solver's stiffest weight). The local step fits every group at
 //! the current positions and turns its centre (or its members) as the sweeps do.
 
-use super::fit::{fit, fit_weights};
+use super::fit::fit;
 use super::groups::Turns;
 use super::{Oriented, warm};
 use crate::solver::term::{ProjectiveTerm, Substep, Unknowns};
