@@ -5,9 +5,9 @@ use crate::error::{Result, check_range, out_of_range};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-/// How a body's elasticity is modelled.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+/// How a body's elasticity is modelled; spelled `"clusters"` and `"oriented"` in files,
+/// on the command line and in JSON.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Model {
     /// Overlapping clusters of particles, each a shape-matching constraint (SPEC §2).
     #[default]
@@ -18,6 +18,11 @@ pub enum Model {
     /// parts. See [`crate::solver::terms::oriented`].
     Oriented,
 }
+
+crate::util::named_enum::named_enum!(Model, "model", [
+    Clusters => "clusters",
+    Oriented => "oriented",
+]);
 
 /// Material and clustering parameters of one body.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -1,7 +1,7 @@
 //! The state dump (`cleave-state/2`, JSON), the format other tools check the engine
 //! with: the frame and time, then per body its spacing, the configuration an invariant
 //! checker needs, its live particles (lattice coordinate, position, orientation, mass),
-//! its live
+//! its shape-matching groups if it is of the oriented model, its live
 //! lattice edges and its clusters. Ids are derived from the state, not from entities, so
 //! that the same state dumps to the same bytes however it was reached (straight, or
 //! saved and loaded): a body's id is its rank among the bodies (entity order), a
@@ -9,8 +9,11 @@
 //! new half has an index of its own), a cluster's [`cluster_id`] of its body and key.
 //! They are unique across the whole dump.
 
+use crate::config::Model;
 use crate::ecs::components::*;
 use crate::ecs::resources::SimClock;
+use crate::solver::term::BodyTopology;
+use crate::solver::terms::oriented::groups::{BodyGroups, Turns};
 use bevy_ecs::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -68,6 +71,20 @@ pub struct DumpCluster {
 pub struct DumpConfig {
     /// Largest allowed cluster.
     pub max_cluster_size: u32,
+    /// The body's model (`"clusters"` or `"oriented"`; absent in older dumps: clusters).
+    #[serde(default)]
+    pub model: Model,
+}
+
+/// One shape-matching group of a body of the oriented model, as its lattice gives them
+/// now (the solver takes them up at the next frame's start).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct DumpGroup {
+    /// The particle an implicit group is centred on; `None` for a piece of an explicit
+    /// group.
+    pub centre: Option<u64>,
+    /// Member particle ids, ascending.
+    pub members: Vec<u64>,
 }
 
 /// One body in the dump.
@@ -85,6 +102,10 @@ pub struct DumpBody {
     pub edges: Vec<[u64; 2]>,
     /// Clusters, by id.
     pub clusters: Vec<DumpCluster>,
+    /// Groups of the oriented model, implicit ones by centre, then explicit pieces
+    /// (empty, and absent, for a body of the cluster model).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub groups: Vec<DumpGroup>,
 }
 
 /// The whole dump.
@@ -160,14 +181,57 @@ pub fn dump_body(world: &mut World, body: Entity, rank: u64) -> Option<DumpBody>
         })
         .collect();
     clusters.sort_by_key(|c| c.id);
+    let groups = world
+        .get::<Body>(body)
+        .map(|b| dump_groups(b, &lattice, id))
+        .unwrap_or_default();
     Some(DumpBody {
         id: rank,
         spacing: l.spacing(),
         config: DumpConfig {
             max_cluster_size: material.max_cluster_size,
+            model: material.model,
         },
         particles,
         edges,
         clusters,
+        groups,
     })
+}
+
+/// The groups of `body` as its lattice gives them now, members named by `id`.
+fn dump_groups(body: &Body, lattice: &BodyLattice, id: impl Fn(u32) -> u64) -> Vec<DumpGroup> {
+    let l = &lattice.lattice;
+    let dense: Vec<u32> = (0..l.len() as u32).collect();
+    let view = BodyTopology {
+        id: 0,
+        lattice: l,
+        dense: &dense,
+        material: &body.material,
+        groups: &body.groups,
+        pieces: lattice.pieces,
+        changed: true,
+    };
+    let Some(built) = BodyGroups::build(&view) else {
+        return Vec::new();
+    };
+    let mut out: Vec<DumpGroup> = built
+        .groups
+        .iter()
+        .map(|g| {
+            let mut members: Vec<u64> = built.members[built.range(g)]
+                .iter()
+                .map(|&m| id(m))
+                .collect();
+            members.sort_unstable();
+            let centre = match g.turns {
+                Turns::Centre(c) => Some(id(c)),
+                Turns::All => None,
+            };
+            DumpGroup { centre, members }
+        })
+        .collect();
+    // implicit groups by centre, explicit pieces after them in their order
+    out.sort_by_key(|g| (g.centre.is_none(), g.centre));
+    out
 }

@@ -174,6 +174,10 @@ pub fn check_body(dump: &Value) -> Vec<HashSet<u64>> {
         }
         out
     };
+    if dump["config"]["model"] == "oriented" {
+        check_groups(dump, &ids, &adjacency, &components);
+        return components(&ids);
+    }
     let mut covered = HashSet::new();
     let clusters: Vec<HashSet<u64>> = dump["clusters"]
         .as_array()
@@ -238,6 +242,54 @@ pub fn check_body(dump: &Value) -> Vec<HashSet<u64>> {
         );
     }
     pieces
+}
+
+/// Checks the groups of a body of the oriented model: no clusters; every particle
+/// outside the explicit groups centres one group, which is it and the particles its live
+/// edges reach; every explicit piece is connected and covers particles no implicit group
+/// is centred on.
+fn check_groups(
+    dump: &Value,
+    ids: &HashSet<u64>,
+    adjacency: &HashMap<u64, Vec<u64>>,
+    components: &dyn Fn(&HashSet<u64>) -> Vec<HashSet<u64>>,
+) {
+    assert!(
+        dump["clusters"].as_array().unwrap().is_empty(),
+        "an oriented body holds clusters"
+    );
+    let mut centred = HashSet::new();
+    let mut in_parts = HashSet::new();
+    for g in dump["groups"].as_array().expect("groups") {
+        let members: HashSet<u64> = g["members"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|m| m.as_u64().unwrap())
+            .collect();
+        assert!(members.is_subset(ids), "a group holds a dead particle");
+        match g["centre"].as_u64() {
+            Some(c) => {
+                assert!(centred.insert(c), "two groups centred on {c}");
+                let mut live: HashSet<u64> = adjacency[&c].iter().copied().collect();
+                live.insert(c);
+                assert_eq!(
+                    members, live,
+                    "the group of {c} is not its live neighbourhood"
+                );
+            }
+            None => {
+                assert_eq!(components(&members).len(), 1, "a disconnected rigid part");
+                in_parts.extend(members);
+            }
+        }
+    }
+    assert!(
+        centred.is_disjoint(&in_parts),
+        "a rigid part's particle centres a group"
+    );
+    let covered: HashSet<u64> = centred.union(&in_parts).copied().collect();
+    assert_eq!(&covered, ids, "particles in no group");
 }
 
 pub fn f(v: &Value) -> f64 {

@@ -10,7 +10,7 @@ mod summary;
 mod view;
 
 use clap::{Parser, Subcommand};
-use cleave::config::{SimConfig, SolverMode};
+use cleave::config::{Model, SimConfig, SolverMode};
 use cleave::cut::tool::CutMode;
 use cleave::ecs::handles::PoseMethod;
 use cleave::io::render::{ColorMode, Draw};
@@ -104,6 +104,10 @@ struct RunFlags {
     /// (edges; no mass is lost) or split (particles in two, by the blade's side).
     #[arg(long)]
     cut_mode: Option<CutMode>,
+    /// The model of every body, overriding the scene's: clusters or oriented (oriented
+    /// particles, SPEC §5).
+    #[arg(long)]
+    model: Option<Model>,
     /// Turn conservative culling off (contact pairs and tool tests redone in full
     /// every time): the result is the same bit for bit, only slower.
     #[arg(long)]
@@ -333,6 +337,7 @@ fn run_command(flags: RunFlags, relax: bool, pose: Option<PoseMethod>) -> Result
         substeps,
         iterations,
         cut_mode,
+        model,
         no_culling,
         recluster_at,
     } = flags;
@@ -346,6 +351,7 @@ fn run_command(flags: RunFlags, relax: bool, pose: Option<PoseMethod>) -> Result
             substeps,
             iterations,
             cut_mode,
+            model,
             no_culling,
         },
         frames,

@@ -7,7 +7,7 @@ use bevy_ecs::prelude::*;
 use cleave::analysis::bench::median;
 use cleave::analysis::profile::{StageProfile, solver_table};
 use cleave::analysis::stats::BodyStats;
-use cleave::config::{RelaxOptions, SimConfig, SolverMode};
+use cleave::config::{Model, RelaxOptions, SimConfig, SolverMode};
 use cleave::cut::tool::CutMode;
 use cleave::ecs::check::check_invariants;
 use cleave::ecs::components::BodyLattice;
@@ -58,6 +58,8 @@ pub struct SceneOverrides {
     pub iterations: Option<u32>,
     /// Cut mode of every tool.
     pub cut_mode: Option<CutMode>,
+    /// Model of every body.
+    pub model: Option<Model>,
     /// Turn conservative culling off.
     pub no_culling: bool,
 }
@@ -184,6 +186,7 @@ fn resume(
         ("--substeps", o.substeps.is_some()),
         ("--iterations", o.iterations.is_some()),
         ("--cut-mode", o.cut_mode.is_some()),
+        ("--model", o.model.is_some()),
     ];
     if let Some((flag, _)) = conflicting.iter().find(|(_, given)| *given) {
         return Err(format!(
@@ -224,6 +227,11 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     if let Some(mode) = args.overrides.cut_mode {
         for tool in &mut scene.tools {
             tool.cut_mode = mode;
+        }
+    }
+    if let Some(model) = args.overrides.model {
+        for body in &mut scene.bodies {
+            body.material.model = model;
         }
     }
     let seed_given = seed.is_some();
