@@ -217,3 +217,113 @@ fn in_the_cluster_model_particles_turn_with_a_rigidly_spinning_body() {
         );
     }
 }
+
+#[test]
+fn a_clamped_sheet_holds_out_where_clusters_fold() {
+    let sheet = builtin("sheet", 0).unwrap();
+    let shape_error = |scene: &Scene| {
+        let (mut sim, body) = start(scene);
+        let rest: Vec<Vec3> = sim.positions(body).unwrap().iter().map(|p| p.1).collect();
+        sim.run(600);
+        let now: Vec<Vec3> = sim.positions(body).unwrap().iter().map(|p| p.1).collect();
+        cleave::analysis::stats::rigid_fit_error(&rest, &now) / scene.bodies[0].spacing
+    };
+    let mut clusters = sheet.clone();
+    clusters.bodies[0].material.model = Model::Clusters;
+    let folded = shape_error(&clusters);
+    let oriented_sag = sag(&sheet, 600);
+    let oriented = shape_error(&sheet);
+    eprintln!(
+        "sheet: oriented free edge sag {oriented_sag:.2} h, shape error {oriented:.2} h; cluster model shape error {folded:.2} h"
+    );
+    assert!(oriented_sag < 3.0, "{oriented_sag} h");
+    assert!(folded > 2.0 * oriented, "{folded} vs {oriented}");
+}
+
+/// The mean curvature of the cantilever's centreline over its stiff (root) half and its
+/// soft (outer) half, gravity off and its tip pushed down 3 h by a hard centroid hold:
+/// a tip force, whose moment falls from the root to the tip (`M = F (L − x)`, a mean of
+/// `3FL/4` over the root half and `FL/4` over the outer half). The turn of the slope
+/// across each half over its length.
+fn half_curvatures(scene: &Scene) -> (f32, f32) {
+    let mut scene = scene.clone();
+    scene.config.gravity = Vec3::ZERO;
+    let h = scene.bodies[0].spacing;
+    let tip = Vec3::new(1.2 - 0.5 * h, 1.0, 0.0);
+    scene.bodies[0].attachments = vec![AttachmentDesc {
+        region: Region {
+            min: Vec3::new(1.2 - h, 0.0, -1.0),
+            max: Vec3::new(1.3, 2.0, 1.0),
+        },
+        path: Path {
+            keys: vec![
+                (0.0, Pose::at(tip)),
+                (1.0, Pose::at(tip - Vec3::new(0.0, 3.0 * h, 0.0))),
+            ],
+        },
+        compliance: 0.0,
+        hold: Hold::Centroid,
+    }];
+    let (mut sim, body) = start(&scene);
+    let lattice = sim
+        .world()
+        .get::<BodyLattice>(body)
+        .unwrap()
+        .lattice
+        .clone();
+    sim.run(300);
+    let (mut sum, mut count) = (vec![Vec3::ZERO; 24], vec![0.0f32; 24]);
+    let first = lattice.coords().iter().map(|c| c.x).min().unwrap();
+    for (i, x) in sim.positions(body).unwrap() {
+        let column = (lattice.coord(i).x - first) as usize;
+        sum[column] += x;
+        count[column] += 1.0;
+    }
+    let centre: Vec<Vec3> = sum.iter().zip(&count).map(|(s, n)| *s / *n).collect();
+    let slope = |a: usize| {
+        let d = centre[a + 1] - centre[a];
+        d.y.atan2(d.x)
+    };
+    // inside each half, clear of the pinned columns, the held one and the two columns
+    // either side of the halves' boundary (a cluster there holds both materials)
+    let stiff = (slope(9) - slope(2)).abs() / (7.0 * h);
+    let soft = (slope(21) - slope(14)).abs() / (7.0 * h);
+    (stiff, soft)
+}
+
+#[test]
+fn a_beam_soft_on_its_outer_half_bends_more_there_in_both_models() {
+    // (the cluster model's Jacobi and projective steps weigh a particle's clusters alike,
+    // by their mean compliance: there a region is soft against inertia and gravity, but
+    // does not share bending out by stiffness; Gauss–Seidel weighs each cluster by its
+    // own)
+    for (model, solver) in [
+        (Model::Clusters, SolverMode::GaussSeidel),
+        (Model::Oriented, SolverMode::Jacobi),
+        (Model::Oriented, SolverMode::Projective),
+    ] {
+        let mut scene = builtin("cantilever", 0).unwrap();
+        scene.bodies[0].material.model = model;
+        scene.config.solver = solver;
+        let (stiff, soft) = half_curvatures(&scene);
+        let uniform = soft / stiff;
+        let compliance = 20.0 * scene.bodies[0].material.compliance;
+        scene.bodies[0].stiffness_regions = vec![StiffnessRegion {
+            region: Region {
+                min: Vec3::new(0.0, -10.0, -10.0),
+                max: Vec3::splat(10.0),
+            },
+            compliance,
+        }];
+        let (stiff, soft) = half_curvatures(&scene);
+        eprintln!(
+            "{model} {solver}: curvature soft/stiff half {:.2} with the outer half 20× as compliant ({uniform:.2} uniform)",
+            soft / stiff
+        );
+        assert!(soft >= 2.0 * stiff, "{model}: {soft} vs {stiff}");
+        assert!(
+            uniform < 1.0,
+            "{model}: a uniform cantilever bends most at its root"
+        );
+    }
+}

@@ -28,15 +28,15 @@ fn cantilever_config(config: SimConfig) -> SimConfig {
     }
 }
 
-/// A body of `cells`, rigid groups of the oriented model, at height 1 m, with the
+/// A body of `cells`, rigid groups of the oriented model, centred at height 1 m, with the
 /// particles of its first `deep` columns along x pinned (its left end at x = −1.2).
 fn clamped(cells: UVec3, deep: f32) -> BodyDesc {
     let mut body = BodyDesc::new(Shape::cuboid(cells), H);
     body.position = Vec3::new(0.0, 1.0, 0.0);
     body.material = rigid_oriented();
     body.pins = vec![PinRegion {
-        min: Vec3::new(-1.3, 0.0, -2.0),
-        max: Vec3::new(-1.2 + deep * H, 2.0, 2.0),
+        min: Vec3::new(-1.3, -1.0, -2.0),
+        max: Vec3::new(-1.2 + deep * H, 3.0, 2.0),
         ..PinRegion::default()
     }];
     body
@@ -54,12 +54,14 @@ pub fn rod_scene(config: SimConfig) -> Scene {
     }
 }
 
-/// `sheet`: a 24×24×1 sheet clamped two particles deep along one edge, rigid groups of
-/// the oriented model: it holds out where the cluster model's sheet folds.
+/// `sheet`: the cantilever's beam made 24×24×1 — a sheet standing in the xy plane —
+/// clamped two particles deep along its left edge, rigid groups of the oriented model:
+/// it holds out where the cluster model's sheet, whose clusters are all flat, folds out
+/// of its plane like cloth.
 pub fn sheet_scene(config: SimConfig) -> Scene {
     Scene {
         config: cantilever_config(config),
-        bodies: vec![clamped(UVec3::new(24, 1, 24), 2.0)],
+        bodies: vec![clamped(UVec3::new(24, 24, 1), 2.0)],
         tools: vec![],
         colliders: vec![],
         frames: 600,

@@ -84,7 +84,7 @@ pub const BUILTIN_SCENES: [(&str, &str); 19] = [
     ),
     (
         "sheet",
-        "a 24×24×1 sheet of oriented particles clamped along one edge holds out under gravity",
+        "a 24×24×1 sheet of oriented particles standing on edge, clamped along its left edge, holds out under gravity",
     ),
 ];
 
