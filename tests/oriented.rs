@@ -327,3 +327,41 @@ fn a_beam_soft_on_its_outer_half_bends_more_there_in_both_models() {
         );
     }
 }
+
+#[test]
+fn a_wheel_on_its_axle_keeps_its_spin_and_shape_for_ten_turns() {
+    use cleave::io::oriented_scenes::{WHEEL_H, WHEEL_SPIN};
+    let scene = builtin("wheel", 0).unwrap();
+    let (mut sim, body) = start(&scene);
+    let rest = sim.positions(body).unwrap();
+    // the axle: the particles of the column the disc turns about
+    let on_axle = |x: Vec3| x.x > 0.0 && x.x < WHEEL_H && x.y > 1.0 && x.y < 1.0 + WHEEL_H;
+    let axis = Vec3::new(0.5 * WHEEL_H, 1.0 + 0.5 * WHEEL_H, 0.0);
+    let radius = |x: &[(u32, Vec3)]| {
+        x.iter()
+            .map(|(_, p)| (*p - axis).truncate().length())
+            .fold(0.0f32, f32::max)
+    };
+    let points = |x: &[(u32, Vec3)]| x.iter().map(|(_, p)| *p).collect::<Vec<_>>();
+    sim.run(scene.frames - 1);
+    let before = sim.positions(body).unwrap();
+    sim.step();
+    let now = sim.positions(body).unwrap();
+    let (turn, ..) = rigid_fit(&points(&before), &points(&now));
+    let spin = turn.to_scaled_axis().z / scene.config.dt;
+    let axle_off = rest
+        .iter()
+        .zip(&now)
+        .filter(|((_, r), _)| on_axle(*r))
+        .map(|((_, r), (_, x))| (*x - *r).length() / WHEEL_H)
+        .fold(0.0f32, f32::max);
+    let stretch = radius(&now) / radius(&rest) - 1.0;
+    eprintln!(
+        "wheel after 10 turns: spin {:.2}% of 2 rev/s, radius {:+.3}%, axle off by {axle_off:.3} h",
+        100.0 * spin / WHEEL_SPIN,
+        100.0 * stretch
+    );
+    assert!(spin >= 0.95 * WHEEL_SPIN, "{spin} rad/s");
+    assert!(stretch.abs() < 0.01, "{stretch}");
+    assert!(axle_off < 0.1, "{axle_off} h");
+}

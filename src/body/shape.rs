@@ -78,6 +78,13 @@ pub enum Shape {
         /// Half length of the shaft (without the caps).
         half_length: f32,
     },
+    /// A solid cylinder along the local Z axis (a disc, a wheel, an axle).
+    Cylinder {
+        /// Radius.
+        radius: f32,
+        /// Half its length along Z.
+        half_length: f32,
+    },
     /// Any signed-distance function.
     Sdf(SdfShape),
     /// A closed triangle mesh (inside by winding number).
@@ -131,6 +138,15 @@ impl Shape {
                 let e = Vec3::new(radius + half_length, *radius, *radius);
                 (-e, e)
             }
+            Shape::Cylinder {
+                radius,
+                half_length,
+            } => {
+                check_positive("shape.radius", *radius)?;
+                check_positive("shape.half_length", *half_length)?;
+                let e = Vec3::new(*radius, *radius, *half_length);
+                (-e, e)
+            }
             Shape::Sdf(s) => {
                 check_finite_vec("shape.min", s.min)?;
                 check_finite_vec("shape.max", s.max)?;
@@ -161,6 +177,13 @@ impl Shape {
             } => {
                 let x = p.x.clamp(-half_length, *half_length);
                 (p - Vec3::new(x, 0.0, 0.0)).length() - radius
+            }
+            Shape::Cylinder {
+                radius,
+                half_length,
+            } => {
+                let q = glam::Vec2::new(p.truncate().length() - radius, p.z.abs() - half_length);
+                q.max(glam::Vec2::ZERO).length() + q.max_element().min(0.0)
             }
             Shape::Sdf(s) => (s.sdf)(p),
             // (voxelising a mesh tests whole rows instead, see `voxelise`)

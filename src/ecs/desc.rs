@@ -130,6 +130,9 @@ pub struct BodyDesc {
     pub rotation: Quat,
     /// Initial velocity.
     pub velocity: Vec3,
+    /// Initial angular velocity (rad/s) about [`BodyDesc::position`]: each particle
+    /// starts at `velocity + ω × (x − position)` and turning at `ω`.
+    pub angular_velocity: Vec3,
     /// Material and clustering parameters.
     pub material: Material,
     /// Regions of pinned particles (world space, after placement).
@@ -173,6 +176,7 @@ impl BodyDesc {
             position: Vec3::ZERO,
             rotation: Quat::IDENTITY,
             velocity: Vec3::ZERO,
+            angular_velocity: Vec3::ZERO,
             material: Material::default(),
             pins: Vec::new(),
             attachments: Vec::new(),

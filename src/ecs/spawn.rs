@@ -210,6 +210,12 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
             "finite, non-zero quaternion",
         )
     })?;
+    check_vec_within(
+        "body.angular_velocity",
+        desc.angular_velocity,
+        MAX_SPEED,
+        "|ωx|, |ωy|, |ωz| ≤ 1e4 (rad/s)",
+    )?;
     for (i, pin) in desc.pins.iter().enumerate() {
         check_finite_vec(&format!("body.pins[{i}].min"), pin.min)?;
         check_finite_vec(&format!("body.pins[{i}].max"), pin.max)?;
@@ -340,9 +346,12 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
         (
             Particle { body, index: i },
             Position(x),
-            Velocity(pin.map_or(desc.velocity, |r| r.velocity)),
+            Velocity(pin.map_or(
+                desc.velocity + desc.angular_velocity.cross(x - desc.position),
+                |r| r.velocity,
+            )),
             Orientation(Quat::IDENTITY),
-            AngularVelocity(Vec3::ZERO),
+            AngularVelocity(desc.angular_velocity),
             InvMass(inv_mass),
         )
     }));

@@ -1,10 +1,11 @@
 //! The built-in scenes of oriented particles (SPEC §5): `rod` (a 24×1×1 rod clamped at
 //! its root, which the cluster model cannot hold out), `sheet` (24×24×1 clamped along one
-//! edge).
+//! edge), `wheel` (a rigid disc spinning on an axle: two explicit groups sharing the
+//! axle's particles, a joint).
 
 use crate::body::shape::Shape;
 use crate::config::{Material, Model, SimConfig};
-use crate::ecs::desc::{BodyDesc, PinRegion, Scene};
+use crate::ecs::desc::{BodyDesc, GroupDesc, PinRegion, Region, Scene};
 use glam::{UVec3, Vec3};
 
 /// Lattice spacing of the scenes (metres).
@@ -65,5 +66,68 @@ pub fn sheet_scene(config: SimConfig) -> Scene {
         tools: vec![],
         colliders: vec![],
         frames: 600,
+    }
+}
+
+/// The wheel's lattice spacing (metres).
+pub const WHEEL_H: f32 = 0.05;
+
+/// The wheel's spin: two turns a second about +z.
+pub const WHEEL_SPIN: f32 = 2.0 * std::f32::consts::TAU;
+
+/// `wheel`: a disc 16 spacings across and 4 thick (a cylinder along z) at height 1 m,
+/// spinning at two turns a second with gravity off. Two rigid explicit groups: the whole
+/// disc, and its axle — the column of particles through its middle, pinned at both
+/// ends. They share the axle's particles, which are then non-oriented: a joint about
+/// which the disc turns freely. Ten turns in 300 frames.
+pub fn wheel_scene(config: SimConfig) -> Scene {
+    let h = WHEEL_H;
+    let mut body = BodyDesc::new(
+        Shape::Cylinder {
+            radius: 8.0 * h,
+            half_length: 2.0 * h,
+        },
+        h,
+    );
+    body.position = Vec3::new(0.0, 1.0, 0.0);
+    body.angular_velocity = Vec3::new(0.0, 0.0, WHEEL_SPIN);
+    body.material = rigid_oriented();
+    // the column of lattice coordinate (0, 0): its particles at x = y = h/2 from the
+    // disc's axis
+    let axle = |z0: f32, z1: f32| Region {
+        min: Vec3::new(0.0, 1.0, z0),
+        max: Vec3::new(h, 1.0 + h, z1),
+    };
+    body.groups = vec![
+        GroupDesc {
+            region: Region {
+                min: Vec3::splat(-10.0),
+                max: Vec3::splat(10.0),
+            },
+            compliance: 0.0,
+        },
+        GroupDesc {
+            region: axle(-1.0, 1.0),
+            compliance: 0.0,
+        },
+    ];
+    body.pins = [axle(-1.0, -1.5 * h), axle(1.5 * h, 1.0)]
+        .map(|r| PinRegion {
+            min: r.min,
+            max: r.max,
+            ..PinRegion::default()
+        })
+        .to_vec();
+    Scene {
+        config: SimConfig {
+            gravity: Vec3::ZERO,
+            ground: None,
+            damping: 0.0,
+            ..config
+        },
+        bodies: vec![body],
+        tools: vec![],
+        colliders: vec![],
+        frames: 300,
     }
 }

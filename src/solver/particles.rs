@@ -134,6 +134,7 @@ impl Particles {
             inv_mass: &self.inv_mass,
             corrections: &mut self.corrections,
             orientations: &mut self.orientations,
+            spins: &self.spins,
         }
     }
 

@@ -89,6 +89,8 @@ pub struct ParticleState<'a> {
     /// Orientations (predicted at the start of the substep); a term that turns particles
     /// sets them here, and angular velocities are derived from the substep's turn.
     pub orientations: &'a mut [Quat],
+    /// Angular velocities (rad/s) the orientations were predicted with.
+    pub spins: &'a [Vec3A],
 }
 
 impl ParticleState<'_> {

@@ -70,6 +70,9 @@ pub fn coordinates<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
 pub fn velocity<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
     bounded(d, 1e4, "|vx|, |vy|, |vz| ≤ 1e4 (m/s)")
 }
+pub fn angular_velocity<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
+    bounded(d, 1e4, "|ωx|, |ωy|, |ωz| ≤ 1e4 (rad/s)")
+}
 pub fn gravity<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
     bounded(d, 1e4, "|gx|, |gy|, |gz| ≤ 1e4 (m/s²)")
 }

@@ -185,6 +185,13 @@ impl SceneFile {
                         radius: *radius,
                         half_length: *half_length,
                     },
+                    Shape::Cylinder {
+                        radius,
+                        half_length,
+                    } => ShapeFile::Cylinder {
+                        radius: *radius,
+                        half_length: *half_length,
+                    },
                     Shape::Sdf(_) | Shape::Mesh(_) => return None,
                 };
                 if b.render_mesh.is_some() {
@@ -196,6 +203,7 @@ impl SceneFile {
                     position: b.position,
                     rotation: b.rotation,
                     velocity: b.velocity,
+                    angular_velocity: b.angular_velocity,
                     material: MaterialFile::from_material(&b.material),
                     pins: b.pins.clone(),
                     attachments: attachment_files(&b.attachments, Hold::Each),
@@ -275,6 +283,13 @@ impl SceneFile {
                     radius: *radius,
                     half_length: *half_length,
                 },
+                ShapeFile::Cylinder {
+                    radius,
+                    half_length,
+                } => Shape::Cylinder {
+                    radius: *radius,
+                    half_length: *half_length,
+                },
                 ShapeFile::Mesh { path } => {
                     let file = base_dir.join(path);
                     let mesh = TriangleMesh::load_obj(&file)
@@ -299,6 +314,7 @@ impl SceneFile {
                 position: b.position,
                 rotation: b.rotation,
                 velocity: b.velocity,
+                angular_velocity: b.angular_velocity,
                 material,
                 pins: b.pins.clone(),
                 attachments: [(&b.attachments, Hold::Each), (&b.centroids, Hold::Centroid)]

@@ -102,6 +102,9 @@ pub struct BodyFile {
     /// Initial velocity.
     #[serde(default, deserialize_with = "super::check::velocity")]
     pub velocity: Vec3,
+    /// Initial angular velocity (rad/s) about the body's position.
+    #[serde(default, deserialize_with = "super::check::angular_velocity")]
+    pub angular_velocity: Vec3,
     /// Material and clustering.
     #[serde(default)]
     pub material: MaterialFile,
@@ -251,6 +254,15 @@ pub enum ShapeFile {
         radius: f32,
         /// Half length of the shaft.
         #[serde(deserialize_with = "super::check::finite")]
+        half_length: f32,
+    },
+    /// A solid cylinder along Z.
+    Cylinder {
+        /// Radius.
+        #[serde(deserialize_with = "super::check::positive")]
+        radius: f32,
+        /// Half its length along Z.
+        #[serde(deserialize_with = "super::check::positive")]
         half_length: f32,
     },
     /// A closed triangle mesh from an OBJ file (relative to the scene file).

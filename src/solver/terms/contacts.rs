@@ -355,6 +355,7 @@ mod tests {
             inv_mass: &inv_mass,
             corrections: &mut corrections,
             orientations: &mut vec![glam::Quat::IDENTITY; previous.len()],
+            spins: &vec![Vec3A::ZERO; previous.len()],
         };
         c.begin_substep(&step(1), &mut state);
         for _ in 0..iterations {
@@ -484,6 +485,7 @@ mod tests {
                 inv_mass: &[0.0, 1.0],
                 corrections: &mut corrections,
                 orientations: &mut [glam::Quat::IDENTITY; 2],
+                spins: &[Vec3A::ZERO; 2],
             };
             c.begin_substep(&step(1), &mut state);
             c.project(&step(1), &mut state);

@@ -286,6 +286,7 @@ mod tests {
             inv_mass: &inv_mass,
             corrections: &mut corrections,
             orientations: &mut vec![glam::Quat::IDENTITY; previous.len()],
+            spins: &vec![Vec3A::ZERO; previous.len()],
         };
         term.begin_substep(&step, &mut state);
         term.project(&step, &mut state);

@@ -47,7 +47,7 @@ impl Fit {
 /// The fit's weight of a member of inverse mass `inv_mass`: its mass, or
 /// `kinematic` for one held still.
 #[inline]
-fn weight(inv_mass: f32, kinematic: f32) -> f32 {
+pub(super) fn weight(inv_mass: f32, kinematic: f32) -> f32 {
     if inv_mass > 0.0 {
         1.0 / inv_mass
     } else {
@@ -58,7 +58,7 @@ fn weight(inv_mass: f32, kinematic: f32) -> f32 {
 /// The weight of a member held still in a group of dense `members`:
 /// [`KINEMATIC_WEIGHT`] times the heaviest moving member's mass.
 #[inline]
-pub fn kinematic_weight(members: &[u32], inv_mass: impl Fn(usize) -> f32) -> f32 {
+pub(super) fn kinematic_weight(members: &[u32], inv_mass: impl Fn(usize) -> f32) -> f32 {
     let lightest_inverse = members
         .iter()
         .map(|&m| inv_mass(m as usize))
@@ -74,7 +74,7 @@ pub fn kinematic_weight(members: &[u32], inv_mass: impl Fn(usize) -> f32) -> f32
 
 /// The fit's weights of the members `members` of a group, their inverse masses
 /// `inv_mass(d)` (see [`KINEMATIC_WEIGHT`]).
-pub fn fit_weights<'a>(
+fn fit_weights<'a>(
     members: &'a [u32],
     inv_mass: impl Fn(usize) -> f32 + Copy + 'a,
 ) -> impl Iterator<Item = f32> + 'a {

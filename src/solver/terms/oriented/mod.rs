@@ -215,6 +215,9 @@ impl Term for Oriented {
             self.moved.clear();
             self.moved.resize(n, Vec3A::ZERO);
         }
+        for body in &self.bodies {
+            predict_rigid_parts(body, state, step.dt);
+        }
         for (d, moved) in self.moved.iter_mut().enumerate() {
             let carry = *moved * WARM_START;
             *moved = Vec3A::ZERO;
@@ -258,5 +261,56 @@ impl Term for Oriented {
 
     fn projective(&self) -> Option<&dyn ProjectiveTerm> {
         Some(self)
+    }
+}
+
+/// Moves the predictions of every explicit group's oriented, moving members along the
+/// group's rigid motion: turned about the group's weighted centroid by its spin (its
+/// members' mean) instead of along straight lines. A straight-line prediction cuts the
+/// arc: a part turning by `θ = ω dt` per substep is fitted turned by `atan θ`, so it
+/// would lose `θ²/3` of its spin every substep (a wheel at 2 rev/s over a tenth of its
+/// spin in ten turns); a particle's orientation, predicted by the exact turn, carries the
+/// spin instead. The moves count as corrections, so velocities follow the arc.
+fn predict_rigid_parts(body: &BodyGroups, state: &mut ParticleState, dt: f32) {
+    for g in body.groups.iter().filter(|g| g.turns == Turns::All) {
+        let range = body.range(g);
+        let members = &body.members[range.clone()];
+        let oriented = || {
+            range
+                .clone()
+                .filter(|&k| body.moment[k] != Vec3A::ZERO)
+                .map(|k| body.members[k] as usize)
+        };
+        let count = oriented().count();
+        if count == 0 {
+            continue;
+        }
+        let spin = oriented().map(|d| state.spins[d]).sum::<Vec3A>() / count as f32;
+        if spin == Vec3A::ZERO || !spin.is_finite() {
+            continue;
+        }
+        let kinematic = fit::kinematic_weight(members, |d| state.inv_mass[d]);
+        let (mut before, mut after, mut total) = (Vec3A::ZERO, Vec3A::ZERO, 0.0f32);
+        let origin = (
+            state.previous[members[0] as usize],
+            state.positions[members[0] as usize],
+        );
+        for &m in members {
+            let m = m as usize;
+            let w = fit::weight(state.inv_mass[m], kinematic);
+            before += (state.previous[m] - origin.0) * w;
+            after += (state.positions[m] - origin.1) * w;
+            total += w;
+        }
+        let (before, after) = (origin.0 + before / total, origin.1 + after / total);
+        let turn = Quat::from_scaled_axis((spin * dt).into());
+        for d in oriented() {
+            if state.inv_mass[d] == 0.0 {
+                continue;
+            }
+            let target = after + turn * (state.previous[d] - before);
+            let step = target - state.positions[d];
+            state.shift(d, step);
+        }
     }
 }
