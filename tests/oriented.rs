@@ -365,3 +365,61 @@ fn a_wheel_on_its_axle_keeps_its_spin_and_shape_for_ten_turns() {
     assert!(stretch.abs() < 0.01, "{stretch}");
     assert!(axle_off < 0.1, "{axle_off} h");
 }
+
+/// The depth (metres) of the dent at the middle of the block's top in the `dent` scene
+/// with yield strain `yield_strain`: the deepest it went, and what is left at the end.
+fn dent(yield_strain: f32) -> (f32, f32) {
+    use cleave::io::oriented_scenes::DENT_H;
+    let mut scene = builtin("dent", 0).unwrap();
+    scene.bodies[0].material.yield_strain = yield_strain;
+    let (mut sim, body) = start(&scene);
+    // the four top particles around the middle (the sphere's axis)
+    let rest = sim.positions(body).unwrap();
+    let top = rest.iter().map(|(_, x)| x.y).fold(f32::MIN, f32::max);
+    let middle: Vec<u32> = rest
+        .iter()
+        .filter(|(_, x)| x.y > top - 0.1 * DENT_H && x.x.abs() < DENT_H && x.z.abs() < DENT_H)
+        .map(|(i, _)| *i)
+        .collect();
+    assert_eq!(middle.len(), 4);
+    let depth = |sim: &Simulation| {
+        let x = sim.positions(body).unwrap();
+        // against the block's top far from the dent (its corners), so that the whole
+        // block settling on the ground does not count
+        let corners: Vec<f32> = x
+            .iter()
+            .zip(&rest)
+            .filter(|(_, (_, r))| r.y > top - 0.1 * DENT_H)
+            .filter(|(_, (_, r))| r.x.abs() > 4.0 * DENT_H && r.z.abs() > 4.0 * DENT_H)
+            .map(|((_, p), _)| p.y)
+            .collect();
+        let corner = corners.iter().sum::<f32>() / corners.len() as f32;
+        let mid = middle.iter().map(|&i| x[i as usize].1.y).sum::<f32>() / 4.0;
+        corner - mid
+    };
+    let mut deepest = 0.0f32;
+    for _ in 0..scene.frames {
+        sim.step();
+        deepest = deepest.max(depth(&sim));
+    }
+    (deepest, depth(&sim))
+}
+
+#[test]
+fn a_plastic_block_keeps_a_dent_and_an_elastic_one_springs_back() {
+    let (deepest, left) = dent(builtin("dent", 0).unwrap().bodies[0].material.yield_strain);
+    let (elastic_deepest, elastic_left) = dent(0.0);
+    eprintln!(
+        "dent: plastic {:.3} h deepest, {:.3} h left; elastic {:.3} h deepest, {:.3} h left",
+        deepest / 0.05,
+        left / 0.05,
+        elastic_deepest / 0.05,
+        elastic_left / 0.05
+    );
+    assert!(deepest > 0.05, "the sphere dents the block: {deepest} m");
+    assert!(left >= 0.5 * deepest, "{left} of {deepest}");
+    assert!(
+        elastic_left.abs() <= 0.05 * elastic_deepest,
+        "{elastic_left} of {elastic_deepest}"
+    );
+}

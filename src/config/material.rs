@@ -101,6 +101,16 @@ pub struct Material {
     /// moment matrix generalised shape matching adds (oriented model); `None`: a sphere
     /// of half the lattice spacing.
     pub particle_radii: Option<Vec3>,
+    /// Plasticity (oriented model): the strain of a group's shape past which its rest
+    /// shape creeps toward its deformed shape (≥ 0; 0, the default: elastic). The strain
+    /// is the group's RMS deviation from its fitted rigid motion over its RMS rest
+    /// offset.
+    pub yield_strain: f32,
+    /// How fast a yielded rest shape creeps, as the share of its excess strain taken per
+    /// second (0–1).
+    pub creep: f32,
+    /// The most a group's rest shape may drift from its lattice shape, as strain (≥ 0).
+    pub max_plastic_strain: f32,
 }
 
 /// Rubber ([`Material::rubber`]): a body a newcomer spawns deforms where it lands.
@@ -128,6 +138,9 @@ impl Default for Material {
             patch_threshold: 0.1,
             model: Model::Clusters,
             particle_radii: None,
+            yield_strain: 0.0,
+            creep: 0.5,
+            max_plastic_strain: 0.5,
         }
     }
 }
@@ -331,6 +344,27 @@ impl Material {
                 "each radius finite and > 0 (metres)",
             ));
         }
+        check_range(
+            "material.yield_strain",
+            self.yield_strain,
+            0.0,
+            1e3,
+            "0 ≤ yield_strain ≤ 1000 (0: elastic)",
+        )?;
+        check_range(
+            "material.creep",
+            self.creep,
+            0.0,
+            1.0,
+            "0 ≤ creep ≤ 1 (per second)",
+        )?;
+        check_range(
+            "material.max_plastic_strain",
+            self.max_plastic_strain,
+            0.0,
+            1e3,
+            "0 ≤ max_plastic_strain ≤ 1000",
+        )?;
         if !(1..=crate::body::patches::MAX_RINGS).contains(&self.patch_rings) {
             return Err(out_of_range(
                 "material.patch_rings",
@@ -473,6 +507,20 @@ mod tests {
                     ..Default::default()
                 },
                 "material.max_cluster_size",
+            ),
+            (
+                Material {
+                    yield_strain: -0.1,
+                    ..Default::default()
+                },
+                "material.yield_strain",
+            ),
+            (
+                Material {
+                    creep: 1.5,
+                    ..Default::default()
+                },
+                "material.creep",
             ),
             (
                 Material {

@@ -1,11 +1,13 @@
 //! The built-in scenes of oriented particles (SPEC §5): `rod` (a 24×1×1 rod clamped at
 //! its root, which the cluster model cannot hold out), `sheet` (24×24×1 clamped along one
 //! edge), `wheel` (a rigid disc spinning on an axle: two explicit groups sharing the
-//! axle's particles, a joint).
+//! axle's particles, a joint), `dent` (a plastic block pressed by a kinematic sphere).
 
 use crate::body::shape::Shape;
 use crate::config::{Material, Model, SimConfig};
-use crate::ecs::desc::{BodyDesc, GroupDesc, PinRegion, Region, Scene};
+use crate::cut::tool::{Path, Pose};
+use crate::ecs::desc::{BodyDesc, ColliderDesc, GroupDesc, PinRegion, Region, Scene};
+use crate::geometry::collider::ColliderShape;
 use glam::{UVec3, Vec3};
 
 /// Lattice spacing of the scenes (metres).
@@ -129,5 +131,55 @@ pub fn wheel_scene(config: SimConfig) -> Scene {
         tools: vec![],
         colliders: vec![],
         frames: 300,
+    }
+}
+
+/// The dent's lattice spacing (metres).
+pub const DENT_H: f32 = 0.05;
+
+/// The height of the dent block's top particles' centres (metres).
+pub const DENT_TOP: f32 = 0.3 - 0.5 * DENT_H;
+
+/// How deep the dent scene's sphere presses below the block's top (metres).
+pub const DENT_DEPTH: f32 = 3.0 * DENT_H;
+
+/// `dent`: a 12×6×12 block of the oriented model resting on the ground, plastic (it
+/// yields past a strain of 0.01 and creeps toward its deformed shape at the full rate),
+/// pressed 3 spacings deep at the middle of its top by a kinematic sphere 8 spacings
+/// across, held there for 1.5 s, then lifted away: the block keeps a dent.
+pub fn dent_scene(config: SimConfig) -> Scene {
+    let h = DENT_H;
+    let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(12, 6, 12)), h);
+    body.position = Vec3::new(0.0, 0.15, 0.0);
+    body.material = Material {
+        model: Model::Oriented,
+        yield_strain: 0.01,
+        creep: 1.0,
+        max_plastic_strain: 0.5,
+        ..Material::default()
+    };
+    let radius = 4.0 * h;
+    // the sphere's centre when it just touches the top particles' balls
+    let touching = DENT_TOP + 0.5 * h + radius;
+    let at = |y: f32| Pose::at(Vec3::new(0.0, y, 0.0));
+    let sphere = ColliderDesc {
+        shape: ColliderShape::Sphere { radius },
+        friction: 0.5,
+        pose: at(touching + h),
+        path: Path {
+            keys: vec![
+                (0.5, at(touching + h)),
+                (1.5, at(touching - DENT_DEPTH)),
+                (3.0, at(touching - DENT_DEPTH)),
+                (3.5, at(touching + 4.0 * h)),
+            ],
+        },
+    };
+    Scene {
+        config,
+        bodies: vec![body],
+        tools: vec![],
+        colliders: vec![sphere],
+        frames: 360,
     }
 }

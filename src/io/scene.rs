@@ -12,7 +12,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// Names and one-line descriptions of the built-in scenes.
-pub const BUILTIN_SCENES: [(&str, &str); 20] = [
+pub const BUILTIN_SCENES: [(&str, &str); 21] = [
     ("drop", "a 16×8×8 box falls on the ground and settles"),
     (
         "cantilever",
@@ -81,6 +81,10 @@ pub const BUILTIN_SCENES: [(&str, &str); 20] = [
     (
         "rod",
         "a 24×1×1 rod of oriented particles clamped at its root holds out under gravity",
+    ),
+    (
+        "dent",
+        "a plastic block of oriented particles pressed by a sphere keeps a dent",
     ),
     (
         "wheel",
@@ -275,6 +279,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
         "rod" => crate::io::oriented_scenes::rod_scene(config),
         "sheet" => crate::io::oriented_scenes::sheet_scene(config),
         "wheel" => crate::io::oriented_scenes::wheel_scene(config),
+        "dent" => crate::io::oriented_scenes::dent_scene(config),
         "cantilever" => {
             let mut body = rigid_body(Shape::cuboid(UVec3::new(24, 6, 6)), H);
             body.position = Vec3::new(0.0, 1.0, 0.0);

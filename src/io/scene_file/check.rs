@@ -135,6 +135,22 @@ pub fn particle_radii<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Vec3>, D
         _ => Ok(v),
     }
 }
+pub fn yield_strain<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(
+        v,
+        (0.0..=1e3).contains(&v),
+        "0 ≤ yield_strain ≤ 1000 (0: elastic)",
+    )
+}
+pub fn creep<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, (0.0..=1.0).contains(&v), "0 ≤ creep ≤ 1 (per second)")
+}
+pub fn max_plastic_strain<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    let v = f32::deserialize(d)?;
+    range::<D>(v, (0.0..=1e3).contains(&v), "0 ≤ max_plastic_strain ≤ 1000")
+}
 pub fn patch_threshold<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;
     range::<D>(

@@ -134,6 +134,9 @@ impl MaterialFile {
             patch_threshold: m.patch_threshold,
             model: m.model,
             particle_radii: m.particle_radii,
+            yield_strain: m.yield_strain,
+            creep: m.creep,
+            max_plastic_strain: m.max_plastic_strain,
         }
     }
 
@@ -160,6 +163,9 @@ impl MaterialFile {
             patch_threshold: self.patch_threshold,
             model: self.model,
             particle_radii: self.particle_radii,
+            yield_strain: self.yield_strain,
+            creep: self.creep,
+            max_plastic_strain: self.max_plastic_strain,
         }
     }
 }

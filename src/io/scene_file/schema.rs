@@ -334,6 +334,15 @@ pub struct MaterialFile {
     /// a sphere of half the spacing.
     #[serde(deserialize_with = "super::check::particle_radii")]
     pub particle_radii: Option<Vec3>,
+    /// Strain past which a group's rest shape creeps (oriented model; 0: elastic).
+    #[serde(deserialize_with = "super::check::yield_strain")]
+    pub yield_strain: f32,
+    /// Share of a yielded group's excess strain taken into its rest shape per second (0–1).
+    #[serde(deserialize_with = "super::check::creep")]
+    pub creep: f32,
+    /// Most a group's rest shape may drift from its lattice shape, as strain.
+    #[serde(deserialize_with = "super::check::max_plastic_strain")]
+    pub max_plastic_strain: f32,
 }
 
 impl Default for MaterialFile {

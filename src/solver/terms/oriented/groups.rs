@@ -60,6 +60,8 @@ pub struct BodyGroups {
     pub compliance: Vec<f32>,
     /// Accumulated `λ` of each membership in this substep.
     pub lambda: Vec<Vec3A>,
+    /// The body's plasticity, if its material yields.
+    pub plastic: Option<super::plastic::Plasticity>,
 }
 
 /// A group before its memberships are laid out: body-local members, the compliance
@@ -178,6 +180,7 @@ impl BodyGroups {
             }
         }
         out.lambda = vec![Vec3A::ZERO; out.members.len()];
+        out.plastic = super::plastic::Plasticity::of(body.material, &out.rest);
         Some(out)
     }
 

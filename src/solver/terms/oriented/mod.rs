@@ -32,6 +32,7 @@
 
 pub mod fit;
 pub mod groups;
+pub mod plastic;
 mod projective;
 
 use crate::solver::disjoint::Disjoint;
@@ -208,6 +209,7 @@ impl Term for Oriented {
     fn begin_substep(&mut self, step: &Substep, state: &mut ParticleState) {
         for body in &mut self.bodies {
             body.lambda.iter_mut().for_each(|l| *l = Vec3A::ZERO);
+            plastic::creep(body, state.previous, state.orientations, step.dt);
         }
         let n = state.positions.len();
         if self.moved_dt != step.dt || self.moved.len() != n {

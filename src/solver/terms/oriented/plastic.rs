@@ -1,0 +1,107 @@
+//! Plasticity of the oriented groups (material `yield_strain`, `creep`,
+//! `max_plastic_strain`): where a group's shape strays from its fitted rigid motion by
+//! more than the yield strain, its rest shape creeps toward the deformed shape, up to the
+//! largest plastic strain. Rest shapes here are the groups' own; the lattice's rest
+//! positions, which the reconstruction and the fidelity comparison use, never change.
+//!
+//! A group's strain is `ε = √(Σ|dⱼ|² / Σ|r̄ⱼ|²)` with `dⱼ = Rᵀ(xⱼ − c) − r̄ⱼ` the
+//! deformation of member `j` in the group's rest frame and `r̄ⱼ` its rest offset. Past
+//! the yield, each rest offset takes the share `min(creep·dt, 1)·(1 − ε_yield/ε)` of
+//! its deformation every substep (so the elastic strain left tends to the yield); the
+//! rest shape's own strain from the lattice's is then capped at the maximum.
+
+use super::fit::fit;
+use super::groups::BodyGroups;
+use crate::config::Material;
+use glam::{Quat, Vec3A};
+
+/// A body's plasticity, and its groups' lattice rest shapes.
+#[derive(Clone, Debug, Default)]
+pub struct Plasticity {
+    /// Strain past which a group yields.
+    pub yield_strain: f32,
+    /// Share of the excess strain taken per second.
+    pub creep: f32,
+    /// Largest strain of a rest shape from the lattice's.
+    pub max_strain: f32,
+    /// Each membership's lattice rest position.
+    pub lattice_rest: Vec<Vec3A>,
+}
+
+impl Plasticity {
+    /// The plasticity of a body of `material` whose groups rest at `rest`, or `None` for
+    /// an elastic material.
+    pub fn of(material: &Material, rest: &[Vec3A]) -> Option<Self> {
+        (material.yield_strain > 0.0).then(|| Plasticity {
+            yield_strain: material.yield_strain,
+            creep: material.creep,
+            max_strain: material.max_plastic_strain,
+            lattice_rest: rest.to_vec(),
+        })
+    }
+}
+
+/// Lets every group of `body` yield at `positions` (the last substep's solved positions)
+/// over a substep of `dt` (see the module docs). Members are weighted alike.
+pub fn creep(body: &mut BodyGroups, positions: &[Vec3A], orientations: &[Quat], dt: f32) {
+    let Some(plastic) = body.plastic.take() else {
+        return;
+    };
+    let share = (plastic.creep * dt).min(1.0);
+    for g in &body.groups {
+        let range = body.range(g);
+        let members = &body.members[range.clone()];
+        let rest = &body.rest[range.clone()];
+        let f = fit(
+            members,
+            rest,
+            &body.moment[range.clone()],
+            |_| 1.0,
+            |d| positions[d],
+            |d| orientations[d],
+            orientations[members[0] as usize],
+        );
+        let back = f.rotation.conjugate();
+        let (mut deformed, mut spread) = (0.0f32, 0.0f32);
+        for (&m, r) in members.iter().zip(rest) {
+            let offset = *r - f.rest_centroid;
+            let d = back * (positions[m as usize] - f.centroid) - offset;
+            deformed += d.length_squared();
+            spread += offset.length_squared();
+        }
+        if spread == 0.0 {
+            continue;
+        }
+        let strain = (deformed / spread).sqrt();
+        if !(strain > plastic.yield_strain) {
+            continue;
+        }
+        let take = share * (1.0 - plastic.yield_strain / strain);
+        let lattice = &plastic.lattice_rest[range.clone()];
+        let lattice_centroid = lattice.iter().copied().sum::<Vec3A>() / lattice.len() as f32;
+        let mut moved: Vec<Vec3A> = Vec::with_capacity(members.len());
+        for (&m, r) in members.iter().zip(rest) {
+            let offset = *r - f.rest_centroid;
+            let d = back * (positions[m as usize] - f.centroid) - offset;
+            moved.push(offset + d * take);
+        }
+        // the rest shape's drift from the lattice's, capped
+        let centroid = moved.iter().copied().sum::<Vec3A>() / moved.len() as f32;
+        let (mut drift, mut base) = (0.0f32, 0.0f32);
+        for (m, l) in moved.iter().zip(lattice) {
+            drift += (*m - centroid - (*l - lattice_centroid)).length_squared();
+            base += (*l - lattice_centroid).length_squared();
+        }
+        let plastic_strain = (drift / base.max(f32::MIN_POSITIVE)).sqrt();
+        let keep = if plastic_strain > plastic.max_strain {
+            plastic.max_strain / plastic_strain
+        } else {
+            1.0
+        };
+        for ((r, m), l) in body.rest[range].iter_mut().zip(&moved).zip(lattice) {
+            let lattice_offset = *l - lattice_centroid;
+            *r = lattice_centroid + lattice_offset + (*m - centroid - lattice_offset) * keep;
+        }
+    }
+    body.plastic = Some(plastic);
+}
