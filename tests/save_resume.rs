@@ -80,6 +80,8 @@ fn a_saved_run_resumes_bit_for_bit() {
             CutMode::Remove,
             Model::Oriented,
         ),
+        // (plastic: its groups' rest shapes have crept by the save)
+        ("dent", SolverMode::Jacobi, CutMode::Remove, Model::Oriented),
     ] {
         let mut scene = builtin(name, 7).unwrap();
         scene.config.solver = solver;

@@ -34,7 +34,7 @@ use crate::io::save_file::{SaveReader, SaveWriter};
 use crate::solver::clusters::term::ClusterTerm;
 use crate::solver::particles::Particles;
 use crate::solver::schemes::gauss_seidel::GaussSeidel;
-use crate::solver::terms::oriented::Oriented;
+use crate::solver::terms::oriented::{Oriented, SavedGroups};
 use crate::systems::{SyncSchedule, install};
 use bevy_ecs::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -105,8 +105,8 @@ struct AttachmentState {
 struct CacheState {
     clusters_term: ClusterTerm,
     gauss_seidel: GaussSeidel,
-    /// The oriented particles' warm start ([`Oriented::warm_start`]).
-    oriented_warm_start: (Vec<glam::Vec3A>, f32),
+    /// The oriented particles' warm start and plastic rest shapes.
+    oriented: SavedGroups,
     particles: Particles,
     entities: Vec<Entity>,
     locals: Vec<u32>,
@@ -285,14 +285,11 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
         cache: CacheState {
             clusters_term: cache.solver.clusters.clone(),
             gauss_seidel: cache.solver.gauss_seidel.clone(),
-            oriented_warm_start: cache
+            oriented: cache
                 .solver
                 .terms
                 .get::<Oriented>()
-                .map(|o| {
-                    let (moved, dt) = o.warm_start();
-                    (moved.to_vec(), dt)
-                })
+                .map(Oriented::saved)
                 .unwrap_or_default(),
             particles: cache.particles.clone(),
             entities: cache.entities.clone(),
@@ -517,10 +514,13 @@ fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Resul
     }
     let state = &saved.particles;
     let finite = |v: &[glam::Vec3A]| v.iter().all(|x| x.is_finite());
-    let (warm, warm_dt) = saved.oriented_warm_start;
-    if !(warm.is_empty() || warm.len() == slots && finite(&warm) && warm_dt.is_finite()) {
+    let oriented = saved.oriented;
+    let warm = &oriented.moved;
+    if !(warm.is_empty() || warm.len() == slots && finite(warm) && oriented.dt.is_finite())
+        || !finite(&oriented.plastic_rest)
+    {
         return Err(invalid(
-            "the oriented particles' warm start does not fit the layout",
+            "the oriented particles' state does not fit the layout",
         ));
     }
     let masses = state.inv_mass.iter().all(|w| w.is_finite() && *w >= 0.0);
@@ -550,7 +550,7 @@ fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Resul
     cache.solver.clusters = saved.clusters_term;
     cache.solver.gauss_seidel = saved.gauss_seidel;
     if let Some(term) = cache.solver.terms.get_mut::<Oriented>() {
-        term.resume_warm_start(warm, warm_dt);
+        term.resume(oriented);
     }
     cache.particles = saved.particles;
     cache.slot_of = ClusterSlots::from_clusters(&clusters);

@@ -57,8 +57,20 @@ pub struct Oriented {
     moved: Vec<Vec3A>,
     /// The time step `moved` was made with (a change drops it).
     moved_dt: f32,
-    /// A saved warm start to take up at the next topology change.
-    resumed: Option<(Vec<Vec3A>, f32)>,
+    /// A saved state to take up at the next topology change.
+    resumed: Option<SavedGroups>,
+}
+
+/// What a saved simulation keeps of the term: its warm start, and the rest shapes of
+/// plastic bodies' groups (everything else is taken again from the lattices).
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct SavedGroups {
+    /// Each dense particle's move by the groups in the last substep.
+    pub moved: Vec<Vec3A>,
+    /// That substep's time step.
+    pub dt: f32,
+    /// The rest positions of every plastic body's memberships, body after body.
+    pub plastic_rest: Vec<Vec3A>,
 }
 
 /// How far past its goal a sweep moves each member (successive over-relaxation, below
@@ -86,16 +98,24 @@ impl Oriented {
         self.bodies.iter().map(|b| b.members.len()).sum()
     }
 
-    /// The warm start a saved simulation keeps: each dense particle's move by the groups
-    /// in the last substep, and that substep's time step.
-    pub fn warm_start(&self) -> (&[Vec3A], f32) {
-        (&self.moved, self.moved_dt)
+    /// What a saved simulation keeps of the term (see [`SavedGroups`]).
+    pub fn saved(&self) -> SavedGroups {
+        SavedGroups {
+            moved: self.moved.clone(),
+            dt: self.moved_dt,
+            plastic_rest: self
+                .bodies
+                .iter()
+                .filter(|b| b.plastic.is_some())
+                .flat_map(|b| b.rest.iter().copied())
+                .collect(),
+        }
     }
 
-    /// Takes up a saved warm start ([`Oriented::warm_start`]) at the next topology change:
-    /// a loaded simulation's first, which lays out the particles as they were saved.
-    pub fn resume_warm_start(&mut self, moved: Vec<Vec3A>, dt: f32) {
-        self.resumed = Some((moved, dt));
+    /// Takes up a saved state ([`Oriented::saved`]) at the next topology change: a loaded
+    /// simulation's first, which lays out the particles as they were saved.
+    pub fn resume(&mut self, saved: SavedGroups) {
+        self.resumed = Some(saved);
     }
 
     /// Every group of the body `id` as its dense members, in the term's order.
@@ -203,7 +223,14 @@ impl Term for Oriented {
         self.version += 1;
         // (dense indices and groups changed: the last moves no longer fit, unless they
         // were saved with this very layout)
-        (self.moved, self.moved_dt) = self.resumed.take().unwrap_or_default();
+        let saved = self.resumed.take().unwrap_or_default();
+        (self.moved, self.moved_dt) = (saved.moved, saved.dt);
+        let mut rest = saved.plastic_rest.into_iter();
+        for body in self.bodies.iter_mut().filter(|b| b.plastic.is_some()) {
+            for r in &mut body.rest {
+                *r = rest.next().unwrap_or(*r);
+            }
+        }
     }
 
     fn begin_substep(&mut self, step: &Substep, state: &mut ParticleState) {
