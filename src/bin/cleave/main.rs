@@ -63,7 +63,8 @@ struct RunFlags {
     /// Add a frame to `run.gif` every N frames (0: no GIF).
     #[arg(long, default_value_t = 3, value_parser = whole::<u32>, allow_negative_numbers = true)]
     gif_every: u32,
-    /// Colour particles by piece or by cluster.
+    /// Colour particles by piece, by cluster, or by orientation (`orientation` draws the
+    /// particles, each coloured by its turn).
     #[arg(long, value_enum, default_value = "pieces")]
     color: ColorArg,
     /// Image width in pixels.
@@ -267,6 +268,7 @@ enum MethodArg {
 enum ColorArg {
     Pieces,
     Clusters,
+    Orientation,
 }
 
 /// What stands for a body in the pictures.
@@ -373,8 +375,11 @@ fn run_command(flags: RunFlags, relax: bool, pose: Option<PoseMethod>) -> Result
             color: match color {
                 ColorArg::Pieces => ColorMode::Pieces,
                 ColorArg::Clusters => ColorMode::Clusters,
+                ColorArg::Orientation => ColorMode::Orientation,
             },
             draw: match draw {
+                // (orientations are the particles': draw them)
+                DrawArg::Surfaces if matches!(color, ColorArg::Orientation) => Draw::Particles,
                 DrawArg::Surfaces => Draw::Surfaces,
                 DrawArg::Particles => Draw::Particles,
                 DrawArg::Both => Draw::Both,

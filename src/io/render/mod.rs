@@ -36,6 +36,16 @@ pub enum ColorMode {
     Pieces,
     /// One colour per cluster; a particle in several clusters blends their colours.
     Clusters,
+    /// By each particle's orientation: the diagonal `(1, 1, 1)/√3` turned by it, as RGB
+    /// (`0.5 + 0.5·v`); at rest a light grey, so a twisted rod shows its twist in hue.
+    Orientation,
+}
+
+/// The colour [`ColorMode::Orientation`] gives a particle turned by `q`.
+pub fn orientation_colour(q: glam::Quat) -> [u8; 3] {
+    let v = q * Vec3::ONE.normalize();
+    let c = (Vec3::splat(0.5) + 0.5 * v).clamp(Vec3::ZERO, Vec3::ONE) * 255.0;
+    [c.x as u8, c.y as u8, c.z as u8]
 }
 
 /// What stands for a body in a picture.
@@ -168,6 +178,9 @@ pub fn snapshot(world: &mut World, mode: ColorMode, draw: Draw) -> Snapshot {
                     let mean = sum / c.index.clusters_of(i).len().max(1) as f32;
                     [mean.x as u8, mean.y as u8, mean.z as u8]
                 }
+                (ColorMode::Orientation, _) => world
+                    .get::<crate::ecs::components::Orientation>(body.particles[i as usize])
+                    .map_or([128; 3], |q| orientation_colour(q.0)),
                 _ => PIECE_COLOURS[piece as usize % PIECE_COLOURS.len()],
             };
             spheres.push(Sphere {
@@ -467,5 +480,18 @@ mod tests {
         let canvas = render(&snapshot, &camera, 64, 48).unwrap();
         let centre = &canvas.pixmap.data()[(24 * 64 + 32) * 4..(24 * 64 + 32) * 4 + 3];
         assert!(centre[0] > 2 * centre[1] && centre[0] > 100, "{centre:?}");
+    }
+
+    #[test]
+    fn a_twist_about_any_axis_changes_the_orientation_colour() {
+        let rest = orientation_colour(glam::Quat::IDENTITY);
+        assert_eq!(rest, [201, 201, 201]);
+        for axis in [Vec3::X, Vec3::Y, Vec3::Z] {
+            let turned = orientation_colour(glam::Quat::from_axis_angle(axis, 1.0));
+            let apart: i32 = (0..3)
+                .map(|k| (turned[k] as i32 - rest[k] as i32).abs())
+                .sum();
+            assert!(apart > 60, "{axis}: {turned:?}");
+        }
     }
 }
