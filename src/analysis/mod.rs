@@ -3,6 +3,7 @@
 
 pub mod bench;
 pub mod bench_deform;
+pub mod bench_oriented;
 pub mod bench_pile;
 pub mod bench_surface;
 pub mod cluster_shape;

@@ -217,6 +217,48 @@ pub fn bench_surfaces(
     Ok(())
 }
 
+/// `cleave bench --model oriented`: each size's box in both models, in one run.
+pub fn bench_models(
+    sizes: &[u32],
+    steps: usize,
+    config: &SimConfig,
+    json: bool,
+) -> Result<(), String> {
+    if !json {
+        println!(
+            "cleave bench --model oriented: {}, {} substeps × {} iterations, {} timed steps, {} thread(s)",
+            config.solver,
+            config.substeps,
+            config.iterations,
+            steps.max(1),
+            rayon::current_num_threads()
+        );
+    }
+    for &n in sizes {
+        let r = cleave::analysis::bench_oriented::bench_models(n, steps, config)
+            .map_err(|e| e.to_string())?;
+        if json {
+            print_json(&r)?;
+            continue;
+        }
+        for m in [&r.clusters, &r.oriented] {
+            println!(
+                "  {n}³ {:<8}: {:>9} memberships, {:.1} ms/step, elastic part {:.1} ms/step = {:.2} ns per membership-iteration",
+                m.model,
+                m.memberships,
+                m.ms_per_step,
+                m.elastic_ms_per_step,
+                m.ns_per_membership_iteration
+            );
+        }
+        println!(
+            "  {n}³ oriented/clusters per membership-iteration: {:.2}×",
+            r.oriented_over_clusters
+        );
+    }
+    Ok(())
+}
+
 /// `cleave bench --deform`: the figures of
 /// [`cleave::analysis::bench_deform::bench_deform`], one run.
 pub fn bench_deform(steps: usize, json: bool) -> Result<(), String> {

@@ -222,6 +222,10 @@ enum Command {
         /// reduced projective dynamics at 64³), in one run.
         #[arg(long)]
         deform: bool,
+        /// `oriented`: instead of the engine rows, each size's box in both models in one
+        /// run — step times, and each model's elastic part per membership-iteration.
+        #[arg(long)]
+        model: Option<Model>,
     },
     /// Serve an interactive page: the simulation runs here, the browser draws it; orbit,
     /// cut with a mouse stroke, grab and drag.
@@ -462,6 +466,7 @@ fn main() -> ExitCode {
             surface,
             no_culling,
             deform,
+            model,
         } => with_threads(threads, |_| {
             if deform {
                 return bench::bench_deform(steps, json);
@@ -483,6 +488,9 @@ fn main() -> ExitCode {
             }
             if surface {
                 return bench::bench_surfaces(&sizes, steps, &config, json);
+            }
+            if model == Some(Model::Oriented) {
+                return bench::bench_models(&sizes, steps, &config, json);
             }
             let pile = bench::PileOptions {
                 spacing: (!no_pile).then_some(pile_spacing),

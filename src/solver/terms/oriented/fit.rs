@@ -19,7 +19,7 @@ use glam::{Mat3A, Quat, Vec3A};
 
 /// Iterations of the rotation extraction per fit, warm-started from the orientation the
 /// group gave last.
-pub const ROTATION_ITERATIONS: u32 = 4;
+pub const ROTATION_ITERATIONS: u32 = 1;
 
 /// Weight of a member held still, relative to the group's heaviest moving member.
 pub const KINEMATIC_WEIGHT: f32 = 1e3;
@@ -151,7 +151,7 @@ mod tests {
     #[test]
     fn a_lone_particle_keeps_its_orientation() {
         let q = Quat::from_euler(glam::EulerRot::XYZ, 0.3, -1.1, 2.0);
-        let f = settled(10, |warm| {
+        let f = settled(60, |warm| {
             fit(
                 &[0],
                 &[Vec3A::ZERO],
@@ -177,7 +177,7 @@ mod tests {
             .collect();
         let at = Vec3A::new(100.0, -20.0, 3.0);
         let members = [0, 1, 2, 3, 4];
-        let f = settled(10, |warm| {
+        let f = settled(60, |warm| {
             fit(
                 &members,
                 &rest,
