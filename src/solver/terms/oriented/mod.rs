@@ -4,7 +4,7 @@
 //! Every live particle outside the explicit groups centres one implicit group — itself
 //! and its live linked neighbours — and every connected piece of an explicit group is a
 //! group ([`groups`]). Each iteration fits every group by generalised shape matching
-//! ([`fit`]), moves each member toward its goal `c + R r̄ⱼ`, and gives the rotation to
+//! ([`fit::fit`]), moves each member toward its goal `c + R r̄ⱼ`, and gives the rotation to
 //! the group's centre (implicit) or to all its oriented members (explicit: a rigid
 //! part); a particle of inverse mass 0 is neither moved nor turned, so a pinned root
 //! holds its orientation too. Groups follow the lattice: a cut or a tear changes the
@@ -28,7 +28,7 @@
 //! does, colour by colour (the groups of one colour in parallel, deterministically); the
 //! solver mode chooses how the clusters are solved, and a body of the oriented model
 //! has none. Under projective dynamics every membership is a term in the global matrix
-//! ([`projective`]), its projection the fitted goal.
+//! (the `projective` module), its projection the fitted goal.
 
 pub mod fit;
 pub mod groups;

@@ -73,7 +73,8 @@ pub fn creep(body: &mut BodyGroups, positions: &[Vec3A], orientations: &[Quat], 
             continue;
         }
         let strain = (deformed / spread).sqrt();
-        if !(strain > plastic.yield_strain) {
+        // (a NaN strain yields nothing either)
+        if strain.is_nan() || strain <= plastic.yield_strain {
             continue;
         }
         let take = share * (1.0 - plastic.yield_strain / strain);
