@@ -9,8 +9,7 @@ use crate::deform::keys::HandlePath;
 use crate::ecs::components::Hold;
 use crate::ecs::desc::Scene;
 use crate::ecs::desc::{
-    AttachmentDesc, BodyDesc, ColliderDesc, GroupDesc, HandleDesc, StiffnessRegion, SurfaceOptions,
-    ToolDesc,
+    AttachmentDesc, BodyDesc, ColliderDesc, HandleDesc, SurfaceOptions, ToolDesc,
 };
 use crate::geometry::collider::ColliderShape;
 use crate::geometry::mesh::TriangleMesh;
@@ -218,18 +217,12 @@ impl SceneFile {
                     groups: b
                         .groups
                         .iter()
-                        .map(|g| RegionCompliance {
-                            region: g.region,
-                            compliance: g.compliance,
-                        })
+                        .map(|g| RegionCompliance::new(g.region, g.compliance))
                         .collect(),
                     stiffness_regions: b
                         .stiffness_regions
                         .iter()
-                        .map(|g| RegionCompliance {
-                            region: g.region,
-                            compliance: g.compliance,
-                        })
+                        .map(|g| RegionCompliance::new(g.region, g.compliance))
                         .collect(),
                     render_mesh: None,
                     surface: SurfaceFile {
@@ -335,22 +328,8 @@ impl SceneFile {
                     })
                     .collect(),
                 handles: b.handles.iter().map(handle_desc).collect(),
-                groups: b
-                    .groups
-                    .iter()
-                    .map(|g| GroupDesc {
-                        region: g.region,
-                        compliance: g.compliance,
-                    })
-                    .collect(),
-                stiffness_regions: b
-                    .stiffness_regions
-                    .iter()
-                    .map(|g| StiffnessRegion {
-                        region: g.region,
-                        compliance: g.compliance,
-                    })
-                    .collect(),
+                groups: b.groups.iter().map(|&g| g.into()).collect(),
+                stiffness_regions: b.stiffness_regions.iter().map(|&g| g.into()).collect(),
                 render_mesh,
                 surface: SurfaceOptions {
                     smooth: b.surface.smooth,

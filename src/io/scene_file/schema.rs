@@ -4,7 +4,7 @@
 use crate::config::{GroundPlane, Material, Model, SimConfig, SolverMode, StaticBox};
 use crate::cut::tool::{CutMode, Pose, ToolShape};
 use crate::deform::keys::HandleKey;
-use crate::ecs::desc::{PinRegion, Region};
+use crate::ecs::desc::{GroupDesc, PinRegion, Region, StiffnessRegion};
 use glam::{Quat, UVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -169,6 +169,31 @@ pub struct RegionCompliance {
     /// Compliance `1/E` in 1/Pa (0–1; 0: rigid).
     #[serde(deserialize_with = "super::check::compliance")]
     pub compliance: f32,
+}
+
+impl RegionCompliance {
+    /// The file form of a region and its compliance.
+    pub fn new(region: Region, compliance: f32) -> Self {
+        Self { region, compliance }
+    }
+}
+
+impl From<RegionCompliance> for GroupDesc {
+    fn from(r: RegionCompliance) -> Self {
+        GroupDesc {
+            region: r.region,
+            compliance: r.compliance,
+        }
+    }
+}
+
+impl From<RegionCompliance> for StiffnessRegion {
+    fn from(r: RegionCompliance) -> Self {
+        StiffnessRegion {
+            region: r.region,
+            compliance: r.compliance,
+        }
+    }
 }
 
 /// An attachment: the particles in a world-space region (after placement), each held

@@ -13,6 +13,7 @@
 //! Explicit pieces may share particles (joints), so each is a colour of its own.
 
 use crate::body::lattice::NO_PARTICLE;
+use crate::config::Material;
 use crate::solver::term::{BodyTopology, NO_DENSE};
 use glam::{IVec3, Vec3A};
 
@@ -61,7 +62,7 @@ pub struct BodyGroups {
     /// Accumulated `λ` of each membership in this substep.
     pub lambda: Vec<Vec3A>,
     /// The body's plasticity, if its material yields.
-    pub plastic: Option<super::plastic::Plasticity>,
+    pub plastic: Option<Plasticity>,
 }
 
 /// A group before its memberships are laid out: body-local members, the compliance
@@ -180,13 +181,39 @@ impl BodyGroups {
             }
         }
         out.lambda = vec![Vec3A::ZERO; out.members.len()];
-        out.plastic = super::plastic::Plasticity::of(body.material, &out.rest);
+        out.plastic = Plasticity::of(body.material, &out.rest);
         Some(out)
     }
 
     /// The memberships of group `g`.
     pub fn range(&self, g: &Group) -> std::ops::Range<usize> {
         g.range[0] as usize..g.range[1] as usize
+    }
+}
+
+/// A body's plasticity (see [`super::plastic`]), and its groups' lattice rest shapes.
+#[derive(Clone, Debug, Default)]
+pub struct Plasticity {
+    /// Strain past which a group yields.
+    pub yield_strain: f32,
+    /// Share of the excess strain taken per second.
+    pub creep: f32,
+    /// Largest strain of a rest shape from the lattice's.
+    pub max_strain: f32,
+    /// Each membership's lattice rest position.
+    pub lattice_rest: Vec<Vec3A>,
+}
+
+impl Plasticity {
+    /// The plasticity of a body of `material` whose groups rest at `rest`, or `None` for
+    /// an elastic material.
+    pub fn of(material: &Material, rest: &[Vec3A]) -> Option<Self> {
+        (material.yield_strain > 0.0).then(|| Plasticity {
+            yield_strain: material.yield_strain,
+            creep: material.creep,
+            max_strain: material.max_plastic_strain,
+            lattice_rest: rest.to_vec(),
+        })
     }
 }
 

@@ -12,34 +12,7 @@
 
 use super::fit::fit;
 use super::groups::BodyGroups;
-use crate::config::Material;
 use glam::{Quat, Vec3A};
-
-/// A body's plasticity, and its groups' lattice rest shapes.
-#[derive(Clone, Debug, Default)]
-pub struct Plasticity {
-    /// Strain past which a group yields.
-    pub yield_strain: f32,
-    /// Share of the excess strain taken per second.
-    pub creep: f32,
-    /// Largest strain of a rest shape from the lattice's.
-    pub max_strain: f32,
-    /// Each membership's lattice rest position.
-    pub lattice_rest: Vec<Vec3A>,
-}
-
-impl Plasticity {
-    /// The plasticity of a body of `material` whose groups rest at `rest`, or `None` for
-    /// an elastic material.
-    pub fn of(material: &Material, rest: &[Vec3A]) -> Option<Self> {
-        (material.yield_strain > 0.0).then(|| Plasticity {
-            yield_strain: material.yield_strain,
-            creep: material.creep,
-            max_strain: material.max_plastic_strain,
-            lattice_rest: rest.to_vec(),
-        })
-    }
-}
 
 /// Lets every group of `body` yield at `positions` (the last substep's solved positions)
 /// over a substep of `dt` (see the module docs). Members are weighted alike.
