@@ -19,7 +19,7 @@ use glam::{Mat3A, Quat, Vec3A};
 
 /// Iterations of the rotation extraction per fit, warm-started from the orientation the
 /// group gave last.
-pub const ROTATION_ITERATIONS: u32 = 1;
+pub const ROTATION_ITERATIONS: u32 = 4;
 
 /// Weight of a member held still, relative to the group's heaviest moving member.
 pub const KINEMATIC_WEIGHT: f32 = 1e3;
