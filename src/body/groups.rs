@@ -4,7 +4,8 @@
 //! never written after; what a cut does to them is derived from the lattice
 //! ([`ParticleGroups::explicit_pieces`]).
 
-use super::lattice::{Lattice, NO_PARTICLE};
+use super::graph::connected_components;
+use super::lattice::Lattice;
 use serde::{Deserialize, Serialize};
 
 /// An explicit shape-matching group: its particles move as one rigid part of the given
@@ -60,53 +61,17 @@ impl ParticleGroups {
     /// connected piece a part), each with the group's compliance. Pieces come in group
     /// order, each one's members ascending.
     pub fn explicit_pieces(&self, lattice: &Lattice) -> Vec<ExplicitGroup> {
-        let mut label = vec![u32::MAX; lattice.len()];
-        let mut out = Vec::new();
-        let mut stack = Vec::new();
-        for (g, group) in self.explicit.iter().enumerate() {
-            let tag = g as u32;
-            let live: Vec<u32> = group
-                .members
-                .iter()
-                .copied()
-                .filter(|&i| lattice.is_live(i))
-                .collect();
-            for &i in &live {
-                label[i as usize] = tag;
-            }
-            let mut seen = vec![false; live.len()];
-            for start in 0..live.len() {
-                if seen[start] {
-                    continue;
-                }
-                let mut members = Vec::new();
-                seen[start] = true;
-                stack.push(live[start]);
-                while let Some(i) = stack.pop() {
-                    members.push(i);
-                    for n in lattice.links(i) {
-                        if n == NO_PARTICLE || label[n as usize] != tag {
-                            continue;
-                        }
-                        if let Ok(k) = live.binary_search(&n)
-                            && !seen[k]
-                        {
-                            seen[k] = true;
-                            stack.push(n);
-                        }
-                    }
-                }
-                members.sort_unstable();
-                out.push(ExplicitGroup {
-                    members,
-                    compliance: group.compliance,
-                });
-            }
-            for &i in &live {
-                label[i as usize] = u32::MAX;
-            }
-        }
-        out
+        self.explicit
+            .iter()
+            .flat_map(|group| {
+                connected_components(&group.members, lattice)
+                    .into_iter()
+                    .map(|members| ExplicitGroup {
+                        members,
+                        compliance: group.compliance,
+                    })
+            })
+            .collect()
     }
 }
 

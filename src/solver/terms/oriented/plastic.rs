@@ -34,14 +34,18 @@ pub fn creep(body: &mut BodyGroups, positions: &[Vec3A], orientations: &[Quat], 
             |d| orientations[d],
             orientations[members[0] as usize],
         );
+        // each member's rest offset, and its deformation in the group's rest frame
         let back = f.rotation.conjugate();
-        let (mut deformed, mut spread) = (0.0f32, 0.0f32);
-        for (&m, r) in members.iter().zip(rest) {
-            let offset = *r - f.rest_centroid;
-            let d = back * (positions[m as usize] - f.centroid) - offset;
-            deformed += d.length_squared();
-            spread += offset.length_squared();
-        }
+        let offsets: Vec<(Vec3A, Vec3A)> = members
+            .iter()
+            .zip(rest)
+            .map(|(&m, r)| {
+                let offset = *r - f.rest_centroid;
+                (offset, back * (positions[m as usize] - f.centroid) - offset)
+            })
+            .collect();
+        let deformed: f32 = offsets.iter().map(|(_, d)| d.length_squared()).sum();
+        let spread: f32 = offsets.iter().map(|(o, _)| o.length_squared()).sum();
         if spread == 0.0 {
             continue;
         }
@@ -53,12 +57,7 @@ pub fn creep(body: &mut BodyGroups, positions: &[Vec3A], orientations: &[Quat], 
         let take = share * (1.0 - plastic.yield_strain / strain);
         let lattice = &plastic.lattice_rest[range.clone()];
         let lattice_centroid = lattice.iter().copied().sum::<Vec3A>() / lattice.len() as f32;
-        let mut moved: Vec<Vec3A> = Vec::with_capacity(members.len());
-        for (&m, r) in members.iter().zip(rest) {
-            let offset = *r - f.rest_centroid;
-            let d = back * (positions[m as usize] - f.centroid) - offset;
-            moved.push(offset + d * take);
-        }
+        let moved: Vec<Vec3A> = offsets.iter().map(|(o, d)| *o + *d * take).collect();
         // the rest shape's drift from the lattice's, capped
         let centroid = moved.iter().copied().sum::<Vec3A>() / moved.len() as f32;
         let (mut drift, mut base) = (0.0f32, 0.0f32);
