@@ -350,7 +350,9 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
                 desc.velocity + desc.angular_velocity.cross(x - desc.position),
                 |r| r.velocity,
             )),
-            Orientation(Quat::IDENTITY),
+            // (turned from the rest frame as the body is: the oriented model's fit weighs
+            // orientations against positions, so any other start is a twist to undo)
+            Orientation(desc.rotation),
             AngularVelocity(desc.angular_velocity),
             InvMass(inv_mass),
         )

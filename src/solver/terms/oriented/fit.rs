@@ -15,7 +15,7 @@
 //! one sweep instead of a sixth of the way per sweep).
 
 use crate::math::rotation::extract_rotation;
-use glam::{Mat3A, Quat, Vec3A};
+use glam::{DVec3, Mat3A, Quat, Vec3, Vec3A};
 
 /// Iterations of the rotation extraction per fit, warm-started from the orientation the
 /// group gave last.
@@ -84,13 +84,84 @@ fn fit_weights<'a>(
         .map(move |&m| weight(inv_mass(m as usize), kinematic))
 }
 
+/// Groups with more members than this accumulate their fit in double precision.
+///
+/// The moment matrix of a large group sums many large terms whose rounding in single
+/// precision leaves a small skew part: a rotation error of about 1e-6 rad for a rigid
+/// part of a few thousand particles. The same error recurs every substep while the part
+/// rests, and the goals it turns count as velocity, so it accumulates into a steady
+/// angular acceleration (a resting chassis would start to spin). Implicit groups are a
+/// particle and its six neighbours: their rounding is far smaller and cancels between
+/// neighbours.
+pub const PRECISE_GROUP: usize = 32;
+
 /// Fits the group of dense `members` with rest positions `rest` (in the body's rest
 /// frame) and moment diagonals `moment` to `position(d)` and `orientation(d)`, each
 /// weighted by its mass from `inv_mass(d)` (see [`KINEMATIC_WEIGHT`]), starting the
 /// rotation from `warm`. Sums run relative to the first member, so that goals keep full
-/// precision far from the origin.
+/// precision far from the origin, and in double precision for groups larger than
+/// [`PRECISE_GROUP`].
 #[inline]
 pub fn fit(
+    members: &[u32],
+    rest: &[Vec3A],
+    moment: &[Vec3A],
+    inv_mass: impl Fn(usize) -> f32 + Copy,
+    position: impl Fn(usize) -> Vec3A + Copy,
+    orientation: impl Fn(usize) -> Quat + Copy,
+    warm: Quat,
+) -> Fit {
+    if members.len() > PRECISE_GROUP {
+        fit_in::<DVec3>(members, rest, moment, inv_mass, position, orientation, warm)
+    } else {
+        fit_in::<Vec3A>(members, rest, moment, inv_mass, position, orientation, warm)
+    }
+}
+
+/// A vector to accumulate a fit's sums in: single or double precision.
+trait Accumulator: Copy + std::ops::Sub<Output = Self> + std::ops::AddAssign {
+    const ZERO: Self;
+    fn of(v: Vec3A) -> Self;
+    fn scale(self, s: f64) -> Self;
+    fn to(self) -> Vec3A;
+    fn component(self, axis: usize) -> f64;
+}
+
+impl Accumulator for Vec3A {
+    const ZERO: Self = Vec3A::ZERO;
+    fn of(v: Vec3A) -> Self {
+        v
+    }
+    fn scale(self, s: f64) -> Self {
+        self * s as f32
+    }
+    fn to(self) -> Vec3A {
+        self
+    }
+    fn component(self, axis: usize) -> f64 {
+        self[axis] as f64
+    }
+}
+
+impl Accumulator for DVec3 {
+    const ZERO: Self = DVec3::ZERO;
+    fn of(v: Vec3A) -> Self {
+        Vec3::from(v).as_dvec3()
+    }
+    fn scale(self, s: f64) -> Self {
+        self * s
+    }
+    fn to(self) -> Vec3A {
+        self.as_vec3().into()
+    }
+    fn component(self, axis: usize) -> f64 {
+        self[axis]
+    }
+}
+
+/// [`fit`] with its sums in `V`.
+#[inline]
+fn fit_in<V: Accumulator>(
     members: &[u32],
     rest: &[Vec3A],
     moment: &[Vec3A],
@@ -101,33 +172,34 @@ pub fn fit(
 ) -> Fit {
     let origin = position(members[0] as usize);
     let rest_origin = rest[0];
-    let (mut sum, mut rest_sum, mut total) = (Vec3A::ZERO, Vec3A::ZERO, 0.0f32);
+    let (mut sum, mut rest_sum, mut total) = (V::ZERO, V::ZERO, 0.0f64);
     for ((&m, r), w) in members.iter().zip(rest).zip(fit_weights(members, inv_mass)) {
-        sum += (position(m as usize) - origin) * w;
-        rest_sum += (*r - rest_origin) * w;
-        total += w;
+        sum += V::of(position(m as usize) - origin).scale(w as f64);
+        rest_sum += V::of(*r - rest_origin).scale(w as f64);
+        total += w as f64;
     }
-    let (centre, rest_centre) = (sum / total, rest_sum / total);
+    let (centre, rest_centre) = (sum.scale(1.0 / total), rest_sum.scale(1.0 / total));
     let weights = fit_weights(members, inv_mass);
-    let mut a = Mat3A::ZERO;
+    let mut a = [V::ZERO; 3];
     for (((&m, r), d), w) in members.iter().zip(rest).zip(moment).zip(weights) {
-        let x = (position(m as usize) - origin - centre) * w;
-        let r = *r - rest_origin - rest_centre;
-        a.x_axis += x * r.x;
-        a.y_axis += x * r.y;
-        a.z_axis += x * r.z;
+        let x = (V::of(position(m as usize) - origin) - centre).scale(w as f64);
+        let r = V::of(*r - rest_origin) - rest_centre;
+        for (axis, column) in a.iter_mut().enumerate() {
+            *column += x.scale(r.component(axis));
+        }
         if *d != Vec3A::ZERO {
             let turn = Mat3A::from_quat(orientation(m as usize));
             let d = *d * w;
-            a.x_axis += turn.x_axis * d.x;
-            a.y_axis += turn.y_axis * d.y;
-            a.z_axis += turn.z_axis * d.z;
+            for (axis, column) in a.iter_mut().enumerate() {
+                *column += V::of(turn.col(axis) * d[axis]);
+            }
         }
     }
+    let a = Mat3A::from_cols(a[0].to(), a[1].to(), a[2].to());
     Fit {
         rotation: extract_rotation(a, warm, ROTATION_ITERATIONS),
-        centroid: origin + centre,
-        rest_centroid: rest_origin + rest_centre,
+        centroid: origin + centre.to(),
+        rest_centroid: rest_origin + rest_centre.to(),
     }
 }
 
