@@ -22,7 +22,7 @@ use crate::math::rotation::unit_quaternion;
 use crate::solver::clusters::term::MAX_SOLVER_PARTICLES;
 use crate::surface::embed::EmbeddedMesh;
 use bevy_ecs::prelude::*;
-use glam::{Quat, Vec3};
+use glam::Vec3;
 
 /// Spawns a cutting tool into any world prepared with [`crate::systems::install`].
 pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {

@@ -17,3 +17,4 @@ pub mod save_file;
 pub mod scene;
 pub mod scene_file;
 pub mod stream;
+pub mod truck_scene;

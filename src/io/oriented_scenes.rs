@@ -1,7 +1,8 @@
 //! The built-in scenes of oriented particles (SPEC §5): `rod` (a 24×1×1 rod clamped at
 //! its root, which the cluster model cannot hold out), `sheet` (24×24×1 clamped along one
 //! edge), `wheel` (a rigid disc spinning on an axle: two explicit groups sharing the
-//! axle's particles, a joint), `dent` (a plastic block pressed by a kinematic sphere).
+//! axle's particles, a joint), `dent` (a plastic block pressed by a kinematic sphere),
+//! and `truck` (its own module).
 
 use crate::body::shape::Shape;
 use crate::config::{Material, Model, SimConfig};
@@ -9,6 +10,18 @@ use crate::cut::tool::{Path, Pose};
 use crate::ecs::desc::{BodyDesc, ColliderDesc, GroupDesc, PinRegion, Region, Scene};
 use crate::geometry::collider::ColliderShape;
 use glam::{UVec3, Vec3};
+
+/// The oriented built-in scene `name` with `config`, or `None`.
+pub fn builtin(name: &str, config: SimConfig) -> Option<Scene> {
+    Some(match name {
+        "rod" => rod_scene(config),
+        "sheet" => sheet_scene(config),
+        "wheel" => wheel_scene(config),
+        "dent" => dent_scene(config),
+        "truck" => crate::io::truck_scene::truck_scene(config),
+        _ => return None,
+    })
+}
 
 /// Lattice spacing of the scenes (metres).
 const H: f32 = 0.1;

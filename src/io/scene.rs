@@ -12,7 +12,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// Names and one-line descriptions of the built-in scenes.
-pub const BUILTIN_SCENES: [(&str, &str); 21] = [
+pub const BUILTIN_SCENES: [(&str, &str); 22] = [
     ("drop", "a 16×8×8 box falls on the ground and settles"),
     (
         "cantilever",
@@ -93,6 +93,10 @@ pub const BUILTIN_SCENES: [(&str, &str); 21] = [
     (
         "sheet",
         "a 24×24×1 sheet of oriented particles standing on edge, clamped along its left edge, holds out under gravity",
+    ),
+    (
+        "truck",
+        "a rigid chassis on rigid hubs with soft tyres (oriented particles, axles as joints) rolls down a slope and over a bump",
     ),
 ];
 
@@ -276,10 +280,6 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
         "jittered" => crate::io::relax_scenes::jittered_scene(config),
         "bend" => crate::io::deform_scenes::bend_scene(config),
         "grab" => crate::io::deform_scenes::grab_scene(config),
-        "rod" => crate::io::oriented_scenes::rod_scene(config),
-        "sheet" => crate::io::oriented_scenes::sheet_scene(config),
-        "wheel" => crate::io::oriented_scenes::wheel_scene(config),
-        "dent" => crate::io::oriented_scenes::dent_scene(config),
         "cantilever" => {
             let mut body = rigid_body(Shape::cuboid(UVec3::new(24, 6, 6)), H);
             body.position = Vec3::new(0.0, 1.0, 0.0);
@@ -373,7 +373,7 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
         "stack" => stack_scene(config),
         "pile" => pile_scene(config, H),
         "press" => press_scene(config),
-        _ => return None,
+        _ => return crate::io::oriented_scenes::builtin(name, config),
     })
 }
 
