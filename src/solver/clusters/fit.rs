@@ -99,6 +99,18 @@ impl ClusterTerm {
         self.batches.lanes[b].map(|k| k != EMPTY_LANE)
     }
 
+    /// The Jacobi stiffness ([`super::term::pull_weight`]) of each lane's cluster in batch
+    /// `b` (0 for an unused lane).
+    pub(in crate::solver) fn lane_stiffness(&self, b: usize) -> [f32; LANES] {
+        self.batches.lanes[b].map(|k| {
+            if k == EMPTY_LANE {
+                0.0
+            } else {
+                super::term::pull_weight(self.compliance[k as usize])
+            }
+        })
+    }
+
     /// The particle rows of batch `b`.
     #[inline(always)]
     pub(super) fn batch_particles(&self, b: usize) -> &[ParticleRow] {

@@ -85,33 +85,46 @@ fn warm_start_weight(anchor: f32, iterations: u32, global: bool) -> f32 {
 /// the stability bound ½.
 pub const WARM_START_LOOP_GAIN: f32 = 0.45;
 
+/// The compliance standing in for a rigid cluster's (0) in the Jacobi and projective
+/// pull passes' per-cluster weights ([`pull_weight`]): 2⁻⁵⁰ ≈ 8.9e-16 1/Pa, so far below
+/// any material's (steel's is about 5e-12) that next to a rigid cluster a compliant one
+/// weighs nothing; a power of two, so that rigid clusters' weighted pulls and steps round
+/// exactly as unweighted ones.
+pub const RIGID_COMPLIANCE: f32 = 1.0 / (1u64 << 50) as f32;
+
+/// The weight of a cluster of `compliance` in its members' Jacobi steps: its stiffness
+/// `κ = 1/compliance` (see [`step_coefficients`]).
+#[inline]
+pub(in crate::solver) fn pull_weight(compliance: f32) -> f32 {
+    1.0 / compliance.max(RIGID_COMPLIANCE)
+}
+
 /// A particle's step coefficients `(σ, a)` in the clusters' Jacobi pass: its step is
-/// `σ Σₖ (gₖ − p) + a (s + k − p)` (see [`crate::solver::schemes::jacobi`]).
+/// `σ Σₖ κₖ (gₖ − p) + a (s + k − p)` (see [`crate::solver::schemes::jacobi`]), each
+/// cluster's pull weighted by its stiffness `κₖ` ([`pull_weight`]).
 ///
 /// Setting the gradient of the substep's objective to zero for particle `i` alone,
-/// with its clusters' goals held, gives `(mᵢ/dt²)(pᵢ − sᵢ) + Σₖ κ wᵢ (pᵢ − gᵢₖ) = 0`
-/// (wᵢ = 1/nᵢ); with `γ = mᵢ/(dt² κ wᵢ)` = `nᵢ · compliance · mᵢ / dt²` (the argument
-/// `inertia_per_cluster` is `compliance · mᵢ / dt²`) the step is
-/// `σ = 1/(nᵢ + γ)`, `a = γ σ`. A rigid cluster (compliance 0) gives `σ = 1/nᵢ`,
-/// `a = 0`: the average of the goals. A particle of inverse mass 0, or one in no
-/// cluster, does not move.
+/// with its clusters' goals held, gives `(mᵢ/dt²)(pᵢ − sᵢ) + Σₖ κₖ wᵢ (pᵢ − gᵢₖ) = 0`
+/// (wᵢ = 1/nᵢ); with `K = Σₖ κₖ` (`stiffness`) and `I = mᵢ/dt²` (`inertia`) the step is
+/// `σ = 1/(K + nᵢ I)`, `a = nᵢ I σ`. Clusters of one compliance `c` give the
+/// unweighted average of their goals pulled toward the prediction by `a = Ic/(1 + Ic)`;
+/// clusters of different compliances share a particle by stiffness, so a soft region
+/// bends where a stiff one holds; next to a rigid cluster a compliant one weighs nothing
+/// and `a` is 0 to rounding. A particle of inverse mass 0, or one in no cluster, does
+/// not move.
 #[inline]
 pub(in crate::solver) fn step_coefficients(
     inv_count: f32,
-    inertia_per_cluster: f32,
+    stiffness: f32,
+    inertia: f32,
     inv_mass: f32,
 ) -> (f32, f32) {
-    if inv_mass == 0.0 || inv_count == 0.0 {
+    if inv_mass == 0.0 || inv_count == 0.0 || stiffness.is_nan() || stiffness <= 0.0 {
         return (0.0, 0.0);
     }
-    let count = 1.0 / inv_count;
-    let inertia = count * inertia_per_cluster;
-    if inertia == 0.0 {
-        (inv_count, 0.0)
-    } else {
-        let scale = 1.0 / (count + inertia);
-        (scale, inertia * scale)
-    }
+    let held = inertia / inv_count;
+    let scale = 1.0 / (stiffness + held);
+    (scale, held * scale)
 }
 
 /// One cluster as given to [`ClusterTerm::new`].
@@ -138,8 +151,8 @@ pub struct ClusterTerm {
     /// Counts the times the carry was dropped: a scheme's state that holds parts of it
     /// (Gauss–Seidel's per membership) is dropped with it.
     pub(in crate::solver) carry_epoch: u64,
-    /// Per particle: the mean compliance of its clusters.
-    pub(in crate::solver) particle_compliance: Vec<f32>,
+    /// Per particle: the summed stiffness of its clusters ([`pull_weight`]).
+    pub(in crate::solver) particle_stiffness: Vec<f32>,
     /// Whether any cluster is compliant (else the particle pass has no pull toward the
     /// prediction to add).
     pub(in crate::solver) compliant: bool,
@@ -431,7 +444,7 @@ impl ClusterTerm {
         ] {
             scratch.resize(n, 0.0);
         }
-        let (inv_count, compliance) = (&self.inv_count, &self.particle_compliance);
+        let (inv_count, stiffness) = (&self.inv_count, &self.particle_stiffness);
         // one pass: each particle's step coefficients, its warm-start weight, and its
         // start at the prediction plus the weighted carry
         positions
@@ -447,20 +460,21 @@ impl ClusterTerm {
                     let range = task * PARTICLES_PER_TASK..task * PARTICLES_PER_TASK + p.len();
                     let read = inv_count[range.clone()]
                         .iter()
-                        .zip(&compliance[range.clone()])
+                        .zip(&stiffness[range.clone()])
                         .zip(&inv_mass[range]);
                     let write = p
                         .iter_mut()
                         .zip(carry)
                         .zip(correction)
                         .zip(scale.iter_mut().zip(anchor).zip(weight));
-                    for (((&inv_count, &compliance), &inv_mass), (((p, carry), correction), s)) in
+                    for (((&inv_count, &stiffness), &inv_mass), (((p, carry), correction), s)) in
                         read.zip(write)
                     {
                         let ((scale, anchor), weight) = s;
                         (*scale, *anchor) = step_coefficients(
                             inv_count,
-                            compliance * inv_dt2 / inv_mass.max(f32::MIN_POSITIVE),
+                            stiffness,
+                            inv_dt2 / inv_mass.max(f32::MIN_POSITIVE),
                             inv_mass,
                         );
                         // (a particle held still, or a carry a repaired particle left, starts
@@ -480,23 +494,23 @@ impl ClusterTerm {
             );
     }
 
-    /// Recomputes each particle's mean cluster compliance from the current clusters;
-    /// drops the warm start, which belonged to
-    /// other clusters.
+    /// Recomputes each particle's summed cluster stiffness from the current clusters.
     pub(in crate::solver) fn refresh_coefficients(&mut self) {
         let n = self.rest.len();
         let mut sum = vec![0.0f32; n];
         for (k, range) in self.cluster_range.iter().enumerate() {
             let members = &self.member_particle[range[0] as usize..range[1] as usize];
+            let weight = pull_weight(self.compliance[k]);
             for &m in members {
-                sum[m as usize] += self.compliance[k];
+                sum[m as usize] += weight;
             }
         }
-        for (s, &inv_count) in sum.iter_mut().zip(&self.inv_count) {
-            *s *= inv_count;
-        }
-        self.compliant = sum.iter().any(|c| *c > 0.0);
-        self.particle_compliance = sum;
+        self.compliant = self
+            .cluster_range
+            .iter()
+            .zip(&self.compliance)
+            .any(|(range, c)| range[0] < range[1] && *c > 0.0);
+        self.particle_stiffness = sum;
         self.coefficients_stale = false;
         self.forget_carry();
     }
@@ -516,15 +530,25 @@ mod tests {
 
     #[test]
     fn step_coefficients_average_the_goals_when_rigid_and_weigh_inertia_when_compliant() {
-        assert_eq!(step_coefficients(0.25, 0.0, 1.0), (0.25, 0.0));
-        assert_eq!(step_coefficients(0.25, 1.0, 0.0), (0.0, 0.0), "pinned");
+        let rigid = pull_weight(0.0);
+        // 4 rigid clusters: their pulls, each weighted by the rigid stiffness, averaged
+        let (scale, anchor) = step_coefficients(0.25, 4.0 * rigid, 1.0, 1.0);
+        assert!(
+            (scale * rigid - 0.25).abs() < 1e-6 && anchor < 1e-12,
+            "{scale} {anchor}"
+        );
+        assert_eq!(step_coefficients(0.25, 1.0, 1.0, 0.0), (0.0, 0.0), "pinned");
         assert_eq!(
-            step_coefficients(0.0, 1.0, 1.0),
+            step_coefficients(0.0, 0.0, 1.0, 1.0),
             (0.0, 0.0),
             "in no cluster"
         );
-        // 4 clusters, inertia 2 per cluster: σ = 1/(4 + 8), a = 8/12
-        let (scale, anchor) = step_coefficients(0.25, 2.0, 1.0);
-        assert!((scale - 1.0 / 12.0).abs() < 1e-7 && (anchor - 8.0 / 12.0).abs() < 1e-7);
+        // 4 clusters of compliance ½, inertia 1: K = 8, n I = 4, σ = 1/12, a = 4/12; each
+        // pull weighs κ = 2, so the goals' share is 2σ per cluster, 8/12 in all
+        let (scale, anchor) = step_coefficients(0.25, 4.0 * pull_weight(0.5), 1.0, 1.0);
+        assert!((scale - 1.0 / 12.0).abs() < 1e-7 && (anchor - 4.0 / 12.0).abs() < 1e-7);
+        // a rigid cluster beside a compliant one takes the particle
+        let (scale, _) = step_coefficients(0.5, rigid + pull_weight(1e-6), 1.0, 1.0);
+        assert!((scale * rigid - 1.0).abs() < 1e-6 && scale * pull_weight(1e-6) < 1e-8);
     }
 }

@@ -1,9 +1,11 @@
 //! The Jacobi scheme: every cluster is fitted to the same positions and adds its pull
-//! `gᵢ − pᵢ` to each member's accumulator (spatial groups of clusters, the groups of one
-//! colour in parallel, so no two tasks write the same accumulator and each particle sums
-//! its pulls in a fixed order for any thread count); then every particle moves by its
-//! step (see `ClusterTerm`'s `step_coefficients`). With matching weights `1/nᵢ` (FastLSM) every
-//! cluster's pull has zero momentum, so the scheme conserves linear momentum.
+//! `κ (gᵢ − pᵢ)`, weighted by its stiffness `κ` (`ClusterTerm`'s `pull_weight`), to each
+//! member's accumulator (spatial groups of clusters, the groups of one colour in
+//! parallel, so no two tasks write the same accumulator and each particle sums its pulls
+//! in a fixed order for any thread count); then every particle moves by its step (see
+//! `ClusterTerm`'s `step_coefficients`). With matching weights `1/nᵢ` (FastLSM) every
+//! cluster's pull has zero momentum, so the scheme conserves linear momentum when the
+//! clusters share one compliance.
 //! Projective dynamics uses the same pull pass as its local step.
 
 use crate::math::simd::Lane;
@@ -26,7 +28,7 @@ pub struct Jacobi {
 
 impl Jacobi {
     /// Cluster pass: fits every cluster (eight at a time) to `positions`, which no task
-    /// writes in this pass, and adds `g − p` to each member's pull.
+    /// writes in this pass, and adds `κ (g − p)` to each member's pull.
     pub fn pull_pass(&mut self, clusters: &mut ClusterTerm, positions: &[Vec3A]) {
         self.pulls.resize(positions.len(), Vec3A::ZERO);
         let pulls = Disjoint::new(&mut self.pulls);
@@ -142,6 +144,7 @@ impl BatchKernel for PullKernel<'_> {
         // belong to other tasks' clusters: it adds nothing. Lanes may share a particle:
         // their pulls are added one after another.
         let used = this.lanes_in_use(b);
+        let stiffness = this.lane_stiffness(b);
         // SAFETY (this block and the two below): this task owns the group's clusters,
         // their rotations and their members' pulls for the colour (see `Disjoint`);
         // `add` is only called with members of the group's clusters, whose indices were
@@ -155,17 +158,17 @@ impl BatchKernel for PullKernel<'_> {
         if used.iter().all(|u| *u) {
             unsafe {
                 this.fit_batch::<L>(b, fit_rows, positions, self.rotations, |row| {
-                    for (&at, &pull) in row.at.iter().zip(&row.pull) {
-                        add(at, pull);
+                    for ((&at, &pull), &k) in row.at.iter().zip(&row.pull).zip(&stiffness) {
+                        add(at, pull * k);
                     }
                 })
             };
         } else {
             unsafe {
                 this.fit_batch::<L>(b, fit_rows, positions, self.rotations, |row| {
-                    let lanes = row.at.iter().zip(&row.pull).zip(&used);
-                    for ((&at, &pull), _) in lanes.filter(|(_, in_use)| **in_use) {
-                        add(at, pull);
+                    let lanes = row.at.iter().zip(&row.pull).zip(&stiffness).zip(&used);
+                    for (((&at, &pull), &k), _) in lanes.filter(|(_, in_use)| **in_use) {
+                        add(at, pull * k);
                     }
                 })
             };

@@ -76,8 +76,9 @@ struct GlobalSolve {
     row_of: Vec<u32>,
     /// Per row: its particle.
     particle_of: Vec<u32>,
-    /// Per row: `κᵢ wᵢ`, the weight of the particle's summed pulls in the right-hand
-    /// side (its clusters' mean stiffness times its Jacobi weight).
+    /// Per row: the weight of the particle's summed pulls in the right-hand side: its
+    /// matching weight `wᵢ`, times the ratio of its clusters' stiffnesses in the matrix
+    /// to their Jacobi weights, by which the pulls come weighted.
     pull_weight: Vec<f64>,
     /// Per row: `mᵢ/dt²`.
     inertia: Vec<f64>,
@@ -231,12 +232,21 @@ fn build(
         entries,
         stiffness_sum,
     } = assemble(clusters, inv_mass, terms, step);
+    // the pulls come weighted by the clusters' Jacobi stiffnesses; the matrix's are the
+    // same for compliant clusters and capped for rigid ones, so each particle's pulls
+    // are scaled by the ratio of the two sums (exact unless a particle has clusters of
+    // both kinds), times its matching weight
     let pull_weight = particle_of
         .iter()
         .map(|&i| {
-            let w = clusters.inv_count[i as usize] as f64;
-            // mean stiffness over its clusters (n = 1/w of them), times w
-            stiffness_sum[i as usize] * w * w
+            let i = i as usize;
+            let w = clusters.inv_count[i] as f64;
+            let jacobi = clusters.particle_stiffness.get(i).copied().unwrap_or(0.0) as f64;
+            if jacobi > 0.0 {
+                stiffness_sum[i] / jacobi * w
+            } else {
+                0.0
+            }
         })
         .collect();
     let inertia = particle_of
