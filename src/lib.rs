@@ -97,7 +97,7 @@ pub use bevy_app;
 /// The types most users need. It names no `Result` (cleave's is
 /// [`error::Result`]), so it can be glob-imported beside bevy's prelude.
 pub mod prelude {
-    pub use crate::body::shape::{SdfShape, Shape};
+    pub use crate::body::shape::{SdfShape, Shape, ShapePart};
     pub use crate::config::{GroundPlane, Material, Model, SimConfig, SolverMode, StaticBox};
     pub use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
     pub use crate::deform::keys::{HandleKey, HandlePath};

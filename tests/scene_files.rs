@@ -164,7 +164,7 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
             &format!("    colliders: [(shape: {shape})],\n    tools: [("),
         )
     };
-    let cases: [(&str, String, &[&str]); 23] = [
+    let cases: [(&str, String, &[&str]); 25] = [
         (
             "zero.ron",
             GOOD.replace("Cells(cells: (4, 4, 4))", r#"Mesh(path: "/dev/zero")"#),
@@ -182,6 +182,19 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
                 "Capsule(radius: 0.2, half_length: -0.5)",
             ),
             &["capsule.ron:3:14: bodies[0]", "shape.half_length", "-0.5"],
+        ),
+        (
+            "union.ron",
+            GOOD.replace(
+                "Cells(cells: (4, 4, 4))",
+                "Union(parts: [(shape: Sphere(radius: 0.3), at: (0, 0, 0)), (shape: Cells(cells: (2, 2, 2)), at: (1, 0, 0))])",
+            ),
+            &["union.ron:3:14: bodies[0]", "shape.parts[1].shape", "Cells"],
+        ),
+        (
+            "empty_union.ron",
+            GOOD.replace("Cells(cells: (4, 4, 4))", "Union(parts: [])"),
+            &["empty_union.ron:3:14: bodies[0]", "shape.parts", "at least one part"],
         ),
         (
             "raw.ron",

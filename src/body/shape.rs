@@ -52,6 +52,15 @@ impl std::fmt::Debug for SdfShape {
     }
 }
 
+/// One part of a [`Shape::Union`]: a shape placed with its local origin at `at`.
+#[derive(Clone, Debug)]
+pub struct ShapePart {
+    /// The part's shape.
+    pub shape: Shape,
+    /// Where its local origin sits in the union's frame.
+    pub at: Vec3,
+}
+
 /// A shape to voxelise, in its local frame (centred on the origin for primitives).
 #[derive(Clone, Debug)]
 pub enum Shape {
@@ -87,6 +96,9 @@ pub enum Shape {
     },
     /// Any signed-distance function.
     Sdf(SdfShape),
+    /// The union of shapes, each placed at its offset (a truck: a box and its wheels).
+    /// A part may not be [`Shape::Cells`], whose size is in lattice units.
+    Union(Vec<ShapePart>),
     /// A closed triangle mesh (inside by winding number).
     Mesh(Arc<TriangleMesh>),
 }
@@ -152,6 +164,29 @@ impl Shape {
                 check_finite_vec("shape.max", s.max)?;
                 (s.min, s.max)
             }
+            Shape::Union(parts) => {
+                let (mut min, mut max) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+                for (i, part) in parts.iter().enumerate() {
+                    check_finite_vec(&format!("shape.parts[{i}].at"), part.at)?;
+                    if matches!(part.shape, Shape::Cells { .. }) {
+                        return Err(crate::error::out_of_range(
+                            &format!("shape.parts[{i}].shape"),
+                            "Cells",
+                            "any shape but Cells (sized in lattice units; use Box)",
+                        ));
+                    }
+                    let (lo, hi) = part.shape.bounds()?;
+                    (min, max) = (min.min(lo + part.at), max.max(hi + part.at));
+                }
+                if parts.is_empty() {
+                    return Err(crate::error::out_of_range(
+                        "shape.parts",
+                        0,
+                        "at least one part",
+                    ));
+                }
+                (min, max)
+            }
             Shape::Mesh(m) => m.bounds(),
         })
     }
@@ -186,6 +221,10 @@ impl Shape {
                 q.max(glam::Vec2::ZERO).length() + q.max_element().min(0.0)
             }
             Shape::Sdf(s) => (s.sdf)(p),
+            Shape::Union(parts) => parts
+                .iter()
+                .map(|part| part.shape.signed_distance(p - part.at))
+                .fold(f32::INFINITY, f32::min),
             // (voxelising a mesh tests whole rows instead, see `voxelise`)
             Shape::Mesh(m) => {
                 if m.contains(p) {

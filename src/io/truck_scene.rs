@@ -8,13 +8,12 @@
 //! the parts: the chassis, then the front and the rear axle, then the four hubs (wheels in
 //! the order of [`WHEEL_CENTRES`]).
 
-use crate::body::shape::{SdfShape, Shape};
+use crate::body::shape::{Shape, ShapePart};
 use crate::config::{GroundPlane, Material, Model, SimConfig};
 use crate::cut::tool::{Path, Pose};
 use crate::ecs::desc::{BodyDesc, ColliderDesc, GroupDesc, Region, Scene};
 use crate::geometry::collider::ColliderShape;
 use glam::{Quat, Vec3};
-use std::sync::Arc;
 
 /// The truck's lattice spacing (metres).
 pub const TRUCK_H: f32 = 0.025;
@@ -65,38 +64,30 @@ pub const BUMP: (f32, f32) = (4.5, 0.06);
 pub const TRUCK_LENGTH: f32 = 2.0 * (WHEEL_CENTRES[0].x + WHEEL_REACH);
 
 /// The truck's shape in its own frame: the chassis box, the four wheels one empty
-/// layer of cells beside it, and the axles bridging that gap.
+/// layer of cells beside it, and the two axles through the chassis bridging that gap.
 fn truck_shape() -> Shape {
-    let wheel = Shape::Cylinder {
-        radius: WHEEL_RADIUS,
-        half_length: WHEEL_HALF_THICKNESS,
-    };
-    let axle = Shape::Cylinder {
-        radius: 0.2 * TRUCK_H,
-        half_length: WHEEL_CENTRES[0].z + WHEEL_HALF_THICKNESS,
-    };
-    let chassis = Shape::Box {
-        half_extents: CHASSIS_HALF,
-    };
-    let sdf = move |p: Vec3| {
-        let wheels = WHEEL_CENTRES.iter().map(|c| {
-            let on_axle = Vec3::new(c.x, c.y, 0.0);
-            wheel
-                .signed_distance(p - *c)
-                .min(axle.signed_distance(p - on_axle))
-        });
-        wheels.fold(chassis.signed_distance(p - CHASSIS_CENTRE), f32::min)
-    };
-    let reach = Vec3::new(
-        CHASSIS_HALF.x,
-        CHASSIS_CENTRE.y + CHASSIS_HALF.y,
-        WHEEL_CENTRES[0].z + WHEEL_HALF_THICKNESS,
-    );
-    Shape::Sdf(SdfShape {
-        sdf: Arc::new(sdf),
-        min: Vec3::new(-reach.x, WHEEL_CENTRES[0].y - WHEEL_RADIUS, -reach.z) - TRUCK_H,
-        max: reach + TRUCK_H,
-    })
+    let part = |shape, at| ShapePart { shape, at };
+    let mut parts = vec![part(
+        Shape::Box {
+            half_extents: CHASSIS_HALF,
+        },
+        CHASSIS_CENTRE,
+    )];
+    parts.extend(WHEEL_CENTRES.iter().map(|c| {
+        let wheel = Shape::Cylinder {
+            radius: WHEEL_RADIUS,
+            half_length: WHEEL_HALF_THICKNESS,
+        };
+        part(wheel, *c)
+    }));
+    parts.extend(WHEEL_CENTRES.iter().step_by(2).map(|c| {
+        let axle = Shape::Cylinder {
+            radius: 0.2 * TRUCK_H,
+            half_length: c.z + WHEEL_HALF_THICKNESS,
+        };
+        part(axle, Vec3::new(c.x, c.y, 0.0))
+    }));
+    Shape::Union(parts)
 }
 
 /// The world box around the truck-frame box `centre ± half`, placed at `at` turned by

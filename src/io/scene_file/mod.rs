@@ -2,7 +2,7 @@
 //! names the file, line, column and field (and, for a value out of range, the allowed
 //! range); conversion to and from [`Scene`], so every built-in scene is also a file.
 
-use crate::body::shape::Shape;
+use crate::body::shape::{Shape, ShapePart};
 use crate::config::{Material, SimConfig};
 use crate::cut::tool::{Path as ToolPath, Pose};
 use crate::deform::keys::HandlePath;
@@ -177,28 +177,7 @@ impl SceneFile {
             .bodies
             .iter()
             .map(|b| {
-                let shape = match &b.shape {
-                    Shape::Cells { cells } => ShapeFile::Cells { cells: *cells },
-                    Shape::Box { half_extents } => ShapeFile::Box {
-                        half_extents: *half_extents,
-                    },
-                    Shape::Sphere { radius } => ShapeFile::Sphere { radius: *radius },
-                    Shape::Capsule {
-                        radius,
-                        half_length,
-                    } => ShapeFile::Capsule {
-                        radius: *radius,
-                        half_length: *half_length,
-                    },
-                    Shape::Cylinder {
-                        radius,
-                        half_length,
-                    } => ShapeFile::Cylinder {
-                        radius: *radius,
-                        half_length: *half_length,
-                    },
-                    Shape::Sdf(_) | Shape::Mesh(_) => return None,
-                };
+                let shape = shape_file(&b.shape)?;
                 if b.render_mesh.is_some() {
                     return None;
                 }
@@ -269,33 +248,7 @@ impl SceneFile {
     pub fn to_scene(&self, base_dir: &Path) -> Result<Scene, String> {
         let mut bodies = Vec::new();
         for (i, b) in self.bodies.iter().enumerate() {
-            let shape = match &b.shape {
-                ShapeFile::Cells { cells } => Shape::Cells { cells: *cells },
-                ShapeFile::Box { half_extents } => Shape::Box {
-                    half_extents: *half_extents,
-                },
-                ShapeFile::Sphere { radius } => Shape::Sphere { radius: *radius },
-                ShapeFile::Capsule {
-                    radius,
-                    half_length,
-                } => Shape::Capsule {
-                    radius: *radius,
-                    half_length: *half_length,
-                },
-                ShapeFile::Cylinder {
-                    radius,
-                    half_length,
-                } => Shape::Cylinder {
-                    radius: *radius,
-                    half_length: *half_length,
-                },
-                ShapeFile::Mesh { path } => {
-                    let file = base_dir.join(path);
-                    let mesh = TriangleMesh::load_obj(&file)
-                        .map_err(|e| format!("bodies[{i}].shape.path: {e}"))?;
-                    Shape::Mesh(Arc::new(mesh))
-                }
-            };
+            let shape = shape_of(&b.shape, base_dir, &format!("bodies[{i}].shape"))?;
             let material = b.material.to_material();
             material
                 .validate()
@@ -477,4 +430,84 @@ pub fn load_scene_file(path: &Path) -> Result<Scene, String> {
     let base = path.parent().unwrap_or(Path::new("."));
     file.to_scene(base)
         .map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The file form of `shape`; `None` for a signed distance function or a mesh given in
+/// memory.
+fn shape_file(shape: &Shape) -> Option<ShapeFile> {
+    Some(match shape {
+        Shape::Cells { cells } => ShapeFile::Cells { cells: *cells },
+        Shape::Box { half_extents } => ShapeFile::Box {
+            half_extents: *half_extents,
+        },
+        Shape::Sphere { radius } => ShapeFile::Sphere { radius: *radius },
+        Shape::Capsule {
+            radius,
+            half_length,
+        } => ShapeFile::Capsule {
+            radius: *radius,
+            half_length: *half_length,
+        },
+        Shape::Cylinder {
+            radius,
+            half_length,
+        } => ShapeFile::Cylinder {
+            radius: *radius,
+            half_length: *half_length,
+        },
+        Shape::Union(parts) => ShapeFile::Union {
+            parts: parts
+                .iter()
+                .map(|p| {
+                    Some(ShapePartFile {
+                        shape: shape_file(&p.shape)?,
+                        at: p.at,
+                    })
+                })
+                .collect::<Option<_>>()?,
+        },
+        Shape::Sdf(_) | Shape::Mesh(_) => return None,
+    })
+}
+
+/// The shape a file gives at `field`; mesh paths are resolved against `base_dir`.
+fn shape_of(file: &ShapeFile, base_dir: &Path, field: &str) -> Result<Shape, String> {
+    Ok(match file {
+        ShapeFile::Cells { cells } => Shape::Cells { cells: *cells },
+        ShapeFile::Box { half_extents } => Shape::Box {
+            half_extents: *half_extents,
+        },
+        ShapeFile::Sphere { radius } => Shape::Sphere { radius: *radius },
+        ShapeFile::Capsule {
+            radius,
+            half_length,
+        } => Shape::Capsule {
+            radius: *radius,
+            half_length: *half_length,
+        },
+        ShapeFile::Cylinder {
+            radius,
+            half_length,
+        } => Shape::Cylinder {
+            radius: *radius,
+            half_length: *half_length,
+        },
+        ShapeFile::Mesh { path } => {
+            let file = base_dir.join(path);
+            let mesh = TriangleMesh::load_obj(&file).map_err(|e| format!("{field}.path: {e}"))?;
+            Shape::Mesh(Arc::new(mesh))
+        }
+        ShapeFile::Union { parts } => Shape::Union(
+            parts
+                .iter()
+                .enumerate()
+                .map(|(k, p)| {
+                    Ok(ShapePart {
+                        shape: shape_of(&p.shape, base_dir, &format!("{field}.parts[{k}].shape"))?,
+                        at: p.at,
+                    })
+                })
+                .collect::<Result<_, String>>()?,
+        ),
+    })
 }

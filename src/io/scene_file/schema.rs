@@ -295,6 +295,22 @@ pub enum ShapeFile {
         /// The OBJ file.
         path: String,
     },
+    /// The union of shapes, each placed at its offset (no `Cells` among them).
+    Union {
+        /// The parts.
+        parts: Vec<ShapePartFile>,
+    },
+}
+
+/// One part of a [`ShapeFile::Union`].
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShapePartFile {
+    /// The part's shape.
+    pub shape: ShapeFile,
+    /// Where its local origin sits in the union's frame.
+    #[serde(deserialize_with = "super::check::vec3")]
+    pub at: Vec3,
 }
 
 /// Material and clustering parameters.
