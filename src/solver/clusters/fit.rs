@@ -99,16 +99,20 @@ impl ClusterTerm {
         self.batches.lanes[b].map(|k| k != EMPTY_LANE)
     }
 
-    /// The Jacobi stiffness ([`super::term::pull_weight`]) of each lane's cluster in batch
-    /// `b` (0 for an unused lane).
-    pub(in crate::solver) fn lane_stiffness(&self, b: usize) -> [f32; LANES] {
-        self.batches.lanes[b].map(|k| {
+    /// The weight of each lane's cluster's pulls in batch `b`
+    /// ([`ClusterTerm::pull_weight_of`]; 0 for an unused lane), or `None` when every
+    /// cluster's is 1.
+    pub(in crate::solver) fn lane_stiffness(&self, b: usize) -> Option<[f32; LANES]> {
+        if self.shared_compliance.is_some() {
+            return None;
+        }
+        Some(self.batches.lanes[b].map(|k| {
             if k == EMPTY_LANE {
                 0.0
             } else {
-                super::term::pull_weight(self.compliance[k as usize])
+                self.pull_weight_of(k as usize)
             }
-        })
+        }))
     }
 
     /// The particle rows of batch `b`.

@@ -151,8 +151,13 @@ pub struct ClusterTerm {
     /// Counts the times the carry was dropped: a scheme's state that holds parts of it
     /// (Gauss–Seidel's per membership) is dropped with it.
     pub(in crate::solver) carry_epoch: u64,
-    /// Per particle: the summed stiffness of its clusters ([`pull_weight`]).
+    /// Per particle: the summed stiffness of its clusters ([`pull_weight`]), or their
+    /// count when they all share one compliance.
     pub(in crate::solver) particle_stiffness: Vec<f32>,
+    /// The compliance every live cluster shares, if they do: then the pulls go
+    /// unweighted, each counting 1 (the stiffness of every cluster divides out of the
+    /// step, and the inertia is taken relative to it).
+    pub(in crate::solver) shared_compliance: Option<f32>,
     /// Whether any cluster is compliant (else the particle pass has no pull toward the
     /// prediction to add).
     pub(in crate::solver) compliant: bool,
@@ -445,6 +450,8 @@ impl ClusterTerm {
             scratch.resize(n, 0.0);
         }
         let (inv_count, stiffness) = (&self.inv_count, &self.particle_stiffness);
+        // (unweighted pulls count 1 each: the inertia relative to a cluster's stiffness)
+        let inertia_unit = self.shared_compliance.unwrap_or(1.0);
         // one pass: each particle's step coefficients, its warm-start weight, and its
         // start at the prediction plus the weighted carry
         positions
@@ -474,7 +481,7 @@ impl ClusterTerm {
                         (*scale, *anchor) = step_coefficients(
                             inv_count,
                             stiffness,
-                            inv_dt2 / inv_mass.max(f32::MIN_POSITIVE),
+                            inertia_unit * inv_dt2 / inv_mass.max(f32::MIN_POSITIVE),
                             inv_mass,
                         );
                         // (a particle held still, or a carry a repaired particle left, starts
@@ -497,10 +504,15 @@ impl ClusterTerm {
     /// Recomputes each particle's summed cluster stiffness from the current clusters.
     pub(in crate::solver) fn refresh_coefficients(&mut self) {
         let n = self.rest.len();
+        let mut live = (self.cluster_range.iter().zip(&self.compliance))
+            .filter(|(range, _)| range[0] < range[1])
+            .map(|(_, c)| *c);
+        let first = live.next();
+        self.shared_compliance = first.filter(|c| live.all(|other| other == *c));
         let mut sum = vec![0.0f32; n];
         for (k, range) in self.cluster_range.iter().enumerate() {
             let members = &self.member_particle[range[0] as usize..range[1] as usize];
-            let weight = pull_weight(self.compliance[k]);
+            let weight = self.pull_weight_of(k);
             for &m in members {
                 sum[m as usize] += weight;
             }
@@ -513,6 +525,17 @@ impl ClusterTerm {
         self.particle_stiffness = sum;
         self.coefficients_stale = false;
         self.forget_carry();
+    }
+
+    /// The weight of cluster slot `k`'s pulls in the Jacobi step: its stiffness
+    /// ([`pull_weight`]), or 1 when every cluster shares one compliance.
+    #[inline]
+    pub(in crate::solver) fn pull_weight_of(&self, k: usize) -> f32 {
+        if self.shared_compliance.is_some() {
+            1.0
+        } else {
+            pull_weight(self.compliance[k])
+        }
     }
 
     /// Drops the warm start (after the clusters or the time step changed); the schemes'

@@ -144,7 +144,6 @@ impl BatchKernel for PullKernel<'_> {
         // belong to other tasks' clusters: it adds nothing. Lanes may share a particle:
         // their pulls are added one after another.
         let used = this.lanes_in_use(b);
-        let stiffness = this.lane_stiffness(b);
         // SAFETY (this block and the two below): this task owns the group's clusters,
         // their rotations and their members' pulls for the colour (see `Disjoint`);
         // `add` is only called with members of the group's clusters, whose indices were
@@ -154,24 +153,33 @@ impl BatchKernel for PullKernel<'_> {
             pulls.write_at(at, pulls.read_at(at) + pull);
         };
         let positions = self.positions.as_ptr();
-        // (two calls rather than a test per lane: most batches are full)
-        if used.iter().all(|u| *u) {
-            unsafe {
+        // (separate calls rather than tests per lane: most batches are full, and most
+        // layouts' clusters share one compliance, whose pulls go unweighted)
+        match (this.lane_stiffness(b), used.iter().all(|u| *u)) {
+            (None, true) => unsafe {
                 this.fit_batch::<L>(b, fit_rows, positions, self.rotations, |row| {
-                    for ((&at, &pull), &k) in row.at.iter().zip(&row.pull).zip(&stiffness) {
+                    for (&at, &pull) in row.at.iter().zip(&row.pull) {
+                        add(at, pull);
+                    }
+                })
+            },
+            (Some(weights), true) => unsafe {
+                this.fit_batch::<L>(b, fit_rows, positions, self.rotations, |row| {
+                    for ((&at, &pull), &k) in row.at.iter().zip(&row.pull).zip(&weights) {
                         add(at, pull * k);
                     }
                 })
-            };
-        } else {
-            unsafe {
+            },
+            (weights, false) => unsafe {
+                // (an unused lane weighs 0, and adds nothing)
+                let weights = weights.unwrap_or(used.map(f32::from));
                 this.fit_batch::<L>(b, fit_rows, positions, self.rotations, |row| {
-                    let lanes = row.at.iter().zip(&row.pull).zip(&stiffness).zip(&used);
+                    let lanes = row.at.iter().zip(&row.pull).zip(&weights).zip(&used);
                     for (((&at, &pull), &k), _) in lanes.filter(|(_, in_use)| **in_use) {
                         add(at, pull * k);
                     }
                 })
-            };
+            },
         }
     }
 }
