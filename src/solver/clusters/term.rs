@@ -86,10 +86,10 @@ fn warm_start_weight(anchor: f32, iterations: u32, global: bool) -> f32 {
 pub const WARM_START_LOOP_GAIN: f32 = 0.45;
 
 /// The compliance standing in for a rigid cluster's (0) in the Jacobi and projective
-/// pull passes' per-cluster weights ([`pull_weight`]): 2⁻⁵⁰ ≈ 8.9e-16 1/Pa, so far below
-/// any material's (steel's is about 5e-12) that next to a rigid cluster a compliant one
-/// weighs nothing; a power of two, so that rigid clusters' weighted pulls and steps round
-/// exactly as unweighted ones.
+/// pull passes' per-cluster weights (stiffness `1/compliance`): 2⁻⁵⁰ ≈ 8.9e-16 1/Pa, so
+/// far below any material's (steel's is about 5e-12) that next to a rigid cluster a
+/// compliant one weighs nothing; a power of two, so that rigid clusters' weighted pulls
+/// and steps round exactly as unweighted ones.
 pub const RIGID_COMPLIANCE: f32 = 1.0 / (1u64 << 50) as f32;
 
 /// The weight of a cluster of `compliance` in its members' Jacobi steps: its stiffness
