@@ -1,11 +1,13 @@
 //! Cluster shape matching, the solver's dense SIMD core: the term itself ([`term`]),
 //! the rows and batches the kernel reads, the batched fit, the shared rest shape, the
-//! colouring, and the patch after a cut.
+//! colouring, the patch after a cut, and the clusters' turn carried from substep to
+//! substep.
 
 pub mod batches;
 pub mod colouring;
 pub mod fit;
 pub mod patch;
 pub mod rows;
+pub mod spin;
 pub mod template;
 pub mod term;

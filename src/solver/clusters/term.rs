@@ -174,6 +174,8 @@ pub struct ClusterTerm {
     pub(in crate::solver) coefficients_stale: bool,
     /// Warm-start rotation per cluster slot.
     pub(in crate::solver) rotations: Vec<Quat>,
+    /// Per cluster slot: its rotation when the last substep began ([`super::spin`]).
+    pub(in crate::solver) substep_start: Vec<Quat>,
     /// The scheme the weights and batches were made for.
     pub(in crate::solver) mode: SolverMode,
     /// Rest position per particle.
@@ -247,6 +249,7 @@ impl ClusterTerm {
         term.colour_of.reserve_exact(count);
         term.compliance.reserve_exact(count);
         term.rotations.reserve_exact(count);
+        term.substep_start.reserve_exact(count);
         term.offset_bias.reserve_exact(count);
         term.rest_centroid.reserve_exact(count);
         term.inv_weight_sum.reserve_exact(count);
@@ -302,6 +305,7 @@ impl ClusterTerm {
                 self.colour_of[k] = colour;
                 self.compliance[k] = compliance;
                 self.rotations[k] = rotation;
+                self.substep_start[k] = rotation;
                 k
             }
             None => {
@@ -309,6 +313,7 @@ impl ClusterTerm {
                 self.colour_of.push(colour);
                 self.compliance.push(compliance);
                 self.rotations.push(rotation);
+                self.substep_start.push(rotation);
                 self.offset_bias.push(Vec3A::ZERO);
                 self.rest_centroid.push(Vec3A::ZERO);
                 self.inv_weight_sum.push(0.0);
@@ -440,6 +445,7 @@ impl ClusterTerm {
             self.carry_dt = dt;
             self.forget_carry();
         }
+        self.turn_warm_starts();
         let inv_dt2 = 1.0 / (dt * dt);
         let n = positions.len();
         for scratch in [
@@ -541,6 +547,7 @@ impl ClusterTerm {
     /// Drops the warm start (after the clusters or the time step changed); the schemes'
     /// own warm-start state follows [`ClusterTerm::carry_epoch`].
     pub(in crate::solver) fn forget_carry(&mut self) {
+        self.substep_start.clone_from(&self.rotations);
         self.carry_epoch += 1;
         self.carry.clear();
         self.carry.resize(self.rest.len(), Vec3A::ZERO);
