@@ -147,13 +147,18 @@ fn truck_groups(at: Vec3, turn: Quat) -> Vec<GroupDesc> {
     groups
 }
 
+/// The slope's turn (about z, down toward +x) with its downhill direction and its
+/// surface normal.
+fn slope_frame() -> (Quat, Vec3, Vec3) {
+    let turn = Quat::from_rotation_z(-SLOPE.0);
+    (turn, turn * Vec3::X, turn * Vec3::Y)
+}
+
 /// The slope: a static box whose top face runs `SLOPE.1` metres down at `SLOPE.0` to meet
 /// the ground at x = 0, going toward +x.
 fn slope() -> ColliderDesc {
-    let (angle, length) = SLOPE;
-    let turn = Quat::from_rotation_z(-angle);
-    let down = turn * Vec3::X;
-    let normal = turn * Vec3::Y;
+    let length = SLOPE.1;
+    let (turn, down, normal) = slope_frame();
     let thickness = 0.1;
     ColliderDesc {
         shape: ColliderShape::Box {
@@ -188,9 +193,8 @@ fn bump() -> ColliderDesc {
 /// Where the truck starts: its frame turned to the slope, its rear wheels' lowest
 /// particles a quarter spacing above the slope near its top.
 pub fn truck_start() -> (Vec3, Quat) {
-    let (angle, length) = SLOPE;
-    let turn = Quat::from_rotation_z(-angle);
-    let (down, normal) = (turn * Vec3::X, turn * Vec3::Y);
+    let length = SLOPE.1;
+    let (turn, down, normal) = slope_frame();
     let above = WHEEL_REACH + 0.25 * TRUCK_H;
     let along = length - 1.0;
     let at = -down * along + normal * above - turn * Vec3::new(0.0, WHEEL_CENTRES[0].y, 0.0);

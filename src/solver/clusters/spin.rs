@@ -12,7 +12,7 @@
 //! warm start turned ahead by the last substep's turn (constant angular velocity, the
 //! prediction the particles get) leaves the step only the change of spin to recover.
 
-use super::term::ClusterTerm;
+use super::term::{CLUSTERS_PER_TASK, ClusterTerm};
 use glam::Quat;
 use rayon::prelude::*;
 
@@ -20,9 +20,6 @@ use rayon::prelude::*;
 /// (2e-6 rad, 5e-4 rad/s at 240 substeps a second). The rotation fits of a body at rest
 /// wander by less.
 const SMALLEST_TURN: f32 = 1e-6;
-
-/// Clusters per parallel task.
-const CLUSTERS_PER_TASK: usize = 4096;
 
 impl ClusterTerm {
     /// Turns every cluster's warm-start rotation ahead by the turn it made over the last
