@@ -101,16 +101,28 @@ pub struct Material {
     /// moment matrix generalised shape matching adds (oriented model); `None`: a sphere
     /// of half the lattice spacing.
     pub particle_radii: Option<Vec3>,
-    /// Plasticity (oriented model): the strain of a group's shape past which its rest
-    /// shape creeps toward its deformed shape (≥ 0; 0, the default: elastic). The strain
-    /// is the group's RMS deviation from its fitted rigid motion over its RMS rest
-    /// offset.
+    /// Plasticity (both models): the strain of a cluster's or a group's shape past which
+    /// its rest shape creeps toward its deformed shape (≥ 0; 0, the default: elastic).
+    /// The strain is the shape's RMS deviation from its fitted rigid motion over its RMS
+    /// rest offset. See [`crate::solver::yielding`].
     pub yield_strain: f32,
     /// How fast a yielded rest shape creeps, as the share of its excess strain taken per
     /// second (0–1).
     pub creep: f32,
-    /// The most a group's rest shape may drift from its lattice shape, as strain (≥ 0).
+    /// The most a cluster's or a group's rest shape may drift from its lattice shape, as
+    /// strain (≥ 0).
     pub max_plastic_strain: f32,
+}
+
+/// A material's plasticity, as the solver's terms take it ([`Material::yielding`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Yield {
+    /// [`Material::yield_strain`] (> 0).
+    pub strain: f32,
+    /// [`Material::creep`].
+    pub creep: f32,
+    /// [`Material::max_plastic_strain`].
+    pub max_strain: f32,
 }
 
 /// Rubber ([`Material::rubber`]): a body a newcomer spawns deforms where it lands.
@@ -146,6 +158,15 @@ impl Default for Material {
 }
 
 impl Material {
+    /// The material's plasticity, `None` when it is elastic (yield strain 0).
+    pub fn yielding(&self) -> Option<Yield> {
+        (self.yield_strain > 0.0).then_some(Yield {
+            strain: self.yield_strain,
+            creep: self.creep,
+            max_strain: self.max_plastic_strain,
+        })
+    }
+
     /// Rigid: every cluster keeps its rest shape (compliance 0), density 1000 kg/m³ —
     /// pieces that move as stones do.
     pub fn rigid() -> Self {

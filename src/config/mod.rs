@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 
 mod material;
 mod relax;
-pub use material::{Material, Model};
+pub use material::{Material, Model, Yield};
 pub use relax::RelaxOptions;
 
 /// Which scheme solves each substep's constraints. All three solve the same problem —

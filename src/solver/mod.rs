@@ -10,6 +10,7 @@
 //!   how the clusters move the particles and how the other terms join in.
 //! - [`solve`]: the iteration that runs them, timed per term.
 //! - [`residual`]: how far a solve is from its solution (the net force on each particle).
+//! - [`yielding`]: plastic flow of a rest shape, for the clusters and the oriented groups.
 //!
 //! Every scheme is deterministic for any number of threads: every sum runs in a fixed
 //! order.
@@ -25,3 +26,4 @@ pub mod term;
 pub mod terms;
 #[cfg(test)]
 mod testing;
+pub mod yielding;

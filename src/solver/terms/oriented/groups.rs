@@ -13,7 +13,7 @@
 //! Explicit pieces may share particles (joints), so each is a colour of its own.
 
 use crate::body::lattice::NO_PARTICLE;
-use crate::config::Material;
+use crate::config::{Material, Yield};
 use crate::solver::term::{BodyTopology, NO_DENSE};
 use glam::{IVec3, Vec3A};
 
@@ -192,14 +192,10 @@ impl BodyGroups {
 }
 
 /// A body's plasticity (see [`super::plastic`]), and its groups' lattice rest shapes.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Plasticity {
-    /// Strain past which a group yields.
-    pub yield_strain: f32,
-    /// Share of the excess strain taken per second.
-    pub creep: f32,
-    /// Largest strain of a rest shape from the lattice's.
-    pub max_strain: f32,
+    /// The material's yield.
+    pub yielding: Yield,
     /// Each membership's lattice rest position.
     pub lattice_rest: Vec<Vec3A>,
 }
@@ -208,10 +204,8 @@ impl Plasticity {
     /// The plasticity of a body of `material` whose groups rest at `rest`, or `None` for
     /// an elastic material.
     pub fn of(material: &Material, rest: &[Vec3A]) -> Option<Self> {
-        (material.yield_strain > 0.0).then(|| Plasticity {
-            yield_strain: material.yield_strain,
-            creep: material.creep,
-            max_strain: material.max_plastic_strain,
+        material.yielding().map(|yielding| Plasticity {
+            yielding,
             lattice_rest: rest.to_vec(),
         })
     }
