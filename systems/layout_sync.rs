@@ -7,11 +7,13 @@
 
 use crate::body::lattice::Lattice;
 use crate::config::SolverMode;
+use crate::config::Yield;
 use crate::ecs::components::*;
 use crate::ecs::resources::{
     BodyCutReport, BodyDense, ClusterSlots, CutReport, LayoutUpdate, PendingTopology, SimSettings,
     SolverCache, dense_owner,
 };
+use crate::solver::clusters::plastic::PlasticSpec;
 use crate::solver::clusters::term::{ClusterSpec, ClusterTerm};
 use crate::solver::particles::Particles;
 use crate::solver::solve::Solver;
@@ -44,7 +46,7 @@ pub fn sync_solver(
     settings: Res<SimSettings>,
     mut cache: ResMut<SolverCache>,
     cut: Res<CutReport>,
-    bodies: Query<(Entity, &BodyLattice)>,
+    bodies: Query<BodyItem>,
     indices: Query<(Entity, &ParticleClusters)>,
     changed_bodies: Query<Entity, Changed<BodyLattice>>,
     clusters: Query<ClusterItem>,
@@ -84,6 +86,9 @@ pub fn sync_solver(
     cache.solver.projective.budget_bytes = config.memory_budget_bytes();
 }
 
+/// Body data as the layout reads it: the lattice, and the material (plasticity).
+pub type BodyItem<'a> = (Entity, &'a BodyLattice, &'a Body);
+
 /// Cluster data as the shape-match stage reads it.
 pub type ClusterItem<'a> = (Entity, &'a ClusterMembers, &'a ClusterOf, &'a Compliance);
 
@@ -109,7 +114,7 @@ pub struct LayoutChanges<'a, 'c> {
 /// rebuilds it from all bodies and clusters.
 pub fn sync_layout<'a>(
     cache: &mut SolverCache,
-    bodies: &Query<(Entity, &BodyLattice)>,
+    bodies: &Query<BodyItem>,
     changes: LayoutChanges<'_, 'a>,
     all_clusters: impl Iterator<Item = ClusterItem<'a>>,
     mode: SolverMode,
@@ -143,11 +148,7 @@ fn dense_members(map: &[u32], members: &[u32], out: &mut Vec<u32>) {
 
 /// Patches the changed clusters and cut particles into the layout; false when a full
 /// rebuild is needed (a body the layout does not know, or the colouring overflows).
-fn patch(
-    cache: &mut SolverCache,
-    bodies: &Query<(Entity, &BodyLattice)>,
-    changes: LayoutChanges,
-) -> bool {
+fn patch(cache: &mut SolverCache, bodies: &Query<BodyItem>, changes: LayoutChanges) -> bool {
     let LayoutChanges {
         bodies: changed_bodies,
         cut,
@@ -167,7 +168,7 @@ fn patch(
     // Particles cut from their bodies: frozen, and no longer offered to detect.
     let mut retired = Vec::new();
     for &body in changed_bodies {
-        let (Some(b), Ok((_, lattice))) = (body_index(cache, body), bodies.get(body)) else {
+        let (Some(b), Ok((_, lattice, _))) = (body_index(cache, body), bodies.get(body)) else {
             return false;
         };
         let lattice = &lattice.lattice;
@@ -191,7 +192,7 @@ fn patch(
     let mut flat = Vec::new();
     let mut entries = Vec::with_capacity(changed.len());
     for (e, members, of, compliance) in changed {
-        let Some(b) = body_index(cache, of.body) else {
+        let (Some(b), Ok((_, _, body))) = (body_index(cache, of.body), bodies.get(of.body)) else {
             return false;
         };
         let rotation = match cache.slot_of.remove(e, &cache.clusters) {
@@ -208,14 +209,20 @@ fn patch(
             start..flat.len(),
             solver_compliance(compliance),
             rotation,
+            body.material.yielding(),
         ));
     }
+    // (a changed cluster starts again from its lattice shape)
     let specs: Vec<ClusterSpec> = entries
         .iter()
-        .map(|(_, range, compliance, rotation)| ClusterSpec {
+        .map(|(_, range, compliance, rotation, yielding)| ClusterSpec {
             members: &flat[range.clone()],
             compliance: *compliance,
             rotation: *rotation,
+            plastic: yielding.map(|yielding| PlasticSpec {
+                yielding,
+                shift: &[],
+            }),
         })
         .collect();
     // Reading the neighbours off the index costs ≈ 18 instructions per membership of a
@@ -376,39 +383,42 @@ fn retired_by_scan(
 }
 
 /// One cluster while the layout is rebuilt: sort key `(body, first dense member, key)`,
-/// its entity, its members' range in the flat member array, and its compliance.
+/// its entity, its members' range in the flat member array, its compliance and its
+/// body's plasticity.
 struct ClusterEntry {
     /// Body, first dense member, key.
     order: (Entity, u32, u32),
     entity: Entity,
     range: std::ops::Range<usize>,
     compliance: f32,
+    yielding: Option<Yield>,
 }
 
 /// Rebuilds the dense layout from the bodies and clusters, keeping warm-start rotations
-/// by cluster entity.
+/// and plastic shifts by cluster entity.
 #[inline(never)]
 pub fn rebuild_cache<'b, 'c>(
     cache: &mut SolverCache,
-    bodies: impl Iterator<Item = (Entity, &'b BodyLattice)>,
+    bodies: impl Iterator<Item = BodyItem<'b>>,
     clusters: impl Iterator<Item = ClusterItem<'c>>,
     mode: SolverMode,
 ) {
-    let warm: HashMap<Entity, Quat> = cache
-        .clusters
-        .iter()
-        .copied()
-        .zip(cache.solver.clusters.rotations().iter().copied())
+    let old = std::mem::take(&mut cache.solver.clusters);
+    let old_slot: HashMap<Entity, usize> = (cache.clusters.iter().enumerate())
+        .map(|(k, e)| (*e, k))
         .collect();
-    let mut body_list: Vec<(Entity, &BodyLattice)> = bodies.collect();
-    body_list.sort_unstable_by_key(|(e, _)| *e);
+    let mut body_list: Vec<BodyItem> = bodies.collect();
+    body_list.sort_unstable_by_key(|(e, ..)| *e);
     // sized up front: grown by doubling, they would keep up to twice their length
-    let total: usize = body_list.iter().map(|(_, b)| b.lattice.live_count()).sum();
+    let total: usize = body_list
+        .iter()
+        .map(|(_, b, _)| b.lattice.live_count())
+        .sum();
     let mut rest = Vec::with_capacity(total);
     let mut particles = Vec::with_capacity(total);
     let mut locals = Vec::with_capacity(total);
     let mut body_dense = Vec::with_capacity(body_list.len());
-    for (body, lattice) in &body_list {
+    for (body, lattice, _) in &body_list {
         let l = &lattice.lattice;
         let mut map = vec![u32::MAX; l.len()];
         let first = rest.len() as u32;
@@ -443,15 +453,25 @@ pub fn rebuild_cache<'b, 'c>(
                 entity: e,
                 range: start..flat.len(),
                 compliance: solver_compliance(compliance),
+                yielding: body_list[b].2.material.yielding(),
             });
         }
     }
     // Clusters in the order of their first member (then key, for determinism).
     cluster_list.sort_unstable_by_key(|c| c.order);
-    let specs = cluster_list.iter().map(|c| ClusterSpec {
-        members: &flat[c.range.clone()],
-        compliance: c.compliance,
-        rotation: warm.get(&c.entity).copied().unwrap_or(Quat::IDENTITY),
+    let specs = cluster_list.iter().map(|c| {
+        let slot = old_slot.get(&c.entity).copied();
+        ClusterSpec {
+            members: &flat[c.range.clone()],
+            compliance: c.compliance,
+            rotation: slot
+                .and_then(|k| old.rotations().get(k).copied())
+                .unwrap_or(Quat::IDENTITY),
+            plastic: c.yielding.map(|yielding| PlasticSpec {
+                yielding,
+                shift: slot.and_then(|k| old.plastic_shift(k)).unwrap_or(&[]),
+            }),
+        }
     });
     // the terms stay (they hear of the new layout); the schemes' state goes with the
     // clusters it belonged to

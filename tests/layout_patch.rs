@@ -6,7 +6,7 @@ use bevy_ecs::prelude::*;
 use cleave::ecs::resources::{CutReport, SolverCache};
 use cleave::io::scene::builtin;
 use cleave::prelude::*;
-use cleave::systems::layout_sync::rebuild_cache;
+use cleave::systems::layout_sync::{BodyItem, rebuild_cache};
 use glam::Vec4;
 use std::collections::BTreeMap;
 
@@ -31,7 +31,7 @@ fn clusters_of(cache: &SolverCache) -> Clusters {
 }
 
 fn fresh_rebuild(world: &mut World, mode: SolverMode) -> SolverCache {
-    let mut bodies = world.query::<(Entity, &BodyLattice)>();
+    let mut bodies = world.query::<BodyItem>();
     let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf, &Compliance)>();
     let mut fresh = SolverCache::default();
     rebuild_cache(&mut fresh, bodies.iter(world), clusters.iter(world), mode);

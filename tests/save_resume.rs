@@ -80,8 +80,14 @@ fn a_saved_run_resumes_bit_for_bit() {
             CutMode::Remove,
             Model::Oriented,
         ),
-        // (plastic: its groups' rest shapes have crept by the save)
+        // (plastic: its groups' and clusters' rest shapes have crept by the save)
         ("dent", SolverMode::Jacobi, CutMode::Remove, Model::Oriented),
+        (
+            "dent",
+            SolverMode::GaussSeidel,
+            CutMode::Remove,
+            Model::Clusters,
+        ),
     ] {
         let mut scene = builtin(name, 7).unwrap();
         scene.config.solver = solver;

@@ -20,7 +20,7 @@ use crate::solver::solve::Solver;
 use crate::solver::term::Substep;
 use crate::solver::terms::colliders::Colliders;
 use crate::solver::terms::edges::Edges;
-use crate::systems::layout_sync::rebuild_cache;
+use crate::systems::layout_sync::{BodyItem, rebuild_cache};
 use bevy_ecs::prelude::Entity;
 use glam::{Quat, UVec3, Vec3};
 use rand::SeedableRng;
@@ -281,7 +281,7 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
     let update = sim.world().resource::<SolverCache>().last_update;
     let rebuild_ms = time_ms(1, || {
         let world = sim.world_mut();
-        let mut bodies = world.query::<(Entity, &BodyLattice)>();
+        let mut bodies = world.query::<BodyItem>();
         let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf, &Compliance)>();
         let mut fresh = SolverCache::default();
         rebuild_cache(

@@ -79,6 +79,7 @@ impl StaticProblem {
             members: m,
             compliance,
             rotation: Quat::IDENTITY,
+            plastic: None,
         });
         let mut solver = Solver::new(ClusterTerm::new(&rest, specs, mode), Terms::builtin());
         // the edges, and the pins as the engine spawns them: hard attachments

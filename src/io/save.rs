@@ -512,6 +512,9 @@ fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Resul
     {
         return Err(invalid("the solver's particle tables disagree in length"));
     }
+    if !saved.clusters_term.plasticity_fits() {
+        return Err(invalid("the clusters' plastic shifts do not fit them"));
+    }
     let state = &saved.particles;
     let finite = |v: &[glam::Vec3A]| v.iter().all(|x| x.is_finite());
     let oriented = saved.oriented;

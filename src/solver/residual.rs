@@ -67,10 +67,23 @@ impl Solver {
             };
             let rest = |i: usize| clusters.rest[i].as_dvec3();
             let (centre, rest_centre) = (mean(&position), mean(&rest));
+            // member j's rest offset (a plastic cluster's own shape: the shift's mean is
+            // taken off with the centroid)
+            let shift = |j: usize| {
+                clusters
+                    .plastic_shift(k)
+                    .map_or(DVec3::ZERO, |s| s[j].as_dvec3())
+            };
+            let shift_centre = (members.iter().enumerate())
+                .map(|(j, &m)| shift(j) * weight(m))
+                .sum::<DVec3>()
+                / total;
+            let offset =
+                |j: usize, m: u32| rest(m as usize) - rest_centre + shift(j) - shift_centre;
             let mut moment = DMat3::ZERO;
-            for &m in members {
+            for (j, &m) in members.iter().enumerate() {
                 let p = position(m as usize) - centre;
-                let q = (rest(m as usize) - rest_centre) * weight(m);
+                let q = offset(j, m) * weight(m);
                 moment += DMat3::from_cols(p * q.x, p * q.y, p * q.z);
             }
             let rotation = extract_rotation(
@@ -80,10 +93,10 @@ impl Solver {
             )
             .as_dquat();
             let kappa = unknowns.weight(clusters.compliance[k], members, step.dt);
-            for &m in members {
+            for (j, &m) in members.iter().enumerate() {
                 let i = m as usize;
                 if particles.inv_mass[i] > 0.0 {
-                    let goal = centre + rotation * (rest(i) - rest_centre);
+                    let goal = centre + rotation * offset(j, m);
                     forces[i] += (goal - position(i)) * kappa * weight(m);
                 }
             }
@@ -138,6 +151,7 @@ mod tests {
             members: &members,
             compliance: 1e-3,
             rotation: Quat::IDENTITY,
+            plastic: None,
         };
         let solver = Solver::new(ClusterTerm::new(&rest, [spec], mode), Terms::default());
         (solver, Particles::at_rest(&rest), rest)

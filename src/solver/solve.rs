@@ -180,7 +180,7 @@ impl Solver {
     }
 
     /// Ends a solve: the corrections are the terms' and the clusters' together; rounding
-    /// noise is dropped.
+    /// noise is dropped; plastic clusters yield to the solved shape.
     fn finish_substep(&mut self, particles: &mut Particles, step: &Substep) {
         for (c, carry) in particles.corrections.iter_mut().zip(&self.clusters.carry) {
             *c += *carry;
@@ -188,6 +188,7 @@ impl Solver {
         self.clusters
             .blend_orientations(&mut particles.orientations);
         self.drop_rounding_noise(particles);
+        self.clusters.creep(&particles.positions, step.dt);
         for term in self.terms.iter() {
             if !term.is_empty() {
                 term.end_substep(step, &particles.velocities, &mut particles.corrections);

@@ -20,6 +20,7 @@ pub(crate) fn unit_specs(clusters: &[Vec<u32>]) -> Vec<ClusterSpec<'_>> {
             members: m,
             compliance: 0.0,
             rotation: Quat::IDENTITY,
+            plastic: None,
         })
         .collect()
 }

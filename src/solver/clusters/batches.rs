@@ -236,10 +236,9 @@ impl ClusterTerm {
     ) {
         let [start, end] = self.cluster_range[k];
         let members = &self.member_particle[start as usize..end as usize];
-        let centroid = self.rest_centroid[k];
         let rows = particles.iter_mut().zip(moments.iter_mut());
-        for ((at, row), &m) in rows.zip(members) {
-            let offset = self.rest[m as usize] - centroid;
+        for (j, ((at, row), &m)) in rows.zip(members).enumerate() {
+            let offset = self.rest_offset(k, j, m);
             row.offset.x.as_mut_array()[l] = offset.x;
             row.offset.y.as_mut_array()[l] = offset.y;
             row.offset.z.as_mut_array()[l] = offset.z;

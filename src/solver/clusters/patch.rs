@@ -76,6 +76,7 @@ impl ClusterTerm {
                 continue;
             }
             self.clear_lane(k);
+            self.set_plastic(k, 0, None);
             let bit = !(1u64 << self.colour_of[k]);
             let [start, end] = self.cluster_range[k];
             for &m in &self.member_particle[start as usize..end as usize] {

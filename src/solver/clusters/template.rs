@@ -103,9 +103,12 @@ impl ClusterTerm {
     }
 
     /// The particles of cluster slot `k` in the template's member order, when it
-    /// matches `template`.
+    /// matches `template` (a plastic cluster never does: its shape changes).
     pub(in crate::solver) fn template_order(&self, k: usize, template: &Template) -> Option<Order> {
-        if template.len() == 0 || self.cluster_size(k) != template.len() {
+        if template.len() == 0
+            || self.cluster_size(k) != template.len()
+            || self.plastic_shift(k).is_some()
+        {
             return None;
         }
         let members = self.canonical(k);

@@ -18,6 +18,7 @@
 //! that a body at rest holds its shape whatever the iteration count.
 
 use super::colouring::{colour_clusters_by_bits, colour_clusters_by_lists};
+use super::plastic::{PlasticCluster, PlasticSpec};
 use super::rows::PARTICLE_BYTES;
 use crate::config::SolverMode;
 use crate::math::rotation::warm_start;
@@ -137,6 +138,8 @@ pub struct ClusterSpec<'a> {
     pub compliance: f32,
     /// Warm-start rotation.
     pub rotation: Quat,
+    /// Plasticity ([`super::plastic`]); `None`: elastic.
+    pub plastic: Option<PlasticSpec<'a>>,
 }
 
 /// The cluster term; see the module docs. Fields are the solver's (the schemes' kernels
@@ -208,6 +211,9 @@ pub struct ClusterTerm {
     pub(in crate::solver) compliance: Vec<f32>,
     /// The clusters in batches of eight, as the kernel reads them.
     pub(in crate::solver) batches: super::rows::Batches,
+    /// Per cluster slot: its plasticity, `None` for an elastic cluster (empty, or
+    /// shorter than the slots, when the later slots are elastic).
+    pub(in crate::solver) plastic: Vec<Option<PlasticCluster>>,
 }
 
 impl ClusterTerm {
@@ -299,7 +305,7 @@ impl ClusterTerm {
         let compliance = spec.compliance;
         // the batched fit expects unit warm starts
         let rotation = warm_start(spec.rotation);
-        match slot {
+        let k = match slot {
             Some(k) => {
                 self.cluster_range[k] = range;
                 self.colour_of[k] = colour;
@@ -319,7 +325,9 @@ impl ClusterTerm {
                 self.inv_weight_sum.push(0.0);
                 self.cluster_range.len() - 1
             }
-        }
+        };
+        self.set_plastic(k, spec.members.len(), spec.plastic);
+        k
     }
 
     /// The matching weight of particle `m` in every cluster: `1/nᵢ` for Jacobi and
@@ -347,14 +355,12 @@ impl ClusterTerm {
             total += w;
             weighted += rest[m as usize] * w;
         }
-        let centroid = weighted / total;
-        // Σ w (x̄ − x̄_c) is zero up to rounding; the fit subtracts its rotated
-        // rounding residue so that every cluster's pull has exactly zero momentum.
-        let bias: Vec3A = members
-            .iter()
-            .map(|m| (rest[*m as usize] - centroid) * self.weight(*m))
+        self.rest_centroid[k] = weighted / total;
+        // Σ w q is zero up to rounding (and a plastic shift); the fit subtracts its
+        // rotated residue so that every cluster's pull has exactly zero momentum.
+        let bias: Vec3A = (members.iter().enumerate())
+            .map(|(j, m)| self.rest_offset(k, j, *m) * self.weight(*m))
             .sum();
-        self.rest_centroid[k] = centroid;
         self.offset_bias[k] = bias;
         self.inv_weight_sum[k] = 1.0 / total;
     }

@@ -139,6 +139,7 @@ pub(super) mod tests {
             members: m,
             compliance: 1e-3,
             rotation: glam::Quat::IDENTITY,
+            plastic: None,
         });
         let term = ClusterTerm::new(&rest, specs, SolverMode::Projective);
         let mut inv_mass = vec![1.0; rest.len()];

@@ -309,6 +309,7 @@ mod tests {
             members: &[0],
             compliance: 0.0,
             rotation: glam::Quat::IDENTITY,
+            plastic: None,
         }];
         let term = ClusterTerm::new(&[Vec3::ONE], one, SolverMode::Projective);
         let mut single = Particles::at_rest(&[Vec3::ONE]);

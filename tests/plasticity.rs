@@ -1,0 +1,118 @@
+//! Plasticity in both models (SPEC §5, material `yield_strain`, `creep`,
+//! `max_plastic_strain`), checked against the same block without yield: a plastic block
+//! pressed by a sphere keeps a dent, an elastic one springs back, and the dent survives
+//! the solver laying its layout out afresh.
+
+use cleave::ecs::resources::SolverCache;
+use cleave::io::oriented_scenes::DENT_H;
+use cleave::io::scene::builtin;
+use cleave::prelude::*;
+
+fn start(scene: &cleave::ecs::desc::Scene) -> (Simulation, Entity) {
+    let mut sim = Simulation::from_scene(scene).unwrap();
+    let body = sim.bodies()[0];
+    (sim, body)
+}
+
+/// The depth (metres) of the dent at the middle of the block's top in the `dent` scene
+/// with its block of `model` and yield strain `yield_strain`: the deepest it went, and
+/// what is left at the end.
+fn dent(model: Model, yield_strain: f32) -> (f32, f32) {
+    dent_with(model, yield_strain, None)
+}
+
+/// [`dent`], with a second body spawned far away at frame `spawn_at` (so that the
+/// solver lays out its layout afresh then).
+fn dent_with(model: Model, yield_strain: f32, spawn_at: Option<u32>) -> (f32, f32) {
+    let mut scene = builtin("dent", 0).unwrap();
+    scene.bodies[0].material.model = model;
+    scene.bodies[0].material.yield_strain = yield_strain;
+    let (mut sim, body) = start(&scene);
+    // the four top particles around the middle (the sphere's axis)
+    let rest = sim.positions(body).unwrap();
+    let top = rest.iter().map(|(_, x)| x.y).fold(f32::MIN, f32::max);
+    let middle: Vec<u32> = rest
+        .iter()
+        .filter(|(_, x)| x.y > top - 0.1 * DENT_H && x.x.abs() < DENT_H && x.z.abs() < DENT_H)
+        .map(|(i, _)| *i)
+        .collect();
+    assert_eq!(middle.len(), 4);
+    let depth = |sim: &Simulation| {
+        let x = sim.positions(body).unwrap();
+        // against the block's top far from the dent (its corners), so that the whole
+        // block settling on the ground does not count
+        let corners: Vec<f32> = x
+            .iter()
+            .zip(&rest)
+            .filter(|(_, (_, r))| r.y > top - 0.1 * DENT_H)
+            .filter(|(_, (_, r))| r.x.abs() > 4.0 * DENT_H && r.z.abs() > 4.0 * DENT_H)
+            .map(|((_, p), _)| p.y)
+            .collect();
+        let corner = corners.iter().sum::<f32>() / corners.len() as f32;
+        let mid = middle.iter().map(|&i| x[i as usize].1.y).sum::<f32>() / 4.0;
+        corner - mid
+    };
+    let mut deepest = 0.0f32;
+    for frame in 0..scene.frames {
+        if spawn_at == Some(frame) {
+            let mut far = BodyDesc::new(Shape::cuboid(UVec3::splat(2)), DENT_H);
+            far.position = Vec3::new(3.0, 0.1, 0.0);
+            sim.spawn_body(&far).unwrap();
+        }
+        sim.step();
+        if spawn_at == Some(frame) {
+            let update = sim.world().resource::<SolverCache>().last_update;
+            assert!(update.is_some_and(|u| !u.patched), "a fresh layout");
+        }
+        deepest = deepest.max(depth(&sim));
+    }
+    (deepest, depth(&sim))
+}
+
+#[test]
+fn a_plastic_block_keeps_a_dent_and_an_elastic_one_springs_back() {
+    let yield_strain = builtin("dent", 0).unwrap().bodies[0].material.yield_strain;
+    for model in [Model::Oriented, Model::Clusters] {
+        let (deepest, left) = dent(model, yield_strain);
+        let (elastic_deepest, elastic_left) = dent(model, 0.0);
+        eprintln!(
+            "dent, {model:?}: plastic {:.3} h deepest, {:.3} h left; elastic {:.3} h deepest, {:.3} h left",
+            deepest / 0.05,
+            left / 0.05,
+            elastic_deepest / 0.05,
+            elastic_left / 0.05
+        );
+        assert!(
+            deepest > 0.05,
+            "{model:?}: the sphere dents the block: {deepest} m"
+        );
+        assert!(left >= 0.5 * deepest, "{model:?}: {left} of {deepest}");
+        assert!(
+            elastic_left.abs() <= 0.05 * elastic_deepest,
+            "{model:?}: {elastic_left} of {elastic_deepest}"
+        );
+    }
+}
+
+#[test]
+fn a_fresh_layout_keeps_the_clusters_dent() {
+    let scene = builtin("dent", 0).unwrap();
+    let yield_strain = scene.bodies[0].material.yield_strain;
+    let (_, left) = dent(Model::Clusters, yield_strain);
+    // spawned as the sphere lifts off (it rises from 3.0 s to 3.5 s)
+    let frames_per_second = (1.0 / scene.config.dt).round() as u32;
+    let (_, rebuilt_left) = dent_with(
+        Model::Clusters,
+        yield_strain,
+        Some(3 * frames_per_second + 10),
+    );
+    eprintln!(
+        "dent left: {:.3} h; with a fresh layout as the sphere lifts: {:.3} h",
+        left / DENT_H,
+        rebuilt_left / DENT_H
+    );
+    assert!(
+        (rebuilt_left - left).abs() <= 0.1 * left,
+        "{rebuilt_left} vs {left}"
+    );
+}
