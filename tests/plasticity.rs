@@ -1,7 +1,7 @@
 //! Plasticity in both models (SPEC §5, material `yield_strain`, `creep`,
 //! `max_plastic_strain`), checked against the same block without yield: a plastic block
-//! pressed by a sphere keeps a dent, an elastic one springs back, and the dent survives
-//! the solver laying its layout out afresh.
+//! pressed by a sphere keeps a dent, an elastic one springs back, and in the cluster
+//! model the dent survives the solver laying its layout out afresh and a cut beside it.
 
 use cleave::ecs::resources::SolverCache;
 use cleave::io::oriented_scenes::DENT_H;
@@ -18,15 +18,47 @@ fn start(scene: &cleave::ecs::desc::Scene) -> (Simulation, Entity) {
 /// with its block of `model` and yield strain `yield_strain`: the deepest it went, and
 /// what is left at the end.
 fn dent(model: Model, yield_strain: f32) -> (f32, f32) {
-    dent_with(model, yield_strain, None)
+    dent_with(model, yield_strain, Change::None)
 }
 
-/// [`dent`], with a second body spawned far away at frame `spawn_at` (so that the
-/// solver lays out its layout afresh then).
-fn dent_with(model: Model, yield_strain: f32, spawn_at: Option<u32>) -> (f32, f32) {
+/// What happens to the dented block's layout while the sphere lifts off (it rises from
+/// 3.0 s to 3.5 s).
+#[derive(Clone, Copy, PartialEq)]
+enum Change {
+    None,
+    /// A second body is spawned far away at 3.2 s, so that the solver lays its layout
+    /// out afresh.
+    Spawn,
+    /// A blade severs the block 4 spacings from the dent's middle, from 4.0 s to 4.3 s:
+    /// the clusters it passes are rebuilt, the others patched around them.
+    Cut,
+}
+
+/// [`dent`], with `change`.
+fn dent_with(model: Model, yield_strain: f32, change: Change) -> (f32, f32) {
     let mut scene = builtin("dent", 0).unwrap();
     scene.bodies[0].material.model = model;
     scene.bodies[0].material.yield_strain = yield_strain;
+    if change == Change::Cut {
+        // (the blade's normal is its local z: turned to x)
+        let at = |y: f32| Pose {
+            position: Vec3::new(4.0 * DENT_H, y, 0.0),
+            rotation: Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+        };
+        scene.tools.push(ToolDesc {
+            shape: ToolShape::Blade {
+                half_width: 1.0,
+                half_height: 0.2,
+            },
+            cut_width: 0.25 * DENT_H,
+            cut_mode: CutMode::Sever,
+            path: Path {
+                keys: vec![(4.0, at(0.8)), (4.3, at(-0.25)), (4.35, at(-5.0))],
+            },
+            pose: at(0.8),
+        });
+    }
+    let spawn_at = (3.2 / scene.config.dt).round() as u32;
     let (mut sim, body) = start(&scene);
     // the four top particles around the middle (the sphere's axis)
     let rest = sim.positions(body).unwrap();
@@ -54,17 +86,22 @@ fn dent_with(model: Model, yield_strain: f32, spawn_at: Option<u32>) -> (f32, f3
     };
     let mut deepest = 0.0f32;
     for frame in 0..scene.frames {
-        if spawn_at == Some(frame) {
+        let spawn = change == Change::Spawn && frame == spawn_at;
+        if spawn {
             let mut far = BodyDesc::new(Shape::cuboid(UVec3::splat(2)), DENT_H);
             far.position = Vec3::new(3.0, 0.1, 0.0);
             sim.spawn_body(&far).unwrap();
         }
         sim.step();
-        if spawn_at == Some(frame) {
+        if spawn {
             let update = sim.world().resource::<SolverCache>().last_update;
             assert!(update.is_some_and(|u| !u.patched), "a fresh layout");
         }
         deepest = deepest.max(depth(&sim));
+    }
+    if change == Change::Cut {
+        let pieces = sim.pieces(body).unwrap().len();
+        assert!(pieces >= 2, "the blade severs the block: {pieces} piece");
     }
     (deepest, depth(&sim))
 }
@@ -95,24 +132,23 @@ fn a_plastic_block_keeps_a_dent_and_an_elastic_one_springs_back() {
 }
 
 #[test]
-fn a_fresh_layout_keeps_the_clusters_dent() {
-    let scene = builtin("dent", 0).unwrap();
-    let yield_strain = scene.bodies[0].material.yield_strain;
+fn a_fresh_layout_and_a_cut_beside_it_keep_the_clusters_dent() {
+    let yield_strain = builtin("dent", 0).unwrap().bodies[0].material.yield_strain;
     let (_, left) = dent(Model::Clusters, yield_strain);
-    // spawned as the sphere lifts off (it rises from 3.0 s to 3.5 s)
-    let frames_per_second = (1.0 / scene.config.dt).round() as u32;
-    let (_, rebuilt_left) = dent_with(
-        Model::Clusters,
-        yield_strain,
-        Some(3 * frames_per_second + 10),
-    );
+    let (_, rebuilt_left) = dent_with(Model::Clusters, yield_strain, Change::Spawn);
+    let (_, cut_left) = dent_with(Model::Clusters, yield_strain, Change::Cut);
     eprintln!(
-        "dent left: {:.3} h; with a fresh layout as the sphere lifts: {:.3} h",
+        "dent left: {:.3} h; with a fresh layout as the sphere lifts: {:.3} h; severed beside it: {:.3} h",
         left / DENT_H,
-        rebuilt_left / DENT_H
+        rebuilt_left / DENT_H,
+        cut_left / DENT_H
     );
     assert!(
         (rebuilt_left - left).abs() <= 0.1 * left,
         "{rebuilt_left} vs {left}"
+    );
+    assert!(
+        (cut_left - left).abs() <= 0.1 * left,
+        "{cut_left} vs {left}"
     );
 }
