@@ -12,6 +12,7 @@
 //! of a split particle share a coordinate but no link, so their groups are disjoint too.
 //! Explicit pieces may share particles (joints), so each is a colour of its own.
 
+use super::batched::{ImplicitBatches, Memberships};
 use crate::body::lattice::NO_PARTICLE;
 use crate::config::{Material, Yield};
 use crate::solver::term::{BodyTopology, NO_DENSE};
@@ -63,6 +64,8 @@ pub struct BodyGroups {
     pub lambda: Vec<Vec3A>,
     /// The body's plasticity, if its material yields.
     pub plastic: Option<Plasticity>,
+    /// The implicit groups in batches, as the sweeps read them.
+    pub batches: ImplicitBatches,
 }
 
 /// A group before its memberships are laid out: body-local members, the compliance
@@ -182,7 +185,26 @@ impl BodyGroups {
         }
         out.lambda = vec![Vec3A::ZERO; out.members.len()];
         out.plastic = Plasticity::of(body.material, &out.rest);
+        out.batches = out.batched();
         Some(out)
+    }
+
+    /// The implicit groups in batches (every colour whose groups have a centre).
+    fn batched(&self) -> ImplicitBatches {
+        let colours: Vec<Option<Vec<[u32; 2]>>> = (self.colours.iter())
+            .map(|c| {
+                let groups = &self.groups[c[0] as usize..c[1] as usize];
+                let implicit = groups.iter().all(|g| matches!(g.turns, Turns::Centre(_)));
+                implicit.then(|| groups.iter().map(|g| g.range).collect())
+            })
+            .collect();
+        let memberships = Memberships {
+            members: &self.members,
+            rest: &self.rest,
+            moment: &self.moment,
+            compliance: &self.compliance,
+        };
+        ImplicitBatches::build(&colours, &memberships)
     }
 
     /// The memberships of group `g`.

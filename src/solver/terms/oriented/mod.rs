@@ -27,9 +27,11 @@
 //! Under Jacobi and Gauss–Seidel the groups are swept Gauss–Seidel style, as the note
 //! does, colour by colour (the groups of one colour in parallel, deterministically); the
 //! solver mode chooses how the clusters are solved, and a body of the oriented model
-//! has none. Under projective dynamics every membership is a term in the global matrix
+//! has none. The implicit groups are swept eight at a time, one per SIMD lane
+//! ([`batched`]); the explicit ones, few and large, one by one. Under projective dynamics every membership is a term in the global matrix
 //! (the `projective` module), its projection the fitted goal.
 
+pub mod batched;
 pub mod fit;
 pub mod groups;
 pub mod plastic;
@@ -37,6 +39,7 @@ mod projective;
 
 use crate::solver::disjoint::Disjoint;
 use crate::solver::term::{NO_DENSE, ParticleState, ProjectiveTerm, Substep, Term, Topology};
+use batched::Targets;
 use fit::fit;
 use glam::{Quat, Vec3A};
 use groups::{BodyGroups, Group, Turns};
@@ -140,17 +143,12 @@ fn warm(body: &BodyGroups, g: &Group, orientation: impl Fn(usize) -> Quat) -> Qu
     }
 }
 
-/// The arrays a sweep writes; the groups of one colour write disjoint entries.
+/// The arrays a sweep of explicit groups writes; the groups of one colour write
+/// disjoint entries.
 #[derive(Clone, Copy)]
 struct Sweep<'a> {
-    positions: Disjoint<Vec3A>,
-    corrections: Disjoint<Vec3A>,
-    orientations: Disjoint<Quat>,
+    targets: Targets<'a>,
     lambda: Disjoint<Vec3A>,
-    moved: Disjoint<Vec3A>,
-    inv_mass: &'a [f32],
-    /// `1/dt²`.
-    inv_dt2: f32,
 }
 
 impl Sweep<'_> {
@@ -159,47 +157,47 @@ impl Sweep<'_> {
     /// # Safety
     /// No other task may touch `g`'s members or memberships while this runs.
     unsafe fn project(&self, body: &BodyGroups, g: &Group) {
+        let t = &self.targets;
         let range = body.range(g);
         let members = &body.members[range.clone()];
         // SAFETY: the caller's: this task alone touches these entries
         let (position, orientation) = unsafe {
             (
-                |d: usize| self.positions.read(d),
-                |d: usize| self.orientations.read(d),
+                |d: usize| t.positions.read(d),
+                |d: usize| t.orientations.read(d),
             )
         };
         let f = fit(
             members,
             &body.rest[range.clone()],
             &body.moment[range.clone()],
-            |d| self.inv_mass[d],
+            |d| t.inv_mass[d],
             position,
             orientation,
             warm(body, g, orientation),
         );
         for k in range {
             let d = body.members[k] as usize;
-            let w = self.inv_mass[d];
+            let w = t.inv_mass[d];
             if w == 0.0 {
                 continue;
             }
-            let alpha = body.compliance[k] * self.inv_dt2;
+            let alpha = body.compliance[k] * t.inv_dt2;
             // SAFETY: as above
             unsafe {
                 let lambda = self.lambda.read(k);
-                let c = self.positions.read(d) - f.goal(body.rest[k]);
-                let delta = (-c - lambda * alpha) / (w + alpha) * OVER_RELAXATION;
+                let c = t.positions.read(d) - f.goal(body.rest[k]);
+                let delta = (-c - lambda * alpha) / (w + alpha) * t.over_relaxation;
                 self.lambda.write(k, lambda + delta);
-                self.positions.write(d, self.positions.read(d) + delta * w);
-                self.corrections
-                    .write(d, self.corrections.read(d) + delta * w);
-                self.moved.write(d, self.moved.read(d) + delta * w);
+                t.positions.write(d, t.positions.read(d) + delta * w);
+                t.corrections.write(d, t.corrections.read(d) + delta * w);
+                t.moved.write(d, t.moved.read(d) + delta * w);
                 let turns = match g.turns {
                     Turns::Centre(c) => c as usize == d,
                     Turns::All => body.moment[k] != Vec3A::ZERO,
                 };
                 if turns {
-                    self.orientations.write(d, f.rotation);
+                    t.orientations.write(d, f.rotation);
                 }
             }
         }
@@ -230,13 +228,18 @@ impl Term for Oriented {
             for r in &mut body.rest {
                 *r = rest.next().unwrap_or(*r);
             }
+            body.batches.refresh_rest(&body.rest);
         }
     }
 
     fn begin_substep(&mut self, step: &Substep, state: &mut ParticleState) {
         for body in &mut self.bodies {
             body.lambda.iter_mut().for_each(|l| *l = Vec3A::ZERO);
-            plastic::creep(body, state.previous, state.orientations, step.dt);
+            body.batches.begin_substep();
+            if body.plastic.is_some() {
+                plastic::creep(body, state.previous, state.orientations, step.dt);
+                body.batches.refresh_rest(&body.rest);
+            }
         }
         let n = state.positions.len();
         if self.moved_dt != step.dt || self.moved.len() != n {
@@ -263,28 +266,40 @@ impl Term for Oriented {
             Disjoint::new(state.corrections),
             Disjoint::new(state.orientations),
         );
-        let moved = Disjoint::new(&mut self.moved);
+        let targets = Targets {
+            positions,
+            corrections,
+            orientations,
+            moved: Disjoint::new(&mut self.moved),
+            inv_mass: state.inv_mass,
+            inv_dt2: 1.0 / (step.dt * step.dt),
+            over_relaxation: OVER_RELAXATION,
+        };
         for body in &mut self.bodies {
             let sweep = Sweep {
-                positions,
-                corrections,
-                orientations,
-                moved,
+                targets,
                 lambda: Disjoint::new(&mut body.lambda),
-                inv_mass: state.inv_mass,
-                inv_dt2: 1.0 / (step.dt * step.dt),
             };
-            let body = &*body;
-            for colour in &body.colours {
-                let groups = &body.groups[colour[0] as usize..colour[1] as usize];
+            // (the batches' λ is written while the groups are read)
+            let mut batches = std::mem::take(&mut body.batches);
+            let groups_of = &*body;
+            for (c, colour) in groups_of.colours.iter().enumerate() {
+                if batches.has_colour(c) {
+                    // SAFETY: the groups of one colour share no particle, and the
+                    // batches' lanes are groups
+                    unsafe { batches.sweep_colour(c, &targets) };
+                    continue;
+                }
+                let groups = &groups_of.groups[colour[0] as usize..colour[1] as usize];
                 groups.par_chunks(GROUPS_PER_TASK).for_each(|chunk| {
                     for g in chunk {
                         // SAFETY: the groups of one colour share no particle, and each
                         // group's memberships are its own (see `groups`)
-                        unsafe { sweep.project(body, g) };
+                        unsafe { sweep.project(groups_of, g) };
                     }
                 });
             }
+            body.batches = batches;
         }
     }
 
