@@ -236,8 +236,7 @@ impl Term for Oriented {
         for body in &mut self.bodies {
             body.lambda.iter_mut().for_each(|l| *l = Vec3A::ZERO);
             body.batches.begin_substep();
-            if body.plastic.is_some() {
-                plastic::creep(body, state.previous, state.orientations, step.dt);
+            if plastic::creep(body, state.previous, state.orientations, step.dt) {
                 body.batches.refresh_rest(&body.rest);
             }
         }
