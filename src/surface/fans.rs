@@ -10,15 +10,18 @@
 //! One configuration needs more: a *pinch*, where two runs around an edge are joined
 //! to each other around both of its ends (two cells of a piece that touch only along
 //! that edge, with the piece closing round on either side). Then both runs' quads
-//! would share both end vertices, and the edge would lie in four triangles. At a pinch
-//! the pairings are kept at the edge's lower end only; at its upper end the vertex
+//! would share both end vertices, and the edge would lie in four triangles. The pinched
+//! runs' pairings are kept at the edge's lower end only; at its upper end the vertex
 //! falls apart into the arcs of its fan between the runs, each arc a vertex of its own.
 //! An arc runs from one run's quad to another's, and the two meet the one lower vertex,
-//! so the edge appears once per arc, in two triangles wound opposite ways.
+//! so the edge appears once per arc, in two triangles wound opposite ways. A third run
+//! around the same edge that shares no end pair with another (joined to the others at
+//! one end only) keeps both pairings: dropped, its two quads would part at one end and
+//! leave the edge open.
 
 use super::cells::{CellOwners, corner_index, face_corners};
 use glam::IVec3;
-use rustc_hash::{FxHashMap, FxHashSet};
+use rustc_hash::FxHashMap;
 
 /// A face of a solid sub-cell on the surface.
 #[derive(Clone, Copy, Debug)]
@@ -77,17 +80,18 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> (Vec<u32>, Vec<Vec
         all.union(*a, *b);
         all.union(*c, *d);
     }
-    let mut pinched = FxHashSet::default();
-    let mut seen: FxHashMap<(usize, u32, u32), ()> = FxHashMap::default();
-    for (e, [a, _, c, _]) in &pairings {
-        if seen.insert((*e, all.find(*a), all.find(*c)), ()).is_some() {
-            pinched.insert(*e);
-        }
+    // a run is pinched when another run around its edge has its end vertices too
+    let ends: Vec<(usize, u32, u32)> = (pairings.iter())
+        .map(|(e, [a, _, c, _])| (*e, all.find(*a), all.find(*c)))
+        .collect();
+    let mut runs_with: FxHashMap<(usize, u32, u32), u32> = FxHashMap::default();
+    for key in &ends {
+        *runs_with.entry(*key).or_default() += 1;
     }
     let mut kept = UnionFind::new(slots);
-    for (e, [a, b, c, d]) in &pairings {
+    for ((_, [a, b, c, d]), key) in pairings.iter().zip(&ends) {
         kept.union(*a, *b);
-        if !pinched.contains(e) {
+        if runs_with[key] == 1 {
             kept.union(*c, *d);
         }
     }
@@ -211,6 +215,25 @@ mod tests {
             .collect();
         let lattice = Lattice::from_coords(1.0, coords).unwrap();
         assert!((closed_volume(&lattice) - 10.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn a_pinch_beside_a_third_run_keeps_every_edge_in_two_triangles() {
+        // a 2×2×3 column whose middle layer lacks cell (1, 1) and has its three cells
+        // severed from each other: around the vertical edge through (1, 1) they are three
+        // runs; (1, 0) and (0, 1) are joined through both full layers (a pinch), (0, 0),
+        // severed from the cell below it too, through the upper layer only
+        let coords: Vec<IVec3> = (0..3)
+            .flat_map(|z| (0..2).flat_map(move |y| (0..2).map(move |x| IVec3::new(x, y, z))))
+            .filter(|c| c.z != 1 || c.x + c.y < 2)
+            .collect();
+        let mut lattice = Lattice::from_coords(1.0, coords).unwrap();
+        let at = |x, y, z| lattice.at(IVec3::new(x, y, z)).unwrap();
+        let (corner, right, front, below) = (at(0, 0, 1), at(1, 0, 1), at(0, 1, 1), at(0, 0, 0));
+        for other in [right, front, below] {
+            assert!(lattice.sever(corner, other));
+        }
+        assert!((closed_volume(&lattice) - 11.0).abs() < 1e-5);
     }
 
     #[test]
