@@ -4,10 +4,18 @@
 use super::lattice::{Lattice, NEIGHBOUR_OFFSETS, NO_PARTICLE};
 use glam::Vec3;
 
+/// How far a split half rests from its cell's centre, in cells, where its edges would
+/// put it at the centre (see [`Lattice::split`]): enough to deal it its share of its
+/// cell's octants ([`crate::surface::cells`]), too little to strain its edges.
+pub const TIE_SHIFT: f32 = 1.0 / 64.0;
+
 impl Lattice {
     /// Severs the edge between particles `a` and `b`; returns false when they are not
     /// linked. Both stay live.
     pub fn sever(&mut self, a: u32, b: u32) -> bool {
+        if b == NO_PARTICLE {
+            return false;
+        }
         let Some(d) = self
             .links
             .get(a as usize)
@@ -69,10 +77,17 @@ impl Lattice {
     /// new particle rests a quarter cell from the cell's centre toward the edges it took
     /// (their mean direction) and particle `i` a quarter cell the other way, so that
     /// shape matching holds each on its own side of the cut instead of pulling it into
-    /// its twin's place. The new particle is live and has the next index; `None` when `i`
-    /// is not live.
+    /// its twin's place. Neither half rests exactly at the centre, so that both count as
+    /// halves: a new particle whose edges point every way (their mean direction is zero:
+    /// a bent body cut through a particle whose opposite neighbours lie on one side)
+    /// rests [`TIE_SHIFT`] toward its first edge instead, and a particle `i` that the
+    /// split would bring back to the centre (split before the other way) rests
+    /// [`TIE_SHIFT`] away from its new half. The new particle is live and has the next index; `None`
+    /// when `i` is not live or no direction of `moves` has an edge to take (a split would
+    /// leave a particle of no edge sharing `i`'s place).
     pub fn split(&mut self, i: u32, moves: [bool; 6]) -> Option<u32> {
-        if !self.is_live(i) {
+        let takes = |d: usize| moves[d] && self.links[i as usize][d] != NO_PARTICLE;
+        if !self.is_live(i) || !(0..6).any(takes) {
             return None;
         }
         let j = self.coords.len() as u32;
@@ -91,13 +106,17 @@ impl Lattice {
             .filter(|&d| links[d] != NO_PARTICLE)
             .map(|d| NEIGHBOUR_OFFSETS[d].as_vec3())
             .collect();
-        let shift = if taken.is_empty() {
-            Vec3::ZERO
+        let mean = taken.iter().sum::<Vec3>() / taken.len() as f32;
+        let shift = if mean == Vec3::ZERO {
+            TIE_SHIFT * taken[0]
         } else {
-            0.25 * taken.iter().sum::<Vec3>() / taken.len() as f32
+            0.25 * mean
         };
         self.rest_shift.resize(j as usize, Vec3::ZERO);
         self.rest_shift[i as usize] -= shift;
+        if self.rest_shift[i as usize] == Vec3::ZERO {
+            self.rest_shift[i as usize] = -shift * (TIE_SHIFT / shift.length());
+        }
         self.rest_shift.push(shift);
         if self.live.len() * 64 <= j as usize {
             self.live.push(0);
@@ -143,6 +162,31 @@ mod tests {
     use glam::UVec3;
 
     #[test]
+    fn a_split_takes_an_edge_and_both_halves_count_as_halves() {
+        let mut l = Shape::cuboid(UVec3::new(3, 1, 1)).voxelise(1.0).unwrap();
+        let middle = (l.live_particles())
+            .find(|&p| l.neighbours(p).count() == 2)
+            .unwrap();
+        let right = l.link(middle, 1);
+        assert_ne!(right, NO_PARTICLE);
+        assert!(!l.sever(middle, NO_PARTICLE));
+        assert!(l.sever(middle, right));
+        // its only moved direction severed: nothing to take
+        assert_eq!(
+            l.split(middle, [false, true, false, false, false, false]),
+            None
+        );
+        assert!(l.relink(middle, right));
+        // both edges, opposite ways: the new half still rests off the centre
+        let new = l
+            .split(middle, [true, true, false, false, false, false])
+            .unwrap();
+        assert!(l.is_split_half(new) && l.is_split_half(middle));
+        assert_eq!(l.split_shift(new), -l.split_shift(middle));
+        assert_eq!(l.links(middle), [NO_PARTICLE; 6]);
+    }
+
+    #[test]
     fn severing_and_splitting_keep_the_links_symmetric_and_the_pieces_counted() {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
@@ -159,10 +203,15 @@ mod tests {
                         }
                     }
                     1 => {
-                        let moves = std::array::from_fn(|_| rng.random_bool(0.5));
+                        let moves: [bool; 6] = std::array::from_fn(|_| rng.random_bool(0.5));
                         let before = l.links(p);
-                        let q = l.split(p, moves).unwrap();
+                        let Some(q) = l.split(p, moves) else {
+                            // (nothing to take)
+                            assert!((0..6).all(|d| !moves[d] || before[d] == NO_PARTICLE));
+                            continue;
+                        };
                         assert_eq!(l.coord(q), l.coord(p));
+                        assert!(l.is_split_half(p) && l.is_split_half(q), "case {case}");
                         for d in 0..6 {
                             let kept = if moves[d] { l.link(q, d) } else { l.link(p, d) };
                             assert_eq!(kept, before[d], "case {case}");
