@@ -83,16 +83,17 @@ impl Solver {
         let mode = self.mode();
         let Particles {
             positions,
+            previous,
             corrections,
             inv_mass,
             ..
         } = particles;
         self.clusters.begin_substep(
+            previous,
             positions,
             corrections,
             inv_mass,
-            step.dt,
-            step.iterations,
+            step,
             mode == SolverMode::Projective,
         );
         match mode {

@@ -1,6 +1,7 @@
 //! The clusters' turn, carried from substep to substep: each substep starts every
 //! cluster's rotation fit from its last rotation turned once more by the turn it made in
-//! the last substep.
+//! the last substep. The particles of the cluster model turn with their clusters
+//! ([`ClusterTerm::blend_orientations`]).
 //!
 //! The fit takes one warm-started rotation step per solver iteration (Müller et al.
 //! 2016), and one step recovers only part of a turn: for a rotation `δ` away from the
@@ -11,15 +12,29 @@
 //! a rigid block spun at 1 rad/s in zero gravity stops within a fraction of a second. A
 //! warm start turned ahead by the last substep's turn (constant angular velocity, the
 //! prediction the particles get) leaves the step only the change of spin to recover.
+//!
+//! A substep with no last turn to carry — the first after the clusters were built,
+//! patched by a cut, or the time step changed — fits every cluster to the particles'
+//! positions at its start and to their predictions instead, to convergence: the first
+//! fit is where the substep's turn starts from, the second where the fits start. A new
+//! cluster's rotation says nothing of its body's turn so far, and a body spawned
+//! spinning, or cut while it spins, would otherwise lose that substep's share of its
+//! spin.
 
 use super::term::{CLUSTERS_PER_TASK, ClusterTerm};
-use glam::Quat;
+use crate::math::rotation::extract_rotation;
+use crate::solver::particles::PARTICLES_PER_TASK;
+use glam::{Mat3A, Quat, Vec3A};
 use rayon::prelude::*;
 
 /// The smallest turn per substep carried ahead, as the sine of half its angle: 1e-6
 /// (2e-6 rad, 5e-4 rad/s at 240 substeps a second). The rotation fits of a body at rest
 /// wander by less.
 const SMALLEST_TURN: f32 = 1e-6;
+
+/// Most rotation iterations of a fit when the turn was forgotten (it stops once
+/// converged).
+const FORGOTTEN_TURN_FIT_ITERATIONS: u32 = 16;
 
 impl ClusterTerm {
     /// Turns every cluster's warm-start rotation ahead by the turn it made over the last
@@ -44,5 +59,78 @@ impl ClusterTerm {
                 }
                 *start = last;
             });
+    }
+
+    /// Turns every particle that is in a cluster to the blend of its clusters' rotations:
+    /// their normalised sum, each taken on the side of the particle's current
+    /// orientation (a quaternion and its negative are one rotation), so a particle in
+    /// clusters that turn alike turns with them, and one between clusters turning apart
+    /// takes the turn between. The clusters' rotations are their fits' of this substep
+    /// (the turn from rest), so a rigid motion turns every particle with it. Particles in
+    /// no cluster keep theirs. Memberships are summed in slot order: the same for any
+    /// thread count.
+    pub fn blend_orientations(&self, orientations: &mut [Quat]) {
+        let mut sums = vec![glam::Vec4::ZERO; self.rest.len()];
+        for (range, rotation) in self.cluster_range.iter().zip(&self.rotations) {
+            let r = glam::Vec4::from(*rotation);
+            for &m in &self.member_particle[range[0] as usize..range[1] as usize] {
+                let m = m as usize;
+                let side = glam::Vec4::from(orientations[m]).dot(r);
+                sums[m] += if side < 0.0 { -r } else { r };
+            }
+        }
+        orientations
+            .par_iter_mut()
+            .zip(&sums)
+            .with_min_len(PARTICLES_PER_TASK)
+            .for_each(|(q, sum)| {
+                let length = sum.length();
+                if length > 1e-6 {
+                    *q = Quat::from_vec4(*sum / length);
+                }
+            });
+    }
+
+    /// Starts every cluster's turn at its fit to the substep's starting positions
+    /// `previous`, and its rotation at its fit to the `predictions`, both to convergence
+    /// (see the module docs).
+    pub(in crate::solver) fn fit_turns(&mut self, previous: &[Vec3A], predictions: &[Vec3A]) {
+        let mut rotations = std::mem::take(&mut self.rotations);
+        let mut start = std::mem::take(&mut self.substep_start);
+        start.resize(rotations.len(), Quat::IDENTITY);
+        rotations
+            .par_iter_mut()
+            .zip(start.par_iter_mut())
+            .enumerate()
+            .with_min_len(CLUSTERS_PER_TASK)
+            .for_each(|(k, (rotation, start))| {
+                *start = self.fit(k, previous, *rotation);
+                *rotation = self.fit(k, predictions, *start);
+            });
+        self.rotations = rotations;
+        self.substep_start = start;
+    }
+
+    /// Cluster slot `k`'s rotation fitted to `positions`, from `warm`, to convergence.
+    fn fit(&self, k: usize, positions: &[Vec3A], warm: Quat) -> Quat {
+        let members = self.cluster_members(k);
+        let Some(&first) = members.first() else {
+            return warm;
+        };
+        // (relative to the first member: full precision far from the origin)
+        let origin = positions[first as usize];
+        let (mut sum, mut total) = (Vec3A::ZERO, 0.0f32);
+        for &m in members {
+            let w = self.weight(m);
+            sum += (positions[m as usize] - origin) * w;
+            total += w;
+        }
+        let centre = sum / total;
+        let a = (members.iter().enumerate()).fold(Mat3A::ZERO, |a, (j, &m)| {
+            let d = (positions[m as usize] - origin - centre) * self.weight(m);
+            let q = self.rest_offset(k, j, m);
+            a + Mat3A::from_cols(d * q.x, d * q.y, d * q.z)
+        });
+        extract_rotation(a, warm, FORGOTTEN_TURN_FIT_ITERATIONS)
     }
 }

@@ -22,6 +22,7 @@ use super::plastic::{PlasticCluster, PlasticSpec};
 use super::rows::PARTICLE_BYTES;
 use crate::config::SolverMode;
 use crate::math::rotation::warm_start;
+use crate::solver::term::Substep;
 use glam::{Quat, Vec3, Vec3A};
 use rayon::prelude::*;
 
@@ -179,6 +180,9 @@ pub struct ClusterTerm {
     pub(in crate::solver) rotations: Vec<Quat>,
     /// Per cluster slot: its rotation when the last substep began ([`super::spin`]).
     pub(in crate::solver) substep_start: Vec<Quat>,
+    /// Whether the next substep has no last turn to carry, so starts every cluster's
+    /// rotation fitted to the predictions ([`super::spin`]).
+    pub(in crate::solver) turns_forgotten: bool,
     /// The scheme the weights and batches were made for.
     pub(in crate::solver) mode: SolverMode,
     /// Rest position per particle.
@@ -400,58 +404,33 @@ impl ClusterTerm {
         &self.rotations
     }
 
-    /// Turns every particle that is in a cluster to the blend of its clusters' rotations:
-    /// their normalised sum, each taken on the side of the particle's current
-    /// orientation (a quaternion and its negative are one rotation), so a particle in
-    /// clusters that turn alike turns with them, and one between clusters turning apart
-    /// takes the turn between. The clusters' rotations are their fits' of this substep
-    /// (the turn from rest), so a rigid motion turns every particle with it. Particles in
-    /// no cluster keep theirs. Memberships are summed in slot order: the same for any
-    /// thread count.
-    pub fn blend_orientations(&self, orientations: &mut [Quat]) {
-        let mut sums = vec![glam::Vec4::ZERO; self.rest.len()];
-        for (range, rotation) in self.cluster_range.iter().zip(&self.rotations) {
-            let r = glam::Vec4::from(*rotation);
-            for &m in &self.member_particle[range[0] as usize..range[1] as usize] {
-                let m = m as usize;
-                let side = glam::Vec4::from(orientations[m]).dot(r);
-                sums[m] += if side < 0.0 { -r } else { r };
-            }
-        }
-        orientations
-            .par_iter_mut()
-            .zip(&sums)
-            .with_min_len(PARTICLES_PER_TASK)
-            .for_each(|(q, sum)| {
-                let length = sum.length();
-                if length > 1e-6 {
-                    *q = Quat::from_vec4(*sum / length);
-                }
-            });
-    }
-
     /// Brings the per-particle coefficients up to date (after a change of clusters),
     /// computes this substep's step coefficients and warm-start weights for particles of
-    /// inverse masses `inv_mass`, and starts every particle from its prediction plus its
-    /// weighted carry. `global`: projective dynamics (whose global step corrects every
-    /// mode at once, so it takes the whole carry). Clears `corrections`.
+    /// inverse masses `inv_mass` in `step`, and starts every particle from its prediction
+    /// plus its weighted carry. `global`: projective dynamics (whose global step corrects every
+    /// mode at once, so it takes the whole carry). `previous`: the positions the
+    /// substep started from (see [`super::spin`]). Clears `corrections`.
     pub(in crate::solver) fn begin_substep(
         &mut self,
+        previous: &[Vec3A],
         positions: &mut [Vec3A],
         corrections: &mut [Vec3A],
         inv_mass: &[f32],
-        dt: f32,
-        iterations: u32,
+        step: &Substep,
         global: bool,
     ) {
         if self.coefficients_stale {
             self.refresh_coefficients();
         }
+        let (dt, iterations) = (step.dt, step.iterations);
         if self.carry_dt != dt {
             self.carry_dt = dt;
             self.forget_carry();
         }
         self.turn_warm_starts();
+        if std::mem::take(&mut self.turns_forgotten) && previous.len() == positions.len() {
+            self.fit_turns(previous, positions);
+        }
         let inv_dt2 = 1.0 / (dt * dt);
         let n = positions.len();
         for scratch in [
@@ -554,6 +533,7 @@ impl ClusterTerm {
     /// own warm-start state follows [`ClusterTerm::carry_epoch`].
     pub(in crate::solver) fn forget_carry(&mut self) {
         self.substep_start.clone_from(&self.rotations);
+        self.turns_forgotten = true;
         self.carry_epoch += 1;
         self.carry.clear();
         self.carry.resize(self.rest.len(), Vec3A::ZERO);
