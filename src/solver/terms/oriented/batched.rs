@@ -226,23 +226,25 @@ impl WithLanes for Batch<'_, '_> {
         }
         let inv_total = L::ONE / total;
         let (centre, rest_centre) = (sum.scale(inv_total), rest_sum.scale(inv_total));
-        // A = Σ m (x − c)(x̄ − c̄)ᵀ + Σ m R D
+        // A = Σ m (x − c)(x̄ − c̄)ᵀ + Σ m R D; its rotation is warm-started from the
+        // centre's (row 0) orientation, the rotation the group gave last
         let mut a = Mat3x8::<L>::ZERO;
+        let mut warm = None;
         for (j, row) in rows.iter().enumerate() {
             let x = (position[j] - origin - centre).scale(weight[j]);
             let r = Vec3x8::load(&row.rest) - rest_centre;
             // SAFETY: as above
             let q = Quatx8::from_lanes(unsafe { row.at.map(|d| t.orientations.read(d as usize)) });
+            warm.get_or_insert(q);
             let turn = Mat3x8::from_quat(q);
             let d = Vec3x8::<L>::load(&row.moment).scale(weight[j]);
             a.x_axis = turn.x_axis.mul_add(d.x, x.mul_add(r.x, a.x_axis));
             a.y_axis = turn.y_axis.mul_add(d.y, x.mul_add(r.y, a.y_axis));
             a.z_axis = turn.z_axis.mul_add(d.z, x.mul_add(r.z, a.z_axis));
         }
-        // warm-started from the centre's orientation, the rotation it gave last
-        // SAFETY: as above
-        let warm =
-            Quatx8::from_lanes(unsafe { rows[0].at.map(|d| t.orientations.read(d as usize)) });
+        let Some(warm) = warm else {
+            return;
+        };
         let rotation = extract_rotation_x8(&a, warm, ROTATION_ITERATIONS);
         let turn = Mat3x8::from_quat(rotation);
         let centroid = origin + centre;
