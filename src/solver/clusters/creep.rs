@@ -12,6 +12,10 @@ use super::term::{CLUSTERS_PER_TASK, ClusterTerm};
 use glam::Vec3A;
 use rayon::prelude::*;
 
+/// Rotation iterations of a creep fit, warm-started from the cluster's last fit of the
+/// substep (so a few settle it).
+const FIT_ITERATIONS: u32 = 8;
+
 impl ClusterTerm {
     /// Makes cluster slot `k` (of `members` members) plastic as `spec` says, or elastic.
     pub(in crate::solver) fn set_plastic(
@@ -114,7 +118,8 @@ impl ClusterTerm {
             .map(|&m| positions[m as usize] - origin)
             .collect();
         let weight = |j: usize| self.weight(members[j]);
-        plastic.flow(lattice, at, weight, self.rotations[k], dt)
+        let rotation = self.fit_rotation(k, positions, self.rotations[k], FIT_ITERATIONS);
+        plastic.flow(lattice, at, weight, rotation, dt)
     }
 }
 

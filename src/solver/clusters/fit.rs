@@ -12,10 +12,10 @@
 use super::rows::{EMPTY_LANE, FitRow, Group, MomentRow, ParticleRow, TEMPLATED};
 use super::term::ClusterTerm;
 use crate::math::lanes::{LANES, Mat3x8, Quatx8, Vec3x8};
-use crate::math::rotation::extract_rotation_x8;
+use crate::math::rotation::{extract_rotation, extract_rotation_x8};
 use crate::math::simd::{Lane, WithLanes, dispatch};
 use crate::solver::disjoint::Disjoint;
-use glam::{Quat, Vec3A};
+use glam::{Mat3A, Quat, Vec3A};
 use rayon::prelude::*;
 
 /// What a solver scheme does with one batch: generic over the lane type, so that each
@@ -113,6 +113,37 @@ impl ClusterTerm {
                 self.pull_weight_of(k as usize)
             }
         }))
+    }
+
+    /// Cluster slot `k`'s rotation fitted to `positions` one cluster at a time (not
+    /// batched: for the occasional fits to convergence), from `warm`, with at most
+    /// `max_iterations` rotation iterations.
+    pub(in crate::solver) fn fit_rotation(
+        &self,
+        k: usize,
+        positions: &[Vec3A],
+        warm: Quat,
+        max_iterations: u32,
+    ) -> Quat {
+        let members = self.cluster_members(k);
+        let Some(&first) = members.first() else {
+            return warm;
+        };
+        // (relative to the first member: full precision far from the origin)
+        let origin = positions[first as usize];
+        let (mut sum, mut total) = (Vec3A::ZERO, 0.0f32);
+        for &m in members {
+            let w = self.weight(m);
+            sum += (positions[m as usize] - origin) * w;
+            total += w;
+        }
+        let centre = sum / total;
+        let a = (members.iter().enumerate()).fold(Mat3A::ZERO, |a, (j, &m)| {
+            let d = (positions[m as usize] - origin - centre) * self.weight(m);
+            let q = self.rest_offset(k, j, m);
+            a + Mat3A::from_cols(d * q.x, d * q.y, d * q.z)
+        });
+        extract_rotation(a, warm, max_iterations)
     }
 
     /// The particle rows of batch `b`.

@@ -4,14 +4,9 @@
 //! term's pass over its clusters, after every substep, is [`super::creep`].
 
 use crate::config::Yield;
-use crate::math::rotation::extract_rotation;
 use crate::solver::yielding::flow;
-use glam::{Mat3A, Quat, Vec3A};
+use glam::{Quat, Vec3A};
 use smallvec::SmallVec;
-
-/// Rotation iterations of a creep fit, warm-started from the cluster's last fit of the
-/// substep (so a few settle it).
-const FIT_ITERATIONS: u32 = 8;
 
 /// A cluster's plasticity as [`super::term::ClusterTerm::new`] and
 /// [`super::term::ClusterTerm::patch`] take it.
@@ -51,17 +46,16 @@ impl PlasticCluster {
         }
     }
 
-    /// Fits the cluster to its members' positions `at` (relative to any point), with
-    /// their lattice offsets `lattice`, weights `weight(j)` and the rotation `warm` to
-    /// start from, and lets its rest shape flow over a substep of `dt`
-    /// ([`crate::solver::yielding`]); returns whether it did (then the shift is the new
-    /// one).
+    /// Lets the cluster's rest shape flow over a substep of `dt` toward its members'
+    /// positions `at` (relative to any point), fitted by `rotation`, with their lattice
+    /// offsets `lattice` and weights `weight(j)` ([`crate::solver::yielding`]); returns
+    /// whether it did (then the shift is the new one).
     pub(in crate::solver) fn flow(
         &mut self,
         mut lattice: Offsets,
         mut at: Offsets,
         weight: impl Fn(usize) -> f32 + Copy,
-        warm: Quat,
+        rotation: Quat,
         dt: f32,
     ) -> bool {
         let mut offsets: Offsets = lattice
@@ -73,11 +67,7 @@ impl PlasticCluster {
         for list in [&mut lattice, &mut offsets, &mut at] {
             centre(list, weight);
         }
-        let a = (0..at.len()).fold(Mat3A::ZERO, |a, j| {
-            let (d, q) = (at[j] * weight(j), offsets[j]);
-            a + Mat3A::from_cols(d * q.x, d * q.y, d * q.z)
-        });
-        let back = extract_rotation(a, warm, FIT_ITERATIONS).conjugate();
+        let back = rotation.conjugate();
         let deformation: Offsets = at
             .iter()
             .zip(&offsets)

@@ -22,9 +22,8 @@
 //! spin.
 
 use super::term::{CLUSTERS_PER_TASK, ClusterTerm};
-use crate::math::rotation::extract_rotation;
 use crate::solver::particles::PARTICLES_PER_TASK;
-use glam::{Mat3A, Quat, Vec3A};
+use glam::{Quat, Vec3A};
 use rayon::prelude::*;
 
 /// The smallest turn per substep carried ahead, as the sine of half its angle: 1e-6
@@ -104,33 +103,11 @@ impl ClusterTerm {
             .enumerate()
             .with_min_len(CLUSTERS_PER_TASK)
             .for_each(|(k, (rotation, start))| {
-                *start = self.fit(k, previous, *rotation);
-                *rotation = self.fit(k, predictions, *start);
+                *start = self.fit_rotation(k, previous, *rotation, FORGOTTEN_TURN_FIT_ITERATIONS);
+                *rotation =
+                    self.fit_rotation(k, predictions, *start, FORGOTTEN_TURN_FIT_ITERATIONS);
             });
         self.rotations = rotations;
         self.substep_start = start;
-    }
-
-    /// Cluster slot `k`'s rotation fitted to `positions`, from `warm`, to convergence.
-    fn fit(&self, k: usize, positions: &[Vec3A], warm: Quat) -> Quat {
-        let members = self.cluster_members(k);
-        let Some(&first) = members.first() else {
-            return warm;
-        };
-        // (relative to the first member: full precision far from the origin)
-        let origin = positions[first as usize];
-        let (mut sum, mut total) = (Vec3A::ZERO, 0.0f32);
-        for &m in members {
-            let w = self.weight(m);
-            sum += (positions[m as usize] - origin) * w;
-            total += w;
-        }
-        let centre = sum / total;
-        let a = (members.iter().enumerate()).fold(Mat3A::ZERO, |a, (j, &m)| {
-            let d = (positions[m as usize] - origin - centre) * self.weight(m);
-            let q = self.rest_offset(k, j, m);
-            a + Mat3A::from_cols(d * q.x, d * q.y, d * q.z)
-        });
-        extract_rotation(a, warm, FORGOTTEN_TURN_FIT_ITERATIONS)
     }
 }

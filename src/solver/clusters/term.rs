@@ -180,8 +180,8 @@ pub struct ClusterTerm {
     pub(in crate::solver) rotations: Vec<Quat>,
     /// Per cluster slot: its rotation when the last substep began ([`super::spin`]).
     pub(in crate::solver) substep_start: Vec<Quat>,
-    /// Whether the next substep has no last turn to carry, so starts every cluster's
-    /// rotation fitted to the predictions ([`super::spin`]).
+    /// Whether the next substep has no last turn to carry, so fits every cluster's turn
+    /// afresh ([`super::spin`]).
     pub(in crate::solver) turns_forgotten: bool,
     /// The scheme the weights and batches were made for.
     pub(in crate::solver) mode: SolverMode,
@@ -407,8 +407,8 @@ impl ClusterTerm {
     /// Brings the per-particle coefficients up to date (after a change of clusters),
     /// computes this substep's step coefficients and warm-start weights for particles of
     /// inverse masses `inv_mass` in `step`, and starts every particle from its prediction
-    /// plus its weighted carry. `global`: projective dynamics (whose global step corrects every
-    /// mode at once, so it takes the whole carry). `previous`: the positions the
+    /// plus its weighted carry. `global`: projective dynamics (whose global step corrects
+    /// every mode at once, so it takes the whole carry). `previous`: the positions the
     /// substep started from (see [`super::spin`]). Clears `corrections`.
     pub(in crate::solver) fn begin_substep(
         &mut self,
