@@ -31,6 +31,7 @@ pub fn update_surfaces(
         let mesh = &mut *mesh;
         let l = &lattice.lattice;
         if mesh.topology_version == 0 || lattice.is_changed() {
+            let start = std::time::Instant::now();
             let touched = explained_by_cut(mesh, l, cut.bodies.iter().find(|c| c.body == body));
             mesh.topology = match &mesh.render_mesh {
                 None if mesh.options.smooth => {
@@ -53,6 +54,7 @@ pub fn update_surfaces(
             mesh.layout = layout;
             mesh.seen = (l.len(), l.live_count());
             mesh.topology_version += 1;
+            mesh.topology_ms = start.elapsed().as_secs_f64() * 1e3;
             changed.write(SurfaceChanged {
                 body,
                 topology_version: mesh.topology_version,

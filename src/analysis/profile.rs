@@ -98,6 +98,15 @@ impl StageProfile {
         rows
     }
 
+    /// Total milliseconds so far per system, by the short names of [`Self::rows`]:
+    /// two readings a frame apart give that frame's time per stage.
+    pub fn totals_ms(&self) -> BTreeMap<String, f64> {
+        self.rows()
+            .into_iter()
+            .map(|(name, ms, _)| (name, ms))
+            .collect()
+    }
+
     /// The rows as a text table with ms per frame over `frames` frames.
     pub fn table(&self, frames: u32) -> String {
         let mut out = format!(

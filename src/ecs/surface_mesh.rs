@@ -22,6 +22,9 @@ pub struct SurfaceMesh {
     /// Grows by one each time the triangles change (the first surface is version 1):
     /// positions and normals change every frame, triangles only with this.
     pub topology_version: u64,
+    /// Milliseconds the last change of the triangles took (extraction, or the local
+    /// update after a cut, with the carriers' layout), for reports.
+    pub topology_ms: f64,
     pub(crate) topology: SurfaceTopology,
     /// The particles the surface reads, by slot.
     pub(crate) layout: CarryLayout,

@@ -302,6 +302,80 @@ pub fn bench_deform(steps: usize, json: bool) -> Result<(), String> {
     Ok(())
 }
 
+/// `cleave bench --cutting`: a row per workload (see
+/// [`cleave::analysis::bench_cutting`]).
+pub fn bench_cutting(json: bool) -> Result<(), String> {
+    use cleave::analysis::bench_cutting::{CuttingOptions, CuttingRow, bench_cutting};
+    if !json {
+        println!(
+            "cleave bench --cutting: whole frames (Simulation::step, surfaces on), {} thread(s); ms",
+            rayon::current_num_threads()
+        );
+        println!(
+            "{:<14} {:>6} {:>7} | {:>6} {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} {:>6} {:>6} | {:>6} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7}",
+            "workload",
+            "parts",
+            "plain",
+            "median",
+            "p95",
+            "max",
+            "max>1",
+            "cut n",
+            "median",
+            "max",
+            "detect",
+            "cut",
+            "rebuild",
+            "layout",
+            "surf",
+            "subst",
+            "work/s",
+            "p95/pl",
+            "max/pl",
+            "cut/pl",
+            "cmax/pl",
+            "surf fr"
+        );
+    }
+    let mut failed = None;
+    let mut print = |row: &CuttingRow| {
+        if json {
+            if let Err(e) = print_json(row) {
+                failed = Some(e);
+            }
+            return;
+        }
+        let s = &row.cut_stages;
+        println!(
+            "{:<14} {:>6} {:>7.2} | {:>6.2} {:>6.2} {:>6.2} {:>6.2} | {:>6} {:>6.2} {:>6.2} | {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} | {:>6.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.3}",
+            format!("{} {}", row.workload, row.mode),
+            row.particles,
+            row.plain.median_ms,
+            row.all.median_ms,
+            row.all.p95_ms,
+            row.all.max_ms,
+            row.all.max_after_first_ms,
+            row.cut.frames,
+            row.cut.median_ms,
+            row.cut.max_ms,
+            s.detect_ms,
+            s.cut_ms,
+            s.rebuild_ms,
+            s.layout_ms,
+            s.surface_ms,
+            row.substeps_ms,
+            row.cut_work_over_substeps,
+            row.p95_over_plain,
+            row.slowest_over_plain,
+            row.cut_median_over_plain,
+            row.cut_slowest_over_plain,
+            row.surface_frame_ms,
+        );
+    };
+    bench_cutting(CuttingOptions::default(), &mut print).map_err(|e| e.to_string())?;
+    failed.map_or(Ok(()), Err)
+}
+
 /// Prints `row` as one line of JSON.
 fn print_json(row: &impl serde::Serialize) -> Result<(), String> {
     println!("{}", serde_json::to_string(row).map_err(|e| e.to_string())?);

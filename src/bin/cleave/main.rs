@@ -214,6 +214,13 @@ enum Command {
         /// per-frame update, the extraction intact and after a slice).
         #[arg(long)]
         surface: bool,
+        /// Instead of the engine rows: whole frames as a game steps them, surfaces on —
+        /// the median, 95th percentile and slowest frame, the same for the frames that
+        /// cut, and each cut frame's time by stage — for `cuts` in each cut mode, a 32³
+        /// block crossed by a blade every 10 frames in each mode and a 64³ box sliced
+        /// once, each against the same bodies without their tools.
+        #[arg(long)]
+        cutting: bool,
         /// Turn conservative culling off (to compare: the results are the same).
         #[arg(long)]
         no_culling: bool,
@@ -464,12 +471,16 @@ fn main() -> ExitCode {
             no_pile,
             no_edges,
             surface,
+            cutting,
             no_culling,
             deform,
             model,
         } => with_threads(threads, |_| {
             if deform {
                 return bench::bench_deform(steps, json);
+            }
+            if cutting {
+                return bench::bench_cutting(json);
             }
             let config = SimConfig {
                 solver,

@@ -1,0 +1,444 @@
+//! `cleave bench --cutting`: what cutting costs a game, frame by frame. Each workload
+//! steps a simulation once per frame with its surfaces on, as a game does, and times
+//! every frame; the same bodies without their tools give the plain frames every ratio
+//! is against. Per frame that cuts, the time of each stage of the cut is read from the
+//! systems' spans ([`crate::analysis::profile::StageProfile`]): detection, the cut,
+//! regroup/split/expand, the layout and terms brought up to date (at the start of the
+//! next frame) and the surface's topology update.
+//!
+//! The workloads: the `cuts` scene in each cut mode; a 32³ block (h = 0.05) crossed by a
+//! blade stroke every 10 frames for 300 frames in each mode; a 64³ box sliced once
+//! (sever and split).
+
+use crate::analysis::frames::FrameStats;
+use crate::analysis::profile::StageProfile;
+use crate::body::shape::Shape;
+use crate::config::SimConfig;
+use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
+use crate::ecs::components::BodyLattice;
+use crate::ecs::desc::{BodyDesc, Scene, ToolDesc};
+use crate::ecs::resources::CutReport;
+use crate::ecs::surface_mesh::SurfaceMesh;
+use crate::error::Result;
+use crate::sim::simulation::Simulation;
+use bevy_ecs::prelude::Entity;
+use glam::{Quat, UVec3, Vec3};
+use rand::{Rng, SeedableRng};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+/// Milliseconds of each part of a cut, summed over a run's cut frames or averaged per
+/// cut frame.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct CutStages {
+    /// The read-only detection stage.
+    pub detect_ms: f64,
+    /// The cut stage (removing, splitting, severing).
+    pub cut_ms: f64,
+    /// Regroup, split and expand: the clusters rebuilt.
+    pub rebuild_ms: f64,
+    /// The solver's layout and its terms brought up to date, at the start of the frame
+    /// after the cut.
+    pub layout_ms: f64,
+    /// The surface's topology update.
+    pub surface_ms: f64,
+}
+
+impl CutStages {
+    fn total(&self) -> f64 {
+        self.detect_ms + self.cut_ms + self.rebuild_ms + self.layout_ms + self.surface_ms
+    }
+
+    fn add(&mut self, o: &CutStages) {
+        self.detect_ms += o.detect_ms;
+        self.cut_ms += o.cut_ms;
+        self.rebuild_ms += o.rebuild_ms;
+        self.layout_ms += o.layout_ms;
+        self.surface_ms += o.surface_ms;
+    }
+
+    fn scaled(&self, k: f64) -> CutStages {
+        CutStages {
+            detect_ms: self.detect_ms * k,
+            cut_ms: self.cut_ms * k,
+            rebuild_ms: self.rebuild_ms * k,
+            layout_ms: self.layout_ms * k,
+            surface_ms: self.surface_ms * k,
+        }
+    }
+}
+
+/// One workload of `cleave bench --cutting`.
+#[derive(Clone, Debug, Serialize)]
+pub struct CuttingRow {
+    /// Always `"cutting"`.
+    pub row: &'static str,
+    /// `cuts`, `block32` or `box64`.
+    pub workload: String,
+    /// The tools' cut mode.
+    pub mode: CutMode,
+    /// Live particles at the start.
+    pub particles: usize,
+    /// Worker threads.
+    pub threads: usize,
+    /// The same bodies without their tools, every frame.
+    pub plain: FrameStats,
+    /// Every frame of the cutting run.
+    pub all: FrameStats,
+    /// The frames that cut (a body changed).
+    pub cut: FrameStats,
+    /// Per cut frame, the mean time of each part of the cut.
+    pub cut_stages: CutStages,
+    /// The substeps' mean time per frame of the cutting run.
+    pub substeps_ms: f64,
+    /// The cut work (detection every frame, and on cut frames the cut,
+    /// regroup/split/expand, the layout and terms, the surface's topology) over the
+    /// whole run, against the substeps' over the run.
+    pub cut_work_over_substeps: f64,
+    /// The surface stage's median time in a plain frame (the per-frame update).
+    pub surface_frame_ms: f64,
+    /// The cutting run's 95th-percentile frame over the plain median frame.
+    pub p95_over_plain: f64,
+    /// The cutting run's slowest frame after the first over the plain median frame.
+    pub slowest_over_plain: f64,
+    /// The cut frames' median over the plain median frame.
+    pub cut_median_over_plain: f64,
+    /// The slowest cut frame over the plain median frame.
+    pub cut_slowest_over_plain: f64,
+}
+
+/// Which workloads to run.
+#[derive(Clone, Copy, Debug)]
+pub struct CuttingOptions {
+    /// The `cuts` scene in each mode.
+    pub cuts: bool,
+    /// The 32³ block with a stroke every 10 frames, in each mode.
+    pub block: bool,
+    /// The 64³ box sliced once, sever and split.
+    pub slice: bool,
+}
+
+impl Default for CuttingOptions {
+    fn default() -> Self {
+        Self {
+            cuts: true,
+            block: true,
+            slice: true,
+        }
+    }
+}
+
+/// Runs the workloads `options` names and returns a row each, in order.
+pub fn bench_cutting(options: CuttingOptions, on_row: &mut dyn FnMut(&CuttingRow)) -> Result<()> {
+    if options.cuts {
+        let scene = crate::io::scene::builtin("cuts", 0).expect("a built-in scene");
+        for mode in [CutMode::Remove, CutMode::Sever, CutMode::Split] {
+            let mut scene = scene.clone();
+            for tool in &mut scene.tools {
+                tool.cut_mode = mode;
+            }
+            let scene = Workload {
+                scene,
+                strokes: Vec::new(),
+            };
+            on_row(&workload("cuts", mode, &scene)?);
+        }
+    }
+    if options.block {
+        for mode in [CutMode::Remove, CutMode::Sever, CutMode::Split] {
+            on_row(&workload("block32", mode, &stroked_block(mode))?);
+        }
+    }
+    if options.slice {
+        for mode in [CutMode::Sever, CutMode::Split] {
+            on_row(&workload("box64", mode, &sliced_box(mode))?);
+        }
+    }
+    Ok(())
+}
+
+/// A body at rest in space, gravity off.
+fn still_config(frames: u32) -> (SimConfig, u32) {
+    (
+        SimConfig {
+            gravity: Vec3::ZERO,
+            ground: None,
+            ..SimConfig::default()
+        },
+        frames,
+    )
+}
+
+/// A block `n` cells wide at spacing `h`, centred on the origin.
+fn block(n: u32, h: f32) -> BodyDesc {
+    BodyDesc::new(Shape::cuboid(UVec3::splat(n)), h)
+}
+
+/// A blade big enough to cross a block of `size` metres.
+fn blade(size: f32) -> ToolShape {
+    ToolShape::Blade {
+        half_width: size,
+        half_height: 0.5 * size,
+    }
+}
+
+/// A workload: a scene, and blade strokes spawned as tools for the frames they take
+/// (from the frame of their first key) and despawned after their last.
+pub struct Workload {
+    /// The scene (its own tools run throughout).
+    pub scene: Scene,
+    /// `(first frame, tool)`: the tool follows its path from that frame on.
+    pub strokes: Vec<(u32, ToolDesc)>,
+}
+
+/// The `slice` scene's pedestal and ground with a 32³ block (h = 0.05) on it, crossed
+/// by a blade stroke every 10 frames for 300 frames: each stroke drawn as the viewer
+/// draws one ([`crate::cut::stroke::stroke_cut`]), seen from 12 m in front, across the
+/// block from a random point of a circle around it to the opposite side, turned at
+/// random (seeded).
+pub fn stroked_block(mode: CutMode) -> Workload {
+    let mut scene = crate::io::scene::builtin("slice", 0).expect("a built-in scene");
+    let (h, n) = (0.05, 32);
+    let size = n as f32 * h;
+    let top = scene.config.boxes.first().map_or(0.0, |b| b.max.y);
+    let centre = Vec3::new(0.0, top + 0.5 * size, 0.0);
+    let material = scene.bodies[0].material.clone();
+    scene.bodies = vec![BodyDesc {
+        position: centre,
+        material,
+        ..block(n, h)
+    }];
+    scene.tools.clear();
+    scene.frames = 300;
+    let dt = scene.config.dt;
+    let eye = centre + Vec3::new(0.0, 0.0, 12.0);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(61);
+    let strokes = (0..scene.frames / 10)
+        .filter_map(|k| {
+            let angle = rng.random_range(0.0..std::f32::consts::TAU);
+            let across = Vec3::new(angle.cos(), angle.sin(), 0.0) * 0.8 * size;
+            let offset = Vec3::new(
+                rng.random_range(-0.3..0.3),
+                rng.random_range(-0.3..0.3),
+                0.0,
+            ) * size;
+            let cut = crate::cut::stroke::stroke_cut(
+                eye,
+                centre + offset + across - eye,
+                centre + offset - across - eye,
+                1.0,
+                24.0,
+            )
+            .ok()?;
+            let first = k * 10 + 5;
+            let keys = (cut.poses.iter().enumerate())
+                .map(|(i, p)| ((first - 1 + i as u32) as f32 * dt, *p))
+                .collect();
+            Some((
+                first,
+                ToolDesc {
+                    shape: cut.shape,
+                    cut_width: 2.0 * h,
+                    cut_mode: mode,
+                    path: Path { keys },
+                    pose: cut.poses[0],
+                },
+            ))
+        })
+        .collect();
+    Workload { scene, strokes }
+}
+
+/// A 64³ box (h = 0.05, gravity off) sliced once through its middle by a blade at 30°
+/// to the lattice, at frame 10 of 20.
+pub fn sliced_box(mode: CutMode) -> Workload {
+    let (h, n) = (0.05, 64);
+    let size = n as f32 * h;
+    let centre = Vec3::ZERO;
+    let (config, frames) = still_config(20);
+    let dt = config.dt;
+    let shape = blade(size);
+    let reach = shape.bounding_radius() + size;
+    let rotation = Quat::from_rotation_y(std::f32::consts::FRAC_PI_6);
+    let up = rotation * Vec3::Y;
+    let pose = |position| Pose { position, rotation };
+    let t = 10.0 * dt;
+    let keys = vec![
+        (t - dt, pose(centre + up * reach)),
+        (t, pose(centre - up * reach)),
+    ];
+    let scene = Scene {
+        config,
+        frames,
+        bodies: vec![block(n, h)],
+        tools: vec![ToolDesc {
+            shape,
+            cut_width: 2.0 * h,
+            cut_mode: mode,
+            path: Path { keys: keys.clone() },
+            pose: keys[0].1,
+        }],
+        colliders: Vec::new(),
+    };
+    Workload {
+        scene,
+        strokes: Vec::new(),
+    }
+}
+
+/// What one run of a scene measured: every frame's time, whether it cut, and the
+/// stages' milliseconds per frame.
+struct Run {
+    particles: usize,
+    frames: Vec<f64>,
+    cut: Vec<bool>,
+    stages: Vec<BTreeMap<String, f64>>,
+    surface_topology: Vec<f64>,
+}
+
+/// Steps `workload` (with its tools and strokes, or without) and records every frame.
+fn run(workload: &Workload, with_tools: bool) -> Result<Run> {
+    let mut scene = workload.scene.clone();
+    let mut strokes: Vec<&(u32, ToolDesc)> = workload.strokes.iter().collect();
+    if !with_tools {
+        scene.tools.clear();
+        strokes.clear();
+    }
+    let mut under_way: Vec<(Entity, f32)> = Vec::new();
+    let profile = StageProfile::default();
+    let _installed = profile.install();
+    let mut sim = Simulation::from_scene(&scene)?;
+    sim.update_surfaces()?;
+    let particles = sim
+        .world_mut()
+        .query::<&BodyLattice>()
+        .iter(sim.world())
+        .map(|b| b.lattice.live_count())
+        .sum();
+    let mut run = Run {
+        particles,
+        frames: Vec::new(),
+        cut: Vec::new(),
+        stages: Vec::new(),
+        surface_topology: Vec::new(),
+    };
+    let mut before = profile.totals_ms();
+    let versions = |sim: &mut Simulation| -> Vec<(u64, f64)> {
+        sim.world_mut()
+            .query::<&SurfaceMesh>()
+            .iter(sim.world())
+            .map(|m| (m.topology_version, m.topology_ms))
+            .collect()
+    };
+    let mut seen = versions(&mut sim);
+    for frame in 1..=scene.frames {
+        for (_, tool) in strokes.iter().filter(|(first, _)| *first == frame) {
+            let end = tool.path.keys.last().map_or(0.0, |k| k.0);
+            under_way.push((sim.spawn_tool(tool)?, end));
+        }
+        let start = Instant::now();
+        sim.step();
+        run.frames.push(start.elapsed().as_secs_f64() * 1e3);
+        let report = sim.world().resource::<CutReport>();
+        run.cut.push(!report.bodies.is_empty());
+        let after = profile.totals_ms();
+        let stages: BTreeMap<String, f64> = after
+            .iter()
+            .map(|(k, v)| (k.clone(), v - before.get(k).copied().unwrap_or(0.0)))
+            .collect();
+        run.stages.push(stages);
+        before = after;
+        let now = versions(&mut sim);
+        let topology: f64 = now
+            .iter()
+            .enumerate()
+            .filter(|(i, (v, _))| seen.get(*i).is_none_or(|s| s.0 != *v))
+            .map(|(_, (_, ms))| ms)
+            .sum();
+        run.surface_topology.push(topology);
+        seen = now;
+        let time = frame as f32 * scene.config.dt;
+        under_way.retain(|&(tool, end)| {
+            let done = end <= time + 1e-6;
+            if done {
+                sim.world_mut().despawn(tool);
+            }
+            !done
+        });
+    }
+    Ok(run)
+}
+
+/// Runs `scene` with and without its tools and makes its row.
+fn workload(name: &str, mode: CutMode, scene: &Workload) -> Result<CuttingRow> {
+    let plain = run(scene, false)?;
+    let cutting = run(scene, true)?;
+    let stage = |f: usize, names: &[&str]| -> f64 {
+        names
+            .iter()
+            .map(|n| cutting.stages[f].get(*n).copied().unwrap_or(0.0))
+            .sum()
+    };
+    let mut per_cut = CutStages::default();
+    let mut whole_run = CutStages::default();
+    let mut cut_frames = 0;
+    let mut substeps = 0.0;
+    for f in 0..cutting.frames.len() {
+        substeps += stage(f, &["run_substeps"]);
+        let detect = stage(f, &["detect"]);
+        whole_run.detect_ms += detect;
+        if !cutting.cut[f] {
+            continue;
+        }
+        cut_frames += 1;
+        let stages = CutStages {
+            detect_ms: detect,
+            cut_ms: stage(f, &["cut"]),
+            rebuild_ms: stage(f, &["regroup", "split", "expand"]),
+            // the layout and the terms hear of the cut at the start of the next frame
+            layout_ms: if f + 1 < cutting.frames.len() {
+                stage(f + 1, &["sync_solver", "sync_terms"])
+            } else {
+                0.0
+            },
+            surface_ms: cutting.surface_topology[f],
+        };
+        per_cut.add(&stages);
+        whole_run.add(&CutStages {
+            detect_ms: 0.0,
+            ..stages
+        });
+    }
+    let plain_stats = FrameStats::of(&plain.frames);
+    let all = FrameStats::of(&cutting.frames);
+    let cut = FrameStats::of_where(&cutting.frames, |f| cutting.cut[f]);
+    let mut surface: Vec<f64> = (0..plain.frames.len())
+        .map(|f| {
+            plain.stages[f]
+                .get("update_surfaces")
+                .copied()
+                .unwrap_or(0.0)
+        })
+        .collect();
+    let over = |ms: f64| ms / plain_stats.median_ms;
+    let frames = cutting.frames.len().max(1) as f64;
+    Ok(CuttingRow {
+        row: "cutting",
+        workload: name.into(),
+        mode,
+        particles: cutting.particles,
+        threads: rayon::current_num_threads(),
+        plain: plain_stats,
+        all,
+        cut,
+        cut_stages: per_cut.scaled(1.0 / cut_frames.max(1) as f64),
+        substeps_ms: substeps / frames,
+        cut_work_over_substeps: whole_run.total() / substeps,
+        surface_frame_ms: crate::analysis::bench::median(&mut surface),
+        p95_over_plain: over(all.p95_ms),
+        slowest_over_plain: over(all.max_after_first_ms),
+        cut_median_over_plain: over(cut.median_ms),
+        cut_slowest_over_plain: over(cut.max_ms),
+    })
+}
