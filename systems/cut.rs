@@ -8,6 +8,7 @@
 //! as if cut: its body's lattice and clusters are rebuilt around the hole, instead of
 //! listing a particle that no longer exists.
 
+use crate::body::lattice::NO_PARTICLE;
 use crate::cut::carve::carve;
 use crate::cut::particle_split::{Pairs, SPLIT_GAP, apply_splits, split_positions};
 use crate::cut::tear::sever_keeping_pieces;
@@ -87,6 +88,22 @@ pub fn cut(
         severed.extend(cut.grazed.iter().copied().filter(|&(a, b)| {
             !(lattice.is_carved(a) && lattice.is_carved(b)) && lattice.sever(a, b)
         }));
+        // where the tools crossed the edges they cut (a torn edge has no crossing)
+        for &(a, b) in &severed {
+            if let Some(c) = cut.crossing(a, b) {
+                body.lattice.set_crossing(a, b, c);
+            }
+        }
+        for &(p, moves, _) in &cut.splits.splits {
+            for d in (0..6).filter(|&d| moves[d]) {
+                // (the pairs follow the plan, ascending by particle)
+                let q = (splits.binary_search_by_key(&p, |s| s.0).ok())
+                    .map_or(NO_PARTICLE, |k| body.lattice.link(splits[k].1, d));
+                if let Some(c) = cut.crossing(p, q).filter(|_| q != NO_PARTICLE) {
+                    body.lattice.set_crossing(p, q, c);
+                }
+            }
+        }
         let min_piece = material.material.tear_min_piece as usize;
         let torn = sever_keeping_pieces(&mut body.lattice, &cut.torn, min_piece);
         for &(a, b) in severed.iter().chain(&torn) {

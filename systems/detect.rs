@@ -9,6 +9,7 @@
 //! deterministic order).
 
 use crate::body::lattice::NO_PARTICLE;
+use crate::cut::crossings::rest_crossing;
 use crate::cut::culling::FollowedTool;
 use crate::cut::detection::{edges_separated, particles_hit, particles_inside};
 use crate::cut::particle_split::plan_splits;
@@ -71,6 +72,7 @@ pub fn detect(
             BodyCut::entry(&mut out.cuts, body).carved.push(local);
         }
     }
+    carve_crossings(&cache, &bodies, &carving, &mut out.cuts);
     // a split blade's separated edges go to its plan (each body's, each tool's plane),
     // the others' to the lists they sever from
     let (splitting, severing): (Vec<ToolSweep>, Vec<ToolSweep>) = slicing
@@ -101,24 +103,27 @@ pub fn detect(
                     n => b.slot(n).map_or(u32::MAX, |s| s as u32),
                 })
             };
-            let mut edges: Vec<(u32, u32)> =
-                edges_separated(positions, &cache.live, range, partners, &tools, near)
-                    .into_iter()
-                    .map(|(i, j)| {
-                        let (a, b) = (cache.locals[i], cache.locals[j]);
-                        (a.min(b), a.max(b))
-                    })
-                    .collect();
-            if edges.is_empty() {
+            let separated = edges_separated(positions, &cache.live, range, partners, &tools, near);
+            if separated.is_empty() {
                 continue;
             }
+            let position = |p: u32| b.position(positions, p);
+            let mut edges = Vec::with_capacity(separated.len());
+            let mut crossings = Vec::with_capacity(separated.len());
+            for s in separated {
+                let (a, q) = (cache.locals[s.ends.0], cache.locals[s.ends.1]);
+                let c = rest_crossing(lattice, a, s.fraction, s.normal, position);
+                edges.push((a.min(q), a.max(q)));
+                crossings.push(((a.min(q), a.max(q)), if a < q { c } else { c.reversed() }));
+            }
             let cut = BodyCut::entry(&mut out.cuts, b.body);
+            cut.crossings.append(&mut crossings);
             match kind {
                 Severed::Edges => cut.edges.append(&mut edges),
                 Severed::Grazed => cut.grazed.append(&mut edges),
                 Severed::Split(plane) => {
                     edges.sort_unstable();
-                    let plan = plan_splits(lattice, &edges, |p| b.position(positions, p), plane);
+                    let plan = plan_splits(lattice, &edges, position, plane);
                     cut.splits.splits.extend(plan.splits);
                     cut.splits.sever.extend(plan.sever);
                 }
@@ -131,11 +136,53 @@ pub fn detect(
         c.edges.sort_unstable();
         c.grazed.sort_unstable();
         c.carved.sort_unstable();
+        // (the first tool listed that crossed an edge names its crossing)
+        c.crossings.sort_by_key(|(e, _)| *e);
+        c.crossings.dedup_by_key(|(e, _)| *e);
         if let Ok((_, lattice)) = bodies.get(c.body) {
             c.splits.merge_tools(&lattice.lattice);
         }
     }
     culling.last_ms = start.elapsed().as_secs_f64() * 1e3;
+}
+
+/// Adds to each body's cut where the carving tools cross the edges from the particles
+/// they are inside this frame to linked particles neither inside nor carved before
+/// (the edges the carve will sever), each crossed by the first tool its inside end is
+/// in.
+fn carve_crossings(
+    cache: &SolverCache,
+    bodies: &Query<(&Body, &BodyLattice)>,
+    carving: &[ToolSweep],
+    cuts: &mut [BodyCut],
+) {
+    let positions = &cache.particles.positions;
+    for cut in cuts.iter_mut().filter(|c| !c.carved.is_empty()) {
+        cut.carved.sort_unstable();
+        let (Ok((_, lattice)), Ok(b)) = (
+            bodies.get(cut.body),
+            cache.body_dense.binary_search_by_key(&cut.body, |b| b.body),
+        ) else {
+            continue;
+        };
+        let (lattice, b) = (&lattice.lattice, &cache.body_dense[b]);
+        let position = |p: u32| b.position(positions, p);
+        for &c in &cut.carved {
+            let x = position(c);
+            let Some(tool) = carving.iter().find(|t| t.contains(x)) else {
+                continue;
+            };
+            for q in lattice.neighbours(c) {
+                if cut.carved.binary_search(&q).is_ok() || lattice.is_carved(q) {
+                    continue;
+                }
+                let (fraction, normal) = tool.crossing(x, position(q));
+                let crossing = rest_crossing(lattice, c, fraction, normal, position);
+                let oriented = if c < q { crossing } else { crossing.reversed() };
+                cut.crossings.push(((c.min(q), c.max(q)), oriented));
+            }
+        }
+    }
 }
 
 /// Which blocks of the dense particles some tool may reach this frame (see

@@ -50,7 +50,7 @@ impl Lattice {
 
     /// Links live particles `a` and `b` again after [`Lattice::sever`]: they must lie in
     /// neighbouring cells with both of the facing slots free. Returns whether it linked
-    /// them.
+    /// them; a crossing recorded on the edge is forgotten.
     pub fn relink(&mut self, a: u32, b: u32) -> bool {
         if !(self.is_live(a) && self.is_live(b)) {
             return false;
@@ -67,6 +67,7 @@ impl Lattice {
         }
         self.links[a as usize][d] = b;
         self.links[b as usize][d ^ 1] = a;
+        self.clear_crossing(a, b);
         self.pieces.take();
         true
     }

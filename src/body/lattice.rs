@@ -62,6 +62,8 @@ pub struct Lattice {
     /// Bit `i` set once particle `i` has been inside a cutting sphere or capsule in
     /// `sever` mode (empty until the first carve; see [`crate::cut::carve`]).
     pub(super) carved: Vec<u64>,
+    /// Where cuts crossed the edges they cut ([`super::crossings`]).
+    pub(super) crossings: super::crossings::Crossings,
     /// Whether every pair of live particles in neighbouring cells is linked and every
     /// live particle is the one its cell names (nothing severed, nothing split): then
     /// the pieces can be counted from the occupancy grid alone.
@@ -105,6 +107,7 @@ impl Lattice {
             links: vec![[NO_PARTICLE; 6]; coords.len()],
             rest_shift: Vec::new(),
             carved: Vec::new(),
+            crossings: Default::default(),
             intact: true,
             pieces: std::sync::OnceLock::new(),
             coords,

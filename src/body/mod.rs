@@ -2,6 +2,7 @@
 //! it), the shapes voxelised into it, and graph algorithms over its edges (pieces,
 //! connectivity).
 
+pub mod crossings;
 pub mod edits;
 pub mod graph;
 pub mod groups;

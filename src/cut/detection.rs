@@ -16,6 +16,7 @@ use crate::cut::tool_sweep::ToolSweep;
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 use smallvec::SmallVec;
+use std::ops::Not;
 
 /// Particles culled together by one bounding ball.
 pub const BLOCK: usize = 64;
@@ -91,13 +92,30 @@ fn particles_where(
         .collect()
 }
 
+/// An edge a tool separates, found by [`edges_separated`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Separated {
+    /// The edge's dense ends: a particle of the range tested, and its partner.
+    pub ends: (usize, usize),
+    /// Where the first tool that separates it crossed it
+    /// ([`ToolSweep::crossing`]): the fraction from the first end, and the swept
+    /// surface's unit normal (world frame).
+    pub fraction: f32,
+    /// See `fraction`.
+    pub normal: Vec3,
+}
+
 /// The edges some tool separates ([`ToolSweep::separates`]), among the edges from the
 /// particles `range` of `positions` (dense indices) to their `partners` (the dense
 /// indices of the particles linked along +x, +y and +z, `u32::MAX` where none, so that
-/// each edge is tested once). Returns `(particle, partner)` pairs in ascending order.
-/// The range is taken in the dense blocks of [`BLOCK`] particles; blocks `near` marks
-/// far are skipped, the others are culled by a ball around their particles and
-/// partners, and run in parallel; the result does not depend on the thread count.
+/// each edge is tested once), each with where it was crossed. In ascending order of
+/// their ends. The range is taken in the dense blocks of [`BLOCK`] particles; blocks
+/// `near` marks far are skipped, the others are culled by a ball around their particles
+/// and partners, and run in parallel; the result does not depend on the thread count.
+///
+/// A blade that stays in its plane ([`ToolSweep::in_plane`]) is tested in closed form
+/// (a sign test per edge, then the crossing point against the blade's sweep); the other
+/// tools by their distances to the edges' ends, then to the edges.
 pub fn edges_separated(
     positions: &[Vec3A],
     live: &[bool],
@@ -105,7 +123,7 @@ pub fn edges_separated(
     partners: impl Fn(usize) -> [u32; 3] + Sync,
     tools: &[&ToolSweep],
     near_blocks: NearBlocks,
-) -> Vec<(usize, usize)> {
+) -> Vec<Separated> {
     if tools.is_empty() || range.is_empty() {
         return Vec::new();
     }
@@ -150,13 +168,19 @@ pub fn edges_separated(
             if near.is_empty() {
                 edges.clear();
             }
-            // each end's distance to each near tool once: most partners lie in the
-            // block, whose particles' distances are kept
+            // the tools not in one plane need each end's distance to them, once: most
+            // partners lie in the block, whose particles' distances are kept
+            let general: SmallVec<[usize; 4]> = (0..near.len())
+                .filter(|&t| near[t].in_plane().is_none())
+                .collect();
             let distances = |k: usize| -> SmallVec<[f32; 4]> {
                 let x = Vec3::from(positions[k]);
-                near.iter().map(|t| t.surface_distance(x)).collect()
+                general
+                    .iter()
+                    .map(|&t| near[t].surface_distance(x))
+                    .collect()
             };
-            let own: Vec<SmallVec<[f32; 4]>> = if edges.is_empty() {
+            let own: Vec<SmallVec<[f32; 4]>> = if edges.is_empty() || general.is_empty() {
                 Vec::new()
             } else {
                 (start..end).map(distances).collect()
@@ -168,14 +192,29 @@ pub fn edges_separated(
                     distances(k)
                 }
             };
-            let kept: Vec<(usize, usize)> = edges
+            let kept: Vec<Separated> = edges
                 .into_iter()
-                .filter(|&(i, j)| {
+                .filter_map(|(i, j)| {
                     let (a, b) = (Vec3::from(positions[i]), Vec3::from(positions[j]));
-                    let (da, db) = (of(i), of(j));
-                    near.iter()
-                        .enumerate()
-                        .any(|(t, tool)| tool.separates_at((a, da[t]), (b, db[t])))
+                    let ends = general.is_empty().not().then(|| (of(i), of(j)));
+                    near.iter().enumerate().find_map(|(t, tool)| {
+                        let (fraction, normal) = match tool.in_plane() {
+                            Some(plane) => (tool.plane_crossing(plane, a, b)?, plane.normal),
+                            None => {
+                                let (da, db) = ends.as_ref()?;
+                                let g = general.iter().position(|&k| k == t)?;
+                                if !tool.separates_at((a, da[g]), (b, db[g])) {
+                                    return None;
+                                }
+                                tool.crossing(a, b)
+                            }
+                        };
+                        Some(Separated {
+                            ends: (i, j),
+                            fraction,
+                            normal,
+                        })
+                    })
                 })
                 .collect();
             kept
@@ -356,14 +395,17 @@ mod tests {
                 mode: CutMode::Sever,
             };
             let sweep = ToolSweep::new(&tool, &pose(2.0), &pose(-2.0)).unwrap();
-            let found = edges_separated(
+            let found: Vec<(usize, usize)> = edges_separated(
                 &positions,
                 &live,
                 0..positions.len(),
                 partners,
                 &[&sweep],
                 None,
-            );
+            )
+            .into_iter()
+            .map(|s| s.ends)
+            .collect();
             let mut brute = Vec::new();
             for i in 0..positions.len() {
                 for j in partners(i).into_iter().filter(|j| *j != u32::MAX) {

@@ -2,6 +2,7 @@
 //! and the edits a cut makes to a lattice — carving, tearing, splitting particles.
 
 pub mod carve;
+pub mod crossings;
 pub mod culling;
 pub mod detection;
 pub mod particle_split;

@@ -8,11 +8,54 @@ use crate::ecs::components::Tool;
 use crate::geometry::convex::Convex;
 use glam::Vec3;
 
+/// The distance from the segment `from`–`to` to the rectangle `[−half, half]` (both in
+/// the rectangle's plane): 0 when they meet.
+fn rectangle_segment_distance(half: glam::Vec2, from: glam::Vec2, to: glam::Vec2) -> f32 {
+    // clip the segment's parameter to the slab of each axis (Liang–Barsky)
+    let d = to - from;
+    let (mut lo, mut hi) = (0.0f32, 1.0f32);
+    for axis in 0..2 {
+        let (p, q) = (from[axis], d[axis]);
+        if q == 0.0 {
+            if p.abs() > half[axis] {
+                hi = -1.0;
+            }
+        } else {
+            let (t0, t1) = ((-half[axis] - p) / q, (half[axis] - p) / q);
+            lo = lo.max(t0.min(t1));
+            hi = hi.min(t0.max(t1));
+        }
+    }
+    if lo <= hi {
+        return 0.0;
+    }
+    let to_rectangle = |x: glam::Vec2| (x.abs() - half).max(glam::Vec2::ZERO).length();
+    let to_segment = |x: glam::Vec2| {
+        let s = if d == glam::Vec2::ZERO {
+            0.0
+        } else {
+            ((x - from).dot(d) / d.length_squared()).clamp(0.0, 1.0)
+        };
+        x.distance(from + s * d)
+    };
+    let corners = [
+        glam::Vec2::new(-half.x, -half.y),
+        glam::Vec2::new(half.x, -half.y),
+        glam::Vec2::new(half.x, half.y),
+        glam::Vec2::new(-half.x, half.y),
+    ];
+    corners
+        .into_iter()
+        .map(to_segment)
+        .fold(to_rectangle(from).min(to_rectangle(to)), f32::min)
+}
+
 /// A tool ready for point and edge tests: its motion since the last frame as
 /// translations, its convex core and radius, its reach (half the cut width), and the
 /// bounding box of everything it can touch.
 #[derive(Clone, Debug)]
 pub struct ToolSweep {
+    shape: ToolShape,
     core: Convex,
     radius: f32,
     reach: f32,
@@ -75,6 +118,7 @@ impl ToolSweep {
             before.dot(p.normal) > 1.0 - 1e-6 && p.normal.dot(moved).abs() <= 1e-6 * (1.0 + far)
         });
         Some(Self {
+            shape: tool.shape,
             plane,
             in_plane,
             core,
@@ -130,11 +174,8 @@ impl ToolSweep {
         if da < 0.0 || db < 0.0 {
             return false;
         }
-        if let Some(plane) = self.plane.filter(|_| self.in_plane) {
-            let (sa, sb) = (plane.distance(a), plane.distance(b));
-            if !(sa < 0.0 && sb >= 0.0 || sb < 0.0 && sa >= 0.0) {
-                return false;
-            }
+        if let Some(plane) = self.in_plane() {
+            return self.plane_crossing(plane, a, b).is_some();
         }
         // every point of the segment lies within half its length of an end: when both
         // ends are farther than that, the segment cannot touch the tool (and the point
@@ -144,6 +185,83 @@ impl ToolSweep {
         let margin = 1e-3 * a.distance(b) + self.rounding(a.abs().max(b.abs()).max_element());
         da.min(db) <= 0.5 * a.distance(b) + margin
             && self.sweep.segment_distance(&self.core, a, b) <= self.radius
+    }
+
+    /// The plane of a blade that stays in it throughout its motion (turning about its
+    /// normal, moving along the plane); `None` for any other motion or tool. Such a
+    /// blade separates exactly the edges whose ends lie on both sides of the plane and
+    /// whose crossing point it passes over ([`Self::plane_crossing`]).
+    pub fn in_plane(&self) -> Option<BladePlane> {
+        self.plane.filter(|_| self.in_plane)
+    }
+
+    /// For a blade staying in `plane` ([`Self::in_plane`]): where along `a`–`b` (the
+    /// fraction from `a`) the blade separates the segment, if it does — its ends lie on
+    /// both sides of the plane (one on it counts as the positive side) and the point
+    /// where it crosses the plane comes within the sweep's slack of the blade's
+    /// rectangle at some time of the motion. Closed form: a sign test, then per piece
+    /// of the motion the crossing point's trace in the blade's frame (a segment in its
+    /// plane) against the rectangle.
+    pub fn plane_crossing(&self, plane: BladePlane, a: Vec3, b: Vec3) -> Option<f32> {
+        let (sa, sb) = (plane.distance(a), plane.distance(b));
+        if !(sa < 0.0 && sb >= 0.0 || sb < 0.0 && sa >= 0.0) {
+            return None;
+        }
+        let t = sa / (sa - sb);
+        let x = a + t * (b - a);
+        let ToolShape::Blade {
+            half_width,
+            half_height,
+        } = self.shape
+        else {
+            return None;
+        };
+        let half = glam::Vec2::new(half_width, half_height);
+        let slack = self.sweep.slack;
+        self.sweep
+            .pieces
+            .iter()
+            .any(|piece| {
+                let from = (piece.inverse * (x - piece.from)).truncate();
+                let to = (piece.inverse * (x - piece.to)).truncate();
+                rectangle_segment_distance(half, from, to) <= slack
+            })
+            .then_some(t)
+    }
+
+    /// Where the tool's swept surface crosses the segment `a`–`b` — one it separates,
+    /// or one from a particle inside the tool to one outside: the fraction along it from
+    /// `a`, and the surface's unit normal there (world frame, either way round). A blade
+    /// in one plane crosses where the segment meets the plane, with the plane's normal;
+    /// otherwise the crossing is where the distance to what the tool sweeps changes sign
+    /// along the segment, or the middle of the stretch the tool passes over, and its
+    /// normal the distance's gradient there (a blade's: its plane's).
+    pub fn crossing(&self, a: Vec3, b: Vec3) -> (f32, Vec3) {
+        if let Some(plane) = self.in_plane() {
+            let (sa, sb) = (plane.distance(a), plane.distance(b));
+            let t = if sa == sb { 0.5 } else { sa / (sa - sb) };
+            return (t.clamp(0.0, 1.0), plane.normal);
+        }
+        let along = |t: f32| self.surface_distance(a + t * (b - a));
+        let t = crate::cut::crossings::touching_middle(
+            along,
+            self.rounding(a.abs().max(b.abs()).max_element()),
+        );
+        let x = a + t * (b - a);
+        let normal = match self.plane {
+            Some(plane) => plane.normal,
+            None => {
+                let step = 1e-3 * a.distance(b).max(f32::MIN_POSITIVE);
+                let slope = |e: Vec3| {
+                    self.surface_distance(x + step * e) - self.surface_distance(x - step * e)
+                };
+                Vec3::new(slope(Vec3::X), slope(Vec3::Y), slope(Vec3::Z))
+                    .try_normalize()
+                    .or_else(|| (b - a).try_normalize())
+                    .unwrap_or(Vec3::X)
+            }
+        };
+        (t, normal)
     }
 
     /// A bound, with room to spare, on the rounding of a distance from this tool to a

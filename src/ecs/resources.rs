@@ -62,9 +62,24 @@ pub struct BodyCut {
     /// Edges such a tool's surface crosses with neither end inside it this frame, to
     /// sever unless both ends are carved: `(a, b)` with `a < b`, ascending.
     pub grazed: Vec<(u32, u32)>,
+    /// Where the tools crossed the edges they separate or carve across (every edge of
+    /// `edges`, `grazed` and `splits`, and those from a carved particle to one that is
+    /// not), in the lattice's rest frame: `((a, b), crossing measured from a)` with
+    /// `a < b`, ascending. The cut stage keeps those of the edges it cuts in the lattice.
+    pub crossings: Vec<((u32, u32), crate::body::crossings::Crossing)>,
 }
 
 impl BodyCut {
+    /// Where the tools crossed the edge between `a` and `b`, measured from `a`.
+    pub fn crossing(&self, a: u32, b: u32) -> Option<crate::body::crossings::Crossing> {
+        let k = self
+            .crossings
+            .binary_search_by_key(&(a.min(b), a.max(b)), |(e, _)| *e)
+            .ok()?;
+        let c = self.crossings[k].1;
+        Some(if a < b { c } else { c.reversed() })
+    }
+
     /// The entry of `cuts` for `body`, added empty when missing (found at once when the
     /// last entry is the body's, as it is for particles listed in body order).
     pub fn entry(cuts: &mut Vec<BodyCut>, body: Entity) -> &mut BodyCut {
@@ -79,6 +94,7 @@ impl BodyCut {
                     splits: Default::default(),
                     carved: Vec::new(),
                     grazed: Vec::new(),
+                    crossings: Vec::new(),
                 });
                 cuts.len() - 1
             }

@@ -457,7 +457,13 @@ fn restore(snapshot: Snapshot) -> Result<World> {
         }
         handles.0.push((a.entity, e.id()));
     }
-    for b in bodies {
+    for (i, b) in bodies.into_iter().enumerate() {
+        if let Some((edge, c)) = b.lattice.lattice.invalid_crossing() {
+            return Err(invalid(format!(
+                "bodies: body {i}: the crossing of edge {edge} (fraction {}, normal {}) is out of range (allowed 0 ≤ fraction ≤ 1, a finite unit normal, an edge of the lattice)",
+                c.fraction, c.normal
+            )));
+        }
         let mut lattice = b.lattice;
         for e in &mut lattice.particles {
             *e = map.get(*e);
