@@ -235,6 +235,7 @@ fn merge(a: &[u64], b: &[u64]) -> Vec<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::solver::terms::contact_pairs::ContactBall;
     use glam::IVec3;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -248,12 +249,14 @@ mod tests {
         let mut p = ContactParticles::default();
         let mut positions = Vec::new();
         for i in 0..n {
-            p.push(
-                i as u32,
-                (i % 3) as u32,
-                IVec3::new(3 * i as i32, 0, 0),
-                0.05,
-            );
+            p.push(ContactBall {
+                dense: i as u32,
+                group: (i % 3) as u32,
+                body: i as u32,
+                coord: IVec3::new(3 * i as i32, 0, 0),
+                rest: Vec3A::ZERO,
+                radius: 0.05,
+            });
             positions.push(Vec3A::new(rng.random(), rng.random(), rng.random()));
         }
         let group = |self_contact| ContactGroup {

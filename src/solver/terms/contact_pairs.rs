@@ -57,23 +57,58 @@ pub struct ContactGroup {
     pub dynamic_friction: f32,
 }
 
+/// One particle taking part in contacts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactBall {
+    /// Its dense index.
+    pub dense: u32,
+    /// Its group (a piece of a body).
+    pub group: u32,
+    /// Its body (any number the particles of one body share).
+    pub body: u32,
+    /// Its lattice coordinate.
+    pub coord: IVec3,
+    /// Where it rests in its body's lattice frame.
+    pub rest: Vec3A,
+    /// Its ball's radius.
+    pub radius: f32,
+}
+
 /// The particles that take part in contacts, in the solver's dense order.
 #[derive(Clone, Debug, Default)]
 pub struct ContactParticles {
     pub(super) dense: Vec<u32>,
     pub(super) group: Vec<u32>,
+    pub(super) body: Vec<u32>,
     pub(super) coord: Vec<IVec3>,
+    pub(super) rest: Vec<Vec3A>,
     pub(super) radius: Vec<f32>,
 }
 
 impl ContactParticles {
-    /// Adds dense particle `dense` of `group`, at lattice coordinate `coord`, a ball of
-    /// `radius`.
-    pub fn push(&mut self, dense: u32, group: u32, coord: IVec3, radius: f32) {
-        self.dense.push(dense);
-        self.group.push(group);
-        self.coord.push(coord);
-        self.radius.push(radius);
+    /// Adds a particle.
+    pub fn push(&mut self, ball: ContactBall) {
+        self.dense.push(ball.dense);
+        self.group.push(ball.group);
+        self.body.push(ball.body);
+        self.coord.push(ball.coord);
+        self.rest.push(ball.rest);
+        self.radius.push(ball.radius);
+    }
+
+    /// How close the balls of contact particles `a` and `b` may come: the sum of their
+    /// radii, or, for two particles of one body, their distance at rest when that is
+    /// less (by more than its rounding) — so that nothing pushes apart two particles
+    /// that rest closer than their balls reach (the halves of a split particle;
+    /// neighbours across a cut when the material's contact radius passes half a cell).
+    #[inline]
+    pub(super) fn reach(&self, a: usize, b: usize) -> f32 {
+        let sum = self.radius[a] + self.radius[b];
+        if self.body[a] != self.body[b] {
+            return sum;
+        }
+        let rest = self.rest[a].distance(self.rest[b]);
+        if rest < sum * (1.0 - 1e-4) { rest } else { sum }
     }
 
     /// Number of particles.

@@ -17,7 +17,7 @@
 //! would then accelerate the bodies).
 
 use super::contact_list::ContactList;
-use super::contact_pairs::{ContactGroup, ContactParticles};
+use super::contact_pairs::{ContactBall, ContactGroup, ContactParticles};
 use crate::body::lattice::Lattice;
 use crate::config::Material;
 use crate::solver::term::{NO_DENSE, ParticleState, Substep, Term, Topology};
@@ -35,19 +35,19 @@ const PAIRS_PER_TASK: usize = 512;
 /// by 1), so that particles in a few contacts converge in fewer iterations.
 pub const RELAXATION: f32 = 2.0;
 
-/// The radius of particle `i`'s ball: the material's contact radius, halved for a half
-/// of a split particle. A half rests a quarter cell from its cell's centre (see
-/// [`Lattice::split`]), so its twin across the cut rests half a cell away: with full
-/// balls the two pieces would overlap by half a cell the moment they part, and contact
-/// would push them apart (a rigid block split through its middle flew apart at metres
-/// per second); half balls meet at the cut face.
+/// The radius of particle `i`'s ball: the material's contact radius; for a half of a
+/// split particle, less how far it rests from its cell's centre (see
+/// [`Lattice::split`]), so that its ball lies inside the ball of the particle it was
+/// split from (and no smaller than a quarter of it). Then a split overlaps no ball
+/// that the particle did not overlap: nothing pushes the pieces apart, and a half at
+/// the bottom of a block on the ground rests on it with its ball, as the particle did.
+/// Halves of one cell rest closer to each other than their balls reach; contacts
+/// between particles of one body stop at their rest distance
+/// ([`super::contact_pairs::ContactParticles`]).
 pub fn ball_radius(material: &Material, lattice: &Lattice, i: u32) -> f32 {
     let radius = material.contact_radius_at(lattice.spacing());
-    if lattice.is_split_half(i) {
-        0.5 * radius
-    } else {
-        radius
-    }
+    let shift = lattice.split_shift(i).length() * lattice.spacing();
+    (radius - shift).max(0.25 * radius)
 }
 
 /// A pair as the projection reads it: everything it needs in one place.
@@ -129,7 +129,7 @@ impl Contacts {
     /// per piece of each body), in dense order within each body.
     fn surface(change: &Topology) -> (ContactParticles, Vec<ContactGroup>) {
         let (mut particles, mut groups) = (ContactParticles::default(), Vec::new());
-        for body in change.bodies {
+        for (b, body) in change.bodies.iter().enumerate() {
             let (lattice, material) = (body.lattice, body.material);
             let group = ContactGroup {
                 self_contact: material.self_contact,
@@ -152,8 +152,14 @@ impl Contacts {
             taking_part.sort_unstable();
             for (d, i) in taking_part {
                 let piece = labels.map_or(0, |l| l.label[i as usize]);
-                let radius = ball_radius(material, lattice, i);
-                particles.push(d, first_group + piece, lattice.coord(i), radius);
+                particles.push(ContactBall {
+                    dense: d,
+                    group: first_group + piece,
+                    body: b as u32,
+                    coord: lattice.coord(i),
+                    rest: lattice.rest_position(i).into(),
+                    radius: ball_radius(material, lattice, i),
+                });
             }
         }
         (particles, groups)
@@ -189,7 +195,7 @@ impl Contacts {
                 b,
                 dense_a: p.dense[a as usize],
                 dense_b: p.dense[b as usize],
-                reach: p.radius[a as usize] + p.radius[b as usize],
+                reach: p.reach(a as usize, b as usize),
                 static_friction: 0.5 * (ga.static_friction + gb.static_friction),
                 dynamic_friction: 0.5 * (ga.dynamic_friction + gb.dynamic_friction),
             }
@@ -332,12 +338,24 @@ mod tests {
         dynamic_friction: 0.0,
     };
 
+    /// A ball of radius 0.05 alone in its body.
+    fn ball(dense: u32, group: u32, coord: IVec3) -> ContactBall {
+        ContactBall {
+            dense,
+            group,
+            body: dense,
+            coord,
+            rest: Vec3A::ZERO,
+            radius: 0.05,
+        }
+    }
+
     /// Contacts over `positions`, particle `i` in group `groups[i]` at lattice coordinate
     /// `coords[i]`, all of radius 0.05.
     fn contacts(groups: &[u32], coords: &[IVec3]) -> Contacts {
         let mut particles = ContactParticles::default();
         for (i, (g, c)) in groups.iter().zip(coords).enumerate() {
-            particles.push(i as u32, *g, *c, 0.05);
+            particles.push(ball(i as u32, *g, *c));
         }
         let count = groups.iter().max().map_or(0, |g| *g as usize + 1);
         let mut c = Contacts::default();
@@ -472,8 +490,8 @@ mod tests {
         // ball 1 comes down onto ball 0 (pinned), ending 0.09 above it and `slide` aside
         let slid = |slide: f32, group: ContactGroup| {
             let mut particles = ContactParticles::default();
-            particles.push(0, 0, IVec3::ZERO, 0.05);
-            particles.push(1, 1, IVec3::ZERO, 0.05);
+            particles.push(ball(0, 0, IVec3::ZERO));
+            particles.push(ball(1, 1, IVec3::ZERO));
             let mut c = Contacts::default();
             c.set(particles, vec![group; 2]);
             let previous = [Vec3A::ZERO, Vec3A::new(0.0, 0.1, 0.0)];
