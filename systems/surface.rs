@@ -10,7 +10,7 @@
 
 use crate::body::lattice::Lattice;
 use crate::ecs::components::{BodyLattice, Position};
-use crate::ecs::resources::{BodyCutReport, CutReport, SurfaceChanged};
+use crate::ecs::resources::{BodyCutReport, CutReport, SimClock, SurfaceChanged};
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::surface::extract::extract_with_faces;
 use crate::surface::smooth::smooth;
@@ -20,17 +20,26 @@ use bevy_ecs::prelude::*;
 use glam::Mat3A;
 use rayon::prelude::*;
 
-/// Updates the surface of every body that has one.
+/// Updates the surface of every body that has one; a surface already brought up to
+/// date in this frame, whose lattice has not changed since, is left as it is (so that
+/// running the stage again — [`crate::sim::simulation::Simulation::update_surfaces`] —
+/// changes nothing).
 pub fn update_surfaces(
-    mut bodies: Query<(Entity, Ref<BodyLattice>, &mut SurfaceMesh)>,
+    mut bodies: Query<(Entity, &BodyLattice, &mut SurfaceMesh)>,
     positions: Query<&Position>,
     cut: Res<CutReport>,
+    clock: Res<SimClock>,
     mut changed: MessageWriter<SurfaceChanged>,
 ) {
     for (body, lattice, mut mesh) in &mut bodies {
-        let mesh = &mut *mesh;
         let l = &lattice.lattice;
-        if mesh.topology_version == 0 || lattice.is_changed() {
+        let seen = (l.len(), l.live_count(), l.edits());
+        let new_topology = mesh.topology_version == 0 || mesh.seen != seen;
+        if !new_topology && mesh.deformed_at == Some(clock.frame) {
+            continue;
+        }
+        let mesh = &mut *mesh;
+        if new_topology {
             let start = std::time::Instant::now();
             let touched = explained_by_cut(mesh, l, cut.bodies.iter().find(|c| c.body == body));
             mesh.topology = match &mesh.render_mesh {
@@ -52,7 +61,7 @@ pub fn update_surfaces(
             mesh.rotations = vec![Mat3A::IDENTITY; layout.carrier_count()];
             mesh.gathered = layout.carry_positions(&mesh.layout, &mesh.gathered);
             mesh.layout = layout;
-            mesh.seen = (l.len(), l.live_count());
+            mesh.seen = seen;
             mesh.topology_version += 1;
             mesh.topology_ms = start.elapsed().as_secs_f64() * 1e3;
             changed.write(SurfaceChanged {
@@ -91,6 +100,7 @@ pub fn update_surfaces(
             &mut mesh.faces,
             &mut mesh.normals,
         );
+        mesh.deformed_at = Some(clock.frame);
     }
 }
 
@@ -105,7 +115,7 @@ fn explained_by_cut(
     cut: Option<&BodyCutReport>,
 ) -> Option<Vec<u32>> {
     let cut = cut.filter(|_| mesh.topology_version > 0)?;
-    let (len, live) = mesh.seen;
+    let (len, live, _) = mesh.seen;
     let expected = (
         len + cut.splits.len(),
         (live + cut.splits.len()).checked_sub(cut.removed.len())?,

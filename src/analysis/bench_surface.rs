@@ -61,6 +61,10 @@ pub fn bench_surface(
     let world = sim.world_mut();
     let stage = world.register_system(update_surfaces);
     let run = |sim: &mut Simulation| -> Result<f64> {
+        // (each run a new frame's: the stage carries a surface once per frame)
+        sim.world_mut()
+            .resource_mut::<crate::ecs::resources::SimClock>()
+            .frame += 1;
         let start = Instant::now();
         sim.world_mut()
             .run_system(stage)

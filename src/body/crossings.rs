@@ -6,10 +6,11 @@
 //! ([`crate::surface::placement`]).
 //!
 //! An edge is named by where it lies, not by its particles (a split hands edges from a
-//! particle to its new half): the cell at its lower end along its axis, and the axis.
+//! particle to its new half): the cell at its lower end along its axis, and the axis
+//! ([`crate::body::lattice::Lattice::edge_key`]; the lattice reads and writes its
+//! crossings by particles or cells).
 
-use super::lattice::{Lattice, NEIGHBOUR_OFFSETS};
-use glam::{IVec3, Vec3};
+use glam::Vec3;
 use rustc_hash::FxHashMap;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
@@ -62,81 +63,44 @@ impl<'de> Deserialize<'de> for Crossings {
     }
 }
 
-impl Lattice {
-    /// The key of the edge between neighbouring cells `a` and `b`, and whether `a` is its
-    /// lower end; `None` unless they are face neighbours inside the lattice's grid.
-    pub fn edge_key(&self, a: IVec3, b: IVec3) -> Option<(u32, bool)> {
-        let axis = NEIGHBOUR_OFFSETS.iter().position(|o| a + *o == b)? / 2;
-        let a_lower = a[axis] < b[axis];
-        let lower = if a_lower { a } else { b };
-        let cell = self.cell(lower)? as u32;
-        Some((cell * 3 + axis as u32, a_lower))
+impl Crossings {
+    /// The crossing of edge `key`.
+    pub fn get(&self, key: u32) -> Option<Crossing> {
+        self.0.get(&key).copied()
     }
 
-    /// Where a cut crossed the edge from cell `cell` to its neighbour along `axis` (0, 1
-    /// or 2), measured from `cell`.
-    pub fn crossing_at(&self, cell: IVec3, axis: usize) -> Option<Crossing> {
-        let key = self.cell(cell)? as u32 * 3 + axis as u32;
-        self.crossings.0.get(&key).copied()
+    /// Records the crossing of edge `key`.
+    pub fn insert(&mut self, key: u32, crossing: Crossing) {
+        self.0.insert(key, crossing);
     }
 
-    /// Where a cut crossed the edge between particles `p` and `q` (in neighbouring
-    /// cells), measured from `p`.
-    pub fn crossing_between(&self, p: u32, q: u32) -> Option<Crossing> {
-        let (key, p_lower) = self.edge_key(self.coord(p), self.coord(q))?;
-        let c = *self.crossings.0.get(&key)?;
-        Some(if p_lower { c } else { c.reversed() })
-    }
-
-    /// Records where a cut crossed the edge between particles `p` and `q` (in
-    /// neighbouring cells), `crossing` measured from `p`; returns false (and records
-    /// nothing) when they are not neighbours or the crossing is not valid.
-    pub fn set_crossing(&mut self, p: u32, q: u32, crossing: Crossing) -> bool {
-        let Some((key, p_lower)) = self.edge_key(self.coord(p), self.coord(q)) else {
-            return false;
-        };
-        if !crossing.is_valid() {
-            return false;
-        }
-        let stored = if p_lower {
-            crossing
-        } else {
-            crossing.reversed()
-        };
-        self.crossings.0.insert(key, stored);
-        true
-    }
-
-    /// Forgets where a cut crossed the edge between particles `p` and `q`.
-    pub fn clear_crossing(&mut self, p: u32, q: u32) {
-        if let Some((key, _)) = self.edge_key(self.coord(p), self.coord(q)) {
-            self.crossings.0.remove(&key);
-        }
+    /// Forgets the crossing of edge `key`.
+    pub fn remove(&mut self, key: u32) {
+        self.0.remove(&key);
     }
 
     /// Number of edges with a crossing.
-    pub fn crossing_count(&self) -> usize {
-        self.crossings.0.len()
+    pub fn len(&self) -> usize {
+        self.0.len()
     }
 
-    /// The first crossing that is not valid ([`Crossing::is_valid`]) or names an edge
-    /// outside the grid, as `(edge key, crossing)`: what a loaded save is refused for.
-    pub fn invalid_crossing(&self) -> Option<(u32, Crossing)> {
-        let edges = self.grid.len() as u64 * 3;
-        let mut bad: Vec<(u32, Crossing)> = (self.crossings.0.iter())
-            .filter(|(k, c)| **k as u64 >= edges || !c.is_valid())
-            .map(|(k, c)| (*k, *c))
-            .collect();
-        bad.sort_unstable_by_key(|(k, _)| *k);
-        bad.first().copied()
+    /// Whether no edge has a crossing.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// The crossings, by edge key, in no particular order.
+    pub fn iter(&self) -> impl Iterator<Item = (u32, Crossing)> + '_ {
+        self.0.iter().map(|(k, c)| (*k, *c))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::body::lattice::Lattice;
     use crate::body::shape::Shape;
-    use glam::UVec3;
+    use glam::{IVec3, UVec3};
 
     #[test]
     fn a_crossing_is_kept_by_place_and_read_from_either_end() {

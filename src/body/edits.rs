@@ -1,6 +1,7 @@
 //! The edits a cut makes to a lattice: severing and relinking edges, marking carved
 //! particles, splitting a particle in two, removing one.
 
+use super::crossings::Crossing;
 use super::lattice::{Lattice, NEIGHBOUR_OFFSETS, NO_PARTICLE};
 use glam::Vec3;
 
@@ -27,6 +28,7 @@ impl Lattice {
         self.links[b as usize][d ^ 1] = NO_PARTICLE;
         self.intact = false;
         self.pieces.take();
+        self.edits += 1;
         true
     }
 
@@ -69,6 +71,7 @@ impl Lattice {
         self.links[b as usize][d ^ 1] = a;
         self.clear_crossing(a, b);
         self.pieces.take();
+        self.edits += 1;
         true
     }
 
@@ -126,7 +129,36 @@ impl Lattice {
         self.live_count += 1;
         self.intact = false;
         self.pieces.take();
+        self.edits += 1;
         Some(j)
+    }
+
+    /// Records where a cut crossed the edge between particles `p` and `q` (in
+    /// neighbouring cells), `crossing` measured from `p`; returns false (and records
+    /// nothing) when they are not neighbours or the crossing is not valid.
+    pub fn set_crossing(&mut self, p: u32, q: u32, crossing: Crossing) -> bool {
+        let Some((key, p_lower)) = self.edge_key(self.coord(p), self.coord(q)) else {
+            return false;
+        };
+        if !crossing.is_valid() {
+            return false;
+        }
+        let stored = if p_lower {
+            crossing
+        } else {
+            crossing.reversed()
+        };
+        self.crossings.insert(key, stored);
+        self.edits += 1;
+        true
+    }
+
+    /// Forgets where a cut crossed the edge between particles `p` and `q`.
+    pub fn clear_crossing(&mut self, p: u32, q: u32) {
+        if let Some((key, _)) = self.edge_key(self.coord(p), self.coord(q)) {
+            self.crossings.remove(key);
+            self.edits += 1;
+        }
     }
 
     /// Removes particle `i`; returns false if it was not live.
@@ -152,6 +184,7 @@ impl Lattice {
         self.live[i as usize / 64] &= !(1 << (i % 64));
         self.live_count -= 1;
         self.pieces.take();
+        self.edits += 1;
         true
     }
 }

@@ -3,6 +3,7 @@
 //! [`super::edits`]; its pieces are counted in [`super::pieces`]; shapes are voxelised
 //! into it in [`super::shape`].
 
+use super::crossings::Crossing;
 use super::morton::{morton_code, sort_by_key_radix};
 use crate::error::{CleaveError, Result, check_positive};
 use glam::{IVec3, UVec3, Vec3};
@@ -64,6 +65,8 @@ pub struct Lattice {
     pub(super) carved: Vec<u64>,
     /// Where cuts crossed the edges they cut ([`super::crossings`]).
     pub(super) crossings: super::crossings::Crossings,
+    /// How many edits of its links, particles or crossings the lattice has had.
+    pub(super) edits: u64,
     /// Whether every pair of live particles in neighbouring cells is linked and every
     /// live particle is the one its cell names (nothing severed, nothing split): then
     /// the pieces can be counted from the occupancy grid alone.
@@ -108,6 +111,7 @@ impl Lattice {
             rest_shift: Vec::new(),
             carved: Vec::new(),
             crossings: Default::default(),
+            edits: 0,
             intact: true,
             pieces: std::sync::OnceLock::new(),
             coords,
@@ -131,6 +135,13 @@ impl Lattice {
             }
         }
         Ok(lattice)
+    }
+
+    /// How many edits of its links, particles or crossings the lattice has had (removals,
+    /// severs, splits, relinks, crossings recorded or forgotten): what a surface drawn
+    /// from it compares to know whether it is still current.
+    pub fn edits(&self) -> u64 {
+        self.edits
     }
 
     /// Lattice spacing h.
@@ -295,6 +306,50 @@ impl Lattice {
         }
         out.sort_unstable();
         out
+    }
+}
+
+/// A lattice's edges by place, and where cuts crossed them ([`super::crossings`]).
+impl Lattice {
+    /// The key of the edge between neighbouring cells `a` and `b`, and whether `a` is its
+    /// lower end; `None` unless they are face neighbours inside the lattice's grid.
+    pub fn edge_key(&self, a: IVec3, b: IVec3) -> Option<(u32, bool)> {
+        let axis = NEIGHBOUR_OFFSETS.iter().position(|o| a + *o == b)? / 2;
+        let a_lower = a[axis] < b[axis];
+        let lower = if a_lower { a } else { b };
+        let cell = self.cell(lower)? as u32;
+        Some((cell * 3 + axis as u32, a_lower))
+    }
+
+    /// Where a cut crossed the edge from cell `cell` to its neighbour along `axis` (0, 1
+    /// or 2), measured from `cell`.
+    pub fn crossing_at(&self, cell: IVec3, axis: usize) -> Option<Crossing> {
+        let key = self.cell(cell)? as u32 * 3 + axis as u32;
+        self.crossings.get(key)
+    }
+
+    /// Where a cut crossed the edge between particles `p` and `q` (in neighbouring
+    /// cells), measured from `p`.
+    pub fn crossing_between(&self, p: u32, q: u32) -> Option<Crossing> {
+        let (key, p_lower) = self.edge_key(self.coord(p), self.coord(q))?;
+        let c = self.crossings.get(key)?;
+        Some(if p_lower { c } else { c.reversed() })
+    }
+
+    /// Number of edges with a crossing.
+    pub fn crossing_count(&self) -> usize {
+        self.crossings.len()
+    }
+
+    /// The first crossing that is not valid ([`Crossing::is_valid`]) or names an edge
+    /// outside the grid, as `(edge key, crossing)`: what a loaded save is refused for.
+    pub fn invalid_crossing(&self) -> Option<(u32, Crossing)> {
+        let edges = self.grid.len() as u64 * 3;
+        let mut bad: Vec<(u32, Crossing)> = (self.crossings.iter())
+            .filter(|(k, c)| *k as u64 >= edges || !c.is_valid())
+            .collect();
+        bad.sort_unstable_by_key(|(k, _)| *k);
+        bad.first().copied()
     }
 }
 

@@ -160,7 +160,7 @@ pub struct BodyDesc {
 }
 
 /// How a body's lattice surface is drawn.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct SurfaceOptions {
     /// Round the voxel staircase once per topology change, in rest space
     /// ([`crate::surface::smooth`]); a render mesh is drawn as given either way.

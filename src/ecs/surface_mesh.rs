@@ -4,6 +4,7 @@
 //! reads [`crate::ecs::resources::SurfaceChanged`]) to know when to upload new
 //! triangles.
 
+use crate::body::lattice::Lattice;
 use crate::ecs::desc::SurfaceOptions;
 use crate::surface::embed::EmbeddedMesh;
 use crate::surface::{CarryLayout, SurfaceTopology};
@@ -39,8 +40,11 @@ pub struct SurfaceMesh {
     pub(crate) render_mesh: Option<Arc<EmbeddedMesh>>,
     /// How the lattice's surface is drawn.
     pub(crate) options: SurfaceOptions,
-    /// The lattice's particles and live particles when the triangles were last made.
-    pub(crate) seen: (usize, usize),
+    /// The lattice's particles, live particles and edits when the triangles were last
+    /// made.
+    pub(crate) seen: (usize, usize, u64),
+    /// The frame whose end the vertices were last carried to (`None`: never).
+    pub(crate) deformed_at: Option<u64>,
 }
 
 impl SurfaceMesh {
@@ -74,4 +78,84 @@ impl SurfaceMesh {
     pub fn topology(&self) -> &SurfaceTopology {
         &self.topology
     }
+
+    /// What a save keeps of the surface: all the stage carries from frame to frame.
+    pub(crate) fn saved(&self) -> SavedSurface {
+        SavedSurface {
+            positions: self.positions.clone(),
+            normals: self.normals.clone(),
+            topology_version: self.topology_version,
+            topology: self.topology.clone(),
+            gathered: self.gathered.clone(),
+            frames: self.frames.clone(),
+            render_mesh: self.render_mesh.as_deref().cloned(),
+            options: self.options,
+            seen: self.seen,
+            deformed_at: self.deformed_at,
+        }
+    }
+
+    /// The surface a save kept for a body whose lattice is `lattice`, its carriers laid
+    /// out again; an error naming what does not fit.
+    pub(crate) fn restore(saved: SavedSurface, lattice: &Lattice) -> Result<Self, String> {
+        let particles = lattice.len();
+        if let Some(fault) = saved
+            .topology
+            .fault(particles)
+            .or_else(|| (saved.render_mesh.as_ref()).and_then(|m| m.fault(particles)))
+        {
+            return Err(fault.into());
+        }
+        let layout = CarryLayout::new(lattice, &saved.topology);
+        let vertices = saved.topology.vertex_count();
+        let finite = saved.frames.iter().all(|q| q.is_finite())
+            && saved.gathered.iter().all(|x| x.is_finite())
+            && saved
+                .positions
+                .iter()
+                .chain(&saved.normals)
+                .all(|x| x.is_finite());
+        if saved.frames.len() != layout.carrier_count()
+            || saved.gathered.len() != layout.read.len()
+            || saved.positions.len() != vertices
+            || saved.normals.len() != vertices
+            || !finite
+        {
+            return Err("its carriers' state does not fit its vertices".into());
+        }
+        Ok(Self {
+            positions: saved.positions,
+            normals: saved.normals,
+            topology_version: saved.topology_version,
+            topology_ms: 0.0,
+            topology: saved.topology,
+            rotations: vec![Mat3A::IDENTITY; layout.carrier_count()],
+            layout,
+            gathered: saved.gathered,
+            frames: saved.frames,
+            faces: Vec::new(),
+            render_mesh: saved.render_mesh.map(Arc::new),
+            options: saved.options,
+            seen: saved.seen,
+            deformed_at: saved.deformed_at,
+        })
+    }
+}
+
+/// A surface as a save keeps it ([`SurfaceMesh::saved`]): the topology, the carriers'
+/// frames and last positions, the render mesh and options, and what the stage last saw
+/// — so that a loaded simulation draws, and goes on drawing, exactly what the saved one
+/// would have. The carriers' layout is derived again on loading.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct SavedSurface {
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    topology_version: u64,
+    topology: SurfaceTopology,
+    gathered: Vec<Vec3A>,
+    frames: Vec<Quat>,
+    render_mesh: Option<EmbeddedMesh>,
+    options: SurfaceOptions,
+    seen: (usize, usize, u64),
+    deformed_at: Option<u64>,
 }

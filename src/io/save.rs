@@ -1,8 +1,9 @@
 //! Saving a simulation and resuming it: everything that decides how a simulation goes
 //! on — settings, clock, random stream, bodies with their lattices and clusters,
-//! particles, attachments, tools, colliders, and the solver's own state (its cluster
-//! layout, in the order a run's cuts left it, and its warm starts) — in a compact binary
-//! file. A run that is
+//! particles, attachments, tools, colliders, the solver's own state (its cluster
+//! layout, in the order a run's cuts left it, and its warm starts) and the bodies'
+//! drawable surfaces (their triangles, render meshes and carriers' frames) — in a
+//! compact binary file. A run that is
 //! saved, loaded and continued is bit for bit the run that was never interrupted.
 //!
 //! The file ([`crate::io::save_file`]) is a header and one checksummed section per
@@ -28,7 +29,7 @@ use crate::ecs::resources::{
     BodyDense, ClusterSlots, CutReport, PendingTopology, SceneLabel, SimClock, SimRng, SimSettings,
     SolverCache,
 };
-use crate::ecs::surface_mesh::SurfaceMesh;
+use crate::ecs::surface_mesh::{SavedSurface, SurfaceMesh};
 use crate::error::{CleaveError, Result};
 use crate::io::save_file::{SaveReader, SaveWriter};
 use crate::solver::clusters::term::ClusterTerm;
@@ -48,6 +49,8 @@ struct BodyState {
     body: Body,
     lattice: BodyLattice,
     clusters: ParticleClusters,
+    /// Its drawable surface, when it keeps one.
+    surface: Option<SavedSurface>,
 }
 
 /// A particle entity.
@@ -187,13 +190,20 @@ sections!(
 
 fn snapshot(world: &mut World) -> Result<Snapshot> {
     let mut bodies: Vec<BodyState> = world
-        .query::<(Entity, &Body, &BodyLattice, &ParticleClusters)>()
+        .query::<(
+            Entity,
+            &Body,
+            &BodyLattice,
+            &ParticleClusters,
+            Option<&SurfaceMesh>,
+        )>()
         .iter(world)
-        .map(|(entity, body, lattice, clusters)| BodyState {
+        .map(|(entity, body, lattice, clusters, surface)| BodyState {
             entity,
             body: body.clone(),
             lattice: lattice.clone(),
             clusters: clusters.clone(),
+            surface: surface.map(SurfaceMesh::saved),
         })
         .collect();
     bodies.sort_unstable_by_key(|b| b.entity);
@@ -478,11 +488,16 @@ fn restore(snapshot: Snapshot) -> Result<World> {
             keys,
         };
         let body = map.get(b.entity);
-        // (the surface is extracted again on the first frame; a render mesh is not
-        // saved, and the body draws its lattice's surface)
-        world
-            .entity_mut(body)
-            .insert((b.body, lattice, clusters, SurfaceMesh::default()));
+        let surface = b
+            .surface
+            .map(|s| SurfaceMesh::restore(s, &lattice.lattice))
+            .transpose()
+            .map_err(|e| invalid(format!("bodies: body {i}: surface: {e}")))?;
+        let mut entity = world.entity_mut(body);
+        entity.insert((b.body, lattice, clusters));
+        if let Some(surface) = surface {
+            entity.insert(surface);
+        }
         handles.0.push((b.entity, body));
     }
     handles.0.sort_unstable();

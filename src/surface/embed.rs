@@ -27,7 +27,7 @@ use rustc_hash::FxHashSet;
 const MAX_SUPPORT: usize = 24;
 
 /// A render mesh bound to a body's lattice (see the module docs).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct EmbeddedMesh {
     /// The vertices, their rest positions (lattice frame) and bindings, and the
     /// triangles: a topology whose every triangle is drawn while the body is whole.
@@ -35,6 +35,7 @@ pub struct EmbeddedMesh {
     /// Per triangle, the parts its support made when the mesh was embedded.
     support_parts: Vec<u8>,
     /// The lattice cells the body filled when the mesh was embedded.
+    #[serde(with = "sorted_cells")]
     solid: FxHashSet<IVec3>,
 }
 
@@ -68,6 +69,15 @@ impl EmbeddedMesh {
             support_parts,
             solid: lattice.live_particles().map(|p| lattice.coord(p)).collect(),
         })
+    }
+
+    /// What is wrong with an embedded mesh read from elsewhere (a save) for a body of
+    /// `particles` particles ([`SurfaceTopology::fault`]); `None` when nothing is.
+    pub fn fault(&self, particles: usize) -> Option<&'static str> {
+        if self.support_parts.len() != self.mesh.triangles.len() {
+            return Some("its triangles' supports do not match its triangles");
+        }
+        self.mesh.fault(particles)
     }
 
     /// Number of the mesh's vertices.
@@ -131,6 +141,25 @@ impl EmbeddedMesh {
         particles.dedup();
         drawn.particles = particles;
         drawn
+    }
+}
+
+/// A set of cells saved as a list in ascending order (so that a save does not depend on
+/// the set's order).
+mod sorted_cells {
+    use glam::IVec3;
+    use rustc_hash::FxHashSet;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(set: &FxHashSet<IVec3>, s: S) -> Result<S::Ok, S::Error> {
+        let mut list: Vec<[i32; 3]> = set.iter().map(|c| c.to_array()).collect();
+        list.sort_unstable();
+        list.serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<FxHashSet<IVec3>, D::Error> {
+        let list: Vec<[i32; 3]> = Vec::deserialize(d)?;
+        Ok(list.into_iter().map(IVec3::from_array).collect())
     }
 }
 

@@ -15,12 +15,13 @@
 
 use super::cells::{CellOwners, face_corners, octant};
 use super::fans::{Quad, vertex_classes};
+use super::placement::{cut_vertex_position, is_cut_face};
 use crate::body::lattice::{Lattice, NEIGHBOUR_OFFSETS};
 use glam::{IVec3, Vec3};
 
 /// The surface's topology and its binding to the particles: what changes only when the
 /// lattice does.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SurfaceTopology {
     /// Per vertex, its rest position in the body's lattice frame (the frame of
     /// [`Lattice::rest_position`]).
@@ -45,7 +46,7 @@ pub struct SurfaceTopology {
 }
 
 /// One particle carrying a vertex.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Binding {
     /// The particle.
     pub particle: u32,
@@ -64,6 +65,53 @@ impl SurfaceTopology {
     /// The bindings of vertex `v`.
     pub fn bindings_of(&self, v: usize) -> &[Binding] {
         &self.bindings[self.binding_start[v] as usize..self.binding_start[v + 1] as usize]
+    }
+
+    /// What is wrong with a topology read from elsewhere (a save) for a body of
+    /// `particles` particles: lengths that disagree, an index out of range, a value that
+    /// is not finite; `None` when nothing is.
+    pub fn fault(&self, particles: usize) -> Option<&'static str> {
+        let vertices = self.rest.len();
+        let starts = &self.binding_start;
+        if starts.len() != vertices + 1
+            || starts.first() != Some(&0)
+            || starts.windows(2).any(|w| w[0] > w[1])
+            || starts.last().map(|s| *s as usize) != Some(self.bindings.len())
+        {
+            return Some("its vertices' bindings do not add up");
+        }
+        if self
+            .triangles
+            .iter()
+            .flatten()
+            .any(|v| *v as usize >= vertices)
+            || self.triangle_piece.len() != self.triangles.len()
+        {
+            return Some("a triangle names a vertex it does not have");
+        }
+        let lattice_faces = !self.quads.is_empty();
+        if lattice_faces
+            && (self.quads.len() * 2 != self.triangles.len()
+                || self.corners.len() != vertices
+                || !(1..=2).contains(&self.resolution))
+        {
+            return Some("its faces do not match its triangles");
+        }
+        let bound = |p: u32| (p as usize) < particles;
+        if !self
+            .bindings
+            .iter()
+            .all(|b| bound(b.particle) && b.weight.is_finite() && b.offset.is_finite())
+            || !self.particles.iter().all(|p| bound(*p))
+            || !self.particles.windows(2).all(|w| w[0] < w[1])
+            || !self.quads.iter().all(|q| bound(q.owner) && q.direction < 6)
+        {
+            return Some("a binding names a particle the body does not have");
+        }
+        if !self.rest.iter().all(|x| x.is_finite()) {
+            return Some("a vertex rests at a non-finite place");
+        }
+        None
     }
 }
 
@@ -121,15 +169,26 @@ pub fn extract_with_faces(lattice: &Lattice) -> (SurfaceTopology, Vec<LatticeFac
         let v: [u32; 4] = std::array::from_fn(|k| class_of[q * 4 + k]);
         push_quad(&mut topology, v);
     }
+    // the vertices of cut faces rest on the cut
+    let mut on_cut = vec![false; classes.len()];
+    for (q, quad) in quads.iter().enumerate() {
+        if is_cut_face(&owners, quad) {
+            for k in 0..4 {
+                on_cut[class_of[q * 4 + k] as usize] = true;
+            }
+        }
+    }
+    for v in (0..classes.len()).filter(|&v| on_cut[v]) {
+        place_on_cut(&owners, &mut topology, v);
+    }
+    topology.quads = quads;
     topology.resolution = owners.resolution();
-    let faces = quads
-        .iter()
+    let faces = (topology.quads.iter())
         .map(|q| LatticeFace {
             cell: owners.cell_of(q.cell),
             across: owners.cell_of(q.cell + NEIGHBOUR_OFFSETS[q.direction as usize]),
         })
         .collect();
-    topology.quads = quads;
     finish(lattice, &mut topology);
     (topology, faces)
 }
@@ -177,8 +236,9 @@ pub(super) fn push_quad(topology: &mut SurfaceTopology, v: [u32; 4]) {
     topology.triangles.push([v[0], v[2], v[3]]);
 }
 
-/// Numbers the triangles by piece, from their quads' owners, and lists the particles
-/// the vertices are bound to.
+/// Numbers the triangles by piece, from their quads' owners, puts back pieces that
+/// placing vertices on cuts turned inside out ([`keep_pieces_whole`]), and lists the
+/// particles the vertices are bound to.
 pub(super) fn finish(lattice: &Lattice, topology: &mut SurfaceTopology) {
     let piece = &lattice.pieces().label;
     topology.triangle_piece = topology
@@ -186,10 +246,58 @@ pub(super) fn finish(lattice: &Lattice, topology: &mut SurfaceTopology) {
         .iter()
         .flat_map(|quad| [piece[quad.owner as usize]; 2])
         .collect();
+    keep_pieces_whole(lattice, topology);
     let mut particles: Vec<u32> = topology.bindings.iter().map(|b| b.particle).collect();
     particles.sort_unstable();
     particles.dedup();
     topology.particles = particles;
+}
+
+/// Puts back at their grid corners the vertices of every piece that placing vertices on
+/// the cut crushed or turned inside out — its volume at rest under half what its cells'
+/// faces enclose: a sliver between two cuts through one cell, whose two faces' corners
+/// are shared — and every vertex at those corners, so that the faces on both sides of
+/// a cut still rest on each other: the cell-face surface there, as before any crossing.
+fn keep_pieces_whole(lattice: &Lattice, topology: &mut SurfaceTopology) {
+    let scale = lattice.spacing() / topology.resolution.max(1) as f32;
+    let grid = |t: &SurfaceTopology, v: u32| t.corners[v as usize].as_vec3() * scale;
+    let placed = |t: &SurfaceTopology, v: u32| t.rest[v as usize] != grid(t, v);
+    if !(0..topology.vertex_count() as u32).any(|v| placed(topology, v)) {
+        return;
+    }
+    let pieces = topology
+        .triangle_piece
+        .iter()
+        .max()
+        .map_or(0, |p| *p as usize + 1);
+    // (placed, on the grid), per piece
+    let mut volumes = vec![(0.0f64, 0.0f64); pieces];
+    for (tri, &piece) in topology.triangles.iter().zip(&topology.triangle_piece) {
+        let volume =
+            |x: [Vec3; 3]| x[0].as_dvec3().dot(x[1].as_dvec3().cross(x[2].as_dvec3())) / 6.0;
+        let v = &mut volumes[piece as usize];
+        v.0 += volume(tri.map(|i| topology.rest[i as usize]));
+        v.1 += volume(tri.map(|i| grid(topology, i)));
+    }
+    let crushed: Vec<bool> = volumes
+        .iter()
+        .map(|(placed, cells)| *placed < 0.5 * cells)
+        .collect();
+    if !crushed.contains(&true) {
+        return;
+    }
+    let mut corners: rustc_hash::FxHashSet<IVec3> = Default::default();
+    for (tri, &piece) in topology.triangles.iter().zip(&topology.triangle_piece) {
+        if crushed[piece as usize] {
+            corners.extend(tri.iter().map(|&v| topology.corners[v as usize]));
+        }
+    }
+    for v in 0..topology.vertex_count() {
+        if placed(topology, v as u32) && corners.contains(&topology.corners[v]) {
+            let x = grid(topology, v as u32);
+            rest_vertex_at(lattice, topology, v, x);
+        }
+    }
 }
 
 /// Appends the bindings of the vertex at grid corner `w` (resting at `rest`) whose
@@ -251,4 +359,21 @@ fn bind(
         }
     }
     topology.binding_start.push(topology.bindings.len() as u32);
+}
+
+/// Places vertex `v` of `topology` on the cut ([`cut_vertex_position`]) when its box
+/// holds a crossing, its bindings' offsets following.
+pub(super) fn place_on_cut(owners: &CellOwners, topology: &mut SurfaceTopology, v: usize) {
+    if let Some(x) = cut_vertex_position(owners, topology.corners[v]) {
+        rest_vertex_at(owners.lattice(), topology, v, x);
+    }
+}
+
+/// Rests vertex `v` at `x`, its bindings' offsets following.
+fn rest_vertex_at(lattice: &Lattice, topology: &mut SurfaceTopology, v: usize, x: Vec3) {
+    topology.rest[v] = x;
+    let range = topology.binding_start[v] as usize..topology.binding_start[v + 1] as usize;
+    for b in &mut topology.bindings[range] {
+        b.offset = x - lattice.rest_position(b.particle);
+    }
 }

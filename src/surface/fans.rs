@@ -24,7 +24,7 @@ use glam::IVec3;
 use rustc_hash::FxHashMap;
 
 /// A face of a solid sub-cell on the surface.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Quad {
     /// The solid sub-cell.
     pub cell: IVec3,

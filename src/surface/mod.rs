@@ -9,6 +9,7 @@ pub mod deform;
 pub mod embed;
 pub mod extract;
 pub mod fans;
+pub mod placement;
 pub mod smooth;
 pub mod update;
 

@@ -19,8 +19,9 @@
 //! extraction; so does a surface that is not a lattice's.
 
 use super::cells::{CellOwners, face_corners, octant};
-use super::extract::{SurfaceTopology, add_vertex, finish, push_faces, push_quad};
+use super::extract::{SurfaceTopology, add_vertex, finish, place_on_cut, push_faces, push_quad};
 use super::fans::vertex_classes;
+use super::placement::is_cut_face;
 use crate::body::lattice::Lattice;
 use glam::IVec3;
 use rustc_hash::FxHashMap;
@@ -95,6 +96,7 @@ pub fn update(
         }
     }
     let mut vertex_of_class = vec![u32::MAX; classes.len()];
+    let mut on_cut = Vec::new();
     for (q, quad) in quads.iter().enumerate() {
         let corners = face_corners(quad.cell, quad.direction);
         let mut v = [0u32; 4];
@@ -104,6 +106,9 @@ pub fn update(
                 if vertex_of_class[class] == u32::MAX {
                     vertex_of_class[class] = topology.rest.len() as u32;
                     add_vertex(&owners, &quads, &classes[class], &mut topology);
+                }
+                if is_cut_face(&owners, quad) {
+                    on_cut.push(vertex_of_class[class]);
                 }
                 vertex_of_class[class]
             } else {
@@ -118,6 +123,12 @@ pub fn update(
         }
         topology.quads.push(*quad);
         push_quad(&mut topology, v);
+    }
+    // the rebuilt vertices of cut faces rest on the cut
+    on_cut.sort_unstable();
+    on_cut.dedup();
+    for v in on_cut {
+        place_on_cut(&owners, &mut topology, v as usize);
     }
     finish(lattice, &mut topology);
     Some(topology)
