@@ -47,22 +47,26 @@ impl CarryLayout {
     /// The layout of `topology`, extracted from `lattice`.
     pub fn new(lattice: &Lattice, topology: &SurfaceTopology) -> Self {
         let carriers = &topology.particles;
+        // every particle's slot, by a table over the lattice (its particles' count, not
+        // the surface's, but one pass instead of a search per binding and per spoke)
+        let mut slot_of = vec![u32::MAX; lattice.len()];
+        for (s, &p) in carriers.iter().enumerate() {
+            slot_of[p as usize] = s as u32;
+        }
         let mut read = carriers.clone();
-        let slot_of_carrier = |p: u32| carriers.binary_search(&p).ok().map(|s| s as u32);
-        let mut extra: Vec<u32> = carriers
-            .iter()
-            .flat_map(|&p| lattice.neighbours(p))
-            .filter(|&q| slot_of_carrier(q).is_none())
-            .collect();
-        extra.sort_unstable();
-        extra.dedup();
-        read.extend_from_slice(&extra);
-        let slot_of = |p: u32| {
-            slot_of_carrier(p).unwrap_or_else(|| {
-                // every neighbour of a carrier is a carrier or in `extra`
-                (carriers.len() + extra.binary_search(&p).unwrap_or(0)) as u32
-            })
-        };
+        for &p in carriers {
+            for q in lattice.neighbours(p) {
+                if slot_of[q as usize] == u32::MAX {
+                    slot_of[q as usize] = u32::MAX - 1;
+                    read.push(q);
+                }
+            }
+        }
+        // the other linked neighbours in ascending order, after the carriers
+        read[carriers.len()..].sort_unstable();
+        for (s, &q) in read.iter().enumerate().skip(carriers.len()) {
+            slot_of[q as usize] = s as u32;
+        }
         let rest = |p: u32| Vec3A::from(lattice.rest_position(p));
         let batches = (0..carriers.len())
             .step_by(LANES)
@@ -74,7 +78,7 @@ impl CarryLayout {
                 for (l, &c) in own.iter().enumerate() {
                     let p = carriers[c as usize];
                     for (k, q) in lattice.neighbours(p).enumerate() {
-                        links[k][l] = slot_of(q);
+                        links[k][l] = slot_of[q as usize];
                         spokes[k][l] = rest(q) - rest(p);
                     }
                 }
@@ -88,7 +92,7 @@ impl CarryLayout {
         let binding_slots = topology
             .bindings
             .iter()
-            .map(|b| slot_of(b.particle))
+            .map(|b| slot_of[b.particle as usize])
             .collect();
         let mut triangle_start = vec![0u32; topology.vertex_count() + 1];
         for t in &topology.triangles {
@@ -141,10 +145,18 @@ impl CarryLayout {
         old: &CarryLayout,
         old_frames: &[Quat],
     ) -> Vec<Quat> {
-        let frame_of = |p: u32| {
-            old.slot_of(p)
-                .filter(|&s| s < old.carriers)
-                .and_then(|s| old_frames.get(s).copied())
+        let mut was = vec![u32::MAX; lattice.len()];
+        for (s, &p) in old.read[..old.carriers.min(old_frames.len())]
+            .iter()
+            .enumerate()
+        {
+            if let Some(w) = was.get_mut(p as usize) {
+                *w = s as u32;
+            }
+        }
+        let frame_of = |p: u32| match was.get(p as usize) {
+            Some(&s) if s != u32::MAX => Some(old_frames[s as usize]),
+            _ => None,
         };
         self.read[..self.carriers]
             .iter()
@@ -161,12 +173,22 @@ impl CarryLayout {
     /// entity is gone (removed by a cut, while a render mesh's unused vertex is still
     /// bound to it) stays where it was last seen.
     pub fn carry_positions(&self, old: &CarryLayout, old_positions: &[Vec3A]) -> Vec<Vec3A> {
+        let particles = (old.read.iter().chain(&self.read))
+            .map(|&p| p as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let mut was = vec![u32::MAX; particles];
+        for (s, &p) in old.read[..old.read.len().min(old_positions.len())]
+            .iter()
+            .enumerate()
+        {
+            was[p as usize] = s as u32;
+        }
         self.read
             .iter()
-            .map(|&p| {
-                old.slot_of(p)
-                    .and_then(|s| old_positions.get(s).copied())
-                    .unwrap_or(Vec3A::ZERO)
+            .map(|&p| match was[p as usize] {
+                u32::MAX => Vec3A::ZERO,
+                s => old_positions[s as usize],
             })
             .collect()
     }

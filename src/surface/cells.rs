@@ -154,7 +154,11 @@ impl<'a> CellOwners<'a> {
     }
 
     /// The live particle that owns sub-cell `s`, if any.
+    #[inline]
     pub fn owner(&self, s: IVec3) -> Option<u32> {
+        if self.resolution == 1 {
+            return self.lattice.at(s);
+        }
         if !self.dense.is_empty() {
             let d = s - self.dense_min;
             if d.cmplt(IVec3::ZERO).any() || d.cmpge(self.dense_dims).any() {

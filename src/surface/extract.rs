@@ -18,6 +18,8 @@ use super::fans::{Quad, vertex_classes};
 use super::placement::{cut_vertex_position, is_cut_face};
 use crate::body::lattice::{Lattice, NEIGHBOUR_OFFSETS};
 use glam::{IVec3, Vec3};
+use rayon::prelude::*;
+use smallvec::SmallVec;
 
 /// The surface's topology and its binding to the particles: what changes only when the
 /// lattice does.
@@ -162,9 +164,8 @@ pub fn extract_with_faces(lattice: &Lattice) -> (SurfaceTopology, Vec<LatticeFac
         binding_start: vec![0],
         ..SurfaceTopology::default()
     };
-    for members in &classes {
-        add_vertex(&owners, &quads, members, &mut topology);
-    }
+    let all: Vec<&[u32]> = classes.iter().map(|c| c.as_slice()).collect();
+    add_vertices(&owners, &quads, &all, &mut topology);
     for q in 0..quads.len() {
         let v: [u32; 4] = std::array::from_fn(|k| class_of[q * 4 + k]);
         push_quad(&mut topology, v);
@@ -178,9 +179,10 @@ pub fn extract_with_faces(lattice: &Lattice) -> (SurfaceTopology, Vec<LatticeFac
             }
         }
     }
-    for v in (0..classes.len()).filter(|&v| on_cut[v]) {
-        place_on_cut(&owners, &mut topology, v);
-    }
+    let on_cut: Vec<u32> = (0..classes.len() as u32)
+        .filter(|&v| on_cut[v as usize])
+        .collect();
+    place_on_cut(&owners, &mut topology, &on_cut);
     topology.quads = quads;
     topology.resolution = owners.resolution();
     let faces = (topology.quads.iter())
@@ -210,24 +212,39 @@ pub(super) fn push_faces(owners: &CellOwners, s: IVec3, p: u32, quads: &mut Vec<
     }
 }
 
-/// Appends the vertex of the quad corner slots `members` (corner `k` of quad `q` is
-/// slot `4q + k`), all at one grid corner, with its bindings.
-pub(super) fn add_vertex(
+/// Appends a vertex for each of `classes` in order — each the quad corner slots of one
+/// vertex (corner `k` of quad `q` is slot `4q + k`), all at one grid corner — with its
+/// bindings; the vertices are worked out in parallel.
+pub(super) fn add_vertices(
     owners: &CellOwners,
     quads: &[Quad],
-    members: &[u32],
+    classes: &[&[u32]],
     topology: &mut SurfaceTopology,
 ) {
-    let (q, k) = (members[0] / 4, members[0] % 4);
-    let corner = face_corners(quads[q as usize].cell, quads[q as usize].direction)[k as usize];
-    let rest = corner.as_vec3() * (owners.lattice().spacing() / owners.resolution() as f32);
-    topology.rest.push(rest);
-    topology.corners.push(corner);
-    let cells: Vec<IVec3> = members
-        .iter()
-        .map(|s| quads[(s / 4) as usize].cell)
+    let scale = owners.lattice().spacing() / owners.resolution() as f32;
+    let made: Vec<(IVec3, Vec3, SmallVec<[Binding; 8]>)> = classes
+        .par_iter()
+        .with_min_len(512)
+        .map(|members| {
+            let (q, k) = (members[0] / 4, members[0] % 4);
+            let quad = &quads[q as usize];
+            let corner = face_corners(quad.cell, quad.direction)[k as usize];
+            let rest = corner.as_vec3() * scale;
+            // the sub-cells of the quads, as octants around the corner
+            let mut cells = 0u8;
+            for s in members.iter() {
+                let o = quads[(s / 4) as usize].cell - (corner - IVec3::ONE);
+                cells |= 1 << (o.x + 2 * o.y + 4 * o.z);
+            }
+            (corner, rest, bind(owners, corner, rest, cells))
+        })
         .collect();
-    bind(owners, corner, rest, &cells, topology);
+    for (corner, rest, bindings) in made {
+        topology.rest.push(rest);
+        topology.corners.push(corner);
+        topology.bindings.extend_from_slice(&bindings);
+        topology.binding_start.push(topology.bindings.len() as u32);
+    }
 }
 
 /// Appends the two triangles of a quad with corner vertices `v` (counter-clockwise).
@@ -247,10 +264,14 @@ pub(super) fn finish(lattice: &Lattice, topology: &mut SurfaceTopology) {
         .flat_map(|quad| [piece[quad.owner as usize]; 2])
         .collect();
     keep_pieces_whole(lattice, topology);
-    let mut particles: Vec<u32> = topology.bindings.iter().map(|b| b.particle).collect();
-    particles.sort_unstable();
-    particles.dedup();
-    topology.particles = particles;
+    // (marks over the lattice's particles: a pass, not a sort of every binding)
+    let mut bound = vec![false; lattice.len()];
+    for b in &topology.bindings {
+        bound[b.particle as usize] = true;
+    }
+    topology.particles = (0..lattice.len() as u32)
+        .filter(|&p| bound[p as usize])
+        .collect();
 }
 
 /// Puts back at their grid corners the vertices of every piece that placing vertices on
@@ -258,30 +279,38 @@ pub(super) fn finish(lattice: &Lattice, topology: &mut SurfaceTopology) {
 /// faces enclose: a sliver between two cuts through one cell, whose two faces' corners
 /// are shared — and every vertex at those corners, so that the faces on both sides of
 /// a cut still rest on each other: the cell-face surface there, as before any crossing.
+///
+/// Only triangles with a placed vertex change a piece's volume; the volume its cells'
+/// faces enclose is its particles' cells (a split half, half a cell).
 fn keep_pieces_whole(lattice: &Lattice, topology: &mut SurfaceTopology) {
     let scale = lattice.spacing() / topology.resolution.max(1) as f32;
     let grid = |t: &SurfaceTopology, v: u32| t.corners[v as usize].as_vec3() * scale;
     let placed = |t: &SurfaceTopology, v: u32| t.rest[v as usize] != grid(t, v);
-    if !(0..topology.vertex_count() as u32).any(|v| placed(topology, v)) {
+    let pieces = lattice.pieces();
+    // what placing took from (or gave to) each piece
+    let mut change = vec![0.0f64; pieces.count];
+    let volume = |x: [Vec3; 3]| x[0].as_dvec3().dot(x[1].as_dvec3().cross(x[2].as_dvec3())) / 6.0;
+    let mut any = false;
+    for (tri, &piece) in topology.triangles.iter().zip(&topology.triangle_piece) {
+        if tri.iter().any(|&v| placed(topology, v)) {
+            any = true;
+            change[piece as usize] += volume(tri.map(|i| topology.rest[i as usize]))
+                - volume(tri.map(|i| grid(topology, i)));
+        }
+    }
+    // (no piece can lose half of even one sub-cell: none is crushed)
+    let sub_cell = (scale as f64).powi(3);
+    if !any || change.iter().all(|c| *c > -0.5 * sub_cell) {
         return;
     }
-    let pieces = topology
-        .triangle_piece
-        .iter()
-        .max()
-        .map_or(0, |p| *p as usize + 1);
-    // (placed, on the grid), per piece
-    let mut volumes = vec![(0.0f64, 0.0f64); pieces];
-    for (tri, &piece) in topology.triangles.iter().zip(&topology.triangle_piece) {
-        let volume =
-            |x: [Vec3; 3]| x[0].as_dvec3().dot(x[1].as_dvec3().cross(x[2].as_dvec3())) / 6.0;
-        let v = &mut volumes[piece as usize];
-        v.0 += volume(tri.map(|i| topology.rest[i as usize]));
-        v.1 += volume(tri.map(|i| grid(topology, i)));
+    let mut cells = vec![0.0f64; pieces.count];
+    let cell = (lattice.spacing() as f64).powi(3);
+    for p in lattice.live_particles() {
+        let share = if lattice.is_split_half(p) { 0.5 } else { 1.0 };
+        cells[pieces.label[p as usize] as usize] += share * cell;
     }
-    let crushed: Vec<bool> = volumes
-        .iter()
-        .map(|(placed, cells)| *placed < 0.5 * cells)
+    let crushed: Vec<bool> = (change.iter().zip(&cells))
+        .map(|(change, cells)| cells + change < 0.5 * cells)
         .collect();
     if !crushed.contains(&true) {
         return;
@@ -300,72 +329,89 @@ fn keep_pieces_whole(lattice: &Lattice, topology: &mut SurfaceTopology) {
     }
 }
 
-/// Appends the bindings of the vertex at grid corner `w` (resting at `rest`) whose
-/// quads belong to the solid sub-cells `cells`: the owners of those sub-cells and of
-/// every solid sub-cell around `w` joined to them through faces at `w`, one share per
-/// sub-cell.
-fn bind(
-    owners: &CellOwners,
-    w: IVec3,
-    rest: Vec3,
-    cells: &[IVec3],
-    topology: &mut SurfaceTopology,
-) {
+/// The bindings of the vertex at grid corner `w` (resting at `rest`) whose quads belong
+/// to the solid sub-cells `cells` (a bit per octant around `w`, numbered like
+/// [`octant`]): the owners of those sub-cells and of every solid sub-cell around `w`
+/// joined to them through faces at `w`, one share per sub-cell.
+fn bind(owners: &CellOwners, w: IVec3, rest: Vec3, cells: u8) -> SmallVec<[Binding; 8]> {
     // the eight sub-cells around `w`, numbered like `octant`
     let around: [IVec3; 8] = std::array::from_fn(|k| w - IVec3::ONE + octant(k as u32));
     let own: [Option<u32>; 8] = around.map(|c| owners.owner(c));
-    let mut reached: [bool; 8] = std::array::from_fn(|k| cells.contains(&around[k]));
-    // spread across the twelve faces at `w` until nothing changes
-    loop {
-        let mut changed = false;
-        for k in 0..8u32 {
-            for axis in 0..3 {
-                let j = k | 1 << axis;
-                let (Some(p), Some(q)) = (own[k as usize], own[j as usize]) else {
-                    continue;
-                };
-                if j == k
-                    || reached[k as usize] == reached[j as usize]
-                    || !owners.joined(around[k as usize], p, 2 * axis + 1, q)
-                {
-                    continue;
-                }
-                reached[k as usize] = true;
-                reached[j as usize] = true;
-                changed = true;
+    // the twelve faces at `w`, as the pairs of octants they join (when they do)
+    let mut faces = [(0u8, 0u8); 12];
+    let mut n = 0;
+    for k in 0..8u32 {
+        for axis in 0..3 {
+            let j = k | 1 << axis;
+            if j == k {
+                continue;
+            }
+            if let (Some(p), Some(q)) = (own[k as usize], own[j as usize])
+                && owners.joined(around[k as usize], p, 2 * axis + 1, q)
+            {
+                faces[n] = (1 << k, 1 << j);
+                n += 1;
             }
         }
-        if !changed {
+    }
+    // spread across them until nothing changes
+    let mut reached = cells;
+    loop {
+        let before = reached;
+        for &(a, b) in &faces[..n] {
+            if reached & (a | b) != 0 {
+                reached |= a | b;
+            }
+        }
+        if reached == before {
             break;
         }
     }
-    let members: Vec<u32> = (0..8)
-        .filter(|&k| reached[k])
+    let count = (0..8)
+        .filter(|&k| reached >> k & 1 != 0 && own[k].is_some())
+        .count();
+    let weight = 1.0 / count as f32;
+    let mut bindings: SmallVec<[Binding; 8]> = SmallVec::new();
+    for p in (0..8)
+        .filter(|&k| reached >> k & 1 != 0)
         .filter_map(|k| own[k])
-        .collect();
-    let weight = 1.0 / members.len() as f32;
-    let start = topology.bindings.len();
-    for p in members {
-        match topology.bindings[start..]
-            .iter_mut()
-            .find(|b| b.particle == p)
-        {
+    {
+        match bindings.iter_mut().find(|b| b.particle == p) {
             Some(b) => b.weight += weight,
-            None => topology.bindings.push(Binding {
+            None => bindings.push(Binding {
                 particle: p,
                 weight,
                 offset: rest - owners.lattice().rest_position(p),
             }),
         }
     }
-    topology.binding_start.push(topology.bindings.len() as u32);
+    bindings
 }
 
-/// Places vertex `v` of `topology` on the cut ([`cut_vertex_position`]) when its box
-/// holds a crossing, its bindings' offsets following.
-pub(super) fn place_on_cut(owners: &CellOwners, topology: &mut SurfaceTopology, v: usize) {
-    if let Some(x) = cut_vertex_position(owners, topology.corners[v]) {
-        rest_vertex_at(owners.lattice(), topology, v, x);
+/// Places the vertices `vertices` (ascending) of `topology` on the cut
+/// ([`cut_vertex_position`]) where their boxes hold a crossing, their bindings' offsets
+/// following: each corner solved once (the vertices of a cut's two sides share it), the
+/// corners in parallel.
+pub(super) fn place_on_cut(owners: &CellOwners, topology: &mut SurfaceTopology, vertices: &[u32]) {
+    let mut corners: Vec<IVec3> = vertices
+        .iter()
+        .map(|&v| topology.corners[v as usize])
+        .collect();
+    corners.sort_unstable_by_key(|c| (c.z, c.y, c.x));
+    corners.dedup();
+    let placed: Vec<Option<Vec3>> = corners
+        .par_iter()
+        .with_min_len(256)
+        .map(|&w| cut_vertex_position(owners, w))
+        .collect();
+    for &v in vertices {
+        let w = topology.corners[v as usize];
+        let k = corners
+            .binary_search_by_key(&(w.z, w.y, w.x), |c| (c.z, c.y, c.x))
+            .expect("its corner was solved");
+        if let Some(x) = placed[k] {
+            rest_vertex_at(owners.lattice(), topology, v as usize, x);
+        }
     }
 }
 

@@ -21,6 +21,7 @@
 
 use super::cells::{CellOwners, corner_index, face_corners};
 use glam::IVec3;
+use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 /// A face of a solid sub-cell on the surface.
@@ -42,38 +43,57 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> (Vec<u32>, Vec<Vec
         .enumerate()
         .map(|(q, quad)| ((quad.cell, quad.direction), q as u32))
         .collect();
-    let mut edges: Vec<(i32, i32, i32, u8)> = Vec::with_capacity(quads.len() * 2);
-    for quad in quads {
-        let c = face_corners(quad.cell, quad.direction);
-        for k in 0..4 {
-            let (a, b) = (c[k], c[(k + 1) % 4]);
-            let low = a.min(b);
-            let axis = (b - a).abs().max_position() as u8;
-            edges.push((low.x, low.y, low.z, axis));
-        }
-    }
-    edges.sort_unstable();
+    // every grid edge a quad has, once: packed as (x, y, z, axis) keys (40 bits a
+    // coordinate, offset to non-negative), sorted
+    const BIAS: i64 = 1 << 39;
+    let key = |w: IVec3, axis: usize| -> u128 {
+        let c = |v: i32| (v as i64 + BIAS) as u128;
+        c(w.x) << 82 | c(w.y) << 42 | c(w.z) << 2 | axis as u128
+    };
+    let unkey = |k: u128| -> (IVec3, usize) {
+        let c = |shift: u32| ((k >> shift) as u64 & ((1 << 40) - 1)) as i64 - BIAS;
+        let w = IVec3::new(c(82) as i32, c(42) as i32, c(2) as i32);
+        (w, (k & 3) as usize)
+    };
+    let mut edges: Vec<u128> = quads
+        .par_iter()
+        .with_min_len(1024)
+        .flat_map_iter(|quad| {
+            let c = face_corners(quad.cell, quad.direction);
+            (0..4).map(move |k| {
+                let (a, b) = (c[k], c[(k + 1) % 4]);
+                key(a.min(b), (b - a).abs().max_position())
+            })
+        })
+        .collect();
+    edges.par_sort_unstable();
     edges.dedup();
-    // per edge, its pairings: the slots of both quads at the lower end, then at the upper
-    let mut pairings: Vec<(usize, [u32; 4])> = Vec::new();
-    for (e, &(x, y, z, axis)) in edges.iter().enumerate() {
-        for (first, last) in runs_around(owners, IVec3::new(x, y, z), axis as usize) {
-            let (Some(&qa), Some(&qb)) = (index.get(&first), index.get(&last)) else {
-                continue;
-            };
-            let low = IVec3::new(x, y, z);
+    // per edge, its pairings: the slots of both quads at the lower end, then at the
+    // upper (an edge's runs are consecutive)
+    let pairings: Vec<(u32, [u32; 4])> = edges
+        .par_iter()
+        .enumerate()
+        .with_min_len(1024)
+        .flat_map_iter(|(e, &k)| {
+            let (low, axis) = unkey(k);
             let mut high = low;
-            high[axis as usize] += 1;
+            high[axis] += 1;
             let slot = |q: u32, w: IVec3| {
                 let quad = &quads[q as usize];
                 4 * q + corner_index(quad.cell, quad.direction, w) as u32
             };
-            pairings.push((
-                e,
-                [slot(qa, low), slot(qb, low), slot(qa, high), slot(qb, high)],
-            ));
-        }
-    }
+            let index = &index;
+            runs_around(owners, low, axis)
+                .into_iter()
+                .filter_map(move |(first, last)| {
+                    let (&qa, &qb) = (index.get(&first)?, index.get(&last)?);
+                    Some((
+                        e as u32,
+                        [slot(qa, low), slot(qb, low), slot(qa, high), slot(qb, high)],
+                    ))
+                })
+        })
+        .collect();
     let slots = quads.len() * 4;
     let mut all = UnionFind::new(slots);
     for (_, [a, b, c, d]) in &pairings {
@@ -81,29 +101,37 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> (Vec<u32>, Vec<Vec
         all.union(*c, *d);
     }
     // a run is pinched when another run around its edge has its end vertices too
-    let ends: Vec<(usize, u32, u32)> = (pairings.iter())
-        .map(|(e, [a, _, c, _])| (*e, all.find(*a), all.find(*c)))
+    let ends: Vec<(u32, u32)> = (pairings.iter())
+        .map(|(_, [a, _, c, _])| (all.find(*a), all.find(*c)))
         .collect();
-    let mut runs_with: FxHashMap<(usize, u32, u32), u32> = FxHashMap::default();
-    for key in &ends {
-        *runs_with.entry(*key).or_default() += 1;
-    }
     let mut kept = UnionFind::new(slots);
-    for ((_, [a, b, c, d]), key) in pairings.iter().zip(&ends) {
-        kept.union(*a, *b);
-        if runs_with[key] == 1 {
-            kept.union(*c, *d);
+    let mut first = 0;
+    while first < pairings.len() {
+        let edge = pairings[first].0;
+        let mut end = first + 1;
+        while end < pairings.len() && pairings[end].0 == edge {
+            end += 1;
         }
+        for r in first..end {
+            let [a, b, c, d] = pairings[r].1;
+            kept.union(a, b);
+            let alone = (first..end).all(|o| o == r || ends[o] != ends[r]);
+            if alone {
+                kept.union(c, d);
+            }
+        }
+        first = end;
     }
-    let mut class_of_root: FxHashMap<u32, u32> = FxHashMap::default();
+    let mut class_of_root = vec![u32::MAX; slots];
     let mut class_of = Vec::with_capacity(slots);
     let mut classes: Vec<Vec<u32>> = Vec::new();
     for s in 0..slots as u32 {
-        let root = kept.find(s);
-        let class = *class_of_root.entry(root).or_insert_with(|| {
+        let root = kept.find(s) as usize;
+        if class_of_root[root] == u32::MAX {
+            class_of_root[root] = classes.len() as u32;
             classes.push(Vec::new());
-            classes.len() as u32 - 1
-        });
+        }
+        let class = class_of_root[root];
         classes[class as usize].push(s);
         class_of.push(class);
     }

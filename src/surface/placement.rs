@@ -58,6 +58,8 @@ const DOMINANT: f32 = 1e-2;
 struct Plane {
     at: Vec3,
     normal: Vec3,
+    /// Whether a tool's crossing gave it (not a face that stays).
+    cut: bool,
 }
 
 /// Where the vertex at sub-cell grid corner `w` rests (in the lattice's rest frame),
@@ -91,12 +93,12 @@ pub fn cut_vertex_position(owners: &CellOwners, w: IVec3) -> Option<Vec3> {
             let solid = (from[0].is_some(), to[0].is_some());
             let plane = match (solid, crossing) {
                 ((true, true), Some(crossing)) if crossing.is_valid() => {
-                    crossings += 1;
                     let mut at = centre;
                     at[axis] += crossing.fraction;
                     Plane {
                         at,
                         normal: crossing.normal,
+                        cut: true,
                     }
                 }
                 ((true, true), _) if linked() => continue,
@@ -107,10 +109,15 @@ pub fn cut_vertex_position(owners: &CellOwners, w: IVec3) -> Option<Vec3> {
                     at[axis] += 0.5;
                     let mut normal = Vec3::ZERO;
                     normal[axis] = 1.0;
-                    Plane { at, normal }
+                    Plane {
+                        at,
+                        normal,
+                        cut: false,
+                    }
                 }
             };
             if plane.at.abs().max_element() <= 0.5 + 1e-6 {
+                crossings += plane.cut as usize;
                 planes.push(plane);
             }
         }
@@ -135,6 +142,16 @@ pub fn cut_vertex_position(owners: &CellOwners, w: IVec3) -> Option<Vec3> {
 /// The point nearest `start` minimising the squared distances to `planes`, on the
 /// dominant eigen-directions of their quadric; `None` when it is not finite.
 fn fit(planes: &[Plane], start: Vec3) -> Option<Vec3> {
+    // one plane however many crossings (a flat cut): the point of it nearest `start`
+    let n = planes.first()?.normal;
+    if planes.iter().all(|p| p.normal.dot(n).abs() > 1.0 - 1e-6) {
+        let offset = planes
+            .iter()
+            .map(|p| p.normal.dot(p.at - start) * p.normal.dot(n))
+            .sum::<f32>();
+        let x = start + n * (offset / planes.len() as f32);
+        return x.is_finite().then_some(x);
+    }
     let mut a = Mat3::ZERO;
     let mut rhs = Vec3::ZERO;
     for p in planes {

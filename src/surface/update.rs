@@ -19,7 +19,7 @@
 //! extraction; so does a surface that is not a lattice's.
 
 use super::cells::{CellOwners, face_corners, octant};
-use super::extract::{SurfaceTopology, add_vertex, finish, place_on_cut, push_faces, push_quad};
+use super::extract::{SurfaceTopology, add_vertices, finish, place_on_cut, push_faces, push_quad};
 use super::fans::vertex_classes;
 use super::placement::is_cut_face;
 use crate::body::lattice::Lattice;
@@ -46,7 +46,13 @@ pub fn update(
     // C ⊕ 3
     let region = near.dilated(2);
     let in_region = |s: IVec3| region.contains(owners.cell_of(s));
-    let rebuilt = |w: IVec3| (0..8).any(|k| near.contains(owners.cell_of(w - octant(k))));
+    // (one sub-cell per cell: the corners of those cells are the cells of a set grown by
+    // one forward)
+    let corners_near = (res == 1).then(|| near.forward());
+    let rebuilt = |w: IVec3| match &corners_near {
+        Some(corners) => corners.contains(w),
+        None => (0..8).any(|k| near.contains(owners.cell_of(w - octant(k)))),
+    };
     // the fresh quads of the region, in a fixed order
     let mut quads = Vec::new();
     for c in region.cells() {
@@ -95,50 +101,65 @@ pub fn update(
             );
         }
     }
+    // the fresh quads' corners: a new vertex for each class at a rebuilt corner (made
+    // in parallel, numbered in order of first use), the kept one elsewhere
     let mut vertex_of_class = vec![u32::MAX; classes.len()];
+    let mut made: Vec<&[u32]> = Vec::new();
+    let first_new = topology.rest.len() as u32;
     let mut on_cut = Vec::new();
+    let mut fresh = Vec::with_capacity(quads.len());
     for (q, quad) in quads.iter().enumerate() {
         let corners = face_corners(quad.cell, quad.direction);
+        let cut_face = is_cut_face(&owners, quad);
+        let mut was = None;
         let mut v = [0u32; 4];
         for k in 0..4 {
             let class = class_of[4 * q + k] as usize;
             v[k] = if rebuilt(corners[k]) {
                 if vertex_of_class[class] == u32::MAX {
-                    vertex_of_class[class] = topology.rest.len() as u32;
-                    add_vertex(&owners, &quads, &classes[class], &mut topology);
+                    vertex_of_class[class] = first_new + made.len() as u32;
+                    made.push(&classes[class]);
                 }
-                if is_cut_face(&owners, quad) {
+                if cut_face {
                     on_cut.push(vertex_of_class[class]);
                 }
                 vertex_of_class[class]
             } else {
                 // an unchanged quad at a corner nothing changed around
-                let &was = old_quad.get(&(quad.cell, quad.direction))?;
-                let kept = renumbered[old_corners(was)[k] as usize];
+                let was = match was {
+                    Some(was) => was,
+                    None => *was.insert(old_corners(*old_quad.get(&(quad.cell, quad.direction))?)),
+                };
+                let kept = renumbered[was[k] as usize];
                 if kept == u32::MAX {
                     return None;
                 }
                 kept
             };
         }
+        fresh.push(v);
+    }
+    add_vertices(&owners, &quads, &made, &mut topology);
+    for (quad, v) in quads.iter().zip(fresh) {
         topology.quads.push(*quad);
         push_quad(&mut topology, v);
     }
     // the rebuilt vertices of cut faces rest on the cut
     on_cut.sort_unstable();
     on_cut.dedup();
-    for v in on_cut {
-        place_on_cut(&owners, &mut topology, v as usize);
-    }
+    place_on_cut(&owners, &mut topology, &on_cut);
     finish(lattice, &mut topology);
     Some(topology)
 }
 
-/// A set of cells: flags over a box.
+/// A set of cells: a bit per cell of a box, rows along x packed in words (so that
+/// dilating the set is a few word operations per row).
 struct CellSet {
     min: IVec3,
     dims: IVec3,
-    flags: Vec<bool>,
+    /// Words per row along x.
+    row: usize,
+    bits: Vec<u64>,
 }
 
 impl CellSet {
@@ -152,66 +173,145 @@ impl CellSet {
         }
         let min = lo - IVec3::splat(margin);
         let dims = hi - lo + IVec3::splat(2 * margin + 1);
+        let row = (dims.x as usize).div_ceil(64);
         let mut set = Self {
             min,
             dims,
-            flags: vec![false; dims.as_i64vec3().element_product() as usize],
+            row,
+            bits: vec![0; row * (dims.y * dims.z) as usize],
         };
         for c in cells {
-            let i = set.index(c).expect("inside its own box");
-            set.flags[i] = true;
+            let (w, bit) = set.index(c).expect("inside its own box");
+            set.bits[w] |= bit;
         }
         Some(set)
     }
 
-    fn index(&self, c: IVec3) -> Option<usize> {
+    /// The word and bit of cell `c`.
+    fn index(&self, c: IVec3) -> Option<(usize, u64)> {
         let d = c - self.min;
         if d.cmplt(IVec3::ZERO).any() || d.cmpge(self.dims).any() {
             return None;
         }
-        Some(((d.z * self.dims.y + d.y) * self.dims.x + d.x) as usize)
+        let row = (d.z * self.dims.y + d.y) as usize;
+        Some((row * self.row + d.x as usize / 64, 1 << (d.x % 64)))
     }
 
     fn contains(&self, c: IVec3) -> bool {
-        self.index(c).is_some_and(|i| self.flags[i])
+        self.index(c)
+            .is_some_and(|(w, bit)| self.bits[w] & bit != 0)
     }
 
     /// The cells within `r` of these (counting diagonals; the box must have room): a
     /// sweep along each axis in turn.
     fn dilated(&self, r: i32) -> Self {
-        let mut flags = self.flags.clone();
-        let stride = [
-            1,
-            self.dims.x as usize,
-            (self.dims.x * self.dims.y) as usize,
-        ];
-        for axis in 0..3 {
-            let from = flags.clone();
-            let n = self.dims[axis] as usize;
-            for (i, flag) in flags.iter_mut().enumerate() {
-                let at = i / stride[axis] % n;
-                let lo = at.saturating_sub(r as usize);
-                let hi = (at + r as usize).min(n - 1);
-                *flag = (lo..=hi).any(|j| from[i + j * stride[axis] - at * stride[axis]]);
+        let r = r as usize;
+        let rows = (self.dims.y * self.dims.z) as usize;
+        let n = self.row;
+        // along x: each row ORed with itself shifted up to r bits either way
+        let mut bits = self.bits.clone();
+        for y in 0..rows {
+            let from = &self.bits[y * n..(y + 1) * n];
+            for s in 1..=r {
+                for w in 0..n {
+                    let up = from[w] << s | if w > 0 { from[w - 1] >> (64 - s) } else { 0 };
+                    let down = from[w] >> s
+                        | if w + 1 < n {
+                            from[w + 1] << (64 - s)
+                        } else {
+                            0
+                        };
+                    bits[y * n + w] |= up | down;
+                }
+            }
+        }
+        // along y, then z: each row ORed with the rows within r of it
+        let (ny, nz) = (self.dims.y as usize, self.dims.z as usize);
+        for (stride, count) in [(1, ny), (ny, nz)] {
+            let from = bits.clone();
+            for y in 0..rows {
+                let at = y / stride % count;
+                let lo = at.saturating_sub(r);
+                let hi = (at + r).min(count - 1);
+                for k in lo..=hi {
+                    let other = y - at * stride + k * stride;
+                    for w in 0..n {
+                        bits[y * n + w] |= from[other * n + w];
+                    }
+                }
+            }
+        }
+        // (bits past the box's end of each row stay clear: the last word is masked)
+        let tail = self.dims.x as usize % 64;
+        if tail != 0 {
+            for y in 0..rows {
+                bits[y * n + n - 1] &= (1u64 << tail) - 1;
             }
         }
         Self {
             min: self.min,
             dims: self.dims,
-            flags,
+            row: n,
+            bits,
+        }
+    }
+
+    /// The cells `c + o` of every cell `c` of these and `o` in `{0, 1}³` (the box must
+    /// have room): the corners of these cells, as the cells they start.
+    fn forward(&self) -> Self {
+        let n = self.row;
+        let rows = (self.dims.y * self.dims.z) as usize;
+        let mut bits = self.bits.clone();
+        for y in 0..rows {
+            for w in (0..n).rev() {
+                let carry = if w > 0 {
+                    self.bits[y * n + w - 1] >> 63
+                } else {
+                    0
+                };
+                bits[y * n + w] |= self.bits[y * n + w] << 1 | carry;
+            }
+        }
+        let ny = self.dims.y as usize;
+        for stride in [1, ny] {
+            let from = bits.clone();
+            for y in 0..rows {
+                let at = y / stride
+                    % if stride == 1 {
+                        ny
+                    } else {
+                        self.dims.z as usize
+                    };
+                if at > 0 {
+                    for w in 0..n {
+                        bits[y * n + w] |= from[(y - stride) * n + w];
+                    }
+                }
+            }
+        }
+        Self {
+            min: self.min,
+            dims: self.dims,
+            row: n,
+            bits,
         }
     }
 
     /// The cells, in order of z, then y, then x.
     fn cells(&self) -> impl Iterator<Item = IVec3> + '_ {
-        let (nx, ny) = (self.dims.x as usize, self.dims.y as usize);
-        self.flags
-            .iter()
-            .enumerate()
-            .filter(|(_, f)| **f)
-            .map(move |(i, _)| {
-                self.min + IVec3::new((i % nx) as i32, (i / nx % ny) as i32, (i / nx / ny) as i32)
+        let (n, ny) = (self.row, self.dims.y as usize);
+        self.bits.iter().enumerate().flat_map(move |(i, &word)| {
+            let (row, w) = (i / n, i % n);
+            let base = self.min + IVec3::new((w * 64) as i32, (row % ny) as i32, (row / ny) as i32);
+            let mut word = word;
+            std::iter::from_fn(move || {
+                (word != 0).then(|| {
+                    let x = word.trailing_zeros();
+                    word &= word - 1;
+                    base + IVec3::new(x as i32, 0, 0)
+                })
             })
+        })
     }
 }
 
