@@ -10,7 +10,7 @@
 
 use crate::body::lattice::Lattice;
 use crate::ecs::components::{BodyLattice, Position};
-use crate::ecs::resources::{BodyCutReport, CutReport, SimClock, SurfaceChanged};
+use crate::ecs::resources::{BodyCutReport, CutReport, SimClock, SolverCache, SurfaceChanged};
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::surface::extract::extract_with_faces;
 use crate::surface::smooth::smooth;
@@ -28,6 +28,7 @@ pub fn update_surfaces(
     mut bodies: Query<(Entity, &BodyLattice, &mut SurfaceMesh)>,
     positions: Query<&Position>,
     cut: Res<CutReport>,
+    cache: Res<SolverCache>,
     clock: Res<SimClock>,
     mut changed: MessageWriter<SurfaceChanged>,
 ) {
@@ -69,16 +70,35 @@ pub fn update_surfaces(
                 topology_version: mesh.topology_version,
             });
         }
+        // the solver's dense positions are the particles' since the substeps stored
+        // them; only the cut has moved some since (the halves of split particles)
+        let report = cut.bodies.iter().find(|c| c.body == body);
+        let mut moved: Vec<u32> = report.map_or(Vec::new(), |r| {
+            r.splits.iter().flat_map(|&(a, b)| [a, b]).collect()
+        });
+        moved.sort_unstable();
+        let dense = (cache
+            .body_dense
+            .binary_search_by_key(&body, |b| b.body)
+            .ok())
+        .map(|b| &cache.body_dense[b]);
+        let solved = &cache.particles.positions;
         mesh.gathered
             .par_iter_mut()
             .with_min_len(4096)
             .zip(&mesh.layout.read)
             .for_each(|(at, &p)| {
-                // (a particle whose entity is gone keeps its last place)
-                let entity = lattice.particles.get(p as usize);
-                if let Some(x) = entity.and_then(|e| positions.get(*e).ok()) {
+                let slot = dense
+                    .and_then(|b| b.slot(p))
+                    .filter(|_| moved.binary_search(&p).is_err());
+                if let Some(x) = slot.and_then(|d| solved.get(d)) {
+                    *at = *x;
+                } else if let Some(x) =
+                    (lattice.particles.get(p as usize)).and_then(|e| positions.get(*e).ok())
+                {
                     *at = x.0.into();
                 }
+                // (a particle whose entity is gone keeps its last place)
             });
         deform::particle_frames(
             &mesh.layout,

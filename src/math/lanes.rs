@@ -220,6 +220,18 @@ impl<L: Lane> Mat3x8<L> {
             self.z_axis.lane(l),
         )
     }
+
+    /// Every lane's matrix at once (three transposes, where [`Mat3x8::lane`] in a loop
+    /// would take each component out of its register eight times).
+    #[inline(always)]
+    pub fn to_lanes(self) -> [Mat3A; LANES] {
+        let (x, y, z) = (
+            self.x_axis.to_lanes(),
+            self.y_axis.to_lanes(),
+            self.z_axis.to_lanes(),
+        );
+        std::array::from_fn(|l| Mat3A::from_cols(x[l], y[l], z[l]))
+    }
 }
 
 /// Eight quaternions.
@@ -245,6 +257,18 @@ impl<L: Lane> Quatx8<L> {
             z: L::from_array(q.map(|q| q.z)),
             w: L::from_array(q.map(|q| q.w)),
         }
+    }
+
+    /// Every lane's quaternion at once.
+    #[inline(always)]
+    pub fn to_lanes(self) -> [Quat; LANES] {
+        let (x, y, z, w) = (
+            self.x.to_array(),
+            self.y.to_array(),
+            self.z.to_array(),
+            self.w.to_array(),
+        );
+        std::array::from_fn(|l| Quat::from_xyzw(x[l], y[l], z[l], w[l]))
     }
 
     /// The quaternion of lane `l`.
@@ -340,6 +364,8 @@ mod tests {
                 assert!(v.cross(w).lane(l).abs_diff_eq(vs[l].cross(ws[l]), 1e-5));
                 assert!((v.dot(w).to_array()[l] - vs[l].dot(ws[l])).abs() < 1e-5);
                 assert!(m.lane(l).abs_diff_eq(Mat3A::from_quat(qs[l]), 1e-6));
+                assert_eq!(m.to_lanes()[l], m.lane(l));
+                assert_eq!(q.to_lanes()[l], q.lane(l));
                 assert!(m.mul_vec(v).lane(l).abs_diff_eq(qs[l] * vs[l], 1e-5));
                 let t = Vec3A::new(0.5, -2.0, 3.0) * l as f32;
                 let moved = m.mul_vec_add(v, Vec3x8::<L>::from_lanes([t; LANES]));

@@ -92,11 +92,10 @@ impl WithLanes for FrameTask<'_> {
                 *w = self.frames[batch.own[l] as usize - self.first];
             }
             let q = extract_rotation_x8(&a, Quatx8::from_lanes(warm), ITERATIONS);
-            let r = Mat3x8::from_quat(q);
-            for l in 0..LANES.min(self.frames.len() - start) {
-                self.frames[start + l] = q.lane(l);
-                self.rotations[start + l] = r.lane(l);
-            }
+            let (q, r) = (q.to_lanes(), Mat3x8::from_quat(q).to_lanes());
+            let n = LANES.min(self.frames.len() - start);
+            self.frames[start..start + n].copy_from_slice(&q[..n]);
+            self.rotations[start..start + n].copy_from_slice(&r[..n]);
         }
     }
 }
