@@ -17,13 +17,15 @@ use crate::cut::tear::find_tears;
 use crate::cut::tool::{BladePlane, CutMode};
 use crate::cut::tool_sweep::ToolSweep;
 use crate::ecs::components::{Body, BodyLattice, Tool, ToolPose};
-use crate::ecs::resources::{BodyCut, CutList, DetectCulling, SimSettings, SolverCache};
+use crate::ecs::resources::{BodyCut, CutList, CutReport, DetectCulling, SimSettings, SolverCache};
 use bevy_ecs::prelude::*;
+use glam::Quat;
 
 /// Fills the cut list from the solver cache's dense positions.
 pub fn detect(
     settings: Res<SimSettings>,
     cache: Res<SolverCache>,
+    report: Res<CutReport>,
     tools: Query<(Entity, Ref<Tool>, &ToolPose)>,
     bodies: Query<(&Body, &BodyLattice)>,
     mut out: ResMut<CutList>,
@@ -51,7 +53,7 @@ pub fn detect(
     let near = settings
         .0
         .culling
-        .then(|| near_blocks(&cache, &bodies, &mut culling, &followed));
+        .then(|| near_blocks(&cache, &report, &bodies, &mut culling, &followed));
     let near = near.as_deref();
     let sweeps: Vec<ToolSweep> = followed.into_iter().map(|(_, s)| s).collect();
     let (removers, severers): (Vec<ToolSweep>, Vec<ToolSweep>) = sweeps
@@ -89,13 +91,18 @@ pub fn detect(
         if tools.is_empty() {
             continue;
         }
-        for b in &cache.body_dense {
+        for (k, b) in cache.body_dense.iter().enumerate() {
             let Ok((_, lattice)) = bodies.get(b.body) else {
                 continue;
             };
             let lattice = &lattice.lattice;
-            let first = b.first as usize;
-            let range = first..first + b.dense.len().min(positions.len() - first);
+            // the body's slots: up to the next body's (its lattice may have more
+            // particles than slots, those it had lost when it was laid out)
+            let next = cache
+                .body_dense
+                .get(k + 1)
+                .map_or(positions.len(), |n| n.first as usize);
+            let range = b.first as usize..next.min(positions.len());
             let partners = |i: usize| {
                 let local = cache.locals[i];
                 [1, 3, 5].map(|d| match lattice.link(local, d) {
@@ -110,9 +117,10 @@ pub fn detect(
             let position = |p: u32| b.position(positions, p);
             let mut edges = Vec::with_capacity(separated.len());
             let mut crossings = Vec::with_capacity(separated.len());
+            let mut turn = Quat::IDENTITY;
             for s in separated {
                 let (a, q) = (cache.locals[s.ends.0], cache.locals[s.ends.1]);
-                let c = rest_crossing(lattice, a, s.fraction, s.normal, position);
+                let c = rest_crossing(lattice, a, s.fraction, s.normal, position, &mut turn);
                 edges.push((a.min(q), a.max(q)));
                 crossings.push(((a.min(q), a.max(q)), if a < q { c } else { c.reversed() }));
             }
@@ -167,6 +175,7 @@ fn carve_crossings(
         };
         let (lattice, b) = (&lattice.lattice, &cache.body_dense[b]);
         let position = |p: u32| b.position(positions, p);
+        let mut turn = Quat::IDENTITY;
         for &c in &cut.carved {
             let x = position(c);
             let Some(tool) = carving.iter().find(|t| t.contains(x)) else {
@@ -177,7 +186,7 @@ fn carve_crossings(
                     continue;
                 }
                 let (fraction, normal) = tool.crossing(x, position(q));
-                let crossing = rest_crossing(lattice, c, fraction, normal, position);
+                let crossing = rest_crossing(lattice, c, fraction, normal, position, &mut turn);
                 let oriented = if c < q { crossing } else { crossing.reversed() };
                 cut.crossings.push(((c.min(q), c.max(q)), oriented));
             }
@@ -189,12 +198,19 @@ fn carve_crossings(
 /// [`crate::cut::culling`]).
 fn near_blocks(
     cache: &SolverCache,
+    report: &CutReport,
     bodies: &Query<(&Body, &BodyLattice)>,
     culling: &mut DetectCulling,
     tools: &[(FollowedTool, ToolSweep)],
 ) -> Vec<bool> {
     let culling = &mut culling.culling;
     let n = cache.particles.positions.len();
+    // a cut severs edges (a block's partners only become fewer: its ball stays a bound)
+    // and keeps every particle's dense index; only edges linked again can reach blocks
+    // the table does not name
+    if report.bodies.iter().any(|b| !b.relinked.is_empty()) {
+        culling.forget_layout();
+    }
     // each dense particle's +x, +y, +z partners, by the links of its body's lattice
     // (its body: the last whose dense range starts at or before it)
     culling.set_layout(cache.layout_version, n, |i| {

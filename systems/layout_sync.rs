@@ -130,7 +130,9 @@ pub fn sync_layout<'a>(
         .get_or_insert_with(PendingTopology::default);
     pending.relaid |= !patched;
     pending.bodies.extend(changed_bodies);
-    cache.layout_version += 1;
+    if !patched {
+        cache.layout_version += 1;
+    }
     cache.last_update = Some(LayoutUpdate {
         patched,
         ms: start.elapsed().as_secs_f64() * 1e3,

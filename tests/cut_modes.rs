@@ -385,3 +385,84 @@ fn a_split_blade_through_particle_centres_and_back_leaves_two_pieces_at_rest() {
     assert_eq!(lattice.live_count(), 8 * 16 + 16, "the layer split once");
     assert!(fastest < 0.1, "the pieces moved at {fastest} m/s");
 }
+
+#[test]
+fn a_blade_between_two_bodies_cuts_neither_after_a_removal_and_a_relayout() {
+    // the first body in the layout loses particles to a sphere; a split in a third body
+    // then lays the solver out afresh (the first body's dense range is now shorter
+    // than its lattice); a blade passing between the first two must sever neither
+    let mut sim = still_world(3);
+    let cube = |x: f32| BodyDesc {
+        position: Vec3::new(x, 0.0, 0.0),
+        ..BodyDesc::new(Shape::cuboid(UVec3::splat(4)), H)
+    };
+    for x in [0.0, 1.0, 3.0] {
+        sim.spawn_body(&cube(x)).unwrap();
+    }
+    // the bodies in layout order
+    let bodies = sim.bodies();
+    let (first, second, third) = (bodies[0], bodies[1], bodies[2]);
+    let centre = |sim: &Simulation, e| sim.centroid(e).unwrap();
+    let (xa, xb) = (centre(&sim, first), centre(&sim, second));
+    let dt = SimConfig::default().dt;
+    let at = |t: f32, p: Vec3| (t, Pose::at(p));
+    let corner = xa + Vec3::splat(0.15);
+    sim.spawn_tool(&ToolDesc {
+        shape: ToolShape::Sphere { radius: 0.08 },
+        cut_width: 0.02,
+        cut_mode: CutMode::Remove,
+        path: Path {
+            keys: vec![at(dt, corner), at(2.0 * dt, corner)],
+        },
+        pose: Pose::at(corner),
+    })
+    .unwrap();
+    sim.run(3);
+    assert!(
+        sim.positions(first).unwrap().len() < 64,
+        "the sphere took particles"
+    );
+    let xc = centre(&sim, third);
+    sim.spawn_tool(&through_blade(
+        xc,
+        Vec3::new(1.0, 0.3, 0.2),
+        0.4,
+        0.01,
+        CutMode::Split,
+        4.0 * dt,
+        dt,
+    ))
+    .unwrap();
+    sim.run(3);
+    let edges = |sim: &Simulation, e: Entity| {
+        sim.world()
+            .get::<cleave::ecs::components::BodyLattice>(e)
+            .unwrap()
+            .lattice
+            .edges()
+    };
+    let (before_a, before_b) = (edges(&sim, first), edges(&sim, second));
+    let between = (xa + xb) * 0.5;
+    let normal = (xb - xa).normalize();
+    sim.spawn_tool(&through_blade(
+        between,
+        normal,
+        0.3,
+        0.01,
+        CutMode::Sever,
+        7.0 * dt,
+        dt,
+    ))
+    .unwrap();
+    sim.run(3);
+    assert_eq!(
+        edges(&sim, first),
+        before_a,
+        "a body severed by a blade beside it"
+    );
+    assert_eq!(
+        edges(&sim, second),
+        before_b,
+        "a body severed by a blade beside it"
+    );
+}

@@ -5,7 +5,7 @@ use crate::body::lattice::Lattice;
 use crate::ecs::components::*;
 use crate::math::rotation::extract_rotation;
 use bevy_ecs::prelude::*;
-use glam::{Mat3, Quat, Vec3};
+use glam::{IVec3, Mat3, Quat, Vec3};
 use serde::Serialize;
 
 /// Counts and shape measures of one body.
@@ -86,34 +86,39 @@ pub fn rigid_fit_error(rest: &[Vec3], current: &[Vec3]) -> f32 {
 }
 
 /// The smallest distance between two of `points` with different `labels`, when some
-/// such pair is closer than `reach`; `None` otherwise. A uniform grid of cells of side
-/// `reach`, so the cost is linear in the points (written apart from the contact kind's
-/// broad phase, so that it can check it).
+/// such pair is closer than `reach`; `None` otherwise. The points sorted into a uniform
+/// grid of cells of side `reach` (by cell, so that each cell's points are one run), each
+/// cell meeting the 26 around it: the cost is linear in the points (written apart from
+/// the contact kind's broad phase, so that it can check it).
 pub fn min_distance_between_labels(points: &[Vec3], labels: &[u64], reach: f32) -> Option<f32> {
-    use std::collections::HashMap;
     let cell = |p: Vec3| (p / reach).floor().as_ivec3();
-    let mut grid: HashMap<glam::IVec3, Vec<usize>> = HashMap::new();
-    for (i, p) in points.iter().enumerate() {
-        if p.is_finite() {
-            grid.entry(cell(*p)).or_default().push(i);
-        }
+    let mut sorted: Vec<(IVec3, u32)> = (points.iter().enumerate())
+        .filter(|(_, p)| p.is_finite())
+        .map(|(i, p)| (cell(*p), i as u32))
+        .collect();
+    sorted.sort_unstable_by_key(|(c, i)| (c.z, c.y, c.x, *i));
+    let mut runs: rustc_hash::FxHashMap<IVec3, (usize, usize)> = Default::default();
+    let mut start = 0;
+    while start < sorted.len() {
+        let c = sorted[start].0;
+        let end = start + sorted[start..].iter().take_while(|(d, _)| *d == c).count();
+        runs.insert(c, (start, end));
+        start = end;
     }
     let mut best: Option<f32> = None;
-    for (c, members) in &grid {
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let Some(others) = grid.get(&(*c + glam::IVec3::new(dx, dy, dz))) else {
-                        continue;
-                    };
-                    for &a in members {
-                        for &b in others {
-                            if labels[a] != labels[b] {
-                                let d = points[a].distance(points[b]);
-                                if d < reach && best.is_none_or(|m| d < m) {
-                                    best = Some(d);
-                                }
-                            }
+    for (&c, &(a0, a1)) in &runs {
+        for k in 0..27 {
+            let o = IVec3::new(k % 3, k / 3 % 3, k / 9) - IVec3::ONE;
+            let Some(&(b0, b1)) = runs.get(&(c + o)) else {
+                continue;
+            };
+            for &(_, a) in &sorted[a0..a1] {
+                for &(_, b) in &sorted[b0..b1] {
+                    let (a, b) = (a as usize, b as usize);
+                    if labels[a] != labels[b] {
+                        let d = points[a].distance(points[b]);
+                        if d < reach && best.is_none_or(|m| d < m) {
+                            best = Some(d);
                         }
                     }
                 }
@@ -125,12 +130,11 @@ pub fn min_distance_between_labels(points: &[Vec3], labels: &[u64], reach: f32) 
 
 /// Live particle positions of every body with their body and piece: `(position, body
 /// ordinal, piece label)`, bodies in entity order.
-pub fn labelled_positions(world: &mut World) -> Vec<(Vec3, u32, u32)> {
-    let mut bodies: Vec<(Entity, BodyLattice)> = world
-        .query::<(Entity, &BodyLattice)>()
-        .iter(world)
-        .map(|(e, b)| (e, b.clone()))
-        .collect();
+pub fn labelled_positions(world: &World) -> Vec<(Vec3, u32, u32)> {
+    let Some(mut query) = world.try_query::<(Entity, &BodyLattice)>() else {
+        return Vec::new();
+    };
+    let mut bodies: Vec<(Entity, &BodyLattice)> = query.iter(world).collect();
     bodies.sort_unstable_by_key(|(e, _)| *e);
     let mut out = Vec::new();
     for (ordinal, (_, body)) in bodies.iter().enumerate() {

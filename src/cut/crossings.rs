@@ -71,8 +71,9 @@ pub fn touching_middle(f: impl Fn(f32) -> f32, tolerance: f32) -> f32 {
 
 /// The rotation that best carries the rest vectors from particle `p` to its linked
 /// neighbours onto their vectors now (`position` gives where a particle is): the
-/// body's turn around `p`.
-pub fn turn_at(lattice: &Lattice, p: u32, position: impl Fn(u32) -> Vec3) -> Quat {
+/// body's turn around `p`, found from `warm` (a neighbour's turn, say: the search then
+/// takes a step or two).
+pub fn turn_at(lattice: &Lattice, p: u32, position: impl Fn(u32) -> Vec3, warm: Quat) -> Quat {
     let (x, r) = (position(p), lattice.rest_position(p));
     let mut a = Mat3::ZERO;
     for q in lattice.neighbours(p) {
@@ -80,22 +81,24 @@ pub fn turn_at(lattice: &Lattice, p: u32, position: impl Fn(u32) -> Vec3) -> Qua
         a += Mat3::from_cols(dx * dr.x, dx * dr.y, dx * dr.z);
     }
     if !a.is_finite() {
-        return Quat::IDENTITY;
+        return warm;
     }
-    extract_rotation(Mat3A::from(a), Quat::IDENTITY, 64)
+    extract_rotation(Mat3A::from(a), warm, 64)
 }
 
 /// A crossing found on the body as it is — `fraction` along the edge from `p` to its
 /// neighbour, the surface's `normal` in the world frame — in the lattice's rest frame,
-/// measured from `p`, turned back by the body's turn around `p` ([`turn_at`]).
+/// measured from `p`, turned back by the body's turn around `p` ([`turn_at`], found
+/// from `turn`, where it is left: crossings found in a row start each from the last).
 pub fn rest_crossing(
     lattice: &Lattice,
     p: u32,
     fraction: f32,
     normal: Vec3,
     position: impl Fn(u32) -> Vec3,
+    turn: &mut Quat,
 ) -> Crossing {
-    let turn = turn_at(lattice, p, position);
+    *turn = turn_at(lattice, p, position, *turn);
     Crossing {
         fraction: if fraction.is_finite() {
             fraction.clamp(0.0, 1.0)
@@ -133,13 +136,14 @@ mod tests {
         let turn = Quat::from_euler(glam::EulerRot::XYZ, 0.9, -2.1, 0.4);
         let moved = |p: u32| turn * l.rest_position(p) + Vec3::new(4.0, -1.0, 2.0);
         let centre = l.at(l.coord(0) + glam::IVec3::ONE).unwrap();
+        let mut identity = Quat::IDENTITY;
         let rest_normal = Vec3::new(0.3, -0.5, 0.8).normalize();
-        let c = rest_crossing(&l, centre, 0.25, turn * rest_normal, moved);
+        let c = rest_crossing(&l, centre, 0.25, turn * rest_normal, moved, &mut identity);
         assert_eq!(c.fraction, 0.25);
         assert!(c.normal.distance(rest_normal) < 1e-5, "{}", c.normal);
         // a corner particle (three links) turns as well
         let corner = l.at(l.coord(0)).unwrap();
-        let c = rest_crossing(&l, corner, 0.5, turn * rest_normal, moved);
+        let c = rest_crossing(&l, corner, 0.5, turn * rest_normal, moved, &mut identity);
         assert!(c.normal.distance(rest_normal) < 1e-5, "{}", c.normal);
     }
 }

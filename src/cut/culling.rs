@@ -17,7 +17,9 @@
 //! 1-Lipschitz. So no particle or edge of the block can be reached while
 //! `gap − |centre moved| − radius − travel − 2 × slack` stays positive, and the block's
 //! full tests are skipped until then. A tool that appears, vanishes or changes its
-//! shape, and a layout change, forget every gap.
+//! shape, and a layout rebuild (or edges linked again), forget every gap; a cut that
+//! only severs keeps them (the particles keep their places and dense indices, and a
+//! block's partners only become fewer).
 
 use crate::cut::detection::BLOCK;
 use crate::cut::tool::Pose;
@@ -104,6 +106,12 @@ impl ToolCulling {
             self.starts.push(self.neighbours.len() as u32);
         }
         self.tested = vec![None; blocks];
+    }
+
+    /// Forgets the layout: the next [`ToolCulling::set_layout`] builds the neighbour
+    /// table again and measures every block.
+    pub fn forget_layout(&mut self) {
+        self.layout = None;
     }
 
     /// Follows the tools into this frame: adds their travel to the odometer, and

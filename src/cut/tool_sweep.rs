@@ -150,7 +150,7 @@ impl ToolSweep {
     pub fn hits(&self, x: Vec3) -> bool {
         x.cmpge(self.min).all()
             && x.cmple(self.max).all()
-            && self.sweep.point_distance(&self.core, x) - self.radius <= self.reach
+            && self.point_distance(x) - self.radius <= self.reach
     }
 
     /// Whether the tool's surface crosses the segment `a`–`b` with neither end inside
@@ -185,6 +185,35 @@ impl ToolSweep {
         let margin = 1e-3 * a.distance(b) + self.rounding(a.abs().max(b.abs()).max_element());
         da.min(db) <= 0.5 * a.distance(b) + margin
             && self.sweep.segment_distance(&self.core, a, b) <= self.radius
+    }
+
+    /// The least distance from `x` to the tool's core over the motion, less the sweep's
+    /// slack. A blade in one plane sweeps a flat set: the distance is the height over
+    /// the plane and, in the plane, the distance of the point's trace in the blade's
+    /// frame to the rectangle, piece by piece, in closed form.
+    fn point_distance(&self, x: Vec3) -> f32 {
+        let (
+            Some(plane),
+            ToolShape::Blade {
+                half_width,
+                half_height,
+            },
+        ) = (self.in_plane(), self.shape)
+        else {
+            return self.sweep.point_distance(&self.core, x);
+        };
+        let half = glam::Vec2::new(half_width, half_height);
+        let across = self
+            .sweep
+            .pieces
+            .iter()
+            .map(|piece| {
+                let from = (piece.inverse * (x - piece.from)).truncate();
+                let to = (piece.inverse * (x - piece.to)).truncate();
+                rectangle_segment_distance(half, from, to)
+            })
+            .fold(f32::INFINITY, f32::min);
+        across.hypot(plane.distance(x)) - self.sweep.slack
     }
 
     /// The plane of a blade that stays in it throughout its motion (turning about its
@@ -283,7 +312,7 @@ impl ToolSweep {
     /// The least distance from `x` to the tool's surface over the motion, negative when
     /// `x` is inside the tool at some time (never for a blade, whose distance is ≥ 0).
     pub fn surface_distance(&self, x: Vec3) -> f32 {
-        let d = self.sweep.point_distance(&self.core, x) - self.radius;
+        let d = self.point_distance(x) - self.radius;
         if self.radius > 0.0 { d } else { d.max(0.0) }
     }
 
@@ -310,10 +339,7 @@ impl ToolSweep {
     /// the margin of a ball of `radius` there: no point of that ball comes within reach
     /// when this is above `radius` (see [`crate::cut::culling`]).
     pub fn gap(&self, centre: Vec3, radius: f32) -> f32 {
-        self.sweep.point_distance(&self.core, centre)
-            - self.radius
-            - self.reach
-            - self.margin(centre, radius)
+        self.point_distance(centre) - self.radius - self.reach - self.margin(centre, radius)
     }
 
     /// How far its sweep stands off its poses (see [`crate::cut::tool::Sweep::slack`]).

@@ -202,8 +202,8 @@ pub struct SolverCache {
     pub adopt_changes: bool,
     /// What changed in the layout since the terms last heard of it.
     pub pending_topology: Option<PendingTopology>,
-    /// Counts the layout's updates (rebuilds and patches): tables derived from the
-    /// dense indices or the links are rebuilt when it changes.
+    /// Counts the layout's rebuilds (a patch keeps every particle's dense index): tables
+    /// derived from the dense indices are rebuilt when it changes.
     pub layout_version: u64,
 }
 

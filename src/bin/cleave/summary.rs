@@ -184,7 +184,7 @@ impl Tracked {
 /// The smallest distances between particles of different pieces and of different
 /// bodies, in units of `h`, among pairs closer than 2 h.
 pub(crate) fn gaps(sim: &mut Simulation, h: f32) -> (Option<f64>, Option<f64>) {
-    let labelled = labelled_positions(sim.world_mut());
+    let labelled = labelled_positions(sim.world());
     let points: Vec<glam::Vec3> = labelled.iter().map(|(p, ..)| *p).collect();
     let pieces: Vec<u64> = labelled
         .iter()
