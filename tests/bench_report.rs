@@ -223,3 +223,48 @@ fn bench_rejects_bad_sizes_with_exit_code_2() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--sizes") && err.contains("allowed"), "{err}");
 }
+
+#[test]
+fn the_cutting_bench_times_whole_frames_and_each_cut_by_stage() {
+    use cleave::analysis::bench_cutting::{CuttingOptions, bench_cutting};
+    let mut rows = Vec::new();
+    let options = CuttingOptions {
+        cuts: true,
+        block: false,
+        slice: false,
+    };
+    bench_cutting(options, &mut |row| rows.push(row.clone())).unwrap();
+    assert_eq!(rows.len(), 3, "cuts in each mode");
+    for row in &rows {
+        let v = serde_json::to_value(row).unwrap();
+        assert_eq!(v["row"], "cutting");
+        let frames = |s: &Value| s["frames"].as_u64().unwrap();
+        // every frame of both runs timed; some of the cutting run's cut
+        assert_eq!(frames(&v["plain"]), frames(&v["all"]));
+        assert!(
+            frames(&v["cut"]) > 10 && frames(&v["cut"]) < frames(&v["all"]),
+            "{v}"
+        );
+        for s in ["plain", "all", "cut"] {
+            let stats = &v[s];
+            let at = |k: &str| stats[k].as_f64().unwrap();
+            assert!(0.0 < at("median_ms") && at("median_ms") <= at("p95_ms"));
+            assert!(at("p95_ms") <= at("max_ms") && at("max_after_first_ms") <= at("max_ms"));
+        }
+        // the stages of a cut frame fit inside it (the layout's is the next frame's)
+        let stages = &v["cut_stages"];
+        let within: f64 = ["detect_ms", "cut_ms", "rebuild_ms", "surface_ms"]
+            .iter()
+            .map(|k| stages[*k].as_f64().unwrap())
+            .sum();
+        assert!(
+            within > 0.0 && within < v["cut"]["max_ms"].as_f64().unwrap(),
+            "{v}"
+        );
+        let ratio = v["p95_over_plain"].as_f64().unwrap();
+        let expected =
+            v["all"]["p95_ms"].as_f64().unwrap() / v["plain"]["median_ms"].as_f64().unwrap();
+        assert!((ratio - expected).abs() < 1e-9);
+        assert!(v["cut_work_over_substeps"].as_f64().unwrap() > 0.0);
+    }
+}

@@ -222,6 +222,19 @@ fn press_squeezes_then_cuts_in_two() {
     // contact balls, its centroid is 0.05 + 0.35 m up)
     let half = &s["bodies"][0]["half_time"]["piece_centroids"];
     assert!(f(&half[0][1]) < 0.8 * 0.4, "{half}");
+    // the frames as a game feels them: every frame counted, the cut ones among them
+    let (all, cut) = (&s["frame_ms"], &s["cut_frame_ms"]);
+    assert_eq!(all["frames"], s["frames"]);
+    assert!(cut["frames"].as_u64().unwrap() >= 1, "{cut}");
+    assert!(cut["frames"].as_u64() < all["frames"].as_u64());
+    for stats in [all, cut] {
+        let (median, p95, max) = (
+            f(&stats["median_ms"]),
+            f(&stats["p95_ms"]),
+            f(&stats["max_ms"]),
+        );
+        assert!(0.0 < median && median <= p95 && p95 <= max, "{stats}");
+    }
 }
 
 #[test]

@@ -5,6 +5,7 @@ use crate::pictures::{PictureOptions, Pictures};
 use crate::summary::*;
 use bevy_ecs::prelude::*;
 use cleave::analysis::bench::median;
+use cleave::analysis::frames::FrameStats;
 use cleave::analysis::profile::{StageProfile, solver_table};
 use cleave::analysis::stats::BodyStats;
 use cleave::config::{Model, RelaxOptions, SimConfig, SolverMode};
@@ -13,7 +14,7 @@ use cleave::ecs::check::check_invariants;
 use cleave::ecs::components::BodyLattice;
 use cleave::ecs::desc::Scene;
 use cleave::ecs::handles::PoseMethod;
-use cleave::ecs::resources::{CutTimings, ParticlesCut, SolverCache};
+use cleave::ecs::resources::{CutReport, CutTimings, ParticlesCut, SolverCache};
 use cleave::io::dump::dump_world;
 use cleave::io::render::Draw;
 use cleave::io::scene::{BUILTIN_SCENES, builtin};
@@ -296,6 +297,7 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     let h = spacings.iter().copied().fold(f32::INFINITY, f32::min);
     let h_first = spacings.first().copied().unwrap_or(1.0);
     let mut step_ms = Vec::new();
+    let mut cut_frames = Vec::new();
     let mut cut_particles = 0;
     let mut min_gap: Option<f64> = None;
     let mut cursor = sim
@@ -320,6 +322,7 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         let t = Instant::now();
         sim.step();
         step_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        cut_frames.push(!sim.world().resource::<CutReport>().bodies.is_empty());
         // (a layout built afresh starts its count at zero)
         let seconds = sim
             .world()
@@ -344,6 +347,8 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
             .read(sim.world().resource::<Messages<ParticlesCut>>())
             .map(|m| m.particles.len())
             .sum::<usize>();
+        // (the statistic of the run, not the engine's work: between frames, outside
+        // the timed step)
         let pieces: usize = sim
             .world_mut()
             .query::<&BodyLattice>()
@@ -382,6 +387,8 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         pieces: total(|s| s.pieces),
         cut_particles,
         simulate_ms_total: step_ms.iter().fold(0.0, |sum, ms| sum + ms),
+        frame_ms: FrameStats::of(&step_ms),
+        cut_frame_ms: FrameStats::of_where(&step_ms, |f| cut_frames[f]),
         pictures_ms_total: pictures.ms,
         pictures_written: pictures.files,
         median_ms_per_step: median(&mut step_ms),
