@@ -1,9 +1,11 @@
-//! Seeded scenes of many cuts: a block cut by random blades and sphere scoops (built-in
-//! `cuts`), and the cantilever scooped near the middle of its top and sides (built-in
-//! `scooped`). `cleave fidelity` compares their rebuilt clusters with fresh ones.
+//! Scenes of cuts: a block cut by random blades and sphere scoops (built-in `cuts`), the
+//! cantilever scooped near the middle of its top and sides (built-in `scooped`) —
+//! `cleave fidelity` compares their rebuilt clusters with fresh ones —, a seeded run of
+//! random blades and spheres through a block on the ground (`random`) and a slanted
+//! cut (`bevel`).
 
 use crate::body::shape::Shape;
-use crate::config::{Material, SimConfig};
+use crate::config::{Material, SimConfig, StaticBox};
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::ecs::desc::{BodyDesc, Scene, ToolDesc};
 use glam::{Mat3, Quat, UVec3, Vec3};
@@ -179,4 +181,135 @@ pub fn scooped_cantilever_scene(cantilever: Scene, seed: u64, scoops: u32) -> Sc
         })
         .collect();
     scene
+}
+
+/// A seeded sequence of random blade and sphere cuts through a block on the ground.
+pub fn random_scene(seed: u64) -> Scene {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
+    let mut body = rigid_body(Shape::cuboid(UVec3::new(20, 10, 10)), H);
+    body.position = Vec3::new(0.0, 0.5, 0.0);
+    let mut tools = Vec::new();
+    for i in 0..8 {
+        let t0 = 0.2 + i as f32 * 0.3;
+        let dir = Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        )
+        .normalize_or(Vec3::X);
+        let start = body.position + dir * 2.0;
+        let end = body.position - dir * 2.0
+            + Vec3::new(
+                rng.random_range(-0.5..0.5),
+                0.0,
+                rng.random_range(-0.5..0.5),
+            );
+        let rotation = Quat::from_rotation_arc(
+            Vec3::Z,
+            Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            )
+            .normalize_or(Vec3::Y),
+        );
+        let (shape, width) = if rng.random_bool(0.5) {
+            (
+                ToolShape::Blade {
+                    half_width: 0.8,
+                    half_height: 0.8,
+                },
+                1.01 * H,
+            )
+        } else {
+            (
+                ToolShape::Sphere {
+                    radius: rng.random_range(0.1..0.3),
+                },
+                0.5 * H,
+            )
+        };
+        let path = Path {
+            keys: vec![
+                (
+                    t0,
+                    Pose {
+                        position: start,
+                        rotation,
+                    },
+                ),
+                (
+                    t0 + 0.25,
+                    Pose {
+                        position: end,
+                        rotation,
+                    },
+                ),
+            ],
+        };
+        tools.push(ToolDesc {
+            shape,
+            cut_width: width,
+            cut_mode: CutMode::Remove,
+            path,
+            pose: Pose {
+                position: start,
+                rotation,
+            },
+        });
+    }
+    Scene {
+        config: SimConfig {
+            seed,
+            ..SimConfig::default()
+        },
+        bodies: vec![body],
+        tools,
+        colliders: vec![],
+        frames: 300,
+    }
+}
+
+/// A 16³ block on a narrow pedestal cut in `sever` mode by a knife whose plane stands at
+/// 30° to the block's sides and leans 20° from the vertical: the two pieces tip off the
+/// pedestal to either side, their cut faces flat where the blade passed.
+pub fn bevel_scene(config: SimConfig) -> Scene {
+    let mut body = rigid_body(Shape::cuboid(UVec3::splat(16)), H);
+    let height = 0.6;
+    body.position = Vec3::new(0.0, height + 0.8, 0.0);
+    let config = SimConfig {
+        boxes: vec![StaticBox {
+            min: Vec3::new(-0.25, 0.0, -0.8),
+            max: Vec3::new(0.25, height, 0.8),
+            friction: 0.2,
+        }],
+        ..config
+    };
+    let normal = Quat::from_rotation_y(30f32.to_radians())
+        * (Quat::from_rotation_z(20f32.to_radians()) * Vec3::X);
+    // the knife moves down its own plane, through the block's centre, in one frame
+    let along = (Vec3::NEG_Y - normal * -normal.y).normalize();
+    let at = |s: f32| Pose {
+        position: body.position + Vec3::new(0.013, 0.0, -0.021) - along * s,
+        rotation: blade_rotation(along, normal),
+    };
+    let tool = ToolDesc {
+        shape: ToolShape::Blade {
+            half_width: 2.0,
+            half_height: 0.5,
+        },
+        cut_width: H,
+        cut_mode: CutMode::Sever,
+        path: Path {
+            keys: vec![(0.3, at(2.5)), (0.3 + config.dt, at(-2.5)), (0.4, at(-6.0))],
+        },
+        pose: at(2.5),
+    };
+    Scene {
+        config,
+        bodies: vec![body],
+        tools: vec![tool],
+        colliders: vec![],
+        frames: 150,
+    }
 }

@@ -6,13 +6,13 @@ use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::ecs::desc::Scene;
 use crate::ecs::desc::{BodyDesc, ColliderDesc, PinRegion, ToolDesc};
 use crate::geometry::collider::ColliderShape;
-use crate::io::cut_scenes::{cut_block_scene, rigid_body, scooped_cantilever_scene};
+use crate::io::cut_scenes::{
+    bevel_scene, cut_block_scene, random_scene, rigid_body, scooped_cantilever_scene,
+};
 use glam::{Quat, UVec3, Vec3};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 
 /// Names and one-line descriptions of the built-in scenes.
-pub const BUILTIN_SCENES: [(&str, &str); 22] = [
+pub const BUILTIN_SCENES: [(&str, &str); 23] = [
     ("drop", "a 16×8×8 box falls on the ground and settles"),
     (
         "cantilever",
@@ -57,6 +57,10 @@ pub const BUILTIN_SCENES: [(&str, &str); 22] = [
     (
         "cuts",
         "a 32×16×16 block, gravity off, cut 50 times by random blades and sphere scoops",
+    ),
+    (
+        "bevel",
+        "a blade slants through a 16³ block on a pedestal at 30° to its sides: the pieces tip off",
     ),
     (
         "scooped",
@@ -369,96 +373,13 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
         }
         "random" => random_scene(seed),
         "cuts" => cut_block_scene(seed, 50),
+        "bevel" => bevel_scene(config),
         "scooped" => scooped_cantilever_scene(builtin("cantilever", seed)?, seed, 20),
         "stack" => stack_scene(config),
         "pile" => pile_scene(config, H),
         "press" => press_scene(config),
         _ => return crate::io::oriented_scenes::builtin(name, config),
     })
-}
-
-/// A seeded sequence of random blade and sphere cuts through a block on the ground.
-fn random_scene(seed: u64) -> Scene {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
-    let mut body = rigid_body(Shape::cuboid(UVec3::new(20, 10, 10)), H);
-    body.position = Vec3::new(0.0, 0.5, 0.0);
-    let mut tools = Vec::new();
-    for i in 0..8 {
-        let t0 = 0.2 + i as f32 * 0.3;
-        let dir = Vec3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        )
-        .normalize_or(Vec3::X);
-        let start = body.position + dir * 2.0;
-        let end = body.position - dir * 2.0
-            + Vec3::new(
-                rng.random_range(-0.5..0.5),
-                0.0,
-                rng.random_range(-0.5..0.5),
-            );
-        let rotation = Quat::from_rotation_arc(
-            Vec3::Z,
-            Vec3::new(
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-            )
-            .normalize_or(Vec3::Y),
-        );
-        let (shape, width) = if rng.random_bool(0.5) {
-            (
-                ToolShape::Blade {
-                    half_width: 0.8,
-                    half_height: 0.8,
-                },
-                1.01 * H,
-            )
-        } else {
-            (
-                ToolShape::Sphere {
-                    radius: rng.random_range(0.1..0.3),
-                },
-                0.5 * H,
-            )
-        };
-        let path = Path {
-            keys: vec![
-                (
-                    t0,
-                    Pose {
-                        position: start,
-                        rotation,
-                    },
-                ),
-                (
-                    t0 + 0.25,
-                    Pose {
-                        position: end,
-                        rotation,
-                    },
-                ),
-            ],
-        };
-        tools.push(ToolDesc {
-            shape,
-            cut_width: width,
-            cut_mode: CutMode::Remove,
-            path,
-            pose: Pose {
-                position: start,
-                rotation,
-            },
-        });
-    }
-    Scene {
-        config: cutting_config(seed),
-        bodies: vec![body],
-        tools,
-        colliders: vec![],
-        frames: 300,
-    }
 }
 
 /// A box of `cells` lattice points whose lowest layer is at height `bottom`.

@@ -22,6 +22,11 @@ pub struct SurfaceToDraw {
     pub colours: Vec<[u8; 3]>,
 }
 
+/// Cosine of the largest angle between a triangle and a vertex normal it is shaded with:
+/// at a sharper crease (a box's edge, a cut's rim) the triangle is shaded flat, so
+/// that the crease stays sharp instead of smearing across the thin triangles beside it.
+const CREASE: f32 = 0.9;
+
 /// Draws `surface` into `canvas` seen by `camera`.
 pub fn draw_surface(canvas: &mut Canvas, camera: &Camera, surface: &SurfaceToDraw) {
     let projected: Vec<Option<(f32, f32, f32)>> = surface
@@ -33,7 +38,18 @@ pub fn draw_surface(canvas: &mut Canvas, camera: &Camera, surface: &SurfaceToDra
     for (t, rgb) in surface.triangles.iter().zip(&surface.colours) {
         let [a, b, c] = t.map(|v| projected[v as usize]);
         if let (Some(a), Some(b), Some(c)) = (a, b, c) {
-            canvas.triangle([a, b, c], t.map(|v| normals[v as usize]), *rgb);
+            let [pa, pb, pc] = t.map(|v| surface.positions[v as usize]);
+            let flat = camera.to_view((pb - pa).cross(pc - pa).normalize_or_zero());
+            let shaded = t.map(|v| {
+                let n = normals[v as usize];
+                // (a triangle of no area has no normal of its own)
+                if flat == Vec3::ZERO || n.dot(flat) >= CREASE {
+                    n
+                } else {
+                    flat
+                }
+            });
+            canvas.triangle([a, b, c], shaded, *rgb);
         }
     }
 }
