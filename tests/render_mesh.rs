@@ -2,8 +2,8 @@
 //! each vertex where the particles of the cell of particle centres around it carry it
 //! (checked against trilinear interpolation of those particles' displacements, computed
 //! here);
-//! a blade that severs it drops exactly the triangles that would span the cut and draws
-//! the lattice's cut faces on both pieces; a mesh outside its body is refused.
+//! a slanted blade that severs it clips it where it passed and caps each piece, closed,
+//! the cut's vertices on the blade's plane; a mesh outside its body is refused.
 
 mod common;
 use cleave::body::lattice::Lattice;
@@ -110,8 +110,34 @@ fn a_sphere_is_drawn_from_its_mesh_and_follows_the_body_as_it_lands() {
     );
 }
 
+/// Per piece, the volume a closed, consistently oriented mesh encloses; panics naming
+/// an edge that is open, doubled or turned the wrong way.
+fn closed_volumes(x: &[Vec3], triangles: &[[u32; 3]], pieces: &[u32]) -> HashMap<u32, f64> {
+    let mut directed: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut volume: HashMap<u32, f64> = HashMap::new();
+    for (t, piece) in triangles.iter().zip(pieces) {
+        for k in 0..3 {
+            *directed.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
+        }
+        let [a, b, c] = t.map(|i| x[i as usize].as_dvec3());
+        *volume.entry(*piece).or_default() += a.dot(b.cross(c)) / 6.0;
+    }
+    for (&(a, b), &n) in &directed {
+        assert_eq!(n, 1, "edge {a}→{b} in {n} triangles the same way");
+        assert_eq!(directed.get(&(b, a)), Some(&1), "edge {a}→{b} has no twin");
+    }
+    volume
+}
+
 #[test]
-fn a_severed_sphere_drops_the_triangles_across_the_cut_and_shows_its_cut_faces() {
+fn a_sphere_sliced_at_a_slant_is_clipped_and_capped_closed() {
+    sliced_at_a_slant(CutMode::Sever);
+    sliced_at_a_slant(CutMode::Split);
+}
+
+/// A render-mesh sphere cut at a slant in `mode`: closed per piece, filling the sphere,
+/// the cut's vertices on the blade's plane.
+fn sliced_at_a_slant(mode: CutMode) {
     let mesh = Arc::new(sphere(0.45, 3));
     let mut sim = Simulation::new(SimConfig {
         gravity: Vec3::ZERO,
@@ -120,100 +146,85 @@ fn a_severed_sphere_drops_the_triangles_across_the_cut_and_shows_its_cut_faces()
     })
     .unwrap();
     let (body, desc) = sphere_body(&mut sim, &mesh);
-    // a blade in the plane x = 0.013 (between particle columns) sweeping down through it
-    let at = |y: f32| Pose {
-        position: desc.position + Vec3::new(0.013, y, 0.0),
-        rotation: Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+    // a knife in a plane tilted out of every axis, through a point beside the centre,
+    // moving along its plane through the sphere in one frame
+    let normal = Vec3::new(1.0, 0.6, 0.35).normalize();
+    let along = normal.any_orthonormal_vector();
+    let through = desc.position + Vec3::new(0.031, -0.017, 0.022);
+    let rotation = Quat::from_mat3(&glam::Mat3::from_cols(along.cross(normal), along, normal));
+    let at = |s: f32| Pose {
+        position: through + along * s,
+        rotation,
     };
+    let dt = SimConfig::default().dt;
     sim.spawn_tool(&ToolDesc {
         shape: ToolShape::Blade {
-            half_width: 1.0,
-            half_height: 0.6,
+            half_width: 2.0,
+            half_height: 1.0,
         },
         cut_width: 0.1 * H,
-        cut_mode: CutMode::Sever,
+        cut_mode: mode,
         path: Path {
-            keys: vec![(0.0, at(1.5)), (0.4, at(-1.5))],
+            keys: vec![(dt, at(3.0)), (2.0 * dt, at(-3.0))],
         },
-        pose: at(1.5),
+        pose: at(3.0),
     })
     .unwrap();
-    sim.run(40);
-    let lattice = sim
-        .world()
-        .get::<BodyLattice>(body)
-        .unwrap()
-        .lattice
-        .clone();
-    assert_eq!(lattice.piece_count(), 2);
-    let surface = sim.world().get::<SurfaceMesh>(body).unwrap();
-    let render = surface.render_mesh().expect("a render mesh");
-    // the mesh's triangles come first, then the cut faces; their rest places tell
-    let rest = &surface.topology().rest;
-    let is_mesh_vertex = |v: u32| {
-        let r = rest[v as usize];
-        (r.length() - 0.45).abs() < 1e-4
-    };
-    let (kept, faces): (Vec<usize>, Vec<usize>) = (0..surface.triangles().len())
-        .partition(|&t| surface.triangles()[t].iter().all(|&v| is_mesh_vertex(v)));
-    // the cut plane lies between particle columns at x = 0 (cells k·h … (k + 1)·h): a
-    // mesh triangle with a vertex within half a cell of it is bound across it
-    let plane = 0.0;
-    let dropped = render.triangle_count() - kept.len();
-    for &t in &kept {
-        let xs = surface.triangles()[t].map(|v| rest[v as usize].x - plane);
-        assert!(
-            xs.iter().all(|x| *x > 0.0) || xs.iter().all(|x| *x < 0.0),
-            "kept triangle {t} spans the cut: {xs:?}"
-        );
-        assert!(xs.iter().all(|x| x.abs() > 0.5 * H - 1e-4));
-    }
-    let near = mesh
-        .triangles
-        .iter()
-        .filter(|t| {
-            t.iter()
-                .any(|&v| (mesh.vertices[v as usize].x - plane).abs() < 0.5 * H)
-        })
-        .count();
-    assert_eq!(
-        dropped, near,
-        "exactly the triangles bound across the cut go"
+    sim.run(3);
+    assert_eq!(sim.pieces(body).unwrap().len(), 2);
+    let surface = sim.world().get::<SurfaceMesh>(body).unwrap().clone();
+    let (rest, triangles, pieces) = (
+        &surface.topology().rest,
+        surface.triangles(),
+        surface.triangle_pieces(),
     );
-    // the cut faces: a quad on each side of every severed link across the plane
-    let severed = lattice
-        .live_particles()
-        .filter(|&p| lattice.coord(p).x == -1)
-        .filter(|&p| lattice.at(lattice.coord(p) + IVec3::X).is_some())
-        .count();
-    assert_eq!(faces.len(), 4 * severed);
-    // both pieces show their cut faces, a quad per severed link each, and the mesh's
-    // triangles on each side of the cut belong to the piece on that side
-    let pieces = surface.triangle_pieces();
-    let mut per_piece: HashMap<u32, usize> = HashMap::new();
-    for &t in &faces {
-        *per_piece.entry(pieces[t]).or_default() += 1;
-    }
-    assert_eq!(per_piece.len(), 2);
+    // closed per piece, at rest and enclosing the sphere between them
+    let volumes = closed_volumes(rest, triangles, pieces);
+    assert_eq!(volumes.len(), 2);
+    let whole: f64 = closed_volumes(
+        &mesh.vertices,
+        &mesh.triangles,
+        &vec![0; mesh.triangles.len()],
+    )[&0];
+    let total: f64 = volumes.values().sum();
+    assert!(volumes.values().all(|v| *v > 0.1 * whole), "{volumes:?}");
     assert!(
-        per_piece.values().all(|&n| n == 2 * severed),
-        "{per_piece:?}"
+        (total / whole - 1.0).abs() < 1e-3,
+        "{mode}: {total} of {whole}"
     );
-    for side in [-1.0f32, 1.0] {
-        let mut on_side: Vec<u32> = kept
-            .iter()
-            .filter(|&&t| rest[surface.triangles()[t][0] as usize].x * side > 0.0)
-            .map(|&t| pieces[t])
-            .collect();
-        on_side.sort_unstable();
-        on_side.dedup();
-        assert_eq!(on_side.len(), 1, "one piece on side {side}");
-        assert!(per_piece.contains_key(&on_side[0]));
+    // the mesh's vertices keep their numbers; the ones the cut added lie on the blade's
+    // plane (the body is spawned unturned: rest frame = world less its offset)
+    assert_eq!(&rest[..mesh.vertices.len()], &mesh.vertices[..]);
+    let offset = sim.positions(body).unwrap()[0].1
+        - sim
+            .world()
+            .get::<BodyLattice>(body)
+            .unwrap()
+            .lattice
+            .rest_position(0);
+    let added = &rest[mesh.vertices.len()..];
+    assert!(added.len() > 20, "{} vertices on the cut", added.len());
+    for x in added {
+        let d = (*x + offset - through).dot(normal).abs();
+        assert!(
+            d < 1e-3 * H,
+            "a cut vertex {} h off the blade's plane",
+            d / H
+        );
     }
+    // 40 frames on the pieces have parted nothing: still closed, no triangle between them
+    sim.run(40);
+    let surface = sim.world().get::<SurfaceMesh>(body).unwrap();
+    closed_volumes(
+        &surface.positions,
+        surface.triangles(),
+        surface.triangle_pieces(),
+    );
     println!(
-        "mesh triangles {}, dropped {dropped}, cut-face triangles {} ({severed} severed links)",
-        render.triangle_count(),
-        faces.len()
+        "{mode}: mesh {} triangles; drawn {} (cut and capped), {} vertices on the cut",
+        mesh.triangles.len(),
+        triangles.len(),
+        added.len()
     );
 }
 

@@ -5,12 +5,14 @@
 
 pub mod carry;
 pub mod cells;
+pub mod clip;
 pub mod deform;
 pub mod embed;
 pub mod extract;
 pub mod fans;
 pub mod placement;
 pub mod smooth;
+mod trilinear;
 pub mod update;
 
 pub use carry::CarryLayout;
