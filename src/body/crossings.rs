@@ -43,7 +43,7 @@ impl Crossing {
     }
 }
 
-/// The crossings of a lattice's edges, by edge key ([`Lattice::edge_key`]). Saved as a
+/// The crossings of a lattice's edges, by edge key ([`Lattice::edge_key`](crate::body::lattice::Lattice::edge_key)). Saved as a
 /// list ascending by key, so that a save does not depend on the map's order.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Crossings(FxHashMap<u32, Crossing>);

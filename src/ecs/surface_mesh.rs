@@ -142,7 +142,7 @@ impl SurfaceMesh {
     }
 }
 
-/// A surface as a save keeps it ([`SurfaceMesh::saved`]): the topology, the carriers'
+/// A surface as a save keeps it: the topology, the carriers'
 /// frames and last positions, the render mesh and options, and what the stage last saw
 /// — so that a loaded simulation draws, and goes on drawing, exactly what the saved one
 /// would have. The carriers' layout is derived again on loading.
