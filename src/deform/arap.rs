@@ -35,7 +35,7 @@ use rayon::prelude::*;
 const MAX_FIT_ITERATIONS: u32 = 64;
 
 /// When to stop iterating.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ArapOptions {
     /// Stop when an iteration lowers the energy by less than this fraction of it.
     pub tolerance: f64,

@@ -10,7 +10,7 @@ use crate::error::{CleaveError, Result};
 use glam::{Affine3A, Vec3};
 
 /// One handle of a body: which particles it moves.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Handle {
     /// One particle, moved to a target position.
     Point(u32),
@@ -37,7 +37,7 @@ impl Handle {
 }
 
 /// Where a handle is asked to go.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum HandleTarget {
     /// A point handle's particle goes to this position.
     Point(Vec3),

@@ -24,7 +24,7 @@ use bevy_ecs::prelude::*;
 use glam::{DMat3, Vec3};
 
 /// How a posed body follows its handles.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum PoseMethod {
     /// The linear subspace's pose `V̄ + W ΔH` (SPEC §6.3).
     #[default]
@@ -94,6 +94,19 @@ pub struct HandlePose {
     pub(crate) poser: Poser,
     /// The lattice's live particles and links when the subspace was computed.
     pub(crate) topology: (usize, usize),
+}
+
+/// A [`HandlePose`] as a save keeps it (see [`HandlePose::saved`]).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub(crate) struct SavedHandlePose {
+    handles: Vec<Handle>,
+    paths: Vec<HandlePath>,
+    targets: Vec<HandleTarget>,
+    method: PoseMethod,
+    rest: Vec<Vec3>,
+    topology: (usize, usize),
+    /// Reduced ARAP's parameters and rotations of the last frame.
+    warm: Option<(Vec<Vec3>, Vec<DMat3>)>,
 }
 
 /// Checks a body's handle descriptions (finite regions, compliances, paths); errors
@@ -355,8 +368,32 @@ impl HandlePose {
     /// After a cut: the handles keep their surviving particles (a handle left with none
     /// is dropped, with its path) and the subspace is computed again for the pieces.
     pub(crate) fn rebuild(&mut self, lattice: &Lattice, memory: u64) -> Result<()> {
+        let handles = self.set.handles().to_vec();
+        *self = Self::surviving(
+            handles,
+            self.paths.clone(),
+            self.targets.clone(),
+            self.method,
+            self.rest.clone(),
+            lattice,
+            memory,
+        )?;
+        Ok(())
+    }
+
+    /// The pose of `handles` (with their paths and targets) on `lattice` as it is now:
+    /// each handle keeps its live particles, a handle with none is dropped.
+    fn surviving(
+        handles: Vec<Handle>,
+        paths: Vec<HandlePath>,
+        targets: Vec<HandleTarget>,
+        method: PoseMethod,
+        rest: Vec<Vec3>,
+        lattice: &Lattice,
+        memory: u64,
+    ) -> Result<Self> {
         let mut kept = Vec::new();
-        for (k, h) in self.set.handles().iter().enumerate() {
+        for ((h, path), target) in handles.into_iter().zip(paths).zip(targets) {
             let live: Vec<u32> = h
                 .particles()
                 .iter()
@@ -370,16 +407,81 @@ impl HandlePose {
                 Handle::Point(_) => Handle::Point(live[0]),
                 Handle::Region(_) => Handle::Region(live),
             };
-            kept.push((handle, self.paths[k].clone(), self.targets[k]));
+            kept.push((handle, path, target));
         }
         let set = HandleSet::new(lattice, kept.iter().map(|k| k.0.clone()).collect(), &[])?;
-        let poser = precompute(lattice, &self.rest, &set, self.method, memory)?;
-        self.paths = kept.iter().map(|k| k.1.clone()).collect();
-        self.targets = kept.iter().map(|k| k.2).collect();
-        self.set = set;
-        self.poser = poser;
-        self.topology = signature(lattice);
-        Ok(())
+        let poser = precompute(lattice, &rest, &set, method, memory)?;
+        Ok(HandlePose {
+            set,
+            paths: kept.iter().map(|k| k.1.clone()).collect(),
+            targets: kept.iter().map(|k| k.2).collect(),
+            method,
+            rest,
+            poser,
+            topology: signature(lattice),
+        })
+    }
+
+    /// The pose as a save keeps it: what it was given and what it carries from frame
+    /// to frame (the subspace is computed again on loading).
+    pub(crate) fn saved(&self) -> SavedHandlePose {
+        SavedHandlePose {
+            handles: self.set.handles().to_vec(),
+            paths: self.paths.clone(),
+            targets: self.targets.clone(),
+            method: self.method,
+            rest: self.rest.clone(),
+            topology: self.topology,
+            warm: match &self.poser {
+                Poser::Reduced { dh, rotations, .. } => Some((dh.clone(), rotations.clone())),
+                _ => None,
+            },
+        }
+    }
+
+    /// The pose a save kept, on the loaded `lattice`: the subspace computed again as
+    /// the saved one was. When a cut changed the body after the pose last saw it, the
+    /// pose is rebuilt at once, as the saved run's next frame would have.
+    pub(crate) fn restore(saved: SavedHandlePose, lattice: &Lattice, memory: u64) -> Result<Self> {
+        let SavedHandlePose {
+            handles,
+            mut paths,
+            targets,
+            method,
+            rest,
+            topology,
+            warm,
+        } = saved;
+        let n = handles.len();
+        let rest_fits = rest.len() <= lattice.len() && rest.iter().all(|x| x.is_finite());
+        let targets_finite = targets.iter().all(|t| match t {
+            HandleTarget::Point(x) => x.is_finite(),
+            HandleTarget::Affine(map) => map.is_finite(),
+        });
+        if paths.len() != n || targets.len() != n || !rest_fits || !targets_finite {
+            return Err(CleaveError::InvalidEntity(
+                "handle pose: its handles, paths, targets and rest places disagree".into(),
+            ));
+        }
+        for path in &mut paths {
+            path.validate("handle pose", false)?;
+        }
+        let mut pose = Self::surviving(handles, paths, targets, method, rest, lattice, memory)?;
+        if pose.topology == topology
+            && let (Poser::Reduced { dh, rotations, .. }, Some((warm_dh, warm_rotations))) =
+                (&mut pose.poser, warm)
+        {
+            let finite = warm_dh.iter().all(|v| v.is_finite())
+                && warm_rotations.iter().all(|r| r.is_finite());
+            if !(finite && warm_dh.len() == dh.len() && warm_rotations.len() == rotations.len()) {
+                return Err(CleaveError::InvalidEntity(
+                    "handle pose: the reduced solve's last frame does not fit it".into(),
+                ));
+            }
+            *dh = warm_dh;
+            *rotations = warm_rotations;
+        }
+        Ok(pose)
     }
 
     /// Where the body's particles go for the current targets (by index). Reduced ARAP

@@ -2,7 +2,8 @@
 //! on — settings, clock, random stream, bodies with their lattices and clusters,
 //! particles, attachments, tools, colliders, the solver's own state (its cluster
 //! layout, in the order a run's cuts left it, and its warm starts) and the bodies'
-//! drawable surfaces (their triangles, render meshes and carriers' frames) — in a
+//! drawable surfaces (their triangles, render meshes and carriers' frames) and the
+//! handles of posed bodies (with their pose method) — in a
 //! compact binary file. A run that is
 //! saved, loaded and continued is bit for bit the run that was never interrupted.
 //!
@@ -25,6 +26,7 @@
 use crate::config::SimConfig;
 use crate::ecs::check::check_invariants;
 use crate::ecs::components::*;
+use crate::ecs::handles::{HandlePose, SavedHandlePose};
 use crate::ecs::resources::{
     BodyDense, ClusterSlots, CutReport, PendingTopology, SceneLabel, SimClock, SimRng, SimSettings,
     SolverCache,
@@ -36,6 +38,7 @@ use crate::solver::clusters::term::ClusterTerm;
 use crate::solver::particles::Particles;
 use crate::solver::schemes::gauss_seidel::GaussSeidel;
 use crate::solver::terms::oriented::{Oriented, SavedGroups};
+use crate::solver::terms::patches::{Patches, SavedPatches};
 use crate::systems::{SyncSchedule, install};
 use bevy_ecs::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -51,6 +54,8 @@ struct BodyState {
     clusters: ParticleClusters,
     /// Its drawable surface, when it keeps one.
     surface: Option<SavedSurface>,
+    /// Its handles, when it is posed by them.
+    pose: Option<SavedHandlePose>,
 }
 
 /// A particle entity.
@@ -110,6 +115,8 @@ struct CacheState {
     gauss_seidel: GaussSeidel,
     /// The oriented particles' warm start and plastic rest shapes.
     oriented: SavedGroups,
+    /// The patches' fitted rotations.
+    patches: SavedPatches,
     particles: Particles,
     entities: Vec<Entity>,
     locals: Vec<u32>,
@@ -196,15 +203,19 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
             &BodyLattice,
             &ParticleClusters,
             Option<&SurfaceMesh>,
+            Option<&HandlePose>,
         )>()
         .iter(world)
-        .map(|(entity, body, lattice, clusters, surface)| BodyState {
-            entity,
-            body: body.clone(),
-            lattice: lattice.clone(),
-            clusters: clusters.clone(),
-            surface: surface.map(SurfaceMesh::saved),
-        })
+        .map(
+            |(entity, body, lattice, clusters, surface, pose)| BodyState {
+                entity,
+                body: body.clone(),
+                lattice: lattice.clone(),
+                clusters: clusters.clone(),
+                surface: surface.map(SurfaceMesh::saved),
+                pose: pose.map(HandlePose::saved),
+            },
+        )
         .collect();
     bodies.sort_unstable_by_key(|b| b.entity);
     let particles = world
@@ -301,6 +312,12 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
                 .get::<Oriented>()
                 .map(Oriented::saved)
                 .unwrap_or_default(),
+            patches: cache
+                .solver
+                .terms
+                .get::<Patches>()
+                .map(Patches::saved)
+                .unwrap_or_default(),
             particles: cache.particles.clone(),
             entities: cache.entities.clone(),
             locals: cache.locals.clone(),
@@ -380,6 +397,7 @@ fn restore(snapshot: Snapshot) -> Result<World> {
         label,
     } = snapshot;
     config.validate()?;
+    let memory = config.memory_budget_bytes();
     let mut loaded = World::new();
     // The saving world's entity indices are never handed out here (reserved, never
     // spawned), so an entity kept from before the save names nothing in the loaded world
@@ -398,9 +416,10 @@ fn restore(snapshot: Snapshot) -> Result<World> {
     install(&mut loaded, config);
     let world = &mut loaded;
     let mut map = EntityMap(HashMap::new());
-    // bodies first, in their saved order, so that new ids keep their order
-    for b in &bodies {
-        map.0.insert(b.entity, world.spawn_empty().id());
+    // bodies first, their new ids in the saved ids' order (the solver finds bodies by
+    // it)
+    for (b, e) in bodies.iter().zip(spawn_ascending(world, bodies.len())) {
+        map.0.insert(b.entity, e);
     }
     for p in particles {
         let finite = p.position.0.is_finite()
@@ -453,12 +472,15 @@ fn restore(snapshot: Snapshot) -> Result<World> {
         }
         handles.0.push((c.entity, e.id()));
     }
-    for a in attachments {
+    // (attachments reach their terms in entity order: saved ascending, so spawned)
+    let ids = spawn_ascending(world, attachments.len());
+    for (a, id) in attachments.into_iter().zip(ids) {
         let attachment = Attachment {
             body: map.required(a.attachment.body, "an attachment")?,
             ..a.attachment
         };
-        let mut e = world.spawn((attachment, a.target));
+        let mut e = world.entity_mut(id);
+        e.insert((attachment, a.target));
         if let Some(path) = a.path {
             e.insert(path);
         }
@@ -493,10 +515,18 @@ fn restore(snapshot: Snapshot) -> Result<World> {
             .map(|s| SurfaceMesh::restore(s, &lattice.lattice))
             .transpose()
             .map_err(|e| invalid(format!("bodies: body {i}: surface: {e}")))?;
+        let pose = b
+            .pose
+            .map(|p| HandlePose::restore(p, &lattice.lattice, memory))
+            .transpose()
+            .map_err(|e| invalid(format!("bodies: body {i}: handles: {e}")))?;
         let mut entity = world.entity_mut(body);
         entity.insert((b.body, lattice, clusters));
         if let Some(surface) = surface {
             entity.insert(surface);
+        }
+        if let Some(pose) = pose {
+            entity.insert(pose);
         }
         handles.0.push((b.entity, body));
     }
@@ -519,6 +549,15 @@ fn restore(snapshot: Snapshot) -> Result<World> {
         return Err(invalid(format!("inconsistent: {v}")));
     }
     Ok(loaded)
+}
+
+/// `count` new empty entities, ascending. The allocator hands out freed ids last
+/// freed first, so entities spawned one after another need not ascend; what the
+/// engine orders by entity must come back in the saved order.
+fn spawn_ascending(world: &mut World, count: usize) -> Vec<Entity> {
+    let mut ids: Vec<Entity> = (0..count).map(|_| world.spawn_empty().id()).collect();
+    ids.sort_unstable();
+    ids
 }
 
 /// Puts the saved solver state in `world`'s cache, with its entities mapped.
@@ -575,6 +614,9 @@ fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Resul
     cache.solver.gauss_seidel = saved.gauss_seidel;
     if let Some(term) = cache.solver.terms.get_mut::<Oriented>() {
         term.resume(oriented);
+    }
+    if let Some(term) = cache.solver.terms.get_mut::<Patches>() {
+        term.resume(saved.patches);
     }
     cache.particles = saved.particles;
     cache.slot_of = ClusterSlots::from_clusters(&clusters);

@@ -394,7 +394,8 @@ mod tests {
             Triplet::new(3, 3, 5.0),
         ];
         let diagonal: Vec<_> = (0..6).map(|i| Triplet::new(i, i, 1.0 + i as f64)).collect();
-        let cases: Vec<(usize, Vec<Triplet<usize, usize, f64>>)> = vec![
+        type Entries = Vec<Triplet<usize, usize, f64>>;
+        let cases: Vec<(usize, Entries)> = vec![
             (1, vec![Triplet::new(0, 0, 4.0)]),
             (6, diagonal),
             (4, pair_and_singles),

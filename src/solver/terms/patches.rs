@@ -74,6 +74,17 @@ struct BodyPatches {
 pub struct Patches {
     /// By body id; bodies without patch constraints are absent.
     bodies: Vec<BodyPatches>,
+    /// A saved state to take up at the next topology change.
+    resumed: Option<SavedPatches>,
+}
+
+/// What a saved simulation keeps of the term: each body's last fitted rotations, the
+/// fits' warm start (everything else is found again on the lattices). Without them a
+/// loaded run would fit from no turn and part from the run that went on.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct SavedPatches {
+    /// Body after body: whether its patches were fitted, and each patch's rotation.
+    pub bodies: Vec<(bool, Vec<Quat>)>,
 }
 
 impl Patches {
@@ -85,6 +96,24 @@ impl Patches {
     /// Whether there are none.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+
+    /// What a saved simulation keeps of the term (see [`SavedPatches`]).
+    pub fn saved(&self) -> SavedPatches {
+        SavedPatches {
+            bodies: self
+                .bodies
+                .iter()
+                .map(|b| (b.fitted, b.rotations.clone()))
+                .collect(),
+        }
+    }
+
+    /// Takes up a saved state ([`Patches::saved`]) at the next topology change: a
+    /// loaded simulation's first, which finds the same patches on the same lattices (a
+    /// body whose count differs, which only a damaged file gives, starts unfitted).
+    pub fn resume(&mut self, saved: SavedPatches) {
+        self.resumed = Some(saved);
     }
 }
 
@@ -214,6 +243,14 @@ impl Term for Patches {
     fn topology(&mut self, change: &Topology) {
         let kept = std::mem::take(&mut self.bodies);
         self.bodies = change.rebuild_bodies(kept, |b| b.id, body_patches);
+        let saved = self.resumed.take().unwrap_or_default();
+        for (body, (fitted, rotations)) in self.bodies.iter_mut().zip(saved.bodies) {
+            let fits = rotations.len() == body.rotations.len()
+                && rotations.iter().all(|q| q.is_finite() && q.is_normalized());
+            if fits {
+                (body.fitted, body.rotations) = (fitted, rotations);
+            }
+        }
     }
 
     fn begin_substep(&mut self, _step: &Substep, _state: &mut ParticleState) {
