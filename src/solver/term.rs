@@ -164,13 +164,24 @@ impl Topology<'_> {
         id: impl Fn(&T) -> u64,
         mut build: impl FnMut(&BodyTopology) -> Option<T>,
     ) -> Vec<T> {
+        self.rebuild_bodies_from(kept, id, |body, _| build(body))
+    }
+
+    /// [`Topology::rebuild_bodies`], with `build` given the body's entry before the
+    /// change (if it had one), for a term that carries state across it.
+    pub fn rebuild_bodies_from<T>(
+        &self,
+        kept: Vec<T>,
+        id: impl Fn(&T) -> u64,
+        mut build: impl FnMut(&BodyTopology, Option<T>) -> Option<T>,
+    ) -> Vec<T> {
         let mut out = Vec::with_capacity(self.bodies.len());
         let mut old = kept.into_iter().peekable();
         for body in self.bodies {
             while old.next_if(|o| id(o) < body.id).is_some() {}
             match old.next_if(|o| id(o) == body.id) {
                 Some(entry) if !body.changed && !self.relaid => out.push(entry),
-                _ => out.extend(build(body)),
+                entry => out.extend(build(body, entry)),
             }
         }
         out

@@ -17,6 +17,7 @@ use crate::body::lattice::NO_PARTICLE;
 use crate::config::{Material, Yield};
 use crate::solver::term::{BodyTopology, NO_DENSE};
 use glam::{IVec3, Vec3A};
+use std::collections::HashMap;
 
 /// Colours of the implicit groups.
 pub const IMPLICIT_COLOURS: usize = 13;
@@ -187,6 +188,39 @@ impl BodyGroups {
         out.plastic = Plasticity::of(body.material, &out.rest);
         out.batches = out.batched();
         Some(out)
+    }
+
+    /// Takes the plastic rest shapes of `old`, the body's groups before a change, for
+    /// every group whose members are the same particles in the same order (matched by
+    /// their lattice rest positions, which dense indices renumbered by a new layout do
+    /// not change): a cut loses only the dents of the groups it touches.
+    pub fn keep_dents(&mut self, old: &BodyGroups) {
+        let (Some(new_plastic), Some(old_plastic)) = (&self.plastic, &old.plastic) else {
+            return;
+        };
+        let key = |lattice_rest: &[Vec3A], g: &Group| {
+            let first = lattice_rest[g.range[0] as usize];
+            (first.to_array().map(f32::to_bits), g.range[1] - g.range[0])
+        };
+        let before: HashMap<([u32; 3], u32), &Group> = old
+            .groups
+            .iter()
+            .map(|g| (key(&old_plastic.lattice_rest, g), g))
+            .collect();
+        let mut kept = false;
+        for g in &self.groups {
+            let Some(was) = before.get(&key(&new_plastic.lattice_rest, g)) else {
+                continue;
+            };
+            let (now, then) = (self.range(g), old.range(was));
+            if new_plastic.lattice_rest[now.clone()] == old_plastic.lattice_rest[then.clone()] {
+                self.rest[now].copy_from_slice(&old.rest[then]);
+                kept = true;
+            }
+        }
+        if kept {
+            self.batches.refresh_rest(&self.rest);
+        }
     }
 
     /// The implicit groups in batches (every colour whose groups have a centre).

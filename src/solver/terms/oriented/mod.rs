@@ -217,7 +217,17 @@ impl Term for Oriented {
     /// lattice again; forgets the bodies that are gone.
     fn topology(&mut self, change: &Topology) {
         let kept = std::mem::take(&mut self.bodies);
-        self.bodies = change.rebuild_bodies(kept, |b| b.id, BodyGroups::build);
+        self.bodies = change.rebuild_bodies_from(
+            kept,
+            |b| b.id,
+            |body, old| {
+                let mut groups = BodyGroups::build(body)?;
+                if let Some(old) = old {
+                    groups.keep_dents(&old);
+                }
+                Some(groups)
+            },
+        );
         self.version += 1;
         // (dense indices and groups changed: the last moves no longer fit, unless they
         // were saved with this very layout)
