@@ -127,6 +127,18 @@ pub fn check_positive(field: &str, value: f32) -> Result<()> {
     }
 }
 
+/// Checks a length a user gives (metres): finite, above 0 and at most
+/// [`MAX_COORDINATE`], as every position is.
+pub fn check_length(field: &str, value: f32) -> Result<()> {
+    check_range(
+        field,
+        value,
+        f32::MIN_POSITIVE,
+        MAX_COORDINATE,
+        "0 < length ≤ 1e6 (metres)",
+    )
+}
+
 /// Largest coordinate (metres) of any position a user gives: far beyond any scene, and
 /// far below where single precision loses the lattice spacing.
 pub const MAX_COORDINATE: f32 = 1e6;

@@ -3,7 +3,7 @@
 //! tool cannot skip particles and cuts what a slow one cuts along the same path.
 
 use crate::error::{
-    MAX_COORDINATE, MAX_SPEED, Result, check_positive, check_vec_within, out_of_range,
+    MAX_COORDINATE, MAX_SPEED, Result, check_length, check_vec_within, out_of_range,
 };
 use crate::geometry::convex::{self, Convex};
 use crate::math::rotation::unit_quaternion;
@@ -101,23 +101,23 @@ impl ToolShape {
         }
     }
 
-    /// Checks that every size is finite and positive.
+    /// Checks that every size is a length (finite, positive, at most 1e6 m).
     pub fn validate(&self) -> Result<()> {
         match *self {
-            ToolShape::Sphere { radius } => check_positive("tool.radius", radius),
+            ToolShape::Sphere { radius } => check_length("tool.radius", radius),
             ToolShape::Capsule {
                 radius,
                 half_length,
             } => {
-                check_positive("tool.radius", radius)?;
-                check_positive("tool.half_length", half_length)
+                check_length("tool.radius", radius)?;
+                check_length("tool.half_length", half_length)
             }
             ToolShape::Blade {
                 half_width,
                 half_height,
             } => {
-                check_positive("tool.half_width", half_width)?;
-                check_positive("tool.half_height", half_height)
+                check_length("tool.half_width", half_width)?;
+                check_length("tool.half_height", half_height)
             }
         }
     }

@@ -7,8 +7,14 @@ use super::handles::{Handle, HandleTarget};
 use crate::error::{CleaveError, MAX_COORDINATE, Result, check_vec_within};
 use glam::{Affine3A, Quat, Vec3};
 
+/// The smallest scale a key may give along an axis.
+pub const MIN_SCALE: f32 = 1e-3;
+
+/// The largest scale a key may give along an axis.
+pub const MAX_SCALE: f32 = 1e3;
+
 /// One key of a handle's path.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct HandleKey {
     /// Where the handle's rest centroid (a point handle's particle) goes.
     pub position: Vec3,
@@ -42,7 +48,7 @@ impl HandleKey {
 
 /// A handle's keyframes `(time in seconds, key)`, times strictly ascending; before the
 /// first key the handle is at the first, after the last at the last.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct HandlePath {
     /// The keys.
     pub keys: Vec<(f32, HandleKey)>,
@@ -82,8 +88,10 @@ impl HandlePath {
                 );
             }
             key.rotation /= length;
-            if !(key.scale.is_finite() && key.scale.min_element() > 0.0) {
-                return bad("scale", format!("{}", key.scale), "finite and > 0");
+            // a scale moves particles by itself times their distance from the centroid:
+            // past a thousandfold they leave any scene, and no finite body survives it
+            if !(key.scale.min_element() >= MIN_SCALE && key.scale.max_element() <= MAX_SCALE) {
+                return bad("scale", format!("{}", key.scale), "1e-3 ≤ each ≤ 1e3");
             }
             if point && !key.is_rigid_translation() {
                 return bad(

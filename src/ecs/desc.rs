@@ -219,6 +219,9 @@ pub struct ColliderDesc {
     pub path: Path,
 }
 
+/// The most frames a run may be asked for, in a scene file or on the command line.
+pub const MAX_FRAMES: u32 = 10_000_000;
+
 /// A runnable scene.
 #[derive(Clone, Debug)]
 pub struct Scene {

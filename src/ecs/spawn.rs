@@ -15,7 +15,7 @@ use crate::ecs::groups::cluster_compliance;
 use crate::ecs::resources::*;
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::{
-    CleaveError, MAX_COORDINATE, MAX_SPEED, Result, check_finite_vec, check_positive, check_range,
+    CleaveError, MAX_COORDINATE, MAX_SPEED, Result, check_finite_vec, check_length, check_range,
     check_vec_within,
 };
 use crate::math::rotation::unit_quaternion;
@@ -27,7 +27,7 @@ use glam::Vec3;
 /// Spawns a cutting tool into any world prepared with [`crate::systems::install`].
 pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
     desc.shape.validate()?;
-    check_positive("tool.cut_width", desc.cut_width)?;
+    check_length("tool.cut_width", desc.cut_width)?;
     let (pose, path) = starting_pose(world, "tool", &desc.path, desc.pose)?;
     let tool = Tool {
         shape: desc.shape,

@@ -101,6 +101,7 @@ impl Interaction {
             (far + 2.0 * spacing).min(MAX_COORDINATE),
         )?;
         let mut poses: VecDeque<Pose> = cut.poses.into();
+        // a stroke has a pose per frame plus its start, at least two
         let start = poses.pop_front().expect("a sweep has poses");
         let tool = sim.spawn_tool(&ToolDesc {
             shape: cut.shape,

@@ -149,6 +149,8 @@ pub fn clip(
             continue;
         }
         // the vertex alone on its side first: (lone, a, b) in the triangle's winding
+        // (the triangle is not all one side, so two sides leave one vertex alone and
+        // three leave every vertex alone)
         let k = (0..3)
             .find(|&k| s[k] != s[(k + 1) % 3] && s[k] != s[(k + 2) % 3])
             .expect("one vertex alone");

@@ -36,7 +36,7 @@ struct RunFlags {
     /// Built-in scene name (see `cleave scenes`) or a `.ron` scene file.
     scene: String,
     /// Frames to simulate (default: the scene's; 0 for `cleave relax`).
-    #[arg(long, value_parser = whole::<u32>, allow_negative_numbers = true)]
+    #[arg(long, value_parser = frame_count, allow_negative_numbers = true)]
     frames: Option<u32>,
     /// Output directory for summary.json.
     #[arg(long, default_value = "out")]
@@ -136,9 +136,10 @@ enum Command {
         flags: RunFlags,
         /// How a posed body follows its handles: `linear` (the linear subspace `V̄ +
         /// W ΔH`), `arap` (as rigid as possible, from the subspace's pose) or `reduced`
-        /// (ARAP in the subspace of the handles and 24 automatic ones).
-        #[arg(long, value_enum, default_value = "linear")]
-        method: MethodArg,
+        /// (ARAP in the subspace of the handles and 24 automatic ones). Default: linear,
+        /// or with `--load-state` the method the saved run posed by.
+        #[arg(long, value_enum)]
+        method: Option<MethodArg>,
     },
     /// Compare cut bodies' rebuilt clusters with fresh clusterings of the same geometry:
     /// a block cut N times (cluster counts, sizes, memberships, extents) and the
@@ -190,7 +191,7 @@ enum Command {
         #[arg(long, default_value_t = 32, value_parser = whole::<u32>, allow_negative_numbers = true)]
         convergence_size: u32,
         /// With `--convergence`: wall-clock budget of each run, in seconds.
-        #[arg(long, default_value_t = 120.0)]
+        #[arg(long, default_value_t = 120.0, value_parser = budget_seconds, allow_negative_numbers = true)]
         budget: f64,
         /// Substeps per frame (step).
         #[arg(long, default_value_t = 2, value_parser = whole::<u32>, allow_negative_numbers = true)]
@@ -202,7 +203,7 @@ enum Command {
         #[arg(long, default_value_t = 0.025)]
         pile_spacing: f32,
         /// Frames of the contact row.
-        #[arg(long, default_value_t = 160, value_parser = whole::<u32>, allow_negative_numbers = true)]
+        #[arg(long, default_value_t = 160, value_parser = frame_count, allow_negative_numbers = true)]
         pile_frames: u32,
         /// Skip the contact row.
         #[arg(long)]
@@ -326,7 +327,12 @@ where
 }
 
 /// `cleave run`, or with `relax` `cleave relax`.
-fn run_command(flags: RunFlags, relax: bool, pose: Option<PoseMethod>) -> Result<(), String> {
+fn run_command(
+    flags: RunFlags,
+    relax: bool,
+    pose: Option<PoseMethod>,
+    method_given: bool,
+) -> Result<(), String> {
     let RunFlags {
         scene,
         frames,
@@ -358,6 +364,7 @@ fn run_command(flags: RunFlags, relax: bool, pose: Option<PoseMethod>) -> Result
         scene,
         relax,
         pose,
+        method_given,
         recluster_at,
         overrides: run::SceneOverrides {
             solver,
@@ -376,10 +383,15 @@ fn run_command(flags: RunFlags, relax: bool, pose: Option<PoseMethod>) -> Result
         pictures: pictures::PictureOptions {
             png_every,
             gif_every,
-            ply_every: if export.contains(&ExportArg::Ply) {
-                ply_every
-            } else {
-                0
+            ply_every: match (export.contains(&ExportArg::Ply), ply_every) {
+                (true, 0) => {
+                    return Err(
+                        "--export ply with --ply-every 0 would write no point cloud: give --ply-every N"
+                            .into(),
+                    );
+                }
+                (true, every) => every,
+                (false, _) => 0,
             },
             obj: export.contains(&ExportArg::Obj),
             gltf: export.contains(&ExportArg::Gltf),
@@ -430,15 +442,16 @@ fn main() -> ExitCode {
             print!("{}", file.to_ron());
             Ok(())
         }),
-        Command::Run(flags) => run_command(flags, false, None),
-        Command::Relax(flags) => run_command(flags, true, None),
+        Command::Run(flags) => run_command(flags, false, None, false),
+        Command::Relax(flags) => run_command(flags, true, None, false),
         Command::Deform { flags, method } => {
-            let method = match method {
+            let given = method.is_some();
+            let method = match method.unwrap_or(MethodArg::Linear) {
                 MethodArg::Linear => PoseMethod::Linear,
                 MethodArg::Arap => PoseMethod::Arap(Default::default()),
                 MethodArg::Reduced => PoseMethod::reduced(),
             };
-            run_command(flags, false, Some(method))
+            run_command(flags, false, Some(method), given)
         }
         Command::Fidelity {
             cuts,
@@ -540,6 +553,27 @@ fn main() -> ExitCode {
 
 /// A whole number of type `T` from a flag's text; refuses a fraction, a negative number
 /// or one too large with the range allowed (clap names the flag).
+/// A wall-clock budget in seconds: above 0, at most a day.
+fn budget_seconds(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(s) if s > 0.0 && s <= 86_400.0 => Ok(s),
+        _ => Err(format!(
+            "{text} is out of range (allowed: seconds, 0 < budget ≤ 86400)"
+        )),
+    }
+}
+
+/// A count of frames: a whole number no larger than a scene file's `frames` may be.
+fn frame_count(text: &str) -> Result<u32, String> {
+    use cleave::ecs::desc::MAX_FRAMES;
+    match whole::<u32>(text) {
+        Ok(n) if n <= MAX_FRAMES => Ok(n),
+        _ => Err(format!(
+            "{text} is out of range (allowed: a whole number, 0 to {MAX_FRAMES})"
+        )),
+    }
+}
+
 fn whole<T: TryFrom<u64>>(text: &str) -> Result<T, String> {
     let range = || {
         let max = (0..=u64::MAX.count_ones())

@@ -60,6 +60,13 @@ impl Pictures {
                 options.width, options.height
             ));
         }
+        // the meshes are written with the pictures: without pictures, nothing would be
+        if (options.obj || options.gltf) && options.png_every == 0 {
+            return Err(
+                "--export obj/gltf writes the surfaces with every PNG, and --png-every 0 writes none: give --png-every N"
+                    .into(),
+            );
+        }
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("cannot create `{}`: {e}", dir.display()))?;
         let wanted = [

@@ -13,7 +13,7 @@ use cleave::cut::tool::CutMode;
 use cleave::ecs::check::check_invariants;
 use cleave::ecs::components::BodyLattice;
 use cleave::ecs::desc::Scene;
-use cleave::ecs::handles::PoseMethod;
+use cleave::ecs::handles::{HandlePose, PoseMethod};
 use cleave::ecs::resources::{CutReport, CutTimings, ParticlesCut, SolverCache};
 use cleave::io::dump::dump_world;
 use cleave::io::render::Draw;
@@ -109,6 +109,9 @@ pub struct RunArgs {
     /// Pose the bodies with handles by them (`cleave deform`) instead of simulating
     /// them driven by them.
     pub pose: Option<PoseMethod>,
+    /// Whether `--method` was given (a resumed `cleave deform` otherwise keeps the
+    /// method its save holds).
+    pub method_given: bool,
     /// Frame after which every body is clustered afresh.
     pub recluster_at: Option<u32>,
     /// Solver settings overriding the scene's.
@@ -141,7 +144,7 @@ fn start(
     pose: Option<PoseMethod>,
 ) -> Result<(Simulation, Vec<Entity>), String> {
     let mut sim = Simulation::new(scene.config.clone()).map_err(|e| e.to_string())?;
-    sim.set_label(scene_name);
+    sim.set_label(scene_label(scene_name));
     let fail = |what: &str, i: usize, e: cleave::error::CleaveError| {
         let at = std::fs::read_to_string(scene_name)
             .ok()
@@ -179,6 +182,7 @@ fn resume(
     path: &Path,
     args: &RunArgs,
     seed_given: bool,
+    scene: &Scene,
 ) -> Result<(Simulation, Vec<Entity>), String> {
     let o = &args.overrides;
     let conflicting = [
@@ -199,16 +203,66 @@ fn resume(
     let mut sim = Simulation::load(std::io::BufReader::new(file))
         .map_err(|e| format!("{}: {e}", path.display()))?;
     if let Some(saved) = sim.label()
-        && saved != args.scene
+        && scene_label(saved) != scene_label(&args.scene)
     {
         return Err(format!(
             "--load-state: {} holds a run of scene `{saved}`, not `{}`",
             path.display(),
-            args.scene
+            scene_label(&args.scene)
         ));
     }
     let bodies = sim.bodies();
+    check_posing(&sim, &bodies, args, scene).map_err(|e| format!("--load-state: {e}"))?;
     Ok((sim, bodies))
+}
+
+/// What names a scene in a save: a scene file by its canonical path (however it was
+/// typed, from wherever), a built-in scene by its name.
+fn scene_label(name: &str) -> String {
+    match std::fs::canonicalize(name) {
+        Ok(path) if path.is_file() => path.display().to_string(),
+        _ => name.to_string(),
+    }
+}
+
+/// A resumed run goes on as the saved one would have: posed by handles with the saved
+/// method under `cleave deform`, simulated under `cleave run`.
+fn check_posing(
+    sim: &Simulation,
+    bodies: &[Entity],
+    args: &RunArgs,
+    scene: &Scene,
+) -> Result<(), String> {
+    let method_name = |m: &PoseMethod| match m {
+        PoseMethod::Linear => "linear",
+        PoseMethod::Arap(_) => "arap",
+        PoseMethod::Reduced { .. } => "reduced",
+    };
+    let posed: Vec<&PoseMethod> = bodies
+        .iter()
+        .filter_map(|b| sim.world().get::<HandlePose>(*b))
+        .map(|p| &p.method)
+        .collect();
+    let has_handles = scene.bodies.iter().any(|b| !b.handles.is_empty());
+    match (&args.pose, posed.first()) {
+        (None, Some(_)) => Err(
+            "the saved run poses its bodies by their handles: resume it with `cleave deform`"
+                .into(),
+        ),
+        (Some(_), None) if has_handles => Err(
+            "the saved run simulates its bodies (`cleave run`): resume it with `cleave run`".into(),
+        ),
+        (Some(given), Some(saved))
+            if args.method_given && method_name(given) != method_name(saved) =>
+        {
+            Err(format!(
+                "the saved run poses by `{}`, not `--method {}`",
+                method_name(saved),
+                method_name(given)
+            ))
+        }
+        _ => Ok(()),
+    }
 }
 
 /// Runs the scene and writes the outputs.
@@ -248,7 +302,7 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         ));
     }
     let (mut sim, bodies) = match &args.load_state {
-        Some(path) => resume(path, args, seed_given)?,
+        Some(path) => resume(path, args, seed_given, &scene)?,
         None => start(&scene, scene_name, args.pose)?,
     };
     let seed = sim.config().seed;

@@ -278,7 +278,7 @@ pub fn max_cluster_size<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error
     count(d, 2, 100_000, "max_cluster_size")
 }
 pub fn frames<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    count(d, 0, 10_000_000, "frames")
+    count(d, 0, crate::ecs::desc::MAX_FRAMES, "frames")
 }
 pub fn cells<'de, D: Deserializer<'de>>(d: D) -> Result<UVec3, D::Error> {
     let v = UVec3::deserialize(d)?;

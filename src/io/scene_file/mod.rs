@@ -345,7 +345,8 @@ impl SceneFile {
         // (editors on some systems start UTF-8 files with a byte-order mark)
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let options = ron::Options::default()
-            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
+            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+            .with_recursion_limit(RECURSION_LIMIT);
         let mut de = ron::Deserializer::from_str_with_options(text, &options)
             .map_err(|e| spanned(&e, ""))?;
         let file: Self = serde_path_to_error::deserialize(&mut de).map_err(|e| {
@@ -357,6 +358,10 @@ impl SceneFile {
         Ok(file)
     }
 }
+
+/// The deepest a scene file may nest brackets (RON's default, stated so that the error
+/// can say it): deep enough for any scene, shallow enough for the reader's stack.
+const RECURSION_LIMIT: usize = 128;
 
 /// A handle as a scene file gives it.
 fn handle_file(h: &HandleDesc) -> HandleFile {
@@ -416,6 +421,11 @@ fn spanned(e: &ron::error::SpannedError, path: &str) -> String {
         ron::Error::SuggestRawIdentifier(found) => format!(
             "expected a field name, found `{found}`: fields are named, as in \
              `Sphere(radius: 0.6)`"
+        ),
+        // (RON's own text points a user at serde_stacker, a library's remedy)
+        ron::Error::ExceededRecursionLimit => format!(
+            "nested too deep: a scene file nests brackets at most {RECURSION_LIMIT} deep, \
+             and each shape Union inside another takes three: flatten the unions into one"
         ),
         code => code.to_string(),
     };
