@@ -551,9 +551,10 @@ fn restore(snapshot: Snapshot) -> Result<World> {
     Ok(loaded)
 }
 
-/// `count` new empty entities, ascending. The allocator hands out freed ids last
-/// freed first, so entities spawned one after another need not ascend; what the
-/// engine orders by entity must come back in the saved order.
+/// `count` new empty entities, ascending. Entities order by their bits, in which
+/// bevy stores an index inverted, so entities spawned one after another on fresh
+/// indices descend (and on reused ones may go either way); what the engine orders by
+/// entity must come back in the saved order.
 fn spawn_ascending(world: &mut World, count: usize) -> Vec<Entity> {
     let mut ids: Vec<Entity> = (0..count).map(|_| world.spawn_empty().id()).collect();
     ids.sort_unstable();

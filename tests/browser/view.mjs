@@ -4,6 +4,9 @@
 //                                     second page sees the same simulation, pause
 //                                     stops the frames, bad messages are survived,
 //                                     the scene picker runs a scene's own tools
+//   node view.mjs stopped URL OUT_DIR a panic injected in the simulation (a server
+//                                     started with --test-panic) shows on the page
+//                                     with its reason, and Reset runs the scene again
 //   node view.mjs fps URL             frames per second the page draws, and bytes per
 //                                     frame received, while the simulation runs
 // Prints one JSON line of figures; exits non-zero (with the reason) on a failed check.
@@ -113,6 +116,8 @@ async function checks(browser) {
       '{"cmd":"stroke","eye":[0,1,5],"from":[0,0,-1],"to":[0,0,-1]}',
       '{"cmd":"grab","eye":[0,50,0],"dir":[0,1,0]}', '{"cmd":"drag","eye":[0,0,0],"dir":[0,0,0]}',
       'x'.repeat(100000), new Uint8Array([1, 2, 3])]) ws.send(m);
+    // a flood, which the log sums up instead of echoing
+    for (let i = 0; i < 500; i++) ws.send('garbage');
     await new Promise((resolve) => setTimeout(resolve, 300));
     ws.close();
   });
@@ -127,6 +132,37 @@ async function checks(browser) {
   figures.dice_to_four_pieces_ms = await waitFor('dice in four pieces',
     async () => { const s = await status(); return s.scene === 'dice' && s.pieces === 4; }, 10000);
 
+  check(errors.length === 0, `console errors: ${errors.join(' | ')}`);
+  return figures;
+}
+
+async function stopped(browser) {
+  const errors = [];
+  const page = await open(browser, errors);
+  await page.evaluate(async () => {
+    const ws = new WebSocket(`ws://${location.host}/ws`);
+    await new Promise((resolve) => { ws.onopen = resolve; });
+    ws.send('{"cmd":"panic"}');
+    await new Promise((resolve) => setTimeout(resolve, 200));
+    ws.close();
+  });
+  const figures = {};
+  figures.stopped_shown_ms = await waitFor('the stopped notice',
+    () => page.isVisible('#stopped'), 3000);
+  const notice = await page.textContent('#stopped');
+  check(notice.includes('the test-only panic command'), `the notice says: ${notice}`);
+  await page.screenshot({ path: `${out}/view_stopped.png` });
+  const s = await status();
+  check(s.stopped && !s.playing, `the status after the panic: ${JSON.stringify(s.stopped)}`);
+  // commands other than a reset are refused; a reset starts the scene again
+  await page.click('#play');
+  await sleep(300);
+  check((await status()).stopped, 'play does not run a stopped simulation');
+  await page.click('#reset');
+  await waitFor('the notice gone after a reset', async () => !(await page.isVisible('#stopped')), 3000);
+  await page.click('#play');
+  const frame = (await status()).frame;
+  await waitFor('frames after the reset', async () => (await status()).frame > frame + 10, 5000);
   check(errors.length === 0, `console errors: ${errors.join(' | ')}`);
   return figures;
 }
@@ -153,7 +189,8 @@ async function fps(browser) {
 
 const browser = await chromium.launch({ executablePath, args: ['--enable-unsafe-swiftshader'] });
 try {
-  const figures = mode === 'fps' ? await fps(browser) : await checks(browser);
+  const run = { fps, stopped, check: checks }[mode];
+  const figures = await run(browser);
   console.log(JSON.stringify(figures));
 } catch (e) {
   console.error(`browser check failed: ${e.message}`);

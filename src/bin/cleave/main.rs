@@ -244,9 +244,17 @@ enum Command {
         /// Port to listen on (0: any free port, printed on start).
         #[arg(long, default_value_t = 7878, value_parser = whole::<u16>, allow_negative_numbers = true)]
         port: u16,
-        /// Address to listen on (only this machine by default).
+        /// Address to listen on (only this machine by default). Any other address lets
+        /// the network in: a token is then required (printed in the URL).
         #[arg(long, default_value = "127.0.0.1")]
         host: String,
+        /// The token `/status` and the WebSocket require (`?token=` in the URL); made
+        /// up and printed when `--host` is not a loopback address.
+        #[arg(long, value_parser = token)]
+        token: Option<String>,
+        /// Carry out the test-only `panic` command (the browser test's).
+        #[arg(long, hide = true)]
+        test_panic: bool,
         /// Random seed of the built-in scenes.
         #[arg(long, default_value_t = 0, value_parser = whole::<u64>, allow_negative_numbers = true)]
         seed: u64,
@@ -527,6 +535,8 @@ fn main() -> ExitCode {
             scene,
             port,
             host,
+            token,
+            test_panic,
             seed,
             threads,
         } => with_threads(
@@ -538,6 +548,8 @@ fn main() -> ExitCode {
                     host,
                     seed,
                     threads,
+                    token,
+                    test_panic,
                 })
             },
         ),
@@ -553,6 +565,18 @@ fn main() -> ExitCode {
 
 /// A whole number of type `T` from a flag's text; refuses a fraction, a negative number
 /// or one too large with the range allowed (clap names the flag).
+/// A viewer token: 8 to 128 letters, digits, `-` or `_` (it goes into a URL as is).
+fn token(text: &str) -> Result<String, String> {
+    let fits = (8..=128).contains(&text.len())
+        && text
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+    match fits {
+        true => Ok(text.to_string()),
+        false => Err("allowed: 8 to 128 letters, digits, `-` or `_`".into()),
+    }
+}
+
 /// A wall-clock budget in seconds: above 0, at most a day.
 fn budget_seconds(text: &str) -> Result<f64, String> {
     match text.trim().parse::<f64>() {

@@ -6,9 +6,12 @@
 //! [`cleave::io::stream`]). Every page sees the one simulation.
 //!
 //! Routes: `/` the page, `/page.js` its script, `/status` the latest status (JSON),
-//! `/ws` the WebSocket.
+//! `/ws` the WebSocket. Every request passes the [`guard`] first: only the page this
+//! server serves may drive it.
 
+mod guard;
 mod protocol;
+mod refusals;
 mod runner;
 mod snapshot;
 
@@ -19,7 +22,9 @@ use axum::http::header::CONTENT_TYPE;
 use axum::response::{Html, IntoResponse};
 use axum::routing::get;
 use cleave::io::scene::{BUILTIN_SCENES, builtin};
+use guard::Guard;
 use protocol::{Command, MAX_MESSAGE_BYTES, parse};
+use refusals::Refusals;
 use runner::{Offered, Runner};
 use snapshot::Published;
 use std::sync::Arc;
@@ -45,12 +50,28 @@ pub struct ViewArgs {
     pub seed: u64,
     /// Worker threads of the simulation.
     pub threads: usize,
+    /// The token `/status` and `/ws` need (made up when `host` is not a loopback
+    /// address and none is given).
+    pub token: Option<String>,
+    /// Carry out the test-only `panic` command.
+    pub test_panic: bool,
 }
 
 #[derive(Clone)]
 struct Shared {
     commands: SyncSender<Command>,
     frames: watch::Receiver<Arc<Published>>,
+    refusals: Arc<Refusals>,
+}
+
+/// Whether `host` (as `--host` gives it) is only reachable from this machine.
+fn is_loopback(host: &str) -> bool {
+    host.eq_ignore_ascii_case("localhost")
+        || host
+            .trim_start_matches('[')
+            .trim_end_matches(']')
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(|ip| ip.is_loopback())
 }
 
 /// Serves the page until interrupted; an error (a scene that will not load, a port in
@@ -75,10 +96,15 @@ pub fn view(args: ViewArgs) -> Result<(), String> {
             offered.len() - 1
         }
     };
-    let mut runner = Runner::new(offered, current)?;
+    let mut runner = Runner::new(offered, current, args.test_panic)?;
     let (frames_in, frames) = watch::channel(runner.publish());
     let (commands, commands_out) = std::sync::mpsc::sync_channel(COMMAND_QUEUE);
-    let shared = Shared { commands, frames };
+    let refusals = Arc::new(Refusals::default());
+    let shared = Shared {
+        commands,
+        frames,
+        refusals: refusals.clone(),
+    };
     let app = Router::new()
         .route("/", get(|| async { Html(PAGE) }))
         .route(
@@ -88,6 +114,11 @@ pub fn view(args: ViewArgs) -> Result<(), String> {
         .route("/status", get(status))
         .route("/ws", get(socket))
         .with_state(shared);
+    let token = match args.token {
+        Some(token) => Some(token),
+        None if !is_loopback(&args.host) => Some(format!("{:032x}", rand::random::<u128>())),
+        None => None,
+    };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
         .enable_all()
@@ -101,15 +132,33 @@ pub fn view(args: ViewArgs) -> Result<(), String> {
         let address = listener
             .local_addr()
             .map_err(|e| format!("cannot listen on {host}:{port}: {e}"))?;
+        let guard = Arc::new(Guard::new(address.port(), host, token.clone()));
+        let app = app.layer(axum::middleware::from_fn_with_state(guard, guard::check));
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(args.threads)
             .build()
             .map_err(|e| format!("cannot start {} threads: {e}", args.threads))?;
         std::thread::Builder::new()
             .name("simulation".into())
-            .spawn(move || pool.install(|| runner.run(commands_out, frames_in)))
+            .spawn({
+                let refusals = refusals.clone();
+                move || pool.install(|| runner.run(commands_out, frames_in, &refusals))
+            })
             .map_err(|e| format!("cannot start the simulation: {e}"))?;
-        println!("cleave view: http://{address}/ (Ctrl-C stops)");
+        tokio::spawn(async move {
+            let mut every = tokio::time::interval(refusals::PERIOD);
+            loop {
+                every.tick().await;
+                refusals.flush();
+            }
+        });
+        if !is_loopback(host) {
+            eprintln!(
+                "cleave view: listening on {address}, beyond this machine: anyone on the network who has the URL below (with its token) can watch and drive the simulation"
+            );
+        }
+        let query = token.map_or(String::new(), |t| format!("?token={t}"));
+        println!("cleave view: http://{address}/{query} (Ctrl-C stops)");
         use std::io::Write;
         let _ = std::io::stdout().flush();
         axum::serve(listener, app)
@@ -148,14 +197,14 @@ async fn session(mut ws: WebSocket, shared: Shared) {
                     Ok(command) => match shared.commands.try_send(command) {
                         Ok(()) => {}
                         Err(TrySendError::Full(_)) => {
-                            eprintln!("cleave view: ignored a command: the simulation is busy")
+                            shared.refusals.note("the simulation is busy")
                         }
                         Err(TrySendError::Disconnected(_)) => return,
                     },
-                    Err(e) => eprintln!("cleave view: ignored a message: {e}"),
+                    Err(e) => shared.refusals.note(&e),
                 },
                 Some(Ok(Message::Binary(_))) => {
-                    eprintln!("cleave view: ignored a binary message (commands are JSON text)")
+                    shared.refusals.note("a binary message (commands are JSON text)")
                 }
                 Some(Ok(Message::Close(_))) | None => return,
                 Some(Err(e)) => {

@@ -371,6 +371,10 @@ function onStatus(s) {
   $('clusters').textContent = s.clusters;
   $('pieces').textContent = s.pieces;
   $('play').textContent = s.playing ? 'Pause' : 'Play';
+  // a panic stopped the simulation: say so and why until a reset starts it again
+  const stopped = $('stopped');
+  stopped.hidden = !s.stopped;
+  if (s.stopped) stopped.textContent = `The simulation stopped: ${s.stopped}. Reset starts the scene again.`;
   const select = $('scene');
   if (select.options.length !== s.scenes.length) {
     select.replaceChildren(...s.scenes.map((name) => new Option(name, name)));
@@ -394,7 +398,10 @@ function send(command) {
 }
 
 function connect() {
-  socket = new WebSocket(`ws://${location.host}/ws`);
+  // a server that listens beyond this machine wants its token, which its URL carries
+  const token = new URLSearchParams(location.search).get('token');
+  const query = token ? `?token=${encodeURIComponent(token)}` : '';
+  socket = new WebSocket(`ws://${location.host}/ws${query}`);
   socket.binaryType = 'arraybuffer';
   socket.onopen = () => { $('connection').textContent = 'live'; };
   socket.onclose = () => {

@@ -37,6 +37,10 @@ pub enum Command {
     Drag(Vec3, Vec3),
     /// Let go.
     Release,
+    /// Panic in the simulation thread: only a server started with `--test-panic`
+    /// carries it out (the browser test checks what a page sees when the simulation
+    /// stops); every other refuses it.
+    Panic,
 }
 
 // (commands without fields are empty structs: serde refuses unknown fields only in
@@ -71,6 +75,7 @@ enum Wire {
         dir: [f32; 3],
     },
     Release {},
+    Panic {},
 }
 
 /// Reads a page's message; an error says why it is refused.
@@ -111,6 +116,7 @@ pub fn parse(text: &str) -> Result<Command, String> {
         Wire::Grab { eye, dir } => Command::Grab(vector("eye", eye)?, vector("dir", dir)?),
         Wire::Drag { eye, dir } => Command::Drag(vector("eye", eye)?, vector("dir", dir)?),
         Wire::Release {} => Command::Release,
+        Wire::Panic {} => Command::Panic,
     })
 }
 

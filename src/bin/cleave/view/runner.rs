@@ -2,8 +2,14 @@
 //! pages' commands between frames, steps in real time while playing, and publishes
 //! each frame as one [`Published`] snapshot. Pages read the latest snapshot whenever
 //! they are ready, so a slow page misses frames and never holds the simulation back.
+//!
+//! A panic while carrying out a command, stepping or publishing stops the simulation
+//! (it may be half updated) but not the thread: the last frame is published again with
+//! the reason in its status's `stopped`, which every page shows, and a reset or another
+//! scene starts afresh.
 
 use super::protocol::{Command, cut_mode_name};
+use super::refusals::Refusals;
 use super::snapshot::{self, Published};
 use cleave::cut::tool::CutMode;
 use cleave::ecs::desc::Scene;
@@ -46,12 +52,16 @@ pub struct Runner {
     ms_per_step: f64,
     epoch: u64,
     last: Option<Arc<Published>>,
+    /// Why the simulation stopped, after a panic.
+    stopped: Option<String>,
+    /// Whether the test-only `panic` command is carried out.
+    test_panic: bool,
 }
 
 impl Runner {
     /// Starts on the offered scene `current`, playing, without the scene's own tools
     /// (the pointer is the tool); an error when the scene will not build.
-    pub fn new(offered: Vec<Offered>, current: usize) -> Result<Self, String> {
+    pub fn new(offered: Vec<Offered>, current: usize, test_panic: bool) -> Result<Self, String> {
         Ok(Runner {
             sim: build(&offered[current].scene, false)?,
             offered,
@@ -63,6 +73,8 @@ impl Runner {
             ms_per_step: 0.0,
             epoch: 1,
             last: None,
+            stopped: None,
+            test_panic,
         })
     }
 
@@ -73,12 +85,22 @@ impl Runner {
         self.current = index;
         self.interaction = Interaction::new();
         self.epoch += 1;
+        self.stopped = None;
         Ok(())
     }
 
     /// Carries out one command; an error is a line for the log (the simulation goes
     /// on as it was).
     pub fn apply(&mut self, command: Command) -> Result<(), String> {
+        let starts_afresh = matches!(
+            command,
+            Command::Reset | Command::Scene(_) | Command::ScriptedTools(_)
+        );
+        if let Some(why) = &self.stopped
+            && !starts_afresh
+        {
+            return Err(format!("the simulation stopped ({why}): reset it"));
+        }
         let (sim, interaction) = (&mut self.sim, &mut self.interaction);
         match command {
             Command::Play => self.playing = true,
@@ -114,6 +136,8 @@ impl Runner {
                 interaction.drag(sim, eye, dir).map_err(|e| e.to_string())?
             }
             Command::Release => interaction.release(sim).map_err(|e| e.to_string())?,
+            Command::Panic if self.test_panic => panic!("the test-only panic command"),
+            Command::Panic => return Err("unknown command `panic`".into()),
         }
         Ok(())
     }
@@ -131,6 +155,44 @@ impl Runner {
         } else {
             0.95 * self.ms_per_step + 0.05 * ms
         };
+    }
+
+    /// Runs `f`; a panic in it stops the simulation (see the module docs) and gives
+    /// `None`.
+    fn guarded<T>(&mut self, f: impl FnOnce(&mut Self) -> T) -> Option<T> {
+        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(self))) {
+            Ok(value) => Some(value),
+            Err(payload) => {
+                let why = payload
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| payload.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "a panic".into());
+                eprintln!("cleave view: the simulation stopped: {why}");
+                self.stopped = Some(why);
+                self.playing = false;
+                None
+            }
+        }
+    }
+
+    /// The snapshot to publish now: the simulation's, or after a panic the last one
+    /// with the reason.
+    fn publish_guarded(&mut self) -> Arc<Published> {
+        if self.stopped.is_none()
+            && let Some(published) = self.guarded(Self::publish)
+        {
+            return published;
+        }
+        let last = self.last.as_deref().cloned().unwrap_or_default();
+        let mut status: serde_json::Value =
+            serde_json::from_str(&last.status).unwrap_or_else(|_| serde_json::json!({}));
+        status["stopped"] = serde_json::json!(self.stopped);
+        status["playing"] = serde_json::json!(false);
+        Arc::new(Published {
+            status: status.to_string(),
+            ..last
+        })
     }
 
     /// The snapshot of the simulation as it is now.
@@ -157,7 +219,12 @@ impl Runner {
     /// Runs until every sender of `commands` is gone: commands as they come, a frame
     /// every `dt` of wall time while playing (or as fast as the frames go, when they
     /// take longer), each frame published to `frames`.
-    pub fn run(mut self, commands: Receiver<Command>, frames: watch::Sender<Arc<Published>>) {
+    pub fn run(
+        mut self,
+        commands: Receiver<Command>,
+        frames: watch::Sender<Arc<Published>>,
+        refusals: &Refusals,
+    ) {
         let mut next = Instant::now();
         loop {
             let dt = Duration::from_secs_f32(self.sim.config().dt);
@@ -169,8 +236,8 @@ impl Runner {
             let mut changed = false;
             match commands.recv_timeout(wait) {
                 Ok(command) => {
-                    if let Err(e) = self.apply(command) {
-                        eprintln!("cleave view: ignored: {e}");
+                    if let Some(Err(e)) = self.guarded(|r| r.apply(command)) {
+                        refusals.note(&e);
                     }
                     changed = true;
                 }
@@ -179,13 +246,13 @@ impl Runner {
             }
             // (a stream of commands does not hold the frames back)
             if self.playing && Instant::now() >= next {
-                self.step();
+                self.guarded(Self::step);
                 // fall behind rather than catch up in a burst
                 next = (next + dt).max(Instant::now());
                 changed = true;
             }
             if changed {
-                frames.send_replace(self.publish());
+                frames.send_replace(self.publish_guarded());
             }
         }
     }

@@ -141,6 +141,7 @@ fn status(sim: &Simulation, bodies: &[Entity], settings: &Settings, clock: SimCl
         "ground": config.ground.map(|g| g.height),
         "colliders": colliders,
         "tools": tools,
+        "stopped": null,
     })
 }
 
