@@ -486,7 +486,7 @@ fn numbers_that_are_not_whole_or_out_of_range_name_the_field_and_its_range() {
     for (args, expected) in [
         (
             &["run", "drop", "--frames", "-1"][..],
-            "'--frames <FRAMES>': -1 is out of range (allowed: a whole number, 0 to 4294967295)",
+            "'--frames <FRAMES>': -1 is out of range (allowed: a whole number, 0 to 10000000)",
         ),
         (
             &["run", "drop", "--substeps", "2.5"][..],

@@ -1,0 +1,316 @@
+//! Loading a saved simulation: the entities spawned again (with new ids, in the saved
+//! order where the engine orders by entity), every reference to them mapped, the
+//! solver's state put back, and the whole checked before it is handed out.
+
+use super::*;
+
+/// Old entity → new entity, for the entities the snapshot spawns.
+struct EntityMap(HashMap<Entity, Entity>);
+
+impl EntityMap {
+    /// The new entity of `e`; a placeholder for an entity the save does not hold (a
+    /// particle cut before the save, say).
+    fn get(&self, e: Entity) -> Entity {
+        self.0.get(&e).copied().unwrap_or(Entity::PLACEHOLDER)
+    }
+
+    /// The new entity of `e`, which the save must hold.
+    fn required(&self, e: Entity, what: &str) -> Result<Entity> {
+        self.0
+            .get(&e)
+            .copied()
+            .ok_or_else(|| invalid(format!("{what} names entity {e}, which is not saved")))
+    }
+}
+
+pub(super) fn restore(snapshot: Snapshot) -> Result<World> {
+    let Snapshot {
+        entity_bound,
+        config,
+        clock,
+        rng,
+        bodies,
+        particles,
+        clusters,
+        tools,
+        colliders,
+        attachments,
+        cache,
+        cut,
+        label,
+    } = snapshot;
+    config.validate()?;
+    let memory = config.memory_budget_bytes();
+    let mut loaded = World::new();
+    // No entity of the saving world is handed out again, so an entity kept from before
+    // the save names nothing in the loaded world and is refused, instead of silently
+    // naming whatever took its place. The file's bound is trusted only as far as the
+    // entities it holds make plausible, so a corrupt bound cannot make the loaded
+    // world's entity table huge.
+    let saved: Vec<Entity> = (bodies.iter().map(|b| b.entity))
+        .chain(particles.iter().map(|p| p.entity))
+        .chain(clusters.iter().map(|c| c.entity))
+        .chain(tools.iter().map(|t| t.entity))
+        .chain(colliders.iter().map(|c| c.entity))
+        .chain(attachments.iter().map(|a| a.entity))
+        .collect();
+    let plausible = (4 * saved.len() as u64 + (1 << 20)).min(u32::MAX as u64 / 2) as u32;
+    retire_saved_ids(&mut loaded, entity_bound.min(plausible), &saved);
+    install(&mut loaded, config);
+    let world = &mut loaded;
+    let mut map = EntityMap(HashMap::new());
+    // bodies first, their new ids in the saved ids' order (the solver finds bodies by
+    // it)
+    for (b, e) in bodies.iter().zip(spawn_ascending(world, bodies.len())) {
+        map.0.insert(b.entity, e);
+    }
+    for p in particles {
+        let finite = p.position.0.is_finite()
+            && p.velocity.0.is_finite()
+            && p.spin.0.is_finite()
+            && p.orientation.0.is_finite()
+            && (p.orientation.0.length() - 1.0).abs() < 1e-3;
+        if !(finite && p.inv_mass.0.is_finite() && p.inv_mass.0 >= 0.0) {
+            return Err(invalid(format!(
+                "particles: particle {} of its body has a non-finite state or a non-unit orientation",
+                p.particle.index
+            )));
+        }
+        let particle = Particle {
+            body: map.required(p.particle.body, "a particle")?,
+            ..p.particle
+        };
+        let e = world
+            .spawn((
+                particle,
+                p.position,
+                p.velocity,
+                p.orientation,
+                p.spin,
+                p.inv_mass,
+            ))
+            .id();
+        map.0.insert(p.entity, e);
+    }
+    for c in clusters {
+        let of = ClusterOf {
+            body: map.required(c.of.body, "a cluster")?,
+            ..c.of
+        };
+        let e = world.spawn((c.members, of, c.compliance)).id();
+        map.0.insert(c.entity, e);
+    }
+    let mut handles = LoadedEntities::default();
+    for t in tools {
+        let mut e = world.spawn((t.tool, t.pose));
+        if let Some(path) = t.path {
+            e.insert(path);
+        }
+        handles.0.push((t.entity, e.id()));
+    }
+    for c in colliders {
+        let mut e = world.spawn((c.collider, c.pose));
+        if let Some(path) = c.path {
+            e.insert(path);
+        }
+        handles.0.push((c.entity, e.id()));
+    }
+    // (attachments reach their terms in entity order: saved ascending, so spawned)
+    let ids = spawn_ascending(world, attachments.len());
+    for (a, id) in attachments.into_iter().zip(ids) {
+        let attachment = Attachment {
+            body: map.required(a.attachment.body, "an attachment")?,
+            ..a.attachment
+        };
+        let mut e = world.entity_mut(id);
+        e.insert((attachment, a.target));
+        if let Some(path) = a.path {
+            e.insert(path);
+        }
+        if let Some(velocity) = a.velocity {
+            e.insert(velocity);
+        }
+        handles.0.push((a.entity, e.id()));
+    }
+    for (i, b) in bodies.into_iter().enumerate() {
+        if let Some((edge, c)) = b.lattice.lattice.invalid_crossing() {
+            return Err(invalid(format!(
+                "bodies: body {i}: the crossing of edge {edge} (fraction {}, normal {}) is out of range (allowed 0 ≤ fraction ≤ 1, a finite unit normal, an edge of the lattice)",
+                c.fraction, c.normal
+            )));
+        }
+        let mut lattice = b.lattice;
+        for e in &mut lattice.particles {
+            *e = map.get(*e);
+        }
+        let (entities, free) = b.clusters.keys.parts();
+        let keys = ClusterKeys::from_parts(
+            entities.iter().map(|e| map.get(*e)).collect(),
+            free.to_vec(),
+        );
+        let clusters = ParticleClusters {
+            index: b.clusters.index,
+            keys,
+        };
+        let body = map.get(b.entity);
+        let surface = b
+            .surface
+            .map(|s| SurfaceMesh::restore(s, &lattice.lattice))
+            .transpose()
+            .map_err(|e| invalid(format!("bodies: body {i}: surface: {e}")))?;
+        let pose = b
+            .pose
+            .map(|p| HandlePose::restore(p, &lattice.lattice, memory))
+            .transpose()
+            .map_err(|e| invalid(format!("bodies: body {i}: handles: {e}")))?;
+        let mut entity = world.entity_mut(body);
+        entity.insert((b.body, lattice, clusters));
+        if let Some(surface) = surface {
+            entity.insert(surface);
+        }
+        if let Some(pose) = pose {
+            entity.insert(pose);
+        }
+        handles.0.push((b.entity, body));
+    }
+    handles.0.sort_unstable();
+    world.insert_resource(handles);
+    *world.resource_mut::<SimClock>() = clock;
+    *world.resource_mut::<SimRng>() = rng;
+    world.insert_resource(label);
+    let mut cut = cut;
+    for b in &mut cut.bodies {
+        b.body = map.get(b.body);
+    }
+    *world.resource_mut::<CutReport>() = cut;
+    restore_cache(world, cache, &map)?;
+    // the loaded entities count as seen: the layout already holds them
+    world.resource_mut::<SolverCache>().adopt_changes = true;
+    world.run_schedule(SyncSchedule);
+    let violations = check_invariants(world);
+    if let Some((_, v)) = violations.first() {
+        return Err(invalid(format!("inconsistent: {v}")));
+    }
+    Ok(loaded)
+}
+
+/// Takes every entity index below `bound` once and frees it again, each past the
+/// generation a `saved` entity had there: the loaded world reuses the saving world's
+/// indices (so a chain of saves and loads keeps the index space as large as the
+/// largest world, not the sum of them) but never one of its entities. Freeing an index
+/// moves its generation on, and the allocator hands the last freed index out first,
+/// so an index is stepped on by freeing it, taking it back and freeing it again. An
+/// index whose saved generation is implausibly far on (a damaged file) stays taken.
+fn retire_saved_ids(world: &mut World, bound: u32, saved: &[Entity]) {
+    /// The most times one index is stepped on.
+    const MOST_STEPS: u32 = 64;
+    let mut past: HashMap<u32, u32> = HashMap::new();
+    for e in saved {
+        let generation = past.entry(e.index_u32()).or_default();
+        *generation = (*generation).max(e.generation().to_bits());
+    }
+    let taken: Vec<Entity> = (0..bound)
+        .map_while(|_| (world.entities().len() < bound).then(|| world.spawn_empty().id()))
+        .collect();
+    for mut e in taken {
+        let target = past.get(&e.index_u32()).copied();
+        if target.is_some_and(|g| g >= MOST_STEPS) {
+            continue;
+        }
+        loop {
+            world.despawn(e);
+            if target.is_none_or(|g| e.generation().to_bits() >= g) {
+                break;
+            }
+            // (the index just freed comes back first, one generation on)
+            let again = world.spawn_empty().id();
+            debug_assert_eq!(again.index_u32(), e.index_u32());
+            e = again;
+        }
+    }
+}
+
+/// `count` new empty entities, ascending. Entities order by their bits, in which
+/// bevy stores an index inverted, so entities spawned one after another on fresh
+/// indices descend (and on reused ones may go either way); what the engine orders by
+/// entity must come back in the saved order.
+fn spawn_ascending(world: &mut World, count: usize) -> Vec<Entity> {
+    let mut ids: Vec<Entity> = (0..count).map(|_| world.spawn_empty().id()).collect();
+    ids.sort_unstable();
+    ids
+}
+
+/// Puts the saved solver state in `world`'s cache, with its entities mapped.
+fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Result<()> {
+    let slots = saved.particles.len();
+    if [
+        saved.clusters_term.particle_count(),
+        saved.entities.len(),
+        saved.locals.len(),
+        saved.live.len(),
+    ] != [slots; 4]
+    {
+        return Err(invalid("the solver's particle tables disagree in length"));
+    }
+    if !saved.clusters_term.plasticity_fits() {
+        return Err(invalid("the clusters' plastic shifts do not fit them"));
+    }
+    let state = &saved.particles;
+    let finite = |v: &[glam::Vec3A]| v.iter().all(|x| x.is_finite());
+    let oriented = saved.oriented;
+    let warm = &oriented.moved;
+    if !(warm.is_empty() || warm.len() == slots && finite(warm) && oriented.dt.is_finite())
+        || !finite(&oriented.plastic_rest)
+    {
+        return Err(invalid(
+            "the oriented particles' state does not fit the layout",
+        ));
+    }
+    let masses = state.inv_mass.iter().all(|w| w.is_finite() && *w >= 0.0);
+    if !(masses && finite(&state.positions) && finite(&state.previous) && finite(&state.velocities))
+    {
+        return Err(invalid("solver layout: non-finite particle state"));
+    }
+    let particles: Vec<Entity> = saved.entities.iter().map(|e| map.get(*e)).collect();
+    let clusters: Vec<Entity> = saved.clusters.iter().map(|e| map.get(*e)).collect();
+    let mut body_dense = saved.body_dense;
+    for b in &mut body_dense {
+        b.body = map.required(b.body, "the solver layout")?;
+    }
+    let max_index = particles
+        .iter()
+        .filter(|e| **e != Entity::PLACEHOLDER)
+        .map(|e| e.index_u32() as usize + 1)
+        .max()
+        .unwrap_or(0);
+    let mut dense_of = vec![u32::MAX; max_index];
+    for (d, e) in particles.iter().enumerate() {
+        if *e != Entity::PLACEHOLDER {
+            dense_of[e.index_u32() as usize] = d as u32;
+        }
+    }
+    let mut cache = world.resource_mut::<SolverCache>();
+    cache.solver.clusters = saved.clusters_term;
+    cache.solver.gauss_seidel = saved.gauss_seidel;
+    if let Some(term) = cache.solver.terms.get_mut::<Oriented>() {
+        term.resume(oriented);
+    }
+    if let Some(term) = cache.solver.terms.get_mut::<Patches>() {
+        term.resume(saved.patches);
+    }
+    cache.particles = saved.particles;
+    cache.slot_of = ClusterSlots::from_clusters(&clusters);
+    cache.entities = particles;
+    cache.clusters = clusters;
+    cache.locals = saved.locals;
+    cache.live = saved.live;
+    cache.body_dense = body_dense;
+    cache.dense_of = dense_of;
+    cache.valid = true;
+    // every term takes its particles again from the loaded entities
+    cache.pending_topology = Some(PendingTopology {
+        relaid: true,
+        bodies: Vec::new(),
+    });
+    Ok(())
+}
