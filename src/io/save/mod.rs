@@ -23,134 +23,23 @@
 //! messages not yet read, and projective dynamics' factor (it is computed again from the
 //! same matrix).
 
-use crate::config::SimConfig;
-use crate::ecs::check::check_invariants;
 use crate::ecs::components::*;
-use crate::ecs::handles::{HandlePose, SavedHandlePose};
-use crate::ecs::resources::{
-    BodyDense, ClusterSlots, CutReport, PendingTopology, SceneLabel, SimClock, SimRng, SimSettings,
-    SolverCache,
-};
-use crate::ecs::surface_mesh::{SavedSurface, SurfaceMesh};
-use crate::error::{CleaveError, Result};
+use crate::ecs::handles::HandlePose;
+use crate::ecs::resources::{CutReport, SceneLabel, SimClock, SimRng, SimSettings, SolverCache};
+use crate::ecs::surface_mesh::SurfaceMesh;
+use crate::error::Result;
 use crate::io::save_file::{SaveReader, SaveWriter};
-use crate::solver::clusters::term::ClusterTerm;
-use crate::solver::particles::Particles;
-use crate::solver::schemes::gauss_seidel::GaussSeidel;
-use crate::solver::terms::oriented::{Oriented, SavedGroups};
-use crate::solver::terms::patches::{Patches, SavedPatches};
-use crate::systems::{SyncSchedule, install};
+use crate::solver::terms::oriented::Oriented;
+use crate::solver::terms::patches::Patches;
+use crate::systems::SyncSchedule;
 use bevy_ecs::prelude::*;
-use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
 use std::io::{Read, Write};
 
 mod restore;
+mod state;
 
-/// A body and what it owns besides its entities.
-#[derive(Serialize, Deserialize)]
-struct BodyState {
-    entity: Entity,
-    body: Body,
-    lattice: BodyLattice,
-    clusters: ParticleClusters,
-    /// Its drawable surface, when it keeps one.
-    surface: Option<SavedSurface>,
-    /// Its handles, when it is posed by them.
-    pose: Option<SavedHandlePose>,
-}
-
-/// A particle entity.
-#[derive(Serialize, Deserialize)]
-struct ParticleState {
-    entity: Entity,
-    particle: Particle,
-    position: Position,
-    velocity: Velocity,
-    orientation: Orientation,
-    spin: AngularVelocity,
-    inv_mass: InvMass,
-}
-
-/// A cluster entity.
-#[derive(Serialize, Deserialize)]
-struct ClusterState {
-    entity: Entity,
-    members: ClusterMembers,
-    of: ClusterOf,
-    compliance: Compliance,
-}
-
-/// A tool entity.
-#[derive(Serialize, Deserialize)]
-struct ToolState {
-    entity: Entity,
-    tool: Tool,
-    pose: ToolPose,
-    path: Option<ToolPath>,
-}
-
-/// A collider entity.
-#[derive(Serialize, Deserialize)]
-struct ColliderState {
-    entity: Entity,
-    collider: Collider,
-    pose: ColliderPose,
-    path: Option<ColliderPath>,
-}
-
-/// An attachment entity.
-#[derive(Serialize, Deserialize)]
-struct AttachmentState {
-    entity: Entity,
-    attachment: Attachment,
-    target: AttachmentTarget,
-    path: Option<AttachmentPath>,
-    velocity: Option<AttachmentVelocity>,
-}
-
-/// The solver cache without what is derived from it or from the ECS on the way (the
-/// terms other than the clusters are taken again from the ECS).
-#[derive(Serialize, Deserialize)]
-struct CacheState {
-    clusters_term: ClusterTerm,
-    gauss_seidel: GaussSeidel,
-    /// The oriented particles' warm start and plastic rest shapes.
-    oriented: SavedGroups,
-    /// The patches' fitted rotations.
-    patches: SavedPatches,
-    particles: Particles,
-    entities: Vec<Entity>,
-    locals: Vec<u32>,
-    live: Vec<bool>,
-    body_dense: Vec<BodyDense>,
-    clusters: Vec<Entity>,
-}
-
-/// Everything saved.
-#[derive(Serialize, Deserialize)]
-struct Snapshot {
-    /// Entity indices the saving world had handed out (every one it ever gave is below).
-    entity_bound: u32,
-    config: SimConfig,
-    clock: SimClock,
-    rng: SimRng,
-    /// In entity order (the solver finds bodies by it).
-    bodies: Vec<BodyState>,
-    /// In the order the world stores them, which decides the order new ones join.
-    particles: Vec<ParticleState>,
-    clusters: Vec<ClusterState>,
-    tools: Vec<ToolState>,
-    colliders: Vec<ColliderState>,
-    attachments: Vec<AttachmentState>,
-    cache: CacheState,
-    cut: CutReport,
-    label: SceneLabel,
-}
-
-fn invalid(what: impl std::fmt::Display) -> CleaveError {
-    CleaveError::Save(what.to_string())
-}
+pub use restore::LoadedEntities;
+use state::*;
 
 /// Writes `world`'s simulation to `writer` (see the module docs). The solver layout is
 /// brought up to date first, as the next frame would.
@@ -340,25 +229,4 @@ pub fn load(reader: impl Read) -> Result<World> {
     let snapshot = read_sections(&mut file)?;
     file.finish()?;
     restore::restore(snapshot)
-}
-
-/// The entities a loaded simulation's bodies, tools, colliders and attachments had in the
-/// saving world, each with its entity in the loaded one (a resource of the loaded world;
-/// [`crate::sim::simulation::Simulation::loaded_entity`] reads it).
-#[derive(Resource, Clone, Debug, Default)]
-pub struct LoadedEntities(Vec<(Entity, Entity)>);
-
-impl LoadedEntities {
-    /// The loaded entity of `saved`, a body, tool, collider or attachment of the saved
-    /// simulation.
-    pub fn get(&self, saved: Entity) -> Result<Entity> {
-        self.0
-            .binary_search_by_key(&saved, |(old, _)| *old)
-            .map(|i| self.0[i].1)
-            .map_err(|_| {
-                CleaveError::InvalidEntity(format!(
-                    "{saved} was not a body, tool, collider or attachment of the saved simulation"
-                ))
-            })
-    }
 }

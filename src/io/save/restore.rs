@@ -2,7 +2,20 @@
 //! order where the engine orders by entity), every reference to them mapped, the
 //! solver's state put back, and the whole checked before it is handed out.
 
-use super::*;
+use super::state::*;
+use crate::ecs::check::check_invariants;
+use crate::ecs::components::*;
+use crate::ecs::handles::HandlePose;
+use crate::ecs::resources::{
+    ClusterSlots, CutReport, PendingTopology, SimClock, SimRng, SolverCache,
+};
+use crate::ecs::surface_mesh::SurfaceMesh;
+use crate::error::{CleaveError, Result};
+use crate::solver::terms::oriented::Oriented;
+use crate::solver::terms::patches::Patches;
+use crate::systems::{SyncSchedule, install};
+use bevy_ecs::prelude::*;
+use std::collections::HashMap;
 
 /// Old entity → new entity, for the entities the snapshot spawns.
 struct EntityMap(HashMap<Entity, Entity>);
@@ -313,4 +326,25 @@ fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Resul
         bodies: Vec::new(),
     });
     Ok(())
+}
+
+/// The entities a loaded simulation's bodies, tools, colliders and attachments had in the
+/// saving world, each with its entity in the loaded one (a resource of the loaded world;
+/// [`crate::sim::simulation::Simulation::loaded_entity`] reads it).
+#[derive(Resource, Clone, Debug, Default)]
+pub struct LoadedEntities(Vec<(Entity, Entity)>);
+
+impl LoadedEntities {
+    /// The loaded entity of `saved`, a body, tool, collider or attachment of the saved
+    /// simulation.
+    pub fn get(&self, saved: Entity) -> Result<Entity> {
+        self.0
+            .binary_search_by_key(&saved, |(old, _)| *old)
+            .map(|i| self.0[i].1)
+            .map_err(|_| {
+                CleaveError::InvalidEntity(format!(
+                    "{saved} was not a body, tool, collider or attachment of the saved simulation"
+                ))
+            })
+    }
 }
