@@ -4,13 +4,13 @@
 //! --convergence` times the solvers on it and `cleave fidelity` compares the sag of a
 //! cut beam with the sag of the same geometry clustered fresh.
 
-use crate::analysis::stats::rigid_fit_error;
 use crate::body::lattice::Lattice;
 use crate::clusters::clustering::initial_clusters;
 use crate::config::SolverMode;
 use crate::cut::tool::Pose;
 use crate::ecs::desc::BodyDesc;
 use crate::error::Result;
+use crate::math::rigid_fit::rigid_fit_error;
 use crate::solver::clusters::term::{ClusterSpec, ClusterTerm};
 use crate::solver::particles::Particles;
 use crate::solver::registry::Terms;

@@ -3,9 +3,9 @@
 
 use crate::body::lattice::Lattice;
 use crate::ecs::components::*;
-use crate::math::rotation::extract_rotation;
+pub use crate::math::rigid_fit::{rigid_fit, rigid_fit_error};
 use bevy_ecs::prelude::*;
-use glam::{IVec3, Mat3, Quat, Vec3};
+use glam::{IVec3, Vec3};
 use serde::Serialize;
 
 /// Counts and shape measures of one body.
@@ -51,38 +51,6 @@ pub fn max_edge_strain(lattice: &Lattice, positions: &[Vec3]) -> f64 {
             (now / rest - 1.0).abs() as f64
         })
         .fold(0.0, f64::max)
-}
-
-/// The best rigid transform from `rest` to `current` (paired points): its rotation and
-/// the two centroids.
-pub fn rigid_fit(rest: &[Vec3], current: &[Vec3]) -> (Quat, Vec3, Vec3) {
-    let n = rest.len().max(1) as f32;
-    let (rc, cc) = (
-        rest.iter().sum::<Vec3>() / n,
-        current.iter().sum::<Vec3>() / n,
-    );
-    let mut a = Mat3::ZERO;
-    for (r, c) in rest.iter().zip(current) {
-        let (q, p) = (*r - rc, *c - cc);
-        a += Mat3::from_cols(p * q.x, p * q.y, p * q.z);
-    }
-    let rot = extract_rotation(glam::Mat3A::from(a), Quat::IDENTITY, 200);
-    (rot, rc, cc)
-}
-
-/// RMS distance between `current` and the best rigid transform of `rest`.
-pub fn rigid_fit_error(rest: &[Vec3], current: &[Vec3]) -> f32 {
-    if rest.is_empty() {
-        return 0.0;
-    }
-    let n = rest.len() as f32;
-    let (rot, rc, cc) = rigid_fit(rest, current);
-    let sum: f32 = rest
-        .iter()
-        .zip(current)
-        .map(|(r, c)| (rot * (*r - rc) + cc - *c).length_squared())
-        .sum();
-    (sum / n).sqrt()
 }
 
 /// The smallest distance between two of `points` with different `labels`, when some

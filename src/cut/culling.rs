@@ -234,8 +234,8 @@ fn own_ball(positions: &[Vec3A], live: &[bool]) -> Option<(Vec3A, f32)> {
 mod tests {
     use super::*;
     use crate::cut::detection::{edges_separated, morton_cube, particles_hit};
+    use crate::cut::tool::Tool;
     use crate::cut::tool::{CutMode, ToolShape};
-    use crate::ecs::components::Tool;
     use glam::Quat;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;

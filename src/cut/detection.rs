@@ -271,8 +271,8 @@ pub(crate) fn morton_cube(n: u32) -> (Vec<Vec3A>, Vec<[u32; 3]>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cut::tool::Tool;
     use crate::cut::tool::{CutMode, Pose, ToolShape};
-    use crate::ecs::components::Tool;
     use glam::Quat;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;

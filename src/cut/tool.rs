@@ -123,6 +123,18 @@ impl ToolShape {
     }
 }
 
+/// A cutting tool: shape, cut width (how far from its surface `remove` and `split` reach)
+/// and cut mode. Plain data of this layer; a tool entity carries it as its component.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Tool {
+    /// Shape in the local frame.
+    pub shape: ToolShape,
+    /// Width of the cut zone (> 0).
+    pub cut_width: f32,
+    /// What the tool does where it passes.
+    pub mode: CutMode,
+}
+
 /// What a tool does to the body where it passes. In files, on the command line and in
 /// JSON: `"remove"`, `"sever"`, `"split"`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]

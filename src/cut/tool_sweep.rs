@@ -3,8 +3,7 @@
 //! points, segments and balls to it — exact for a translating tool, whatever its speed,
 //! and conservative by the sweep's slack for a turning one.
 
-use crate::cut::tool::{BladePlane, CutMode, Pose, Sweep, ToolShape};
-use crate::ecs::components::Tool;
+use crate::cut::tool::{BladePlane, CutMode, Pose, Sweep, Tool, ToolShape};
 use crate::geometry::convex::Convex;
 use glam::Vec3;
 

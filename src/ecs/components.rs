@@ -15,7 +15,7 @@ use crate::body::groups::ParticleGroups;
 use crate::body::lattice::Lattice;
 use crate::clusters::index::ClusterIndex;
 use crate::config::Material;
-use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
+use crate::cut::tool::{Path, Pose};
 use crate::geometry::collider::ColliderShape;
 use bevy_ecs::prelude::*;
 use glam::{IVec3, Quat, Vec3};
@@ -196,16 +196,12 @@ pub struct ClusterOf {
 #[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Compliance(pub f32);
 
-/// A cutting tool: shape, cut width (how far from its surface `remove` and `split` reach)
-/// and cut mode.
-#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Tool {
-    /// Shape in the local frame.
-    pub shape: ToolShape,
-    /// Width of the cut zone (> 0).
-    pub cut_width: f32,
-    /// What the tool does where it passes.
-    pub mode: CutMode,
+pub use crate::cut::tool::Tool;
+
+// (a tool's data is the cut layer's; the ECS only stores it on the tool's entity)
+impl Component for Tool {
+    const STORAGE_TYPE: bevy_ecs::component::StorageType = bevy_ecs::component::StorageType::Table;
+    type Mutability = bevy_ecs::component::Mutable;
 }
 
 /// The tool's pose at the end of the frame being simulated and where the last frame

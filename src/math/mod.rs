@@ -4,6 +4,7 @@
 
 pub mod eigen;
 pub mod lanes;
+pub mod rigid_fit;
 pub mod rotation;
 pub mod simd;
 pub mod sparse_cholesky;

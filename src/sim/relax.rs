@@ -15,12 +15,12 @@
 //! simulation's clock does not advance. Everything the relaxation set up is taken down
 //! afterwards.
 
-use crate::analysis::stats::rigid_fit_error;
 use crate::body::patches::boundary_sets;
 use crate::config::RelaxOptions;
 use crate::ecs::components::{BodyLattice, InvMass, Position, Velocity};
 use crate::ecs::resources::{SimSettings, SolverCache, SubstepClock};
 use crate::error::{CleaveError, Result};
+use crate::math::rigid_fit::rigid_fit_error;
 use crate::sim::relax_report::{RelaxReport, RelaxReports};
 use crate::sim::simulation::Simulation;
 use crate::systems::{SubstepSchedule, SyncSchedule, store::store_particles};

@@ -355,7 +355,7 @@ mod tests {
             let (rest, mut s, mut l) = twisted_block(mode);
             s.solve(&mut l, &step(iterations));
             let current: Vec<Vec3> = l.positions.iter().map(|p| Vec3::from(*p)).collect();
-            crate::analysis::stats::rigid_fit_error(&rest, &current)
+            crate::math::rigid_fit::rigid_fit_error(&rest, &current)
         };
         let start = error(SolverMode::Jacobi, 0);
         for k in [2, 5, 10] {
