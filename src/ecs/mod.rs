@@ -11,5 +11,6 @@ pub mod handles;
 pub mod poses;
 pub mod resources;
 pub mod spawn;
+pub mod spawn_body;
 pub mod surface_mesh;
 pub mod table_rows;
