@@ -5,9 +5,13 @@
 //! beside it.
 
 use cleave::ecs::resources::SolverCache;
-use cleave::io::oriented_scenes::DENT_H;
 use cleave::io::scene::builtin;
 use cleave::prelude::*;
+
+/// The `dent` scene's lattice spacing.
+fn dent_h() -> f32 {
+    builtin("dent", 0).unwrap().bodies[0].spacing
+}
 
 fn start(scene: &cleave::ecs::desc::Scene) -> (Simulation, Entity) {
     let mut sim = Simulation::from_scene(scene).unwrap();
@@ -37,13 +41,14 @@ enum Change {
 
 /// [`dent`], with `change`.
 fn dent_with(model: Model, yield_strain: f32, change: Change) -> (f32, f32) {
+    let h = dent_h();
     let mut scene = builtin("dent", 0).unwrap();
     scene.bodies[0].material.model = model;
     scene.bodies[0].material.yield_strain = yield_strain;
     if change == Change::Cut {
         // (the blade's normal is its local z: turned to x)
         let at = |y: f32| Pose {
-            position: Vec3::new(4.0 * DENT_H, y, 0.0),
+            position: Vec3::new(4.0 * h, y, 0.0),
             rotation: Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
         };
         scene.tools.push(ToolDesc {
@@ -51,7 +56,7 @@ fn dent_with(model: Model, yield_strain: f32, change: Change) -> (f32, f32) {
                 half_width: 1.0,
                 half_height: 0.2,
             },
-            cut_width: 0.25 * DENT_H,
+            cut_width: 0.25 * h,
             cut_mode: CutMode::Sever,
             path: Path {
                 keys: vec![(4.0, at(0.8)), (4.3, at(-0.25)), (4.35, at(-5.0))],
@@ -66,7 +71,7 @@ fn dent_with(model: Model, yield_strain: f32, change: Change) -> (f32, f32) {
     let top = rest.iter().map(|(_, x)| x.y).fold(f32::MIN, f32::max);
     let middle: Vec<u32> = rest
         .iter()
-        .filter(|(_, x)| x.y > top - 0.1 * DENT_H && x.x.abs() < DENT_H && x.z.abs() < DENT_H)
+        .filter(|(_, x)| x.y > top - 0.1 * h && x.x.abs() < h && x.z.abs() < h)
         .map(|(i, _)| *i)
         .collect();
     assert_eq!(middle.len(), 4);
@@ -78,8 +83,8 @@ fn dent_with(model: Model, yield_strain: f32, change: Change) -> (f32, f32) {
         let corners: Vec<f32> = x
             .iter()
             .zip(&rest)
-            .filter(|(_, (_, r))| r.y > top - 0.1 * DENT_H)
-            .filter(|(_, (_, r))| r.x < -4.0 * DENT_H && r.z.abs() > 4.0 * DENT_H)
+            .filter(|(_, (_, r))| r.y > top - 0.1 * h)
+            .filter(|(_, (_, r))| r.x < -4.0 * h && r.z.abs() > 4.0 * h)
             .map(|((_, p), _)| p.y)
             .collect();
         let corner = corners.iter().sum::<f32>() / corners.len() as f32;
@@ -90,7 +95,7 @@ fn dent_with(model: Model, yield_strain: f32, change: Change) -> (f32, f32) {
     for frame in 0..scene.frames {
         let spawn = change == Change::Spawn && frame == spawn_at;
         if spawn {
-            let mut far = BodyDesc::new(Shape::cuboid(UVec3::splat(2)), DENT_H);
+            let mut far = BodyDesc::new(Shape::cuboid(UVec3::splat(2)), h);
             far.position = Vec3::new(3.0, 0.1, 0.0);
             sim.spawn_body(&far).unwrap();
         }
@@ -142,9 +147,9 @@ fn a_fresh_layout_and_a_cut_beside_it_keep_the_dent_in_both_models() {
         let (_, cut_left) = dent_with(model, yield_strain, Change::Cut);
         eprintln!(
             "{model:?}: dent left: {:.3} h; with a fresh layout as the sphere lifts: {:.3} h; severed beside it: {:.3} h",
-            left / DENT_H,
-            rebuilt_left / DENT_H,
-            cut_left / DENT_H
+            left / dent_h(),
+            rebuilt_left / dent_h(),
+            cut_left / dent_h()
         );
         assert!(
             (rebuilt_left - left).abs() <= 0.1 * left,

@@ -33,7 +33,7 @@ fn straight_and_resumed(scene: &Scene) -> (String, String) {
 #[test]
 fn every_builtin_scene_resumes_bit_for_bit_in_every_mode_model_and_with_patches() {
     let mut cases = Vec::new();
-    for (name, _) in BUILTIN_SCENES {
+    for name in BUILTIN_SCENES.map(|b| b.name) {
         let scene = builtin(name, 0).unwrap();
         let modes: &[Option<CutMode>] = if scene.tools.is_empty() {
             &[None]

@@ -133,7 +133,11 @@ fn a_pulled_bar_tears_in_two_near_the_middle_or_at_its_notch() {
     let h = f(&dump["bodies"][0]["spacing"]);
     // (cell c's rest centre is (c + ½) h: the crack lies between the two columns)
     let crack = (left_end + right_start + 1) as f64 * 0.5 * h;
-    let notch = cleave::io::scene::NOTCH_X as f64;
+    // the notch lies where the scene's blade stands
+    let notch = cleave::io::scene::builtin("notch", 0).unwrap().tools[0]
+        .pose
+        .position
+        .x as f64;
     assert!(
         (crack - notch).abs() <= 2.0 * h,
         "crack at {crack}, notch at {notch}"

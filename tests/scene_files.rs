@@ -39,7 +39,7 @@ fn positions_after(scene: &Scene, frames: u32) -> Vec<u32> {
 
 #[test]
 fn every_builtin_round_trips_through_ron() {
-    for (name, _) in BUILTIN_SCENES {
+    for name in BUILTIN_SCENES.map(|b| b.name) {
         let scene = builtin(name, 3).unwrap();
         let text = SceneFile::from_scene(&scene).unwrap().to_ron();
         let parsed = SceneFile::parse(&text).unwrap_or_else(|e| panic!("{name}: {e}"));

@@ -243,31 +243,46 @@ fn soak(mode: CutMode, cuts: u32, seed: u64) -> Figures {
     }
 }
 
-/// Runs the soak in every mode and checks the memory (see the module docs).
-fn soak_every_mode(cuts: u32) {
-    for (k, mode) in CutMode::ALL.into_iter().enumerate() {
-        let f = soak(mode, cuts, 11 + k as u64);
-        eprintln!("{f:?}");
-        assert_eq!(f.loads, cuts / EVERY, "{mode:?}: the block lasted the soak");
-        // the state grows while the cuts multiply the pieces (each with its own closed
-        // surface) and, in split mode, the particles; a leak would go on growing with
-        // the cuts once the pieces are small
-        let middle = f.heap_mb[f.heap_mb.len() / 2 - 1];
-        assert!(
-            f.heap_end_mb <= 1.1 * middle,
-            "{mode:?}: heap {middle:.2} MB after half the cuts, {:.2} MB after all",
-            f.heap_end_mb
-        );
-    }
+/// Runs the soak in `mode` and checks the memory (see the module docs).
+fn soak_and_check(mode: CutMode, cuts: u32) {
+    let f = soak(mode, cuts, 11 + mode as u64);
+    eprintln!("{f:?}");
+    assert_eq!(f.loads, cuts / EVERY, "{mode:?}: the block lasted the soak");
+    // the state grows while the cuts multiply the pieces (each with its own closed
+    // surface) and, in split mode, the particles; a leak would go on growing with the
+    // cuts once the pieces are small
+    let middle = f.heap_mb[f.heap_mb.len() / 2 - 1];
+    assert!(
+        f.heap_end_mb <= 1.1 * middle,
+        "{mode:?}: heap {middle:.2} MB after half the cuts, {:.2} MB after all",
+        f.heap_end_mb
+    );
 }
 
 #[test]
 fn two_thousand_cuts_in_every_mode_keep_invariants_surfaces_resumes_and_memory() {
-    soak_every_mode(2000);
+    for mode in CutMode::ALL {
+        soak_and_check(mode, 2000);
+    }
+}
+
+// the long soak, a mode at a time (`cargo test --release --all-features --test soak --
+// --ignored`): minutes each
+
+#[test]
+#[ignore = "a long soak: 20,000 scoops (about 17 minutes)"]
+fn twenty_thousand_cuts_remove() {
+    soak_and_check(CutMode::Remove, 20_000);
 }
 
 #[test]
-#[ignore = "a long soak: 20,000 cuts in every mode (minutes)"]
-fn twenty_thousand_cuts_in_every_mode() {
-    soak_every_mode(20_000);
+#[ignore = "a long soak: 20,000 blade cuts in sever mode"]
+fn twenty_thousand_cuts_sever() {
+    soak_and_check(CutMode::Sever, 20_000);
+}
+
+#[test]
+#[ignore = "a long soak: 20,000 blade cuts in split mode"]
+fn twenty_thousand_cuts_split() {
+    soak_and_check(CutMode::Split, 20_000);
 }

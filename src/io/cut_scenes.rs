@@ -1,11 +1,10 @@
 //! Scenes of cuts: a block cut by random blades and sphere scoops (built-in `cuts`), the
 //! cantilever scooped near the middle of its top and sides (built-in `scooped`) —
 //! `cleave fidelity` compares their rebuilt clusters with fresh ones —, a seeded run of
-//! random blades and spheres through a block on the ground (`random`) and a slanted
-//! cut (`bevel`).
+//! random blades and spheres through a block on the ground (`random`).
 
 use crate::body::shape::Shape;
-use crate::config::{Material, SimConfig, StaticBox};
+use crate::config::{Material, SimConfig};
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::ecs::desc::{BodyDesc, Scene, ToolDesc};
 use glam::{Mat3, Quat, UVec3, Vec3};
@@ -267,49 +266,5 @@ pub fn random_scene(seed: u64) -> Scene {
         tools,
         colliders: vec![],
         frames: 300,
-    }
-}
-
-/// A 16³ block on a narrow pedestal cut in `sever` mode by a knife whose plane stands at
-/// 30° to the block's sides and leans 20° from the vertical: the two pieces tip off the
-/// pedestal to either side, their cut faces flat where the blade passed.
-pub fn bevel_scene(config: SimConfig) -> Scene {
-    let mut body = rigid_body(Shape::cuboid(UVec3::splat(16)), H);
-    let height = 0.6;
-    body.position = Vec3::new(0.0, height + 0.8, 0.0);
-    let config = SimConfig {
-        boxes: vec![StaticBox {
-            min: Vec3::new(-0.25, 0.0, -0.8),
-            max: Vec3::new(0.25, height, 0.8),
-            friction: 0.2,
-        }],
-        ..config
-    };
-    let normal = Quat::from_rotation_y(30f32.to_radians())
-        * (Quat::from_rotation_z(20f32.to_radians()) * Vec3::X);
-    // the knife moves down its own plane, through the block's centre, in one frame
-    let along = (Vec3::NEG_Y - normal * -normal.y).normalize();
-    let at = |s: f32| Pose {
-        position: body.position + Vec3::new(0.013, 0.0, -0.021) - along * s,
-        rotation: blade_rotation(along, normal),
-    };
-    let tool = ToolDesc {
-        shape: ToolShape::Blade {
-            half_width: 2.0,
-            half_height: 0.5,
-        },
-        cut_width: H,
-        cut_mode: CutMode::Sever,
-        path: Path {
-            keys: vec![(0.3, at(2.5)), (0.3 + config.dt, at(-2.5)), (0.4, at(-6.0))],
-        },
-        pose: at(2.5),
-    };
-    Scene {
-        config,
-        bodies: vec![body],
-        tools: vec![tool],
-        colliders: vec![],
-        frames: 150,
     }
 }

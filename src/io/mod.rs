@@ -2,14 +2,11 @@
 //! pictures, point clouds and surface meshes (OBJ, glTF).
 
 pub mod cut_scenes;
-pub mod deform_scenes;
 pub mod dump;
 #[cfg(feature = "render")]
 pub mod export;
 #[cfg(feature = "render")]
 pub mod gltf;
-pub mod oriented_scenes;
-pub mod relax_scenes;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod save;

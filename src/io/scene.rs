@@ -1,406 +1,189 @@
-//! Built-in scenes: a simulation config, bodies, tools and a default frame count.
+//! Built-in scenes, listed once in [`BUILTIN_SCENES`]: most are scene files compiled
+//! into the program (`src/io/scenes/NAME.ron`, read as any scene file is read, so
+//! `cleave scenes show NAME` prints what the program holds); the scenes made from a seed
+//! or a parameter (random cuts, the cut block, the scooped cantilever, the pile, the
+//! truck) are code.
 
 use crate::body::shape::Shape;
-use crate::config::{Material, SimConfig, StaticBox};
-use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
-use crate::ecs::desc::Scene;
-use crate::ecs::desc::{BodyDesc, ColliderDesc, PinRegion, ToolDesc};
+use crate::config::SimConfig;
+use crate::cut::tool::{Path, Pose};
+use crate::ecs::desc::{ColliderDesc, Scene};
 use crate::geometry::collider::ColliderShape;
-use crate::io::cut_scenes::{
-    bevel_scene, cut_block_scene, random_scene, rigid_body, scooped_cantilever_scene,
-};
-use glam::{Quat, UVec3, Vec3};
+use crate::io::cut_scenes::{cut_block_scene, random_scene, rigid_body, scooped_cantilever_scene};
+use crate::io::scene_file::SceneFile;
+use crate::io::truck_scene::truck_scene;
+use glam::{Quat, Vec3};
 
-/// Names and one-line descriptions of the built-in scenes.
-pub const BUILTIN_SCENES: [(&str, &str); 23] = [
-    ("drop", "a 16×8×8 box falls on the ground and settles"),
-    (
-        "cantilever",
-        "a 24×6×6 beam pinned at one end sags under gravity",
-    ),
-    (
-        "slice",
-        "a blade sweeps through a 24×12×12 block on a pedestal: two halves tip off",
-    ),
-    (
-        "dice",
-        "two perpendicular slices through a 24×12×24 block: four pieces",
-    ),
-    (
-        "scoop",
-        "a sphere carves a trench along the top of a block: one piece",
-    ),
-    (
-        "random",
-        "a seeded sequence of random blade and sphere cuts (stress test)",
-    ),
-    (
-        "stack",
-        "a 16×8×8 box dropped onto an 8×8×8 box resting on the ground comes to rest on top",
-    ),
-    (
-        "pile",
-        "boxes, balls and a capsule dropped into a walled bin of tilted static boxes",
-    ),
-    (
-        "press",
-        "a moving plate squeezes a block, then a blade cuts it while squeezed",
-    ),
-    (
-        "tear",
-        "a 32×6×6 bar whose ends are pulled apart by moving pins tears in two",
-    ),
-    (
-        "notch",
-        "the tear bar with a notch at 30 % of its length tears at the notch",
-    ),
-    (
-        "cuts",
-        "a 32×16×16 block, gravity off, cut 50 times by random blades and sphere scoops",
-    ),
-    (
-        "bevel",
-        "a blade slants through a 16³ block on a pedestal at 30° to its sides: the pieces tip off",
-    ),
-    (
-        "scooped",
-        "the cantilever with 20 sphere scoops near the middle of its top and sides",
-    ),
-    (
-        "soft_beam",
-        "a 32×3×3 bar of very soft clusters and stiff edges, pinned at one end: it bends like a chain and barely stretches",
-    ),
-    (
-        "jittered",
-        "a soft block and ball spawned with every particle jittered by 0.3 h, relaxed into their rest shapes, then dropped",
-    ),
-    (
-        "bend",
-        "a 32×4×4 bar posed by its two end regions: bent, twisted, stretched (`cleave deform bend`)",
-    ),
-    (
-        "grab",
-        "a 10×10×10 block dragged through the air by one point handle while it simulates",
-    ),
-    (
-        "rod",
-        "a 24×1×1 rod of oriented particles clamped at its root holds out under gravity",
-    ),
-    (
-        "dent",
-        "a plastic block of oriented particles pressed by a sphere keeps a dent",
-    ),
-    (
-        "wheel",
-        "a rigid disc spinning at 2 rev/s on an axle it shares particles with (a joint), gravity off",
-    ),
-    (
-        "sheet",
-        "a 24×24×1 sheet of oriented particles standing on edge, clamped along its left edge, holds out under gravity",
-    ),
-    (
-        "truck",
-        "a rigid chassis on rigid hubs with soft tyres (oriented particles, axles as joints) rolls down a slope and over a bump",
-    ),
+/// How a built-in scene is made.
+#[derive(Clone, Copy)]
+pub enum Source {
+    /// A scene file's text.
+    File(&'static str),
+    /// Code, given the seed.
+    Made(fn(u64) -> Scene),
+}
+
+/// A built-in scene: its name, a line that says what happens in it, and how it is made.
+#[derive(Clone, Copy)]
+pub struct Builtin {
+    /// The name `cleave run` takes.
+    pub name: &'static str,
+    /// What happens in it, in a line.
+    pub description: &'static str,
+    /// How it is made.
+    pub source: Source,
+}
+
+/// Every built-in scene.
+pub const BUILTIN_SCENES: [Builtin; 23] = [
+    Builtin {
+        name: "drop",
+        description: "a 16×8×8 box falls on the ground and settles",
+        source: Source::File(include_str!("scenes/drop.ron")),
+    },
+    Builtin {
+        name: "cantilever",
+        description: "a 24×6×6 beam pinned at one end sags under gravity",
+        source: Source::File(include_str!("scenes/cantilever.ron")),
+    },
+    Builtin {
+        name: "slice",
+        description: "a blade sweeps through a 24×12×12 block on a pedestal: two halves tip off",
+        source: Source::File(include_str!("scenes/slice.ron")),
+    },
+    Builtin {
+        name: "dice",
+        description: "two perpendicular slices through a 24×12×24 block: four pieces",
+        source: Source::File(include_str!("scenes/dice.ron")),
+    },
+    Builtin {
+        name: "scoop",
+        description: "a sphere carves a trench along the top of a block: one piece",
+        source: Source::File(include_str!("scenes/scoop.ron")),
+    },
+    Builtin {
+        name: "random",
+        description: "a seeded sequence of random blade and sphere cuts (stress test)",
+        source: Source::Made(random_scene),
+    },
+    Builtin {
+        name: "stack",
+        description: "a 16×8×8 box dropped onto an 8×8×8 box resting on the ground comes to rest on top",
+        source: Source::File(include_str!("scenes/stack.ron")),
+    },
+    Builtin {
+        name: "pile",
+        description: "boxes, balls and a capsule dropped into a walled bin of tilted static boxes",
+        source: Source::Made(|seed| pile_scene(seeded(seed), H)),
+    },
+    Builtin {
+        name: "press",
+        description: "a moving plate squeezes a block, then a blade cuts it while squeezed",
+        source: Source::File(include_str!("scenes/press.ron")),
+    },
+    Builtin {
+        name: "tear",
+        description: "a 32×6×6 bar whose ends are pulled apart by moving pins tears in two",
+        source: Source::File(include_str!("scenes/tear.ron")),
+    },
+    Builtin {
+        name: "notch",
+        description: "the tear bar with a notch at 30 % of its length tears at the notch",
+        source: Source::File(include_str!("scenes/notch.ron")),
+    },
+    Builtin {
+        name: "cuts",
+        description: "a 32×16×16 block, gravity off, cut 50 times by random blades and sphere scoops",
+        source: Source::Made(|seed| cut_block_scene(seed, 50)),
+    },
+    Builtin {
+        name: "bevel",
+        description: "a blade slants through a 16³ block on a pedestal at 30° to its sides: the pieces tip off",
+        source: Source::File(include_str!("scenes/bevel.ron")),
+    },
+    Builtin {
+        name: "scooped",
+        description: "the cantilever with 20 sphere scoops near the middle of its top and sides",
+        source: Source::Made(scooped),
+    },
+    Builtin {
+        name: "soft_beam",
+        description: "a 32×3×3 bar of very soft clusters and stiff edges, pinned at one end: it bends like a chain and barely stretches",
+        source: Source::File(include_str!("scenes/soft_beam.ron")),
+    },
+    Builtin {
+        name: "jittered",
+        description: "a soft block and ball spawned with every particle jittered by 0.3 h, relaxed into their rest shapes, then dropped",
+        source: Source::File(include_str!("scenes/jittered.ron")),
+    },
+    Builtin {
+        name: "bend",
+        description: "a 32×4×4 bar posed by its two end regions: bent, twisted, stretched (`cleave deform bend`)",
+        source: Source::File(include_str!("scenes/bend.ron")),
+    },
+    Builtin {
+        name: "grab",
+        description: "a 10×10×10 block dragged through the air by one point handle while it simulates",
+        source: Source::File(include_str!("scenes/grab.ron")),
+    },
+    Builtin {
+        name: "rod",
+        description: "a 24×1×1 rod of oriented particles clamped at its root holds out under gravity",
+        source: Source::File(include_str!("scenes/rod.ron")),
+    },
+    Builtin {
+        name: "dent",
+        description: "a plastic block of oriented particles pressed by a sphere keeps a dent",
+        source: Source::File(include_str!("scenes/dent.ron")),
+    },
+    Builtin {
+        name: "wheel",
+        description: "a rigid disc spinning at 2 rev/s on an axle it shares particles with (a joint), gravity off",
+        source: Source::File(include_str!("scenes/wheel.ron")),
+    },
+    Builtin {
+        name: "sheet",
+        description: "a 24×24×1 sheet of oriented particles standing on edge, clamped along its left edge, holds out under gravity",
+        source: Source::File(include_str!("scenes/sheet.ron")),
+    },
+    Builtin {
+        name: "truck",
+        description: "a rigid chassis on rigid hubs with soft tyres (oriented particles, axles as joints) rolls down a slope and over a bump",
+        source: Source::Made(|seed| truck_scene(seeded(seed))),
+    },
 ];
 
 const H: f32 = 0.1;
 
-/// Where the `notch` scene's notch lies along the bar (x, metres): 30 % of the length.
-pub const NOTCH_X: f32 = -1.6 + 0.3 * 3.2;
-
-/// The `soft_beam` scene: a 32×3×3 bar pinned by its first two columns, under gravity,
-/// of clusters so soft (compliance 1e-4 1/Pa, E = 10 kPa) that alone they let it stretch
-/// to several times its length, with stiff edge distance constraints (edge compliance
-/// 7e-8 1/Pa): it bends down like a chain, its edges stretched well under 1 %. 8
-/// substeps × 20 iterations; every solver gives the same sag (the edges are in
-/// projective dynamics' matrix; much stiffer edges than these need more iterations
-/// there).
-fn soft_beam(config: SimConfig) -> Scene {
-    let mut body = rigid_body(Shape::cuboid(UVec3::new(32, 3, 3)), H);
-    body.position = Vec3::new(0.0, 1.0, 0.0);
-    body.pins = vec![PinRegion {
-        min: Vec3::splat(-9.0),
-        max: Vec3::new(-1.6 + 2.0 * H, 9.0, 9.0),
-        ..PinRegion::default()
-    }];
-    body.material = Material {
-        compliance: 1e-4,
-        edge_compliance: Some(7e-8),
-        ..Material::rigid()
-    };
-    Scene {
-        config: SimConfig {
-            ground: None,
-            substeps: 8,
-            iterations: 20,
-            damping: 2.0,
-            ..config
-        },
-        bodies: vec![body],
-        tools: vec![],
-        colliders: vec![],
-        frames: 300,
-    }
-}
-
-/// The `tear` and `notch` scenes: a 32×6×6 rubber bar (E ≈ 0.83 MPa, wave speed
-/// √(E/ρ) ≈ 29 m/s) that tears past a principal stretch of 1.1, gravity off, its two
-/// end regions (2 cells each) pinned and pulled apart at 2 m/s each from rest. The pull
-/// starts as two strain waves of about v/c ≈ 7 % running in from the ends; where they
-/// meet, in the middle, the strain doubles past the limit, and the bar tears there.
-/// With `notch`, a blade removes the top 4 of the 6 rows over one cell at [`NOTCH_X`]
-/// in the first frame, and the ends are pulled at 1 m/s: the doubled waves stay under
-/// the limit, the third of the section left at the notch carries three times the
-/// strain, and the bar tears at the notch. A smallest torn piece of 300 particles (26 %) keeps the waves that
-/// bounce off the new crack faces from chipping thin slabs off the pieces (Gauss–Seidel
-/// with 16 substeps carries the waves; Jacobi at 2 substeps smears them and the grips
-/// tear first).
-fn pulled_bar(config: SimConfig, notch: bool) -> Scene {
-    // (the notched bar is pulled slower: its waves alone do not tear the middle)
-    let (half, pull) = (1.6, if notch { 1.0 } else { 2.0 });
-    let shape = Shape::cuboid(UVec3::new(32, 6, 6));
-    let mut body = rigid_body(shape, H);
-    body.position = Vec3::new(0.0, 1.0, 0.0);
-    let end = |sign: f32| PinRegion {
-        min: Vec3::new(if sign < 0.0 { -9.0 } else { half - 2.0 * H }, -9.0, -9.0),
-        max: Vec3::new(if sign < 0.0 { -half + 2.0 * H } else { 9.0 }, 9.0, 9.0),
-        velocity: Vec3::X * sign * pull,
-    };
-    body.pins = vec![end(-1.0), end(1.0)];
-    body.material = Material {
-        compliance: 1.2e-6,
-        tear_stretch: Some(1.1),
-        tear_min_piece: 300,
-        ..Material::rigid()
-    };
-    // the notch: a blade across the bar at NOTCH_X, its lower edge between the second
-    // and third rows from the bottom, there at the first frame and gone up the next
-    let tools = if notch {
-        let at = |y: f32| Pose {
-            position: Vec3::new(NOTCH_X, y, 0.0),
-            rotation: Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
-        };
-        let edge = body.position.y - 0.1;
-        vec![ToolDesc {
-            shape: ToolShape::Blade {
-                half_width: 0.5,
-                half_height: 0.3,
-            },
-            cut_width: 0.5 * H,
-            cut_mode: CutMode::Remove,
-            path: Path {
-                keys: vec![(0.0, at(edge + 0.3)), (0.05, at(edge + 5.0))],
-            },
-            pose: at(edge + 0.3),
-        }]
-    } else {
-        Vec::new()
-    };
-    Scene {
-        config: SimConfig {
-            ground: None,
-            gravity: Vec3::ZERO,
-            solver: crate::config::SolverMode::GaussSeidel,
-            substeps: 16,
-            iterations: 10,
-            ..config
-        },
-        bodies: vec![body],
-        tools,
-        colliders: vec![],
-        frames: 120,
-    }
-}
-
-/// A blade through the vertical axis, its normal yawed `normal_yaw` from +Z, moving
-/// down from `from_y` to `to_y` between times `t0` and `t1`, then leaving below the ground.
-fn blade_vertical_cut(
-    normal_yaw: f32,
-    width: f32,
-    from_y: f32,
-    to_y: f32,
-    t0: f32,
-    t1: f32,
-) -> ToolDesc {
-    // Blade normal is local Z; yaw it about Y so the normal lies in the XZ plane.
-    let rotation = Quat::from_rotation_y(normal_yaw);
-    let at = |y: f32| Pose {
-        position: Vec3::new(0.0, y, 0.0),
-        rotation,
-    };
-    ToolDesc {
-        shape: ToolShape::Blade {
-            half_width: 2.0,
-            half_height: 0.3,
-        },
-        cut_width: width,
-        cut_mode: CutMode::Remove,
-        path: Path {
-            keys: vec![(t0, at(from_y)), (t1, at(to_y)), (t1 + 0.05, at(-5.0))],
-        },
-        pose: at(from_y),
-    }
-}
-
-fn block_on_pedestal(cells: UVec3, pedestal: Vec3) -> (BodyDesc, StaticBox) {
-    let height = 0.6;
-    let mut body = rigid_body(Shape::cuboid(cells), H);
-    body.position = Vec3::new(0.0, height + cells.y as f32 * H * 0.5, 0.0);
-    let pedestal = StaticBox {
-        min: Vec3::new(-pedestal.x, 0.0, -pedestal.z),
-        max: Vec3::new(pedestal.x, height, pedestal.z),
-        friction: 0.2,
-    };
-    (body, pedestal)
-}
-
-fn cutting_config(seed: u64) -> SimConfig {
+/// The default settings with `seed`.
+fn seeded(seed: u64) -> SimConfig {
     SimConfig {
         seed,
         ..SimConfig::default()
     }
 }
 
+/// The `scooped` scene: the built-in `cantilever` with 20 scoops.
+fn scooped(seed: u64) -> Scene {
+    let cantilever = builtin("cantilever", seed).expect("`cantilever` is built in");
+    scooped_cantilever_scene(cantilever, seed, 20)
+}
+
 /// The built-in scene `name`, with the given seed, or `None`.
 pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
-    let config = SimConfig {
-        seed,
-        ..SimConfig::default()
-    };
-    Some(match name {
-        "drop" => {
-            let mut body = rigid_body(Shape::cuboid(UVec3::new(16, 8, 8)), H);
-            body.position = Vec3::new(0.0, 0.4 + 0.5, 0.0);
-            Scene {
-                config,
-                bodies: vec![body],
-                tools: vec![],
-                colliders: vec![],
-                frames: 300,
-            }
+    let scene = BUILTIN_SCENES.iter().find(|b| b.name == name)?;
+    Some(match scene.source {
+        Source::File(text) => {
+            // (every built-in file is read by a test: this cannot fail)
+            let file = SceneFile::parse(text).expect("a built-in scene file parses");
+            let mut scene = file
+                .to_scene(std::path::Path::new("."))
+                .expect("a built-in scene file describes a scene");
+            scene.config.seed = seed;
+            scene
         }
-        "tear" | "notch" => pulled_bar(config, name == "notch"),
-        "jittered" => crate::io::relax_scenes::jittered_scene(config),
-        "bend" => crate::io::deform_scenes::bend_scene(config),
-        "grab" => crate::io::deform_scenes::grab_scene(config),
-        "cantilever" => {
-            let mut body = rigid_body(Shape::cuboid(UVec3::new(24, 6, 6)), H);
-            body.position = Vec3::new(0.0, 1.0, 0.0);
-            body.pins = vec![PinRegion {
-                min: Vec3::new(-1.3, 0.0, -1.0),
-                max: Vec3::new(-1.2 + 2.0 * H, 2.0, 1.0),
-                ..PinRegion::default()
-            }];
-            // rubber-like: E ≈ 0.83 MPa (Euler–Bernoulli tip sag ≈ 11.5 h)
-            body.material = Material {
-                compliance: 1.2e-6,
-                ..Material::rigid()
-            };
-            let config = SimConfig {
-                ground: None,
-                iterations: 20,
-                damping: 2.0,
-                ..config
-            };
-            Scene {
-                config,
-                bodies: vec![body],
-                tools: vec![],
-                colliders: vec![],
-                frames: 600,
-            }
-        }
-        "soft_beam" => soft_beam(config),
-        "slice" => {
-            let (body, pedestal) =
-                block_on_pedestal(UVec3::new(24, 12, 12), Vec3::new(0.4, 0.0, 0.8));
-            let top = body.position.y + 0.9;
-            let config = SimConfig {
-                boxes: vec![pedestal],
-                ..cutting_config(seed)
-            };
-            let (bottom, half_pi) = (body.position.y - 0.9, std::f32::consts::FRAC_PI_2);
-            let tool = blade_vertical_cut(half_pi, 1.01 * H, top, bottom, 0.2, 0.5);
-            Scene {
-                config,
-                bodies: vec![body],
-                tools: vec![tool],
-                colliders: vec![],
-                frames: 300,
-            }
-        }
-        "dice" => {
-            let (body, pedestal) =
-                block_on_pedestal(UVec3::new(24, 12, 24), Vec3::new(0.4, 0.0, 0.4));
-            let (top, bottom) = (body.position.y + 0.9, body.position.y - 0.9);
-            let config = SimConfig {
-                boxes: vec![pedestal],
-                ..cutting_config(seed)
-            };
-            let a =
-                blade_vertical_cut(std::f32::consts::FRAC_PI_2, 1.5 * H, top, bottom, 0.2, 0.25);
-            let b = blade_vertical_cut(0.0, 1.5 * H, top, bottom, 0.2, 0.25);
-            Scene {
-                config,
-                bodies: vec![body],
-                tools: vec![a, b],
-                colliders: vec![],
-                frames: 300,
-            }
-        }
-        "scoop" => {
-            let mut body = rigid_body(Shape::cuboid(UVec3::new(24, 12, 12)), H);
-            body.position = Vec3::new(0.0, 0.6, 0.0);
-            let y = body.position.y + 0.6;
-            let at = |x: f32| Pose::at(Vec3::new(x, y, 0.0));
-            let tool = ToolDesc {
-                shape: ToolShape::Sphere { radius: 0.3 },
-                cut_width: 0.5 * H,
-                cut_mode: CutMode::Remove,
-                path: Path {
-                    keys: vec![(0.2, at(-1.6)), (1.2, at(1.6))],
-                },
-                pose: at(-1.6),
-            };
-            Scene {
-                config: cutting_config(seed),
-                bodies: vec![body],
-                tools: vec![tool],
-                colliders: vec![],
-                frames: 120,
-            }
-        }
-        "random" => random_scene(seed),
-        "cuts" => cut_block_scene(seed, 50),
-        "bevel" => bevel_scene(config),
-        "scooped" => scooped_cantilever_scene(builtin("cantilever", seed)?, seed, 20),
-        "stack" => stack_scene(config),
-        "pile" => pile_scene(config, H),
-        "press" => press_scene(config),
-        _ => return crate::io::oriented_scenes::builtin(name, config),
+        Source::Made(make) => make(seed),
     })
-}
-
-/// A box of `cells` lattice points whose lowest layer is at height `bottom`.
-/// A block of `cells` resting on its contact balls (radius h/2) on a floor at height
-/// `bottom`.
-fn box_at(cells: UVec3, x: f32, bottom: f32, z: f32) -> BodyDesc {
-    let mut body = rigid_body(Shape::cuboid(cells), H);
-    body.position = Vec3::new(x, bottom + cells.y as f32 * H * 0.5, z);
-    body
-}
-
-fn stack_scene(config: SimConfig) -> Scene {
-    let lower = box_at(UVec3::new(8, 8, 8), 0.0, 0.0, 0.0);
-    let upper = box_at(UVec3::new(16, 8, 8), 0.0, 1.2, 0.0);
-    Scene {
-        config,
-        bodies: vec![lower, upper],
-        tools: vec![],
-        colliders: vec![],
-        frames: 300,
-    }
 }
 
 /// A walled bin (four static boxes, each tilted 10° outwards about its long axis) and
@@ -467,51 +250,17 @@ pub fn pile_scene(config: SimConfig, h: f32) -> Scene {
     }
 }
 
-fn press_scene(config: SimConfig) -> Scene {
-    let block = box_at(UVec3::new(16, 8, 8), 0.0, 0.0, 0.0);
-    let top = 0.7;
-    let plate_at = |y: f32| Pose::at(Vec3::new(0.0, y + 0.05, 0.0));
-    let plate = ColliderDesc {
-        shape: ColliderShape::Box {
-            half_extents: Vec3::new(1.2, 0.05, 0.8),
-        },
-        friction: 0.5,
-        pose: plate_at(1.2),
-        path: Path {
-            keys: vec![
-                (0.2, plate_at(1.2)),
-                (0.8, plate_at(top - 0.1)),
-                (2.6, plate_at(top - 0.1)),
-                (3.2, plate_at(1.5)),
-            ],
-        },
-    };
-    // a blade in the YZ plane (normal X) sweeping along Z through the squeezed block
-    let blade_at = |z: f32| Pose {
-        position: Vec3::new(0.05, 0.3, z),
-        rotation: Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
-    };
-    let blade = ToolDesc {
-        shape: ToolShape::Blade {
-            half_width: 0.3,
-            half_height: 0.6,
-        },
-        cut_width: 1.01 * H,
-        cut_mode: CutMode::Remove,
-        path: Path {
-            keys: vec![
-                (1.2, blade_at(1.5)),
-                (1.8, blade_at(-1.5)),
-                (1.85, blade_at(-5.0)),
-            ],
-        },
-        pose: blade_at(1.5),
-    };
-    Scene {
-        config,
-        bodies: vec![block],
-        tools: vec![blade],
-        colliders: vec![plate],
-        frames: 240,
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_built_in_scene_is_made_with_the_seed_asked_for() {
+        for b in BUILTIN_SCENES {
+            let scene = builtin(b.name, 7).unwrap_or_else(|| panic!("{}", b.name));
+            assert_eq!(scene.config.seed, 7, "{}", b.name);
+            assert!(!scene.bodies.is_empty(), "{}", b.name);
+        }
+        assert!(builtin("no_such_scene", 0).is_none());
     }
 }

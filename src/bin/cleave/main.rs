@@ -440,8 +440,8 @@ fn main() -> ExitCode {
     ));
     let result = match cli.command {
         Command::Scenes { action: None } => {
-            for (name, description) in BUILTIN_SCENES {
-                println!("{name:<12} {description}");
+            for b in BUILTIN_SCENES {
+                println!("{:<12} {}", b.name, b.description);
             }
             Ok(())
         }

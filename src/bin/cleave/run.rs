@@ -28,7 +28,7 @@ use std::time::Instant;
 /// The built-in scene `name`, or an error listing the built-ins.
 pub fn builtin_scene(name: &str, seed: u64) -> Result<Scene, String> {
     builtin(name, seed).ok_or_else(|| {
-        let names: Vec<&str> = BUILTIN_SCENES.iter().map(|(n, _)| *n).collect();
+        let names: Vec<&str> = BUILTIN_SCENES.iter().map(|b| b.name).collect();
         format!("unknown scene `{name}` (built-in: {})", names.join(", "))
     })
 }

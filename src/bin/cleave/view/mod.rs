@@ -79,10 +79,10 @@ fn is_loopback(host: &str) -> bool {
 pub fn view(args: ViewArgs) -> Result<(), String> {
     let mut offered: Vec<Offered> = BUILTIN_SCENES
         .iter()
-        .filter_map(|(name, _)| {
+        .filter_map(|b| {
             Some(Offered {
-                name: name.to_string(),
-                scene: builtin(name, args.seed)?,
+                name: b.name.to_string(),
+                scene: builtin(b.name, args.seed)?,
             })
         })
         .collect();
