@@ -12,7 +12,7 @@ use std::process::{Child, Command, Stdio};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-/// One server and one browser at a time: they share the machine's cores.
+/// One test's servers (and browser) at a time: they share the machine's cores.
 static BROWSER: Mutex<()> = Mutex::new(());
 
 /// A running `cleave view` and the address it printed.
@@ -183,6 +183,8 @@ fn upgrade<'a>(host: &'a str, origin: Option<&'a str>) -> Vec<(&'a str, &'a str)
 
 #[test]
 fn only_the_page_itself_may_drive_the_viewer() {
+    // (its servers simulate too: not beside a browser test, whose timing they would take)
+    let _one = BROWSER.lock().unwrap_or_else(|e| e.into_inner());
     let server = serve(&["slice", "--threads", "1"]);
     let own = server
         .url

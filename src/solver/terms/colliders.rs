@@ -225,6 +225,17 @@ impl Colliders {
         Self::new(config.ground, boxes.chain(moving).collect())
     }
 
+    /// Whether a collider may move a ball of radius `margin` at `p` that started the
+    /// substep at `previous` ([`Colliders::resolve`] leaves every other ball where it is).
+    #[inline]
+    fn touches(&self, p: Vec3A, previous: Vec3A, margin: f32) -> bool {
+        self.ground.is_some_and(|g| p.y < g.height + margin)
+            || self
+                .shapes
+                .iter()
+                .any(|s| s.reaches(p.min(previous), p.max(previous), margin))
+    }
+
     /// Whether a collider may move a ball of radius `margin` whose centre's substep ran
     /// inside `[lo, hi]`.
     fn reaches(&self, lo: Vec3A, hi: Vec3A, margin: f32) -> bool {
@@ -361,7 +372,9 @@ impl Term for Colliders {
                         return;
                     }
                     for (i, p) in positions.iter_mut().enumerate() {
-                        if inv_mass[i] == 0.0 {
+                        // (most balls of a resting body touch nothing: they are left
+                        // as they are, unwritten)
+                        if inv_mass[i] == 0.0 || !this.touches(*p, previous[i], margins[i]) {
                             continue;
                         }
                         let (resolved, held_back) =
