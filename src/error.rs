@@ -135,7 +135,7 @@ pub fn check_length(field: &str, value: f32) -> Result<()> {
         value,
         f32::MIN_POSITIVE,
         MAX_COORDINATE,
-        "0 < length ≤ 1e6 (metres)",
+        "0 < size ≤ 1e6 (metres)",
     )
 }
 
