@@ -195,35 +195,23 @@ fn numbers_past_any_sensible_range_are_refused() {
 fn flags_that_would_write_nothing_say_so() {
     let dir = scratch("export");
     let out = dir.join("out");
-    let out = out.to_str().unwrap();
-    refused(
-        &cleave(&[
+    let run = |extra: &[&str]| {
+        let base = [
             "run",
             "drop",
             "--frames",
             "1",
-            "--export",
-            "obj,gltf",
-            "--png-every",
-            "0",
             "--out",
-            out,
-        ]),
+            out.to_str().unwrap(),
+        ];
+        cleave(&[&base[..], extra].concat())
+    };
+    refused(
+        &run(&["--export", "obj,gltf", "--png-every", "0"]),
         &["--export obj/gltf", "--png-every"],
     );
     refused(
-        &cleave(&[
-            "run",
-            "drop",
-            "--frames",
-            "1",
-            "--export",
-            "ply",
-            "--ply-every",
-            "0",
-            "--out",
-            out,
-        ]),
+        &run(&["--export", "ply", "--ply-every", "0"]),
         &["--ply-every"],
     );
     assert!(!dir.join("out/obj").exists(), "no empty folder is made");
