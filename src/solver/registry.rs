@@ -99,10 +99,62 @@ impl Terms {
         }
     }
 
+    /// Each term's saved state ([`Term::saved_state`]), with its name, in order.
+    pub fn saved_states(&self) -> Vec<(String, Vec<u8>)> {
+        self.kinds
+            .iter()
+            .filter_map(|k| Some((k.name().to_string(), k.saved_state()?)))
+            .collect()
+    }
+
+    /// Gives each saved state to the term of its name ([`Term::resume_state`]); an
+    /// error naming the term when no term takes it or it is refused.
+    pub fn resume_states(&mut self, states: Vec<(String, Vec<u8>)>) -> Result<(), String> {
+        for (name, state) in states {
+            let term = self
+                .kinds
+                .iter_mut()
+                .find(|k| k.name() == name)
+                .ok_or_else(|| format!("term `{name}`: no such term takes a saved state"))?;
+            term.resume_state(&state)
+                .map_err(|e| format!("term `{name}`: {e}"))?;
+        }
+        Ok(())
+    }
+
     /// Every dense particle some term holds kinematic.
     pub fn kinematic(&self) -> impl Iterator<Item = u32> + '_ {
         self.kinds
             .iter()
             .flat_map(|k| k.kinematic().iter().copied())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn saved_states_go_back_to_their_terms_and_strangers_are_refused() {
+        let mut terms = Terms::builtin();
+        let states = terms.saved_states();
+        let names: Vec<&str> = states.iter().map(|(n, _)| n.as_str()).collect();
+        // the terms that carry state between frames save it; the others are taken
+        // again from the ECS
+        assert!(
+            names.contains(&"oriented") && names.contains(&"patches"),
+            "{names:?}"
+        );
+        assert!(!names.contains(&"colliders"), "{names:?}");
+        assert!(terms.resume_states(states).is_ok());
+        let e = terms
+            .resume_states(vec![("no such term".into(), vec![])])
+            .unwrap_err();
+        assert!(e.contains("no such term takes"), "{e}");
+        let e = terms
+            .resume_states(vec![("oriented".into(), vec![0xff; 3])])
+            .unwrap_err();
+        assert!(e.starts_with("term `oriented`:"), "{e}");
+        assert!(terms.get::<Oriented>().is_some());
     }
 }

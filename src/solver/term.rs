@@ -284,6 +284,20 @@ pub trait Term: std::any::Any + Send + Sync {
     /// rebuild what is derived from the lattices.
     fn topology(&mut self, _change: &Topology) {}
 
+    /// What a save keeps of the term, encoded by the term: what it carries from frame to
+    /// frame (warm starts, plastic rest shapes). `None` (the default) when everything it
+    /// holds is taken again from the ECS at the next topology change.
+    fn saved_state(&self) -> Option<Vec<u8>> {
+        None
+    }
+
+    /// Takes up what [`Term::saved_state`] gave, at the next topology change (a loaded
+    /// simulation's first, which lays the particles out as they were saved); an error,
+    /// naming what is wrong, when it does not decode or does not fit.
+    fn resume_state(&mut self, _state: &[u8]) -> Result<(), String> {
+        Err("this term keeps no saved state".into())
+    }
+
     /// Called once per substep before the iterations, with the predictions: the place for
     /// work the iterations share (finding contact pairs, placing kinematic particles,
     /// clearing accumulated `λ`).

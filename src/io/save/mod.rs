@@ -29,8 +29,6 @@ use crate::ecs::resources::{CutReport, SceneLabel, SimClock, SimRng, SimSettings
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::Result;
 use crate::io::save_file::{SaveReader, SaveWriter};
-use crate::solver::terms::oriented::Oriented;
-use crate::solver::terms::patches::Patches;
 use crate::systems::SyncSchedule;
 use bevy_ecs::prelude::*;
 use std::io::{Read, Write};
@@ -197,18 +195,7 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
         cache: CacheState {
             clusters_term: cache.solver.clusters.clone(),
             gauss_seidel: cache.solver.gauss_seidel.clone(),
-            oriented: cache
-                .solver
-                .terms
-                .get::<Oriented>()
-                .map(Oriented::saved)
-                .unwrap_or_default(),
-            patches: cache
-                .solver
-                .terms
-                .get::<Patches>()
-                .map(Patches::saved)
-                .unwrap_or_default(),
+            terms: cache.solver.terms.saved_states(),
             particles: cache.particles.clone(),
             entities: cache.entities.clone(),
             locals: cache.locals.clone(),

@@ -11,8 +11,6 @@ use crate::ecs::resources::{
 };
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::{CleaveError, Result};
-use crate::solver::terms::oriented::Oriented;
-use crate::solver::terms::patches::Patches;
 use crate::systems::{SyncSchedule, install};
 use bevy_ecs::prelude::*;
 use std::collections::HashMap;
@@ -270,15 +268,6 @@ fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Resul
     }
     let state = &saved.particles;
     let finite = |v: &[glam::Vec3A]| v.iter().all(|x| x.is_finite());
-    let oriented = saved.oriented;
-    let warm = &oriented.moved;
-    if !(warm.is_empty() || warm.len() == slots && finite(warm) && oriented.dt.is_finite())
-        || !finite(&oriented.plastic_rest)
-    {
-        return Err(invalid(
-            "the oriented particles' state does not fit the layout",
-        ));
-    }
     let masses = state.inv_mass.iter().all(|w| w.is_finite() && *w >= 0.0);
     if !(masses && finite(&state.positions) && finite(&state.previous) && finite(&state.velocities))
     {
@@ -305,12 +294,11 @@ fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Resul
     let mut cache = world.resource_mut::<SolverCache>();
     cache.solver.clusters = saved.clusters_term;
     cache.solver.gauss_seidel = saved.gauss_seidel;
-    if let Some(term) = cache.solver.terms.get_mut::<Oriented>() {
-        term.resume(oriented);
-    }
-    if let Some(term) = cache.solver.terms.get_mut::<Patches>() {
-        term.resume(saved.patches);
-    }
+    cache
+        .solver
+        .terms
+        .resume_states(saved.terms)
+        .map_err(|e| invalid(format!("solver layout: {e}")))?;
     cache.particles = saved.particles;
     cache.slot_of = ClusterSlots::from_clusters(&clusters);
     cache.entities = particles;

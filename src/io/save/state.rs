@@ -11,8 +11,6 @@ use crate::error::CleaveError;
 use crate::solver::clusters::term::ClusterTerm;
 use crate::solver::particles::Particles;
 use crate::solver::schemes::gauss_seidel::GaussSeidel;
-use crate::solver::terms::oriented::SavedGroups;
-use crate::solver::terms::patches::SavedPatches;
 use bevy_ecs::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -84,10 +82,8 @@ pub(super) struct AttachmentState {
 pub(super) struct CacheState {
     pub(super) clusters_term: ClusterTerm,
     pub(super) gauss_seidel: GaussSeidel,
-    /// The oriented particles' warm start and plastic rest shapes.
-    pub(super) oriented: SavedGroups,
-    /// The patches' fitted rotations.
-    pub(super) patches: SavedPatches,
+    /// Each term's own saved state, by name ([`crate::solver::term::Term::saved_state`]).
+    pub(super) terms: Vec<(String, Vec<u8>)>,
     pub(super) particles: Particles,
     pub(super) entities: Vec<Entity>,
     pub(super) locals: Vec<u32>,

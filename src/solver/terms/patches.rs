@@ -82,9 +82,9 @@ pub struct Patches {
 /// fits' warm start (everything else is found again on the lattices). Without them a
 /// loaded run would fit from no turn and part from the run that went on.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
-pub struct SavedPatches {
+struct SavedPatches {
     /// Body after body: whether its patches were fitted, and each patch's rotation.
-    pub bodies: Vec<(bool, Vec<Quat>)>,
+    bodies: Vec<(bool, Vec<Quat>)>,
 }
 
 impl Patches {
@@ -96,24 +96,6 @@ impl Patches {
     /// Whether there are none.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
-    }
-
-    /// What a saved simulation keeps of the term (see [`SavedPatches`]).
-    pub fn saved(&self) -> SavedPatches {
-        SavedPatches {
-            bodies: self
-                .bodies
-                .iter()
-                .map(|b| (b.fitted, b.rotations.clone()))
-                .collect(),
-        }
-    }
-
-    /// Takes up a saved state ([`Patches::saved`]) at the next topology change: a
-    /// loaded simulation's first, which finds the same patches on the same lattices (a
-    /// body whose count differs, which only a damaged file gives, starts unfitted).
-    pub fn resume(&mut self, saved: SavedPatches) {
-        self.resumed = Some(saved);
     }
 }
 
@@ -236,6 +218,25 @@ impl Term for Patches {
 
     fn is_empty(&self) -> bool {
         Patches::is_empty(self)
+    }
+
+    fn saved_state(&self) -> Option<Vec<u8>> {
+        let saved = SavedPatches {
+            bodies: self
+                .bodies
+                .iter()
+                .map(|b| (b.fitted, b.rotations.clone()))
+                .collect(),
+        };
+        postcard::to_stdvec(&saved).ok()
+    }
+
+    /// (a loaded simulation's first topology change finds the same patches on the same
+    /// lattices; a body whose count differs, which only a damaged file gives, starts
+    /// unfitted)
+    fn resume_state(&mut self, state: &[u8]) -> Result<(), String> {
+        self.resumed = Some(postcard::from_bytes(state).map_err(|e| e.to_string())?);
+        Ok(())
     }
 
     /// Finds the patches of every body that changed (all, after a rebuild) on its

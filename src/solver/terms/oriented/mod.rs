@@ -67,13 +67,13 @@ pub struct Oriented {
 /// What a saved simulation keeps of the term: its warm start, and the rest shapes of
 /// plastic bodies' groups (everything else is taken again from the lattices).
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
-pub struct SavedGroups {
+struct SavedGroups {
     /// Each dense particle's move by the groups in the last substep.
-    pub moved: Vec<Vec3A>,
+    moved: Vec<Vec3A>,
     /// That substep's time step.
-    pub dt: f32,
+    dt: f32,
     /// The rest positions of every plastic body's memberships, body after body.
-    pub plastic_rest: Vec<Vec3A>,
+    plastic_rest: Vec<Vec3A>,
 }
 
 /// How far past its goal a sweep moves each member (successive over-relaxation, below
@@ -99,26 +99,6 @@ impl Oriented {
     /// Number of memberships (the sum of the groups' sizes).
     pub fn membership_count(&self) -> usize {
         self.bodies.iter().map(|b| b.members.len()).sum()
-    }
-
-    /// What a saved simulation keeps of the term (see [`SavedGroups`]).
-    pub fn saved(&self) -> SavedGroups {
-        SavedGroups {
-            moved: self.moved.clone(),
-            dt: self.moved_dt,
-            plastic_rest: self
-                .bodies
-                .iter()
-                .filter(|b| b.plastic.is_some())
-                .flat_map(|b| b.rest.iter().copied())
-                .collect(),
-        }
-    }
-
-    /// Takes up a saved state ([`Oriented::saved`]) at the next topology change: a loaded
-    /// simulation's first, which lays out the particles as they were saved.
-    pub fn resume(&mut self, saved: SavedGroups) {
-        self.resumed = Some(saved);
     }
 
     /// Every group of the body `id` as its dense members, in the term's order.
@@ -211,6 +191,32 @@ impl Term for Oriented {
 
     fn is_empty(&self) -> bool {
         self.bodies.is_empty()
+    }
+
+    fn saved_state(&self) -> Option<Vec<u8>> {
+        let saved = SavedGroups {
+            moved: self.moved.clone(),
+            dt: self.moved_dt,
+            plastic_rest: self
+                .bodies
+                .iter()
+                .filter(|b| b.plastic.is_some())
+                .flat_map(|b| b.rest.iter().copied())
+                .collect(),
+        };
+        postcard::to_stdvec(&saved).ok()
+    }
+
+    /// (a warm start whose length does not fit the layout is dropped at the next
+    /// substep, as after a change of time step)
+    fn resume_state(&mut self, state: &[u8]) -> Result<(), String> {
+        let saved: SavedGroups = postcard::from_bytes(state).map_err(|e| e.to_string())?;
+        let finite = |v: &[Vec3A]| v.iter().all(|x| x.is_finite());
+        if !(finite(&saved.moved) && finite(&saved.plastic_rest) && saved.dt.is_finite()) {
+            return Err("a warm start or plastic rest place is not finite".into());
+        }
+        self.resumed = Some(saved);
+        Ok(())
     }
 
     /// Builds the groups of every body that changed (all, after a rebuild) from its
