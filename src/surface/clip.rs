@@ -70,6 +70,8 @@ fn piece_of(lattice: &Lattice, at: Vec3, bindings: &[Binding]) -> u32 {
 /// crossings on their lattice edges (rest frame); `None` without a crossing.
 fn cut_plane(lattice: &Lattice, around: &[u32]) -> Option<(Vec3, Vec3)> {
     let (mut at, mut normal, mut n) = (Vec3::ZERO, Vec3::ZERO, 0);
+    // (measured between the cells' centres: a split half rests off its own)
+    let centre = |p: u32| (lattice.coord(p).as_vec3() + Vec3::splat(0.5)) * lattice.spacing();
     for &p in around {
         for offset in NEIGHBOUR_OFFSETS {
             let Some(q) = lattice.at(lattice.coord(p) + offset) else {
@@ -78,9 +80,6 @@ fn cut_plane(lattice: &Lattice, around: &[u32]) -> Option<(Vec3, Vec3)> {
             let Some(c) = lattice.crossing_between(p, q) else {
                 continue;
             };
-            // (measured between the cells' centres: a split half rests off its own)
-            let centre =
-                |p: u32| (lattice.coord(p).as_vec3() + Vec3::splat(0.5)) * lattice.spacing();
             let (rp, rq) = (centre(p), centre(q));
             at += rp + c.fraction * (rq - rp);
             // (normals either way round: turned to agree with the first)
@@ -183,10 +182,7 @@ pub fn clip(
         };
         // the cut meets lone–a at p and b–lone at q
         let (p_lone, p_other) = meet(lone, a, out);
-        let (q_other, q_lone) = {
-            let (x, y) = meet(b, lone, out);
-            (x, y)
-        };
+        let (q_other, q_lone) = meet(b, lone, out);
         out.triangles.push([lone, p_lone, q_lone]);
         out.triangle_piece.push(lone_side);
         out.triangles.push([p_other, a, b]);

@@ -53,8 +53,9 @@ impl Guard {
         Some((host, port.parse().ok()?))
     }
 
-    /// Whether `host` (no port) is this machine's loopback by any spelling.
-    fn is_loopback(host: &str) -> bool {
+    /// Whether `host` (no port; `--host` as given) is this machine's loopback by any
+    /// spelling: only this machine can reach it.
+    pub fn is_loopback(host: &str) -> bool {
         let bare = host.trim_start_matches('[').trim_end_matches(']');
         host.eq_ignore_ascii_case("localhost")
             || bare.parse::<IpAddr>().is_ok_and(|ip| ip.is_loopback())

@@ -64,16 +64,6 @@ struct Shared {
     refusals: Arc<Refusals>,
 }
 
-/// Whether `host` (as `--host` gives it) is only reachable from this machine.
-fn is_loopback(host: &str) -> bool {
-    host.eq_ignore_ascii_case("localhost")
-        || host
-            .trim_start_matches('[')
-            .trim_end_matches(']')
-            .parse::<std::net::IpAddr>()
-            .is_ok_and(|ip| ip.is_loopback())
-}
-
 /// Serves the page until interrupted; an error (a scene that will not load, a port in
 /// use) is a line for the user.
 pub fn view(args: ViewArgs) -> Result<(), String> {
@@ -116,7 +106,7 @@ pub fn view(args: ViewArgs) -> Result<(), String> {
         .with_state(shared);
     let token = match args.token {
         Some(token) => Some(token),
-        None if !is_loopback(&args.host) => Some(format!("{:032x}", rand::random::<u128>())),
+        None if !Guard::is_loopback(&args.host) => Some(format!("{:032x}", rand::random::<u128>())),
         None => None,
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -152,7 +142,7 @@ pub fn view(args: ViewArgs) -> Result<(), String> {
                 refusals.flush();
             }
         });
-        if !is_loopback(host) {
+        if !Guard::is_loopback(host) {
             eprintln!(
                 "cleave view: listening on {address}, beyond this machine: anyone on the network who has the URL below (with its token) can watch and drive the simulation"
             );
