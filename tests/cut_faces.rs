@@ -4,14 +4,16 @@
 //! against the sphere. The meshes are checked by a checker written here: closed,
 //! consistently oriented, and the pieces' enclosed volumes adding up to the block's.
 
+mod common;
+
 use cleave::config::SimConfig;
 use cleave::cut::tool::{CutMode, Path, Pose, ToolShape};
 use cleave::ecs::components::BodyLattice;
 use cleave::ecs::desc::{BodyDesc, ToolDesc};
 use cleave::ecs::surface_mesh::SurfaceMesh;
 use cleave::prelude::*;
+use common::closed_volumes;
 use glam::{Mat3, Quat};
-use std::collections::HashMap;
 
 const H: f32 = 0.1;
 
@@ -113,29 +115,6 @@ fn off_plane(points: impl Iterator<Item = Vec3>, normal: Vec3, through: Vec3) ->
     }
     assert!(n > 0, "no cut face");
     (((sum / n as f64).sqrt()) as f32, max)
-}
-
-/// Per piece, the volume a closed, consistently oriented mesh encloses; panics naming
-/// an edge that is open, doubled or turned the wrong way.
-fn closed_volumes(positions: &[Vec3], triangles: &[[u32; 3]], pieces: &[u32]) -> HashMap<u32, f64> {
-    let mut directed: HashMap<(u32, u32), u32> = HashMap::new();
-    let mut volume: HashMap<u32, f64> = HashMap::new();
-    for (t, piece) in triangles.iter().zip(pieces) {
-        for k in 0..3 {
-            *directed.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
-        }
-        let [a, b, c] = t.map(|i| positions[i as usize].as_dvec3());
-        *volume.entry(*piece).or_default() += a.dot(b.cross(c)) / 6.0;
-    }
-    for (&(a, b), &n) in &directed {
-        assert_eq!(n, 1, "edge {a}→{b} in {n} triangles the same way");
-        assert_eq!(
-            directed.get(&(b, a)),
-            Some(&1),
-            "edge {a}→{b} has no single twin"
-        );
-    }
-    volume
 }
 
 /// Cuts an `n³` block by a blade through a point 0.137 h off its centre with `normal`

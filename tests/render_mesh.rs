@@ -6,11 +6,13 @@
 //! the cut's vertices on the blade's plane; a mesh outside its body is refused.
 
 mod common;
+
 use cleave::body::lattice::Lattice;
 use cleave::ecs::components::BodyLattice;
 use cleave::ecs::surface_mesh::SurfaceMesh;
 use cleave::geometry::mesh::TriangleMesh;
 use cleave::prelude::*;
+use common::closed_volumes;
 use glam::IVec3;
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -108,25 +110,6 @@ fn a_sphere_is_drawn_from_its_mesh_and_follows_the_body_as_it_lands() {
         "worst vertex off trilinear interpolation: {:.4} h",
         worst / H
     );
-}
-
-/// Per piece, the volume a closed, consistently oriented mesh encloses; panics naming
-/// an edge that is open, doubled or turned the wrong way.
-fn closed_volumes(x: &[Vec3], triangles: &[[u32; 3]], pieces: &[u32]) -> HashMap<u32, f64> {
-    let mut directed: HashMap<(u32, u32), u32> = HashMap::new();
-    let mut volume: HashMap<u32, f64> = HashMap::new();
-    for (t, piece) in triangles.iter().zip(pieces) {
-        for k in 0..3 {
-            *directed.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
-        }
-        let [a, b, c] = t.map(|i| x[i as usize].as_dvec3());
-        *volume.entry(*piece).or_default() += a.dot(b.cross(c)) / 6.0;
-    }
-    for (&(a, b), &n) in &directed {
-        assert_eq!(n, 1, "edge {a}→{b} in {n} triangles the same way");
-        assert_eq!(directed.get(&(b, a)), Some(&1), "edge {a}→{b} has no twin");
-    }
-    volume
 }
 
 #[test]

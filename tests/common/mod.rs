@@ -3,6 +3,7 @@
 //! code with the engine).
 #![allow(dead_code)] // each test crate uses its own part
 
+use cleave::prelude::Vec3;
 use serde_json::Value;
 use std::collections::{HashMap, HashSet, VecDeque};
 use std::path::PathBuf;
@@ -371,4 +372,31 @@ pub fn octahedron(r: f32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
         [0, 3, 5],
     ];
     (vertices, triangles)
+}
+
+/// Per piece, the volume a closed, consistently oriented mesh encloses; panics naming
+/// an edge that is open, doubled or turned the wrong way.
+pub fn closed_volumes(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    pieces: &[u32],
+) -> HashMap<u32, f64> {
+    let mut directed: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut volume: HashMap<u32, f64> = HashMap::new();
+    for (t, piece) in triangles.iter().zip(pieces) {
+        for k in 0..3 {
+            *directed.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
+        }
+        let [a, b, c] = t.map(|i| positions[i as usize].as_dvec3());
+        *volume.entry(*piece).or_default() += a.dot(b.cross(c)) / 6.0;
+    }
+    for (&(a, b), &n) in &directed {
+        assert_eq!(n, 1, "edge {a}→{b} in {n} triangles the same way");
+        assert_eq!(
+            directed.get(&(b, a)),
+            Some(&1),
+            "edge {a}→{b} has no single twin"
+        );
+    }
+    volume
 }
