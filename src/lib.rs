@@ -93,6 +93,9 @@ pub use bevy_ecs;
 /// The bevy_app version [`sim::plugin::CleavePlugin`] plugs into.
 #[cfg(feature = "bevy_app")]
 pub use bevy_app;
+/// The bevy_time version whose `Time<Fixed>` [`sim::plugin::CleavePlugin`] steps by.
+#[cfg(feature = "bevy_app")]
+pub use bevy_time;
 
 /// The types most users need. It names no `Result` (cleave's is
 /// [`error::Result`]), so it can be glob-imported beside bevy's prelude.
@@ -102,6 +105,7 @@ pub mod prelude {
     pub use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
     pub use crate::deform::keys::{HandleKey, HandlePath};
     pub use crate::ecs::check::check_invariants;
+    pub use crate::ecs::commands::CleaveCommands;
     pub use crate::ecs::components::*;
     pub use crate::ecs::desc::{
         AttachmentDesc, BodyDesc, ColliderDesc, GroupDesc, HandleDesc, PinRegion, Region,
@@ -109,12 +113,14 @@ pub mod prelude {
     };
     pub use crate::ecs::handles::{HandlePose, PoseMethod};
     pub use crate::ecs::resources::{
-        BodySplit, ClustersRebuilt, EdgesSevered, ParticlesCut, ParticlesRepaired,
+        BodySplit, ClustersRebuilt, EdgesSevered, ParticlesCut, ParticlesRepaired, SimClock,
+        SurfaceChanged,
     };
+    pub use crate::ecs::surface_mesh::SurfaceMesh;
     pub use crate::error::CleaveError;
     pub use crate::geometry::collider::ColliderShape;
     #[cfg(feature = "bevy_app")]
-    pub use crate::sim::plugin::{CleaveFrame, CleavePlugin};
+    pub use crate::sim::plugin::{CleaveFrame, CleavePlugin, CleaveSystems, StepClock};
     pub use crate::sim::simulation::Simulation;
     pub use crate::systems::{CleaveSchedule, SimStage, SubstepSchedule, SyncSchedule, install};
     pub use bevy_ecs::entity::Entity;

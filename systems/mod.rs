@@ -231,7 +231,10 @@ pub fn run_substeps(world: &mut World) {
     }
     let mut clock = world.resource_mut::<SimClock>();
     clock.frame += 1;
-    clock.time = clock.frame as f64 * config.dt as f64;
+    // a sum, not frame × dt, so that a frame length changed at run time (the game's
+    // fixed timestep) moves time on from where it was; while dt stays the same the two
+    // are equal to the bit (an f32 times a count below 2^29 is exact in f64)
+    clock.time += config.dt as f64;
 }
 
 fn invariant_checks_enabled(settings: Res<SimSettings>) -> bool {

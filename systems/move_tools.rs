@@ -4,10 +4,16 @@
 
 use crate::ecs::components::{ToolPath, ToolPose};
 use crate::ecs::resources::SimClock;
+use bevy_ecs::entity_disabling::Disabled;
 use bevy_ecs::prelude::*;
+use bevy_ecs::query::Allow;
 
-/// Updates every keyframed tool's pose for this frame. Writes tool data only.
-pub fn move_tools(clock: Res<SimClock>, mut tools: Query<(&mut ToolPose, &ToolPath)>) {
+/// Updates every keyframed tool's pose for this frame (a disabled one's too, so that it
+/// is where its path says when enabled again). Writes tool data only.
+pub fn move_tools(
+    clock: Res<SimClock>,
+    mut tools: Query<(&mut ToolPose, &ToolPath), Allow<Disabled>>,
+) {
     for (mut pose, path) in &mut tools {
         if let Some(p) = path.0.sample(clock.time as f32) {
             pose.current = p;

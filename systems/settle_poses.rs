@@ -5,11 +5,15 @@
 //! tested along its whole motion, at any speed, like a keyframed one. Writes poses only.
 
 use crate::ecs::components::{AttachmentTarget, ColliderPose, ToolPose};
+use bevy_ecs::entity_disabling::Disabled;
 use bevy_ecs::prelude::*;
+use bevy_ecs::query::Allow;
 
-/// Records where each tool, collider and attachment target ended the frame.
+/// Records where each tool, collider and attachment target ended the frame (a disabled
+/// tool's too: enabled again, it sweeps from where it is then, not from where it was
+/// disabled).
 pub fn settle_poses(
-    mut tools: Query<&mut ToolPose>,
+    mut tools: Query<&mut ToolPose, Allow<Disabled>>,
     mut colliders: Query<&mut ColliderPose>,
     mut targets: Query<&mut AttachmentTarget>,
 ) {

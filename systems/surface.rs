@@ -32,14 +32,15 @@ pub fn update_surfaces(
     clock: Res<SimClock>,
     mut changed: MessageWriter<SurfaceChanged>,
 ) {
-    for (body, lattice, mut mesh) in &mut bodies {
+    for (body, lattice, mut marked) in &mut bodies {
         let l = &lattice.lattice;
         let seen = (l.len(), l.live_count(), l.edits());
-        let new_topology = mesh.topology_version == 0 || mesh.seen != seen;
-        if !new_topology && mesh.deformed_at == Some(clock.frame) {
+        let new_topology = marked.topology_version == 0 || marked.seen != seen;
+        if !new_topology && marked.deformed_at == Some(clock.frame) {
             continue;
         }
-        let mesh = &mut *mesh;
+        // marked changed below only when it changed (see `SurfaceMesh::STILL`)
+        let mesh = marked.bypass_change_detection();
         if new_topology {
             let start = std::time::Instant::now();
             let touched = explained_by_cut(mesh, l, cut.bodies.iter().find(|c| c.body == body));
@@ -121,6 +122,9 @@ pub fn update_surfaces(
             &mut mesh.normals,
         );
         mesh.deformed_at = Some(clock.frame);
+        if mesh.moved_since_shown(l.spacing()) || new_topology {
+            marked.set_changed();
+        }
     }
 }
 

@@ -1,4 +1,5 @@
-//! The `bevy_app` feature: a cutting scene inside a Bevy `App`, stepped by `Update`,
+//! The `bevy_app` feature: a cutting scene inside a Bevy `App`, stepped by `Update`
+//! (the game's clock is `tests/bevy_game.rs`),
 //! splits into pieces, and the messages reach an ordinary app system; a system ordered
 //! after [`CleaveFrame`] reads the frame's positions; systems drag a body by an
 //! attachment and let go.
@@ -31,7 +32,11 @@ fn watch(
 fn slice_scene_splits_inside_an_app_and_messages_reach_app_systems() {
     let scene = builtin("slice", 0).unwrap();
     let mut app = App::new();
-    app.add_plugins(CleavePlugin::new(scene.config.clone()).unwrap());
+    app.add_plugins(
+        CleavePlugin::new(scene.config.clone())
+            .unwrap()
+            .in_schedule(Update),
+    );
     app.init_resource::<Seen>();
     app.add_systems(Update, watch);
     let body = spawn_body(app.world_mut(), &scene.bodies[0]).unwrap();
@@ -98,7 +103,11 @@ fn height(app: &App, body: Entity) -> f32 {
 #[test]
 fn a_system_ordered_after_the_frame_reads_its_positions() {
     let mut app = App::new();
-    app.add_plugins(CleavePlugin::new(SimConfig::default()).unwrap());
+    app.add_plugins(
+        CleavePlugin::new(SimConfig::default())
+            .unwrap()
+            .in_schedule(Update),
+    );
     let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(3)), 0.1);
     desc.position = Vec3::new(0.0, 2.0, 0.0);
     let body = spawn_body(app.world_mut(), &desc).unwrap();
@@ -159,7 +168,7 @@ fn systems_drag_a_body_with_an_attachment_and_let_go() {
         ground: None,
         ..SimConfig::default()
     };
-    app.add_plugins(CleavePlugin::new(config).unwrap());
+    app.add_plugins(CleavePlugin::new(config).unwrap().in_schedule(Update));
     let body = spawn_body(
         app.world_mut(),
         &BodyDesc::new(Shape::cuboid(UVec3::splat(3)), 0.1),

@@ -31,13 +31,13 @@ pub fn check_compliance(field: &str, compliance: f32) -> Result<()> {
     )
 }
 
-/// Spawns an attachment of `body`'s particles `particles` (body-local), which are at
-/// the world positions `positions` now, each (or, by `hold`, only their centroid) held
-/// by a spring of `compliance` to its place relative to the target `pose`, which
-/// `motion` moves.
+/// Makes `e` (a new entity: `world.spawn_empty()`) an attachment of `body`'s particles
+/// `particles` (body-local), which are at the world positions `positions` now, each
+/// (or, by `hold`, only their centroid) held by a spring of `compliance` to its place
+/// relative to the target `pose`, which `motion` moves.
 #[allow(clippy::too_many_arguments)]
 pub fn spawn_attachment(
-    world: &mut World,
+    mut e: EntityWorldMut,
     body: Entity,
     particles: Vec<u32>,
     positions: &[Vec3],
@@ -51,7 +51,7 @@ pub fn spawn_attachment(
         .iter()
         .map(|x| inverse * (*x - pose.position))
         .collect();
-    let mut e = world.spawn((
+    e.insert((
         Attachment {
             body,
             particles,
@@ -90,6 +90,18 @@ pub fn attach(
     compliance: f32,
     hold: Hold,
 ) -> Result<Entity> {
+    attach_into(world, None, body, particles, compliance, hold)
+}
+
+/// [`attach`], making the entity `into` (if given, else a new one) the attachment.
+pub(crate) fn attach_into(
+    world: &mut World,
+    into: Option<Entity>,
+    body: Entity,
+    particles: &[u32],
+    compliance: f32,
+    hold: Hold,
+) -> Result<Entity> {
     check_compliance("attachment", compliance)?;
     let lattice = world
         .get::<BodyLattice>(body)
@@ -112,8 +124,12 @@ pub fn attach(
         positions.push(position.0);
     }
     let pose = centroid_pose(&positions);
+    let e = match into {
+        Some(e) => world.entity_mut(e),
+        None => world.spawn_empty(),
+    };
     Ok(spawn_attachment(
-        world,
+        e,
         body,
         particles.to_vec(),
         &positions,

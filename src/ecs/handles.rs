@@ -215,7 +215,7 @@ pub fn spawn_handle_attachments(
             TargetMotion::Path(path)
         };
         spawn_attachment(
-            world,
+            world.spawn_empty(),
             body,
             particles,
             &positions,

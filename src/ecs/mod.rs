@@ -4,6 +4,7 @@
 
 pub mod attach;
 pub mod check;
+pub mod commands;
 pub mod components;
 pub mod desc;
 pub mod groups;

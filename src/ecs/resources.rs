@@ -26,7 +26,8 @@ pub struct SceneLabel(pub Option<String>);
 pub struct SimClock {
     /// Frames completed.
     pub frame: u64,
-    /// Simulated seconds (`frame × dt`, in f64 so that it keeps advancing on long runs).
+    /// Simulated seconds (the sum of the frames' `dt`, in f64 so that it keeps
+    /// advancing on long runs).
     pub time: f64,
 }
 

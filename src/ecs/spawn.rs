@@ -17,7 +17,19 @@ use crate::math::rotation::unit_quaternion;
 use bevy_ecs::prelude::*;
 
 /// Spawns a cutting tool into any world prepared with [`crate::systems::install`].
+/// Despawn it, or disable it (bevy's `Disabled` component), to stop it cutting; a
+/// disabled tool's motion is still followed, so enabling it again cuts only from where
+/// it is then.
 pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
+    spawn_tool_into(world, None, desc)
+}
+
+/// [`spawn_tool`], making the entity `into` (if given, else a new one) the tool.
+pub(crate) fn spawn_tool_into(
+    world: &mut World,
+    into: Option<Entity>,
+    desc: &ToolDesc,
+) -> Result<Entity> {
     desc.shape.validate()?;
     check_length("tool.cut_width", desc.cut_width)?;
     let (pose, path) = starting_pose(world, "tool", &desc.path, desc.pose)?;
@@ -30,17 +42,28 @@ pub fn spawn_tool(world: &mut World, desc: &ToolDesc) -> Result<Entity> {
         current: pose,
         last: pose,
     };
-    Ok(spawn_keyframed(world, (tool, at), path, ToolPath))
+    Ok(spawn_keyframed(world, into, (tool, at), path, ToolPath))
 }
 
-/// Spawns `object`, with the component `follow` makes of `path` when it has keys.
+/// The entity `into` (if given, else a new one) with `bundle`.
+pub(crate) fn spawn_into(world: &mut World, into: Option<Entity>, bundle: impl Bundle) -> Entity {
+    match into {
+        Some(e) => world.entity_mut(e).insert(bundle).id(),
+        None => world.spawn(bundle).id(),
+    }
+}
+
+/// Spawns `object` (into `into`, if given), with the component `follow` makes of
+/// `path` when it has keys.
 fn spawn_keyframed<C: Component>(
     world: &mut World,
+    into: Option<Entity>,
     object: impl Bundle,
     path: Path,
     follow: impl FnOnce(Path) -> C,
 ) -> Entity {
-    let mut e = world.spawn(object);
+    let e = spawn_into(world, into, object);
+    let mut e = world.entity_mut(e);
     if !path.keys.is_empty() {
         e.insert(follow(path));
     }
@@ -80,6 +103,15 @@ pub fn checked_pose(field: &str, pose: Pose) -> Result<Pose> {
 
 /// Spawns a collider into any world prepared with [`crate::systems::install`].
 pub fn spawn_collider(world: &mut World, desc: &ColliderDesc) -> Result<Entity> {
+    spawn_collider_into(world, None, desc)
+}
+
+/// [`spawn_collider`], making the entity `into` (if given, else a new one) the collider.
+pub(crate) fn spawn_collider_into(
+    world: &mut World,
+    into: Option<Entity>,
+    desc: &ColliderDesc,
+) -> Result<Entity> {
     desc.shape.validate("collider.shape")?;
     check_range(
         "collider.friction",
@@ -97,7 +129,13 @@ pub fn spawn_collider(world: &mut World, desc: &ColliderDesc) -> Result<Entity> 
         current: pose,
         last: pose,
     };
-    Ok(spawn_keyframed(world, (collider, at), path, ColliderPath))
+    Ok(spawn_keyframed(
+        world,
+        into,
+        (collider, at),
+        path,
+        ColliderPath,
+    ))
 }
 
 /// Replaces the clusters of `body` by a fresh clustering of its current geometry: the

@@ -28,6 +28,15 @@ use glam::{Quat, Vec3};
 /// description checked, its shape voxelised, the regions its attachments, pins, handles
 /// and groups name selected, its particles and clusters spawned, and its holds attached.
 pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
+    spawn_body_into(world, None, desc)
+}
+
+/// [`spawn_body`], making the entity `into` (if given, else a new one) the body.
+pub(crate) fn spawn_body_into(
+    world: &mut World,
+    into: Option<Entity>,
+    desc: &BodyDesc,
+) -> Result<Entity> {
     let rotation = check_placement(desc)?;
     let handles = check_holds(desc)?;
     let (lattice, render_mesh) = voxelise(world, desc)?;
@@ -35,13 +44,15 @@ pub fn spawn_body(world: &mut World, desc: &BodyDesc) -> Result<Entity> {
     let regions = select_regions(desc, &lattice, &handles, placed)?;
     let seed_grid = seed_grid_offset(&desc.material, &mut world.resource_mut::<SimRng>().0);
     let table = clusters_on_grid(&lattice, &desc.material, seed_grid);
-    let body = world
-        .spawn(Body {
+    let body = crate::ecs::spawn::spawn_into(
+        world,
+        into,
+        Body {
             material: desc.material.clone(),
             seed_grid,
             groups: regions.groups.clone(),
-        })
-        .id();
+        },
+    );
     let particles = spawn_particles(world, desc, body, &lattice, placed);
     let compliance = |members: &[u32]| {
         cluster_compliance(&desc.material, &regions.groups, members, desc.spacing)
@@ -319,7 +330,7 @@ fn attach(
         let pose = centroid_pose(&positions);
         let motion = TargetMotion::Velocity(pin.velocity);
         spawn_attachment(
-            world,
+            world.spawn_empty(),
             body,
             particles,
             &positions,
@@ -341,7 +352,7 @@ fn attach(
             None => (centroid_pose(&positions), TargetMotion::Still),
         };
         spawn_attachment(
-            world,
+            world.spawn_empty(),
             body,
             particles,
             &positions,

@@ -10,7 +10,11 @@ use crate::surface::embed::EmbeddedMesh;
 use crate::surface::{CarryLayout, SurfaceTopology};
 use bevy_ecs::prelude::*;
 use glam::{Mat3A, Quat, Vec3, Vec3A};
+use std::ops::Range;
 use std::sync::Arc;
+
+/// A piece and the range of its triangles in [`SurfaceMesh::triangles_by_piece`].
+pub type PieceRange = (u32, Range<usize>);
 
 /// A body's surface. Every spawned body gets one; remove it to skip the work (the
 /// `Surface` stage updates only bodies that have it).
@@ -45,9 +49,21 @@ pub struct SurfaceMesh {
     pub(crate) seen: (usize, usize, u64),
     /// The frame whose end the vertices were last carried to (`None`: never).
     pub(crate) deformed_at: Option<u64>,
+    /// Per slot of the layout, its particle's position when the mesh was last marked
+    /// changed (see [`SurfaceMesh::STILL`]).
+    pub(crate) shown: Vec<Vec3A>,
 }
 
 impl SurfaceMesh {
+    /// How far (a fraction of the lattice spacing) no particle the surface reads may have
+    /// moved since the mesh was last marked changed for the stage to leave it unmarked:
+    /// bevy's `Changed<SurfaceMesh>` then fires on a frame only when the triangles
+    /// changed or the surface moved, so a body at rest (whose particles settle to a
+    /// millionth of a spacing, never to the bit) stops re-uploading. The positions and
+    /// normals are written every frame all the same; an unmarked mesh is within this
+    /// distance of what the last marked one showed.
+    pub const STILL: f32 = 1e-3;
+
     /// A surface still to be extracted: the lattice's, drawn as `options` say, or
     /// `render_mesh` embedded in it.
     pub fn new(render_mesh: Option<EmbeddedMesh>, options: SurfaceOptions) -> Self {
@@ -69,9 +85,54 @@ impl SurfaceMesh {
     }
 
     /// Per triangle, the piece of the body it bounds (numbered as
-    /// [`crate::body::lattice::Lattice::pieces`] numbers them).
+    /// [`crate::body::lattice::Lattice::pieces`] numbers them: by their lowest live
+    /// particle, so ids are not stable across later cuts — a cut renumbers the pieces
+    /// after the one it splits; follow a piece by one of its particles).
     pub fn triangle_pieces(&self) -> &[u32] {
         &self.topology.triangle_piece
+    }
+
+    /// Per vertex, the piece of the body it belongs to (numbered as
+    /// [`SurfaceMesh::triangle_pieces`]; a vertex no triangle uses gets `u32::MAX`).
+    pub fn vertex_pieces(&self) -> Vec<u32> {
+        let mut piece = vec![u32::MAX; self.positions.len()];
+        for (t, &p) in self.triangles().iter().zip(self.triangle_pieces()) {
+            for &v in t {
+                if let Some(at) = piece.get_mut(v as usize) {
+                    *at = p;
+                }
+            }
+        }
+        piece
+    }
+
+    /// The triangles sorted by piece (stably), with each piece's range in them: to draw
+    /// or upload one piece at a time.
+    pub fn triangles_by_piece(&self) -> (Vec<[u32; 3]>, Vec<PieceRange>) {
+        let mut order: Vec<usize> = (0..self.triangles().len()).collect();
+        let pieces = self.triangle_pieces();
+        order.sort_by_key(|&t| pieces[t]);
+        let sorted = order.iter().map(|&t| self.triangles()[t]).collect();
+        let mut ranges: Vec<PieceRange> = Vec::new();
+        for (i, &t) in order.iter().enumerate() {
+            match ranges.last_mut() {
+                Some((p, r)) if *p == pieces[t] => r.end = i + 1,
+                _ => ranges.push((pieces[t], i..i + 1)),
+            }
+        }
+        (sorted, ranges)
+    }
+
+    /// Whether a particle the surface reads moved more than [`SurfaceMesh::STILL`]
+    /// spacings since the last `true` (which records where they are now).
+    pub(crate) fn moved_since_shown(&mut self, spacing: f32) -> bool {
+        let limit = (Self::STILL * spacing).powi(2);
+        let moved = self.shown.len() != self.gathered.len()
+            || (self.shown.iter().zip(&self.gathered)).any(|(a, b)| a.distance_squared(*b) > limit);
+        if moved {
+            self.shown.clone_from(&self.gathered);
+        }
+        moved
     }
 
     /// The topology and its binding to the particles.
@@ -123,6 +184,7 @@ impl SurfaceMesh {
         {
             return Err("its carriers' state does not fit its vertices".into());
         }
+        let shown = saved.gathered.clone();
         Ok(Self {
             positions: saved.positions,
             normals: saved.normals,
@@ -138,6 +200,7 @@ impl SurfaceMesh {
             options: saved.options,
             seen: saved.seen,
             deformed_at: saved.deformed_at,
+            shown,
         })
     }
 }

@@ -249,6 +249,14 @@ impl Simulation {
             .map_err(|e| CleaveError::InvalidEntity(format!("surface stage: {e}")))
     }
 
+    /// The drawable surface of `body` (brought up to date at the end of each frame); an
+    /// error if `body` is not a body or its surface was dropped.
+    pub fn surface(&self, body: Entity) -> Result<&SurfaceMesh> {
+        self.world
+            .get::<SurfaceMesh>(body)
+            .ok_or_else(|| CleaveError::not_a("a body with a surface (see `drop_surfaces`)", body))
+    }
+
     /// Every body entity, in entity order.
     pub fn bodies(&mut self) -> Vec<Entity> {
         let mut bodies: Vec<Entity> = self
