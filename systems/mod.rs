@@ -44,6 +44,7 @@ pub mod split;
 pub mod store;
 pub mod surface;
 pub mod term_sync;
+pub mod wrench;
 
 use crate::ecs::resources::*;
 use bevy_ecs::message::MessageRegistry;
@@ -73,6 +74,8 @@ pub enum SimStage {
     Substeps,
     /// Writes the particles' state back to their components.
     Store,
+    /// Each collider's wrench: what the particles did to it over the frame.
+    Wrench,
     /// Advances keyframed tools.
     MoveTools,
     /// Read-only collision detection producing the `CutList` (and keeping its culling
@@ -154,6 +157,7 @@ pub fn build_schedule() -> Schedule {
             SimStage::Sync,
             SimStage::Substeps,
             SimStage::Store,
+            SimStage::Wrench,
             SimStage::MoveTools,
             SimStage::Detect,
             SimStage::Cut,
@@ -172,6 +176,7 @@ pub fn build_schedule() -> Schedule {
     s.add_systems(pose_handles::pose_handles.in_set(SimStage::PoseHandles));
     s.add_systems(run_substeps.in_set(SimStage::Substeps));
     s.add_systems(store::store_particles.in_set(SimStage::Store));
+    s.add_systems(wrench::collider_wrenches.in_set(SimStage::Wrench));
     s.add_systems(move_tools::move_tools.in_set(SimStage::MoveTools));
     s.add_systems(detect::detect.in_set(SimStage::Detect));
     s.add_systems(cut::cut.in_set(SimStage::Cut));
@@ -209,6 +214,7 @@ pub fn install(world: &mut World, config: crate::config::SimConfig) {
     MessageRegistry::register_message::<BodySplit>(world);
     MessageRegistry::register_message::<ParticlesRepaired>(world);
     MessageRegistry::register_message::<SurfaceChanged>(world);
+    MessageRegistry::register_message::<ColliderPushed>(world);
     world.add_schedule(build_sync_schedule());
     world.add_schedule(build_substep_schedule());
     world.add_schedule(build_schedule());

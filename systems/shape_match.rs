@@ -21,14 +21,17 @@ pub fn shape_match(
     substep: Res<SubstepClock>,
     mut cache: ResMut<SolverCache>,
     bodies: Query<(Entity, &BodyLattice)>,
-    colliders: Query<(&Collider, &ColliderPose)>,
+    colliders: Query<(Entity, &Collider, &ColliderPose)>,
     mut repaired_messages: MessageWriter<ParticlesRepaired>,
 ) {
     let config = &settings.0;
     let cache = &mut *cache;
     let repaired = repair_non_finite(cache, &bodies);
     if let Some(term) = cache.solver.terms.get_mut::<Colliders>() {
-        term.place(substep_colliders(config, &substep, &colliders));
+        term.place(
+            substep_colliders(config, &substep, &colliders),
+            substep.index == 0,
+        );
     }
     let count = substep.count.max(1) as f32;
     let step = Substep {
@@ -109,19 +112,20 @@ fn report_repaired(
 fn substep_colliders(
     config: &crate::config::SimConfig,
     substep: &SubstepClock,
-    entities: &Query<(&Collider, &ColliderPose)>,
+    entities: &Query<(Entity, &Collider, &ColliderPose)>,
 ) -> Colliders {
     let count = substep.count.max(1) as f32;
     let (t0, t1) = (
         substep.index as f32 / count,
         (substep.index + 1) as f32 / count,
     );
-    let moving = entities.iter().map(|(c, pose)| {
+    let moving = entities.iter().map(|(e, c, pose)| {
         let (start, end) = (
             pose.last.lerp(&pose.current, t0),
             pose.last.lerp(&pose.current, t1),
         );
-        PosedCollider::new(c.shape.clone(), c.friction, start, end)
+        // (tagged by its entity, for its wrench: see `systems::wrench`)
+        PosedCollider::new(c.shape.clone(), c.friction, start, end).tagged(e.to_bits())
     });
     let mut colliders = Colliders::from_config(config, moving);
     colliders.depenetration_step = MAX_DEPENETRATION_SPEED * config.dt / count;

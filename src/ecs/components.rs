@@ -222,8 +222,10 @@ pub struct ToolPose {
 pub struct ToolPath(pub Path);
 
 /// A collider that particles cannot enter: static, moved by a [`ColliderPath`], or
-/// moved by game code through its [`ColliderPose`].
+/// moved by game code through its [`ColliderPose`] (a rigid body of the game's own
+/// engine, which applies the collider's [`ColliderWrench`] to it).
 #[derive(Component, Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[require(ColliderWrench)]
 pub struct Collider {
     /// Shape in the local frame.
     pub shape: ColliderShape,
@@ -242,6 +244,20 @@ pub struct ColliderPose {
     pub current: Pose,
     /// The pose the last frame ended at.
     pub last: Pose,
+}
+
+/// What the particles did to a collider over the last frame: the mean force (N) and the
+/// mean torque about its centre (N·m) of their contact impulses (friction included), in
+/// the world frame. A game whose rigid body stands for the collider applies them to it
+/// (the soft body pushes the crate, holds up the box resting on it). Zero where nothing
+/// touched it. Written every frame (stage wrench); not kept by saves (a loaded collider
+/// starts at zero until its first frame).
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq)]
+pub struct ColliderWrench {
+    /// Mean force over the frame (N).
+    pub force: Vec3,
+    /// Mean torque over the frame about the collider's centre (N·m).
+    pub torque: Vec3,
 }
 
 /// A keyframed path that drives a collider's pose from the simulation clock (a press, a

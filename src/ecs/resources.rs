@@ -6,6 +6,7 @@ use crate::solver::particles::Particles;
 use crate::solver::registry::Terms;
 use crate::solver::solve::Solver;
 use bevy_ecs::prelude::*;
+use glam::Vec3;
 use rand_chacha::ChaCha8Rng;
 
 /// The simulation settings.
@@ -410,6 +411,18 @@ pub struct BodySplit {
     pub pieces_before: usize,
     /// Pieces after the cut.
     pub pieces_after: usize,
+}
+
+/// Sent by stage wrench for each collider the particles touched in the frame, with its
+/// [`crate::ecs::components::ColliderWrench`].
+#[derive(Message, Clone, Copy, Debug)]
+pub struct ColliderPushed {
+    /// The collider.
+    pub collider: Entity,
+    /// Mean force over the frame (N).
+    pub force: Vec3,
+    /// Mean torque about its centre (N·m).
+    pub torque: Vec3,
 }
 
 #[cfg(test)]

@@ -257,6 +257,18 @@ impl Simulation {
             .ok_or_else(|| CleaveError::not_a("a body with a surface (see `drop_surfaces`)", body))
     }
 
+    /// What the particles did to `collider` over the last frame: the mean force (N) and
+    /// torque about its centre (N·m) of their contact impulses, as its
+    /// [`ColliderWrench`](crate::ecs::components::ColliderWrench) holds them; an error if
+    /// `collider` is not a collider.
+    pub fn collider_wrench(&self, collider: Entity) -> Result<(Vec3, Vec3)> {
+        let w = (self
+            .world
+            .get::<crate::ecs::components::ColliderWrench>(collider))
+        .ok_or_else(|| CleaveError::not_a("a collider", collider))?;
+        Ok((w.force, w.torque))
+    }
+
     /// Every body entity, in entity order.
     pub fn bodies(&mut self) -> Vec<Entity> {
         let mut bodies: Vec<Entity> = self

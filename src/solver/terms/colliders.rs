@@ -40,6 +40,9 @@ pub struct PosedCollider {
     /// World bounds of the shape over the substep (both poses).
     lo: Vec3A,
     hi: Vec3A,
+    /// The caller's name for the collider, if it wants the impulses the particles put
+    /// on it summed ([`Colliders::frame_impulses`]).
+    pub tag: Option<u64>,
 }
 
 impl PosedCollider {
@@ -66,7 +69,21 @@ impl PosedCollider {
             end_inverse: end.inverse(),
             lo,
             hi,
+            tag: None,
         }
+    }
+
+    /// The same collider, its impulses summed under `tag`.
+    pub fn tagged(self, tag: u64) -> Self {
+        Self {
+            tag: Some(tag),
+            ..self
+        }
+    }
+
+    /// Where its centre is at the end of the substep.
+    fn centre(&self) -> Vec3A {
+        self.end.translation
     }
 
     /// A static collider at `pose`.
@@ -188,6 +205,20 @@ pub struct Colliders {
     /// Which particles had part of a push held back in this substep (see
     /// [`Colliders::depenetration_step`]), by dense index.
     held: Vec<bool>,
+    /// Per tagged collider, the impulse the particles put on it since the frame began.
+    impulses: Vec<ColliderImpulse>,
+}
+
+/// The impulse particles put on a tagged collider over a frame (see
+/// [`Colliders::frame_impulses`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ColliderImpulse {
+    /// The collider's tag ([`PosedCollider::tagged`]).
+    pub tag: u64,
+    /// Linear impulse (N·s): minus the momentum its pushes gave the particles.
+    pub linear: Vec3A,
+    /// Angular impulse about its centre at the end of each substep (N·m·s).
+    pub angular: Vec3A,
 }
 
 impl Default for Colliders {
@@ -208,15 +239,36 @@ impl Colliders {
             largest_margin: 0.0,
             body_of: Vec::new(),
             held: Vec::new(),
+            impulses: Vec::new(),
         }
     }
 
     /// Takes the ground, shapes and depenetration step of `placed` (this substep's
-    /// placement), keeping the particles' contact radii.
-    pub fn place(&mut self, placed: Colliders) {
+    /// placement), keeping the particles' contact radii; at the first substep of a
+    /// frame (`frame_start`) the tagged colliders' impulses start again from zero.
+    pub fn place(&mut self, placed: Colliders, frame_start: bool) {
         self.ground = placed.ground;
         self.shapes = placed.shapes;
         self.depenetration_step = placed.depenetration_step;
+        if frame_start {
+            self.impulses.clear();
+        }
+        for tag in self.shapes.iter().filter_map(|s| s.tag) {
+            if !self.impulses.iter().any(|i| i.tag == tag) {
+                self.impulses.push(ColliderImpulse {
+                    tag,
+                    ..ColliderImpulse::default()
+                });
+            }
+        }
+    }
+
+    /// Per tagged collider, the impulse the particles put on it since the frame began
+    /// (the colliders' pushes are the only external impulses the particles receive
+    /// besides gravity and the ground, and the clusters' pass none between bodies, so
+    /// these are what a rigid body standing for the collider must take).
+    pub fn frame_impulses(&self) -> &[ColliderImpulse] {
+        &self.impulses
     }
 
     /// The config's ground and static boxes, and the `moving` colliders.
@@ -253,6 +305,18 @@ impl Colliders {
 
     /// [`Colliders::resolve`], and whether part of a push was held back.
     fn resolve_holding_back(&self, p: Vec3A, previous: Vec3A, margin: f32) -> (Vec3A, bool) {
+        self.resolve_reporting(p, previous, margin, |_, _| {})
+    }
+
+    /// [`Colliders::resolve_holding_back`], telling `pushed` each shape's push (its
+    /// index, the displacement it gave the ball).
+    fn resolve_reporting(
+        &self,
+        p: Vec3A,
+        previous: Vec3A,
+        margin: f32,
+        mut pushed: impl FnMut(usize, Vec3A),
+    ) -> (Vec3A, bool) {
         let (mut p, mut held) = (p, false);
         if let Some(g) = &self.ground
             && p.y < g.height + margin
@@ -265,7 +329,7 @@ impl Colliders {
             p = with_friction(p, previous, Vec3A::Y, depth - held_back, g.friction);
         }
         let (lo, hi) = (p.min(previous), p.max(previous));
-        for shape in &self.shapes {
+        for (i, shape) in self.shapes.iter().enumerate() {
             if shape.reaches(lo, hi, margin)
                 && let Some((q, depth_before)) = shape.resolve(p, previous, margin)
             {
@@ -274,7 +338,9 @@ impl Colliders {
                 if length > 0.0 {
                     let held_back = self.held_back(length, depth_before);
                     held |= held_back > 0.0;
-                    p = q - push * (held_back / length);
+                    let moved = q - push * (held_back / length);
+                    pushed(i, moved - p);
+                    p = moved;
                 }
             }
         }
@@ -289,6 +355,18 @@ impl Colliders {
     fn held_back(&self, depth: f32, depth_before: f32) -> f32 {
         (depth.min(depth_before) - self.depenetration_step).max(0.0)
     }
+}
+
+/// Two blocks' per-shape sums of pushes, added (an empty list adds nothing).
+fn add_sums(mut a: Vec<(Vec3A, Vec3A)>, b: Vec<(Vec3A, Vec3A)>) -> Vec<(Vec3A, Vec3A)> {
+    if a.len() < b.len() {
+        return add_sums(b, a);
+    }
+    for (x, y) in a.iter_mut().zip(b) {
+        x.0 += y.0;
+        x.1 += y.1;
+    }
+    a
 }
 
 /// The bounds of a block of points; a non-finite point makes them unbounded, so a block
@@ -353,10 +431,12 @@ impl Term for Colliders {
             .collect();
     }
 
-    fn project(&mut self, _step: &Substep, state: &mut ParticleState) {
+    fn project(&mut self, step: &Substep, state: &mut ParticleState) {
         let mut held = std::mem::take(&mut self.held);
         let this = &*self;
-        state
+        // (only with a tagged collider is each push summed: the rest run as before)
+        let tagged = this.shapes.iter().any(|s| s.tag.is_some());
+        let blocks = state
             .positions
             .par_chunks_mut(PARTICLES_PER_TASK)
             .zip(held.par_chunks_mut(PARTICLES_PER_TASK))
@@ -365,11 +445,15 @@ impl Term for Colliders {
             .zip(state.inv_mass.par_chunks(PARTICLES_PER_TASK))
             .zip(this.margins.par_chunks(PARTICLES_PER_TASK))
             .zip(this.previous_bounds.par_iter())
-            .for_each(
+            .map(
                 |((((((positions, held), corrections), previous), inv_mass), margins), before)| {
+                    let mut sums = Vec::new();
                     let (lo, hi) = bounds(positions);
                     if !this.reaches(lo.min(before.0), hi.max(before.1), this.largest_margin) {
-                        return;
+                        return sums;
+                    }
+                    if tagged {
+                        sums.resize(this.shapes.len(), (Vec3A::ZERO, Vec3A::ZERO));
                     }
                     for (i, p) in positions.iter_mut().enumerate() {
                         // (most balls of a resting body touch nothing: they are left
@@ -377,15 +461,42 @@ impl Term for Colliders {
                         if inv_mass[i] == 0.0 || !this.touches(*p, previous[i], margins[i]) {
                             continue;
                         }
-                        let (resolved, held_back) =
-                            this.resolve_holding_back(*p, previous[i], margins[i]);
+                        let (resolved, held_back) = if tagged {
+                            let mass = 1.0 / inv_mass[i];
+                            let at = *p;
+                            this.resolve_reporting(at, previous[i], margins[i], |s, push| {
+                                let momentum = push * mass;
+                                sums[s].0 += momentum;
+                                sums[s].1 += (at - this.shapes[s].centre()).cross(momentum);
+                            })
+                        } else {
+                            this.resolve_holding_back(*p, previous[i], margins[i])
+                        };
                         held[i] |= held_back;
                         corrections[i] += resolved - *p;
                         *p = resolved;
                     }
+                    sums
                 },
             );
+        // (summed in block order, so that the impulses do not depend on the threads)
+        let pushes = if tagged {
+            let sums: Vec<_> = blocks.collect();
+            sums.into_iter().fold(Vec::new(), add_sums)
+        } else {
+            blocks.for_each(drop);
+            Vec::new()
+        };
         self.held = held;
+        // what the particles gained, the colliders lost: the impulse is −m·Δx / h
+        for (shape, (momentum, angular)) in self.shapes.iter().zip(pushes) {
+            if let Some(sum) =
+                (shape.tag).and_then(|t| self.impulses.iter_mut().find(|i| i.tag == t))
+            {
+                sum.linear -= momentum / step.dt;
+                sum.angular -= angular / step.dt;
+            }
+        }
     }
 
     /// While a body comes out of a collider it began the substep deep in, the clusters
