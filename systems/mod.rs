@@ -74,7 +74,8 @@ pub enum SimStage {
     Substeps,
     /// Writes the particles' state back to their components.
     Store,
-    /// Each collider's wrench: what the particles did to it over the frame.
+    /// Each collider's wrench (what the particles did to it over the frame), and the
+    /// dynamic colliders' poses and velocities.
     Wrench,
     /// Advances keyframed tools.
     MoveTools,
@@ -176,7 +177,7 @@ pub fn build_schedule() -> Schedule {
     s.add_systems(pose_handles::pose_handles.in_set(SimStage::PoseHandles));
     s.add_systems(run_substeps.in_set(SimStage::Substeps));
     s.add_systems(store::store_particles.in_set(SimStage::Store));
-    s.add_systems(wrench::collider_wrenches.in_set(SimStage::Wrench));
+    s.add_systems((wrench::dynamic_colliders, wrench::collider_wrenches).in_set(SimStage::Wrench));
     s.add_systems(move_tools::move_tools.in_set(SimStage::MoveTools));
     s.add_systems(detect::detect.in_set(SimStage::Detect));
     s.add_systems(cut::cut.in_set(SimStage::Cut));

@@ -21,7 +21,8 @@ pub fn shape_match(
     substep: Res<SubstepClock>,
     mut cache: ResMut<SolverCache>,
     bodies: Query<(Entity, &BodyLattice)>,
-    colliders: Query<(Entity, &Collider, &ColliderPose)>,
+    colliders: Query<(Entity, &Collider, &ColliderPose, Option<&DynamicCollider>)>,
+    mut refused: Local<Vec<Entity>>,
     mut repaired_messages: MessageWriter<ParticlesRepaired>,
 ) {
     let config = &settings.0;
@@ -29,7 +30,7 @@ pub fn shape_match(
     let repaired = repair_non_finite(cache, &bodies);
     if let Some(term) = cache.solver.terms.get_mut::<Colliders>() {
         term.place(
-            substep_colliders(config, &substep, &colliders),
+            substep_colliders(config, &substep, &colliders, &mut refused),
             substep.index == 0,
         );
     }
@@ -108,18 +109,43 @@ fn report_repaired(
 
 /// The ground, the config's static boxes and every collider entity, placed for this
 /// substep (a kinematic collider moves from its frame-start pose to its frame-end pose
-/// over the substeps).
+/// over the substeps; a dynamic one starts the frame where it is, and the term carries
+/// it on from substep to substep). A dynamic collider whose state is out of bounds is
+/// kinematic, with a warning the first time (`refused` lists them).
 fn substep_colliders(
     config: &crate::config::SimConfig,
     substep: &SubstepClock,
-    entities: &Query<(Entity, &Collider, &ColliderPose)>,
+    entities: &Query<(Entity, &Collider, &ColliderPose, Option<&DynamicCollider>)>,
+    refused: &mut Vec<Entity>,
 ) -> Colliders {
+    let dt = config.dt / config.substeps as f32;
     let count = substep.count.max(1) as f32;
     let (t0, t1) = (
         substep.index as f32 / count,
         (substep.index + 1) as f32 / count,
     );
-    let moving = entities.iter().map(|(e, c, pose)| {
+    let moving = entities.iter().map(|(e, c, pose, dynamic)| {
+        let checked = dynamic.map(|d| (d, d.check()));
+        match checked {
+            Some((d, Ok(()))) => {
+                refused.retain(|r| *r != e);
+                let (shape, motion) = (c.shape.clone(), d.motion());
+                let posed = PosedCollider::dynamic(
+                    shape,
+                    c.friction,
+                    pose.current,
+                    motion,
+                    config.gravity,
+                    dt,
+                );
+                return posed.tagged(e.to_bits());
+            }
+            Some((_, Err(error))) if !refused.contains(&e) => {
+                tracing::warn!("cleave: collider {e} stays kinematic: {error}");
+                refused.push(e);
+            }
+            _ => {}
+        }
         let (start, end) = (
             pose.last.lerp(&pose.current, t0),
             pose.last.lerp(&pose.current, t1),

@@ -1,13 +1,34 @@
 //! Stage wrench: what the particles did to each collider over the frame — the impulses
 //! the colliders term summed per collider ([`Colliders::frame_impulses`]) over the
 //! frame's length — into its [`ColliderWrench`], and a [`ColliderPushed`] message for
-//! each collider touched. Writes collider data only.
+//! each collider touched; a dynamic collider's pose and velocities where the substeps
+//! left it ([`Colliders::rigid_bodies`]). Writes collider data only.
 
-use crate::ecs::components::ColliderWrench;
+use crate::ecs::components::{ColliderPose, ColliderWrench, DynamicCollider};
 use crate::ecs::resources::{ColliderPushed, SimSettings, SolverCache};
 use crate::solver::terms::colliders::Colliders;
 use bevy_ecs::prelude::*;
 use glam::Vec3;
+
+/// Sets every dynamic collider's pose and velocities to where the solve moved it.
+pub fn dynamic_colliders(
+    cache: Res<SolverCache>,
+    mut colliders: Query<(Entity, &mut ColliderPose, &mut DynamicCollider)>,
+) {
+    let Some(term) = cache.solver.terms.get::<Colliders>() else {
+        return;
+    };
+    for (tag, pose, motion) in term.rigid_bodies() {
+        let Some(Ok((_, mut at, mut dynamic))) =
+            Entity::try_from_bits(tag).map(|e| colliders.get_mut(e))
+        else {
+            continue;
+        };
+        at.current = pose;
+        dynamic.velocity = motion.velocity.into();
+        dynamic.angular_velocity = motion.angular_velocity.into();
+    }
+}
 
 /// Sets every collider's wrench to the frame's mean (zero where nothing touched it).
 pub fn collider_wrenches(

@@ -260,6 +260,72 @@ pub struct ColliderWrench {
     pub torque: Vec3,
 }
 
+/// Makes a collider a rigid body cleave moves: gravity, the particles' pushes (shared
+/// with them by mass, inside the solve) and the ground (without friction) act on it; its
+/// [`ColliderPose::current`] and these velocities are its state between frames, which
+/// game code may set (checked each frame: a state out of bounds is refused with a
+/// logged warning and the collider stays where it is, kinematic, until it is fixed).
+/// Build one with [`DynamicCollider::solid`]. See
+/// [`crate::solver::terms::colliders::RigidMotion`].
+#[derive(Component, Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DynamicCollider {
+    /// Mass (kg).
+    pub mass: f32,
+    /// Principal moments of inertia about the collider's local axes (kg·m²).
+    pub inertia: Vec3,
+    /// Linear velocity (m/s).
+    pub velocity: Vec3,
+    /// Angular velocity, world frame (rad/s).
+    pub angular_velocity: Vec3,
+}
+
+impl DynamicCollider {
+    /// A solid `shape` of `mass` (kg) at rest (a capsule as a cylinder and two half
+    /// balls, a mesh as its bounding box); an error naming the field when the mass is
+    /// out of bounds.
+    pub fn solid(shape: &ColliderShape, mass: f32) -> crate::error::Result<Self> {
+        let dynamic = Self {
+            mass,
+            inertia: crate::solver::terms::colliders::solid_inertia(shape, mass),
+            velocity: Vec3::ZERO,
+            angular_velocity: Vec3::ZERO,
+        };
+        dynamic.check()?;
+        Ok(dynamic)
+    }
+
+    /// Checks mass, inertia and velocities: finite, the first two in 1e-6 ..= 1e9, the
+    /// speeds at most [`crate::error::MAX_SPEED`].
+    pub fn check(&self) -> crate::error::Result<()> {
+        use crate::error::{MAX_SPEED, check_range, check_vec_within};
+        let allowed = "1e-6 ≤ mass ≤ 1e9 (kg)";
+        check_range("dynamic.mass", self.mass, 1e-6, 1e9, allowed)?;
+        for (axis, value) in ["x", "y", "z"].iter().zip(self.inertia.to_array()) {
+            let field = format!("dynamic.inertia.{axis}");
+            check_range(&field, value, 1e-9, 1e9, "1e-9 ≤ inertia ≤ 1e9 (kg·m²)")?;
+        }
+        let speed = "|vx|, |vy|, |vz| ≤ 1e4 (m/s)";
+        check_vec_within("dynamic.velocity", self.velocity, MAX_SPEED, speed)?;
+        let spin = "|ωx|, |ωy|, |ωz| ≤ 1e4 (rad/s)";
+        check_vec_within(
+            "dynamic.angular_velocity",
+            self.angular_velocity,
+            MAX_SPEED,
+            spin,
+        )
+    }
+
+    /// The solver's view of it.
+    pub fn motion(&self) -> crate::solver::terms::colliders::RigidMotion {
+        crate::solver::terms::colliders::RigidMotion {
+            inv_mass: 1.0 / self.mass,
+            inv_inertia: (1.0 / self.inertia).into(),
+            velocity: self.velocity.into(),
+            angular_velocity: self.angular_velocity.into(),
+        }
+    }
+}
+
 /// A keyframed path that drives a collider's pose from the simulation clock (a press, a
 /// paddle).
 #[derive(Component, Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -269,6 +269,26 @@ impl Simulation {
         Ok((w.force, w.torque))
     }
 
+    /// Makes `collider` a rigid body cleave moves ([`DynamicCollider`](crate::ecs::components::DynamicCollider)),
+    /// starting where it is now; an error naming the field for a state out of bounds, or
+    /// if `collider` is not a collider.
+    pub fn make_dynamic(
+        &mut self,
+        collider: Entity,
+        dynamic: crate::ecs::components::DynamicCollider,
+    ) -> Result<()> {
+        dynamic.check()?;
+        if self
+            .world
+            .get::<crate::ecs::components::Collider>(collider)
+            .is_none()
+        {
+            return Err(CleaveError::not_a("a collider", collider));
+        }
+        self.world.entity_mut(collider).insert(dynamic);
+        Ok(())
+    }
+
     /// Every body entity, in entity order.
     pub fn bodies(&mut self) -> Vec<Entity> {
         let mut bodies: Vec<Entity> = self

@@ -149,13 +149,20 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
         })
         .collect();
     let colliders = world
-        .query::<(Entity, &Collider, &ColliderPose, Option<&ColliderPath>)>()
+        .query::<(
+            Entity,
+            &Collider,
+            &ColliderPose,
+            Option<&ColliderPath>,
+            Option<&DynamicCollider>,
+        )>()
         .iter(world)
-        .map(|(entity, collider, pose, path)| ColliderState {
+        .map(|(entity, collider, pose, path, dynamic)| ColliderState {
             entity,
             collider: collider.clone(),
             pose: *pose,
             path: path.cloned(),
+            dynamic: dynamic.copied(),
         })
         .collect();
 

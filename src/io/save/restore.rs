@@ -124,6 +124,10 @@ pub(super) fn restore(snapshot: Snapshot) -> Result<World> {
         if let Some(path) = c.path {
             e.insert(path);
         }
+        if let Some(dynamic) = c.dynamic {
+            dynamic.check()?;
+            e.insert(dynamic);
+        }
         handles.0.push((c.entity, e.id()));
     }
     // (attachments reach their terms in entity order: saved ascending, so spawned)

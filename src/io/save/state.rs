@@ -64,6 +64,7 @@ pub(super) struct ColliderState {
     pub(super) collider: Collider,
     pub(super) pose: ColliderPose,
     pub(super) path: Option<ColliderPath>,
+    pub(super) dynamic: Option<DynamicCollider>,
 }
 
 /// An attachment entity.

@@ -13,170 +13,17 @@
 
 use crate::config::{GroundPlane, SimConfig, StaticBox};
 use crate::cut::tool::Pose;
-use crate::geometry::collider::ColliderShape;
 use crate::solver::particles::PARTICLES_PER_TASK;
 use crate::solver::term::{NO_DENSE, ParticleState, Substep, Term, Topology};
 use crate::solver::terms::contacts::ball_radius;
-use glam::{Affine3A, Vec3A};
+use glam::Vec3A;
+pub use posed::PosedCollider;
+use posed::with_friction;
 use rayon::prelude::*;
+pub use rigid::{RigidMotion, lowest_point, solid_inertia};
 
-/// Depth (relative to the coordinates' size) below which the middle of a chord through a
-/// collider counts as a graze of its surface, not a pass through it.
-const GRAZE: f32 = 1e-5;
-
-/// A collider placed for one substep.
-#[derive(Clone, Debug)]
-pub struct PosedCollider {
-    /// Shape in the local frame.
-    pub shape: ColliderShape,
-    /// Coulomb friction coefficient (≥ 0).
-    pub friction: f32,
-    /// World → local at the start of the substep.
-    start_inverse: Affine3A,
-    /// Local → world at the end of the substep.
-    end: Affine3A,
-    /// World → local at the end of the substep.
-    end_inverse: Affine3A,
-    /// World bounds of the shape over the substep (both poses).
-    lo: Vec3A,
-    hi: Vec3A,
-    /// The caller's name for the collider, if it wants the impulses the particles put
-    /// on it summed ([`Colliders::frame_impulses`]).
-    pub tag: Option<u64>,
-}
-
-impl PosedCollider {
-    /// `shape` moving from pose `start` to pose `end` during the substep.
-    pub fn new(shape: ColliderShape, friction: f32, start: Pose, end: Pose) -> Self {
-        let affine =
-            |p: Pose| Affine3A::from_rotation_translation(p.rotation.normalize(), p.position);
-        let (start, end) = (affine(start), affine(end));
-        let half = Vec3A::from(shape.local_half_extents());
-        let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
-        for pose in [start, end] {
-            // the world box of the rotated local box: |R|·half about the centre
-            let m = pose.matrix3;
-            let extent =
-                m.x_axis.abs() * half.x + m.y_axis.abs() * half.y + m.z_axis.abs() * half.z;
-            lo = lo.min(pose.translation - extent);
-            hi = hi.max(pose.translation + extent);
-        }
-        Self {
-            shape,
-            friction,
-            start_inverse: start.inverse(),
-            end,
-            end_inverse: end.inverse(),
-            lo,
-            hi,
-            tag: None,
-        }
-    }
-
-    /// The same collider, its impulses summed under `tag`.
-    pub fn tagged(self, tag: u64) -> Self {
-        Self {
-            tag: Some(tag),
-            ..self
-        }
-    }
-
-    /// Where its centre is at the end of the substep.
-    fn centre(&self) -> Vec3A {
-        self.end.translation
-    }
-
-    /// A static collider at `pose`.
-    pub fn fixed(shape: ColliderShape, friction: f32, pose: Pose) -> Self {
-        Self::new(shape, friction, pose, pose)
-    }
-
-    /// Whether the collider's swept bounds, grown by `margin`, meet the box `[lo, hi]`.
-    fn reaches(&self, lo: Vec3A, hi: Vec3A, margin: f32) -> bool {
-        hi.cmpge(self.lo - margin).all() && lo.cmple(self.hi + margin).all()
-    }
-
-    /// The position `p` of a ball of radius `margin` (which started the substep at
-    /// `previous`) resolved against this collider, and how deep inside it the ball
-    /// started the substep (0 outside); `None` when the collider does not touch it.
-    pub fn resolve(&self, p: Vec3A, previous: Vec3A, margin: f32) -> Option<(Vec3A, f32)> {
-        let (from, to) = (
-            self.start_inverse.transform_point3a(previous),
-            self.end_inverse.transform_point3a(p),
-        );
-        let shape = &self.shape;
-        let moved = to - from;
-        let (distance, normal) = shape.nearest_surface(to);
-        let distance = distance - margin;
-        let entry = || {
-            let t = shape.segment_entry_within(from, to, margin)?;
-            let at = from + moved * t;
-            Some((at, shape.nearest_surface(at).1))
-        };
-        let start = shape.signed_distance(from) - margin;
-        let (target, normal) = if distance < 0.0 {
-            let nearest = to - normal * distance;
-            // pushing it out forward would carry it through the shape: it came in behind
-            let through = (nearest - to).dot(moved) > 0.0 && start >= 0.0;
-            match through.then(entry).flatten() {
-                Some(hit) => hit,
-                None => (nearest, normal),
-            }
-        } else {
-            // outside now; if it was outside at the start, did its motion pass through
-            // the shape (the middle of the chord it cut lies inside; a graze along a
-            // face, as a particle resting on it slides, cuts none)?
-            let reach = start + distance;
-            if start < 0.0 || moved.length_squared() <= reach * reach {
-                return None;
-            }
-            let enter = shape.segment_entry_within(from, to, margin)?;
-            let exit = 1.0 - shape.segment_entry_within(to, from, margin)?;
-            let middle = from + moved * (0.5 * (enter + exit));
-            if shape.signed_distance(middle) - margin >= -GRAZE * (1.0 + middle.abs().max_element())
-            {
-                return None;
-            }
-            entry()?
-        };
-        let depth = (target - to).length();
-        let resolved = with_friction(target, from, normal, depth, self.friction);
-        Some((self.end.transform_point3a(resolved), (-start).max(0.0)))
-    }
-}
-
-impl StaticBox {
-    /// The box as a collider shape and the pose of its centre.
-    pub fn shape_and_pose(&self) -> (ColliderShape, Pose) {
-        let shape = ColliderShape::Box {
-            half_extents: 0.5 * (self.max - self.min),
-        };
-        (shape, Pose::at(0.5 * (self.min + self.max)))
-    }
-
-    /// The box as a posed collider.
-    pub fn posed(&self) -> PosedCollider {
-        let (shape, pose) = self.shape_and_pose();
-        PosedCollider::fixed(shape, self.friction, pose)
-    }
-}
-
-/// `target` with its tangential displacement since `from` cancelled inside the friction
-/// cone (`|tangential| ≤ friction × depth`) and shortened by `friction × depth` outside it.
-#[inline]
-fn with_friction(target: Vec3A, from: Vec3A, normal: Vec3A, depth: f32, friction: f32) -> Vec3A {
-    let moved = target - from;
-    let tangential = moved - normal * moved.dot(normal);
-    let length = tangential.length();
-    let limit = friction * depth;
-    if length <= limit {
-        target - tangential
-    } else if length > 0.0 {
-        target - tangential * (limit / length)
-    } else {
-        target
-    }
-}
+mod posed;
+mod rigid;
 
 /// The ground and every posed collider of one substep.
 #[derive(Clone, Debug)]
@@ -246,9 +93,23 @@ impl Colliders {
     /// Takes the ground, shapes and depenetration step of `placed` (this substep's
     /// placement), keeping the particles' contact radii; at the first substep of a
     /// frame (`frame_start`) the tagged colliders' impulses start again from zero.
+    /// A dynamic collider goes on from where the last substep left it, except at a
+    /// frame's start, when it takes the pose and motion `placed` gives (the game's).
     pub fn place(&mut self, placed: Colliders, frame_start: bool) {
         self.ground = placed.ground;
-        self.shapes = placed.shapes;
+        let mut shapes = placed.shapes;
+        if !frame_start {
+            for shape in shapes.iter_mut().filter(|s| s.rigid.is_some()) {
+                let last = (self.shapes.iter()).find(|o| o.tag == shape.tag && o.rigid.is_some());
+                if let Some(rigid) = last.and_then(|o| o.rigid.as_ref()) {
+                    let tag = shape.tag;
+                    *shape =
+                        PosedCollider::stepping(shape.shape.clone(), shape.friction, rigid.next());
+                    shape.tag = tag;
+                }
+            }
+        }
+        self.shapes = shapes;
         self.depenetration_step = placed.depenetration_step;
         if frame_start {
             self.impulses.clear();
@@ -269,6 +130,14 @@ impl Colliders {
     /// these are what a rigid body standing for the collider must take).
     pub fn frame_impulses(&self) -> &[ColliderImpulse] {
         &self.impulses
+    }
+
+    /// Each tagged dynamic collider's pose and motion at the end of the last substep.
+    pub fn rigid_bodies(&self) -> impl Iterator<Item = (u64, Pose, RigidMotion)> + '_ {
+        self.shapes.iter().filter_map(|s| {
+            let rigid = s.rigid.as_ref()?;
+            Some((s.tag?, rigid.now, rigid.finished()))
+        })
     }
 
     /// The config's ground and static boxes, and the `moving` colliders.
@@ -305,17 +174,17 @@ impl Colliders {
 
     /// [`Colliders::resolve`], and whether part of a push was held back.
     fn resolve_holding_back(&self, p: Vec3A, previous: Vec3A, margin: f32) -> (Vec3A, bool) {
-        self.resolve_reporting(p, previous, margin, |_, _| {})
+        self.resolve_reporting(p, previous, margin, |_, push| push)
     }
 
-    /// [`Colliders::resolve_holding_back`], telling `pushed` each shape's push (its
-    /// index, the displacement it gave the ball).
+    /// [`Colliders::resolve_holding_back`], giving `pushed` each shape's push (its
+    /// index, the displacement the ball needs), which returns the part the ball takes.
     fn resolve_reporting(
         &self,
         p: Vec3A,
         previous: Vec3A,
         margin: f32,
-        mut pushed: impl FnMut(usize, Vec3A),
+        mut pushed: impl FnMut(usize, Vec3A) -> Vec3A,
     ) -> (Vec3A, bool) {
         let (mut p, mut held) = (p, false);
         if let Some(g) = &self.ground
@@ -339,8 +208,7 @@ impl Colliders {
                     let held_back = self.held_back(length, depth_before);
                     held |= held_back > 0.0;
                     let moved = q - push * (held_back / length);
-                    pushed(i, moved - p);
-                    p = moved;
+                    p += pushed(i, moved - p);
                 }
             }
         }
@@ -357,14 +225,30 @@ impl Colliders {
     }
 }
 
-/// Two blocks' per-shape sums of pushes, added (an empty list adds nothing).
-fn add_sums(mut a: Vec<(Vec3A, Vec3A)>, b: Vec<(Vec3A, Vec3A)>) -> Vec<(Vec3A, Vec3A)> {
+/// What one iteration's pushes did with one collider: the momentum they gave the
+/// particles (kg·m/s × substep, that is kg·m) and its moment about the collider's
+/// centre; for a dynamic collider, its shares of them (a shift and a turn) and how
+/// many particles it touched.
+#[derive(Clone, Copy, Debug, Default)]
+struct Pushes {
+    momentum: Vec3A,
+    angular: Vec3A,
+    shift: Vec3A,
+    spin: Vec3A,
+    contacts: u32,
+}
+
+/// Two blocks' per-shape pushes, added (an empty list adds nothing).
+fn add_pushes(mut a: Vec<Pushes>, b: Vec<Pushes>) -> Vec<Pushes> {
     if a.len() < b.len() {
-        return add_sums(b, a);
+        return add_pushes(b, a);
     }
     for (x, y) in a.iter_mut().zip(b) {
-        x.0 += y.0;
-        x.1 += y.1;
+        x.momentum += y.momentum;
+        x.angular += y.angular;
+        x.shift += y.shift;
+        x.spin += y.spin;
+        x.contacts += y.contacts;
     }
     a
 }
@@ -435,7 +319,7 @@ impl Term for Colliders {
         let mut held = std::mem::take(&mut self.held);
         let this = &*self;
         // (only with a tagged collider is each push summed: the rest run as before)
-        let tagged = this.shapes.iter().any(|s| s.tag.is_some());
+        let tagged = (this.shapes.iter()).any(|s| s.tag.is_some() || s.rigid.is_some());
         let blocks = state
             .positions
             .par_chunks_mut(PARTICLES_PER_TASK)
@@ -453,7 +337,7 @@ impl Term for Colliders {
                         return sums;
                     }
                     if tagged {
-                        sums.resize(this.shapes.len(), (Vec3A::ZERO, Vec3A::ZERO));
+                        sums.resize(this.shapes.len(), Pushes::default());
                     }
                     for (i, p) in positions.iter_mut().enumerate() {
                         // (most balls of a resting body touch nothing: they are left
@@ -462,12 +346,24 @@ impl Term for Colliders {
                             continue;
                         }
                         let (resolved, held_back) = if tagged {
-                            let mass = 1.0 / inv_mass[i];
+                            let w = inv_mass[i];
                             let at = *p;
                             this.resolve_reporting(at, previous[i], margins[i], |s, push| {
-                                let momentum = push * mass;
-                                sums[s].0 += momentum;
-                                sums[s].1 += (at - this.shapes[s].centre()).cross(momentum);
+                                let sum = &mut sums[s];
+                                let taken = match &this.shapes[s].rigid {
+                                    Some(rigid) => {
+                                        sum.contacts += 1;
+                                        let mut share = (sum.shift, sum.spin);
+                                        let taken = rigid.split(push, at, w, &mut share);
+                                        (sum.shift, sum.spin) = share;
+                                        taken
+                                    }
+                                    None => push,
+                                };
+                                let momentum = taken / w;
+                                sum.momentum += momentum;
+                                sum.angular += (at - this.shapes[s].centre()).cross(momentum);
+                                taken
                             })
                         } else {
                             this.resolve_holding_back(*p, previous[i], margins[i])
@@ -482,19 +378,23 @@ impl Term for Colliders {
         // (summed in block order, so that the impulses do not depend on the threads)
         let pushes = if tagged {
             let sums: Vec<_> = blocks.collect();
-            sums.into_iter().fold(Vec::new(), add_sums)
+            sums.into_iter().fold(Vec::new(), add_pushes)
         } else {
             blocks.for_each(drop);
             Vec::new()
         };
         self.held = held;
         // what the particles gained, the colliders lost: the impulse is −m·Δx / h
-        for (shape, (momentum, angular)) in self.shapes.iter().zip(pushes) {
+        let ground = self.ground.map(|g| g.height);
+        let mut pushes = pushes;
+        pushes.resize(self.shapes.len(), Pushes::default());
+        for (shape, pushed) in self.shapes.iter_mut().zip(pushes) {
+            shape.apply(&pushed, ground);
             if let Some(sum) =
                 (shape.tag).and_then(|t| self.impulses.iter_mut().find(|i| i.tag == t))
             {
-                sum.linear -= momentum / step.dt;
-                sum.angular -= angular / step.dt;
+                sum.linear -= pushed.momentum / step.dt;
+                sum.angular -= pushed.angular / step.dt;
             }
         }
     }

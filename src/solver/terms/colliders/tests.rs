@@ -2,6 +2,7 @@
 //! moving colliders, depenetration a step at a time, block culling.
 
 use super::*;
+use crate::geometry::collider::ColliderShape;
 use glam::{Quat, Vec3};
 
 fn ground(friction: f32) -> Colliders {
