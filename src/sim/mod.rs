@@ -1,5 +1,7 @@
 //! The headless facade ([`simulation::Simulation`]) and the Bevy plugin.
 
+#[cfg(feature = "bevy_diagnostic")]
+pub mod diagnostics;
 pub mod interact;
 #[cfg(feature = "bevy_app")]
 pub mod plugin;

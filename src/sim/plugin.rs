@@ -14,7 +14,7 @@
 //! [`CleaveSystems::Prepare`] (the frame's length follows the clock), then
 //! [`CleaveSystems::StepSimulation`] (the whole [`CleaveSchedule`]: motion, cutting,
 //! the surface), then [`CleaveSystems::Writeback`] (what the frame hands to the game:
-//! colliders' wrenches, meshes and diagnostics when their features are on). Order a
+//! colliders' wrenches, diagnostics with the `bevy_diagnostic` feature). Order a
 //! system that moves tools, colliders or attachment targets for the coming frame
 //! `.before(CleaveFrame)` (or in `FixedUpdate`), and one that reads the frame's
 //! positions or messages `.after(CleaveFrame)`. Messages (`ParticlesCut`,
@@ -42,7 +42,8 @@ pub enum CleaveSystems {
     Prepare,
     /// One simulation frame: the [`CleaveSchedule`].
     StepSimulation,
-    /// The frame's results handed to the game (wrenches, meshes, diagnostics).
+    /// The frame's results handed to the game (diagnostics, and the game's own systems
+    /// placed here).
     Writeback,
 }
 
@@ -120,15 +121,28 @@ impl<L: ScheduleLabel + Clone> Plugin for CleavePlugin<L> {
             );
         }
         app.add_systems(
-            schedule,
+            schedule.clone(),
             run_cleave_frame.in_set(CleaveSystems::StepSimulation),
         );
+        #[cfg(feature = "bevy_diagnostic")]
+        super::diagnostics::install(app, schedule);
     }
 }
 
-/// Exclusive system: advances the simulation by one frame.
+/// How long the last simulation frame took (wall time of the [`CleaveSchedule`]).
+#[derive(Resource, Clone, Copy, Debug, Default)]
+pub struct LastFrame {
+    /// Wall time of the frame.
+    pub wall: Duration,
+}
+
+/// Exclusive system: advances the simulation by one frame, timing it ([`LastFrame`]).
 pub fn run_cleave_frame(world: &mut World) {
+    let start = std::time::Instant::now();
     world.run_schedule(CleaveSchedule);
+    world.insert_resource(LastFrame {
+        wall: start.elapsed(),
+    });
 }
 
 /// Sets the frame's length to `Time<Fixed>`'s timestep, if the app has one (see
