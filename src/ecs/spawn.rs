@@ -10,6 +10,7 @@ use crate::ecs::groups::cluster_compliance;
 use crate::ecs::resources::*;
 pub use crate::ecs::spawn_body::spawn_body;
 use crate::ecs::spawn_body::spawn_clusters;
+use crate::ecs::spawn_body::spawn_into;
 use crate::error::{
     CleaveError, MAX_COORDINATE, Result, check_length, check_range, check_vec_within,
 };
@@ -43,14 +44,6 @@ pub(crate) fn spawn_tool_into(
         last: pose,
     };
     Ok(spawn_keyframed(world, into, (tool, at), path, ToolPath))
-}
-
-/// The entity `into` (if given, else a new one) with `bundle`.
-pub(crate) fn spawn_into(world: &mut World, into: Option<Entity>, bundle: impl Bundle) -> Entity {
-    match into {
-        Some(e) => world.entity_mut(e).insert(bundle).id(),
-        None => world.spawn(bundle).id(),
-    }
 }
 
 /// Spawns `object` (into `into`, if given), with the component `follow` makes of

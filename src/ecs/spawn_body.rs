@@ -44,7 +44,7 @@ pub(crate) fn spawn_body_into(
     let regions = select_regions(desc, &lattice, &handles, placed)?;
     let seed_grid = seed_grid_offset(&desc.material, &mut world.resource_mut::<SimRng>().0);
     let table = clusters_on_grid(&lattice, &desc.material, seed_grid);
-    let body = crate::ecs::spawn::spawn_into(
+    let body = spawn_into(
         world,
         into,
         Body {
@@ -70,6 +70,14 @@ pub(crate) fn spawn_body_into(
     ));
     attach(world, desc, body, regions, &handles);
     Ok(body)
+}
+
+/// The entity `into` (if given, else a new one) with `bundle`.
+pub(crate) fn spawn_into(world: &mut World, into: Option<Entity>, bundle: impl Bundle) -> Entity {
+    match into {
+        Some(e) => world.entity_mut(e).insert(bundle).id(),
+        None => world.spawn(bundle).id(),
+    }
 }
 
 /// Checks the body's material, spacing, placement, motion and pins; returns its

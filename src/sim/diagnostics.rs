@@ -4,7 +4,7 @@
 //! by [`CleavePlugin`](super::plugin::CleavePlugin), readable like Bevy's own
 //! (`LogDiagnosticsPlugin` prints them).
 
-use super::plugin::{CleaveSystems, LastFrame};
+use super::sets::{CleaveSystems, LastFrame};
 use crate::ecs::components::{BodyLattice, ClusterMembers};
 use crate::ecs::resources::CutReport;
 use bevy_app::App;

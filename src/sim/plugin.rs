@@ -14,7 +14,7 @@
 //! [`CleaveSystems::Prepare`] (the frame's length follows the clock), then
 //! [`CleaveSystems::StepSimulation`] (the whole [`CleaveSchedule`]: motion, cutting,
 //! the surface), then [`CleaveSystems::Writeback`] (what the frame hands to the game:
-//! colliders' wrenches, diagnostics with the `bevy_diagnostic` feature). Order a
+//! meshes with the `bevy_mesh` feature, diagnostics with `bevy_diagnostic`). Order a
 //! system that moves tools, colliders or attachment targets for the coming frame
 //! `.before(CleaveFrame)` (or in `FixedUpdate`), and one that reads the frame's
 //! positions or messages `.after(CleaveFrame)`. Messages (`ParticlesCut`,
@@ -31,21 +31,7 @@ use bevy_ecs::schedule::ScheduleLabel;
 use bevy_time::{Fixed, Time};
 use std::time::Duration;
 
-/// The whole of the plugin's simulation frame (the three [`CleaveSystems`]).
-#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct CleaveFrame;
-
-/// The parts of the plugin's frame, in the order they run (see the module docs).
-#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum CleaveSystems {
-    /// The frame's length follows the clock ([`StepClock`]); nothing moves yet.
-    Prepare,
-    /// One simulation frame: the [`CleaveSchedule`].
-    StepSimulation,
-    /// The frame's results handed to the game (diagnostics, and the game's own systems
-    /// placed here).
-    Writeback,
-}
+pub use super::sets::{CleaveFrame, CleaveSystems, LastFrame};
 
 /// What a frame's length follows.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -124,16 +110,11 @@ impl<L: ScheduleLabel + Clone> Plugin for CleavePlugin<L> {
             schedule.clone(),
             run_cleave_frame.in_set(CleaveSystems::StepSimulation),
         );
+        #[cfg(feature = "bevy_mesh")]
+        super::meshes::install(app, schedule.clone());
         #[cfg(feature = "bevy_diagnostic")]
         super::diagnostics::install(app, schedule);
     }
-}
-
-/// How long the last simulation frame took (wall time of the [`CleaveSchedule`]).
-#[derive(Resource, Clone, Copy, Debug, Default)]
-pub struct LastFrame {
-    /// Wall time of the frame.
-    pub wall: Duration,
 }
 
 /// Exclusive system: advances the simulation by one frame, timing it ([`LastFrame`]).

@@ -259,7 +259,7 @@ impl Simulation {
 
     /// What the particles did to `collider` over the last frame: the mean force (N) and
     /// torque about its centre (N·m) of their contact impulses, as its
-    /// [`ColliderWrench`](crate::ecs::components::ColliderWrench) holds them; an error if
+    /// [`ColliderWrench`] holds them; an error if
     /// `collider` is not a collider.
     pub fn collider_wrench(&self, collider: Entity) -> Result<(Vec3, Vec3)> {
         let w = (self
@@ -269,7 +269,7 @@ impl Simulation {
         Ok((w.force, w.torque))
     }
 
-    /// Makes `collider` a rigid body cleave moves ([`DynamicCollider`](crate::ecs::components::DynamicCollider)),
+    /// Makes `collider` a rigid body cleave moves ([`DynamicCollider`]),
     /// starting where it is now; an error naming the field for a state out of bounds, or
     /// if `collider` is not a collider.
     pub fn make_dynamic(

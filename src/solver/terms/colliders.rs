@@ -18,12 +18,12 @@ use crate::solver::term::{NO_DENSE, ParticleState, Substep, Term, Topology};
 use crate::solver::terms::contacts::ball_radius;
 use glam::Vec3A;
 pub use posed::PosedCollider;
-use posed::with_friction;
+use posed::{Pushes, with_friction};
 use rayon::prelude::*;
 pub use rigid::{RigidMotion, lowest_point, solid_inertia};
 
 mod posed;
-mod rigid;
+pub mod rigid;
 
 /// The ground and every posed collider of one substep.
 #[derive(Clone, Debug)]
@@ -223,19 +223,6 @@ impl Colliders {
     fn held_back(&self, depth: f32, depth_before: f32) -> f32 {
         (depth.min(depth_before) - self.depenetration_step).max(0.0)
     }
-}
-
-/// What one iteration's pushes did with one collider: the momentum they gave the
-/// particles (kg·m/s × substep, that is kg·m) and its moment about the collider's
-/// centre; for a dynamic collider, its shares of them (a shift and a turn) and how
-/// many particles it touched.
-#[derive(Clone, Copy, Debug, Default)]
-struct Pushes {
-    momentum: Vec3A,
-    angular: Vec3A,
-    shift: Vec3A,
-    spin: Vec3A,
-    contacts: u32,
 }
 
 /// Two blocks' per-shape pushes, added (an empty list adds nothing).

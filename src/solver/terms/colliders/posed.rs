@@ -2,7 +2,6 @@
 //! resolution of a ball against it (pushed out to the nearest surface point, or back to
 //! where its relative motion entered), and Coulomb friction against the displacement.
 
-use super::Pushes;
 use super::rigid::{RigidMotion, RigidStep};
 use crate::config::StaticBox;
 use crate::cut::tool::Pose;
@@ -30,7 +29,7 @@ pub struct PosedCollider {
     lo: Vec3A,
     hi: Vec3A,
     /// The caller's name for the collider, if it wants the impulses the particles put
-    /// on it summed ([`Colliders::frame_impulses`]).
+    /// on it summed ([`super::Colliders::frame_impulses`]).
     pub tag: Option<u64>,
     /// A dynamic collider's body, moved by the solve ([`PosedCollider::dynamic`]).
     pub(super) rigid: Option<RigidStep>,
@@ -58,7 +57,7 @@ impl PosedCollider {
     /// A dynamic collider: a rigid body of `motion` at `pose` when the substep (of
     /// `dt`, under `gravity`) starts, which the particles push and which pushes them
     /// (see [`super::rigid`]). Its pose and motion at the substep's end:
-    /// [`Colliders::rigid_bodies`].
+    /// [`super::Colliders::rigid_bodies`].
     pub fn dynamic(
         shape: ColliderShape,
         friction: f32,
@@ -218,4 +217,17 @@ pub(super) fn with_friction(
     } else {
         target
     }
+}
+
+/// What one iteration's pushes did with one collider: the momentum they gave the
+/// particles (kg·m/s × substep, that is kg·m) and its moment about the collider's
+/// centre; for a dynamic collider, its shares of them (a shift and a turn) and how
+/// many particles it touched.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Pushes {
+    pub(super) momentum: Vec3A,
+    pub(super) angular: Vec3A,
+    pub(super) shift: Vec3A,
+    pub(super) spin: Vec3A,
+    pub(super) contacts: u32,
 }
