@@ -5,6 +5,8 @@
 
 use crate::ecs::components::*;
 use crate::ecs::resources::{ParticlesRepaired, SimSettings, SolverCache, SubstepClock};
+use crate::ecs::spawn::checked_pose;
+use crate::error::CleaveError;
 use crate::solver::term::Substep;
 use crate::solver::terms::colliders::{Colliders, PosedCollider};
 use bevy_ecs::prelude::*;
@@ -110,8 +112,10 @@ fn report_repaired(
 /// The ground, the config's static boxes and every collider entity, placed for this
 /// substep (a kinematic collider moves from its frame-start pose to its frame-end pose
 /// over the substeps; a dynamic one starts the frame where it is, and the term carries
-/// it on from substep to substep). A dynamic collider whose state is out of bounds is
-/// kinematic, with a warning the first time (`refused` lists them).
+/// it on from substep to substep). Game code may have written anything into the
+/// components: a collider whose pose is out of bounds is left out, a dynamic one whose
+/// state is out of bounds is kinematic, each with a warning the first time (`refused`
+/// lists them).
 fn substep_colliders(
     config: &crate::config::SimConfig,
     substep: &SubstepClock,
@@ -124,12 +128,26 @@ fn substep_colliders(
         substep.index as f32 / count,
         (substep.index + 1) as f32 / count,
     );
-    let moving = entities.iter().map(|(e, c, pose, dynamic)| {
-        let checked = dynamic.map(|d| (d, d.check()));
-        match checked {
-            Some((d, Ok(()))) => {
-                refused.retain(|r| *r != e);
-                let (shape, motion) = (c.shape.clone(), d.motion());
+    let mut refuse = |e: Entity, error: Option<(CleaveError, &str)>| match error {
+        Some((error, so)) if !refused.contains(&e) => {
+            tracing::warn!("cleave: collider {e} {so}: {error}");
+            refused.push(e);
+        }
+        Some(_) => {}
+        None => refused.retain(|r| *r != e),
+    };
+    let moving = entities.iter().filter_map(|(e, c, pose, dynamic)| {
+        let posed = checked_pose("collider.pose.current", pose.current)
+            .and_then(|_| checked_pose("collider.pose.last", pose.last));
+        if let Err(error) = posed {
+            refuse(e, Some((error, "left out")));
+            return None;
+        }
+        // (tagged by its entity, for its wrench: see `systems::wrench`)
+        let shape = c.shape.clone();
+        match dynamic.map(|d| d.check().map(|()| d.motion())) {
+            Some(Ok(motion)) => {
+                refuse(e, None);
                 let posed = PosedCollider::dynamic(
                     shape,
                     c.friction,
@@ -138,20 +156,16 @@ fn substep_colliders(
                     config.gravity,
                     dt,
                 );
-                return posed.tagged(e.to_bits());
+                return Some(posed.tagged(e.to_bits()));
             }
-            Some((_, Err(error))) if !refused.contains(&e) => {
-                tracing::warn!("cleave: collider {e} stays kinematic: {error}");
-                refused.push(e);
-            }
-            _ => {}
+            Some(Err(error)) => refuse(e, Some((error, "stays kinematic"))),
+            None => refuse(e, None),
         }
         let (start, end) = (
             pose.last.lerp(&pose.current, t0),
             pose.last.lerp(&pose.current, t1),
         );
-        // (tagged by its entity, for its wrench: see `systems::wrench`)
-        PosedCollider::new(c.shape.clone(), c.friction, start, end).tagged(e.to_bits())
+        Some(PosedCollider::new(shape, c.friction, start, end).tagged(e.to_bits()))
     });
     let mut colliders = Colliders::from_config(config, moving);
     colliders.depenetration_step = MAX_DEPENETRATION_SPEED * config.dt / count;

@@ -310,6 +310,17 @@ fn a_dynamic_state_out_of_bounds_is_refused() {
             .iter()
             .all(|(_, x)| x.is_finite())
     );
+    // a pose written as NaN by game code: the collider is left out
+    let mut at = *sim.world().get::<ColliderPose>(ball).unwrap();
+    at.current.position.y = f32::NAN;
+    sim.world_mut().entity_mut(ball).insert(at);
+    sim.run(10);
+    assert!(
+        sim.positions(body)
+            .unwrap()
+            .iter()
+            .all(|(_, x)| x.is_finite())
+    );
     let not_a_collider = sim.make_dynamic(body, DynamicCollider::solid(&shape, 1.0).unwrap());
     assert!(
         not_a_collider
