@@ -174,17 +174,18 @@ impl Colliders {
 
     /// [`Colliders::resolve`], and whether part of a push was held back.
     fn resolve_holding_back(&self, p: Vec3A, previous: Vec3A, margin: f32) -> (Vec3A, bool) {
-        self.resolve_reporting(p, previous, margin, |_, push| push)
+        self.resolve_reporting(p, previous, margin, |_, _| None)
     }
 
     /// [`Colliders::resolve_holding_back`], giving `pushed` each shape's push (its
-    /// index, the displacement the ball needs), which returns the part the ball takes.
+    /// index, the displacement the ball needs), which returns the part the ball takes
+    /// if it takes only part (a dynamic collider takes the rest).
     fn resolve_reporting(
         &self,
         p: Vec3A,
         previous: Vec3A,
         margin: f32,
-        mut pushed: impl FnMut(usize, Vec3A) -> Vec3A,
+        mut pushed: impl FnMut(usize, Vec3A) -> Option<Vec3A>,
     ) -> (Vec3A, bool) {
         let (mut p, mut held) = (p, false);
         if let Some(g) = &self.ground
@@ -208,7 +209,10 @@ impl Colliders {
                     let held_back = self.held_back(length, depth_before);
                     held |= held_back > 0.0;
                     let moved = q - push * (held_back / length);
-                    p += pushed(i, moved - p);
+                    p = match pushed(i, moved - p) {
+                        Some(part) => p + part,
+                        None => moved,
+                    };
                 }
             }
         }
@@ -337,20 +341,17 @@ impl Term for Colliders {
                             let at = *p;
                             this.resolve_reporting(at, previous[i], margins[i], |s, push| {
                                 let sum = &mut sums[s];
-                                let taken = match &this.shapes[s].rigid {
-                                    Some(rigid) => {
-                                        sum.contacts += 1;
-                                        let mut share = (sum.shift, sum.spin);
-                                        let taken = rigid.split(push, at, w, &mut share);
-                                        (sum.shift, sum.spin) = share;
-                                        taken
-                                    }
-                                    None => push,
-                                };
-                                let momentum = taken / w;
+                                let part = this.shapes[s].rigid.as_ref().map(|rigid| {
+                                    sum.contacts += 1;
+                                    let mut share = (sum.shift, sum.spin);
+                                    let part = rigid.split(push, at, w, &mut share);
+                                    (sum.shift, sum.spin) = share;
+                                    part
+                                });
+                                let momentum = part.unwrap_or(push) / w;
                                 sum.momentum += momentum;
                                 sum.angular += (at - this.shapes[s].centre()).cross(momentum);
-                                taken
+                                part
                             })
                         } else {
                             this.resolve_holding_back(*p, previous[i], margins[i])
