@@ -13,7 +13,9 @@
 //!    into the solver ([`load`]);
 //! 4. [`SimStage::Substeps`]: an exclusive system that runs [`SubstepSchedule`] —
 //!    predict → shape-match — `substeps` times;
-//! 5. [`SimStage::Store`]: the particles' state written back to their components;
+//! 5. [`SimStage::Store`]: the particles' state written back to their components, and
+//!    [`SimStage::Wrench`]: each collider's wrench and the dynamic colliders' motion
+//!    ([`wrench`]);
 //! 6. `MoveTools → Detect → Cut → Regroup → Split → Expand`;
 //! 7. [`SimStage::Settle`]: where tools, colliders and attachment targets ended the
 //!    frame becomes where the next frame moves them from (so a pose game code writes
@@ -24,7 +26,7 @@
 //! Access contract (tested in `tests/schedule_access.rs`): predict and shape-match write
 //! particle data only; detect writes only its `CutList` and its culling memory; cut
 //! writes no cluster data; regroup/split/expand write no particle data; surface writes
-//! surface data only.
+//! surface data only; wrench writes collider data only.
 
 pub mod cut;
 pub mod detect;

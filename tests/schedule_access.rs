@@ -4,7 +4,8 @@
 //! velocities; the tool, collider and attachment movers and the settle stage write their
 //! poses only; detect writes only its CutList (and its culling memory) and spawns
 //! nothing; cut writes no cluster data; regroup/split/expand write no particle data; the
-//! surface stage writes only the surfaces (and its message).
+//! surface stage writes only the surfaces (and its message); the wrench stage only the
+//! colliders' wrenches and dynamic state (and its message).
 
 use bevy_ecs::component::ComponentId;
 use bevy_ecs::message::Messages;
@@ -176,6 +177,30 @@ fn regroup_split_expand_write_no_particle_data() {
             "must write ClusterMembers"
         );
     }
+}
+
+#[test]
+fn the_wrench_stage_writes_colliders_only() {
+    let mut w = world();
+    ids(&mut w);
+    let wrench = w.register_component::<ColliderWrench>();
+    let pose = w.register_component::<ColliderPose>();
+    let dynamic = w.register_component::<DynamicCollider>();
+    let access = access_of(&mut w, wrench::collider_wrenches);
+    let message = w
+        .component_id::<Messages<ColliderPushed>>()
+        .expect("registered");
+    let mut expected = vec![wrench, message];
+    let mut writes = access.writes;
+    expected.sort();
+    writes.sort();
+    assert_eq!(writes, expected);
+    assert!(!access.deferred);
+    let mut writes = access_of(&mut w, wrench::dynamic_colliders).writes;
+    let mut expected = vec![pose, dynamic];
+    expected.sort();
+    writes.sort();
+    assert_eq!(writes, expected);
 }
 
 #[test]
