@@ -4,7 +4,8 @@
 //! test's own integrator moves by the wrench gains the momentum the soft block sliding on
 //! it loses. cleave's own (`DynamicCollider`): a box resting on a soft block is held by
 //! its weight, a block landing on a crate on a frictionless floor gives it the momentum
-//! it loses, a free body falls as a ballistic one does.
+//! it loses, a free body falls as a ballistic one does, a ball dents a soft block and
+//! bounces off it (the rigid ground, an inelastic contact, stops it dead).
 
 use cleave::ecs::components::{ColliderPose, ColliderWrench, DynamicCollider, InvMass};
 use cleave::ecs::resources::ColliderPushed;
@@ -33,9 +34,20 @@ impl RigidBox {
 }
 
 fn spawn_box(sim: &mut Simulation, half: Vec3, at: Vec3, friction: f32, mass: f32) -> RigidBox {
+    let shape = ColliderShape::Box { half_extents: half };
+    spawn_collider(sim, shape, at, friction, mass)
+}
+
+fn spawn_collider(
+    sim: &mut Simulation,
+    shape: ColliderShape,
+    at: Vec3,
+    friction: f32,
+    mass: f32,
+) -> RigidBox {
     let entity = sim
         .spawn_collider(&ColliderDesc {
-            shape: ColliderShape::Box { half_extents: half },
+            shape,
             friction,
             pose: Pose::at(at),
             path: Path { keys: vec![] },
@@ -357,4 +369,45 @@ fn a_dynamic_crate_resumes_bit_for_bit() {
     let (straight, resumed) = (run(None), run(Some(12)));
     assert!(straight.1.velocity.x > 0.5, "the crate was pushed");
     assert!(straight == resumed, "the resumed run differs");
+}
+
+#[test]
+fn a_dynamic_ball_dents_a_soft_block_and_bounces_where_the_rigid_ground_stops_it() {
+    // (rebound speed, the deepest the block's top went under it)
+    let drop = |on_block: bool| -> (f32, f32) {
+        let mut sim = Simulation::new(SimConfig::default()).unwrap();
+        let mut block = BodyDesc::new(Shape::cuboid(UVec3::new(8, 4, 8)), 0.1);
+        block.position = Vec3::new(0.0, 0.2, 0.0);
+        let body = on_block.then(|| sim.spawn_body(&block).unwrap());
+        sim.run(120);
+        let top = |sim: &Simulation| {
+            body.map_or(0.0, |b| {
+                let near = sim.positions(b).unwrap().into_iter();
+                let under = near.filter(|(_, x)| x.x.abs() < 0.1 && x.z.abs() < 0.1);
+                under.map(|(_, x)| x.y).fold(f32::MIN, f32::max)
+            })
+        };
+        let rest_top = top(&sim);
+        let shape = ColliderShape::Sphere { radius: 0.1 };
+        let ball = spawn_collider(&mut sim, shape.clone(), Vec3::new(0.0, 1.5, 0.0), 0.5, 20.0);
+        let ball = ball.entity;
+        sim.make_dynamic(ball, DynamicCollider::solid(&shape, 20.0).unwrap())
+            .unwrap();
+        let (mut rebound, mut dent) = (0.0f32, 0.0f32);
+        for _ in 0..90 {
+            sim.step();
+            let v = sim.world().get::<DynamicCollider>(ball).unwrap().velocity;
+            rebound = rebound.max(v.y);
+            dent = dent.max(rest_top - top(&sim));
+        }
+        (rebound, dent)
+    };
+    let (bounce, dent) = drop(true);
+    assert!(bounce > 0.3, "off the block: {bounce} m/s up");
+    assert!(
+        dent > 0.01,
+        "the block's top went down {dent} m under the ball"
+    );
+    let (bounce, _) = drop(false);
+    assert!(bounce < 0.05, "off the rigid ground: {bounce} m/s up");
 }
