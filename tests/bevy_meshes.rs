@@ -115,3 +115,41 @@ fn between_fixed_steps_the_drawn_positions_are_blended_by_the_overstep() {
         "{drawn_y} vs {now_y}"
     );
 }
+
+#[test]
+fn a_body_at_rest_is_drawn_still_whatever_the_overstep() {
+    let mut app = App::new();
+    app.add_plugins(TimePlugin);
+    app.insert_resource(Time::<Fixed>::from_hz(60.0));
+    app.insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
+    app.add_plugins(CleavePlugin::new(SimConfig::default()).unwrap());
+    app.init_resource::<Assets<Mesh>>();
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(6)), 0.1);
+    desc.position = Vec3::new(0.0, 0.5, 0.0);
+    let body = spawn_body(app.world_mut(), &desc).unwrap();
+    for _ in 0..420 {
+        app.update();
+    }
+    let step = app.world().resource::<Time<Fixed>>().timestep();
+    let drawn = |app: &App| {
+        let handle = app.world().get::<Mesh3d>(body).unwrap();
+        vec3s(
+            app.world()
+                .resource::<Assets<Mesh>>()
+                .get(&handle.0)
+                .unwrap(),
+            Mesh::ATTRIBUTE_POSITION,
+        )
+    };
+    // a frame and a half, then half a frame: overstep 0.5, then 0
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(step + step / 2));
+    app.update();
+    let half = drawn(&app);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(step / 2));
+    app.update();
+    assert_eq!(
+        half,
+        drawn(&app),
+        "a resting body's drawing moves with the overstep"
+    );
+}

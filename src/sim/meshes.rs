@@ -81,13 +81,21 @@ fn give_meshes(
     }
 }
 
-/// Writes each changed surface into its mesh.
+/// Writes each changed surface into its mesh; an unchanged one (at rest) stops being
+/// blended, so that it is drawn still.
 fn sync_meshes(
     meshes: Option<ResMut<Assets<Mesh>>>,
-    mut bodies: Query<(&SurfaceMesh, &Mesh3d, &mut MeshSync), Changed<SurfaceMesh>>,
+    mut bodies: Query<(Ref<SurfaceMesh>, &Mesh3d, &mut MeshSync)>,
 ) {
     let Some(mut meshes) = meshes else { return };
     for (surface, handle, mut sync) in &mut bodies {
+        if !surface.is_changed() {
+            if sync.previous != sync.current {
+                let sync = &mut *sync;
+                sync.previous.clone_from(&sync.current);
+            }
+            continue;
+        }
         let Some(mut mesh) = meshes.get_mut(&handle.0) else {
             continue;
         };
