@@ -50,6 +50,15 @@ fn access_of<M>(world: &mut World, system: impl IntoSystem<(), (), M>) -> Access
     }
 }
 
+/// Asserts that `access` writes exactly `expected` (in any order) and defers nothing.
+fn writes_only(access: Access, mut expected: Vec<ComponentId>) {
+    let mut writes = access.writes;
+    expected.sort();
+    writes.sort();
+    assert_eq!(writes, expected);
+    assert!(!access.deferred);
+}
+
 fn ids(world: &mut World) -> (Vec<ComponentId>, Vec<ComponentId>) {
     let particle = vec![
         world.register_component::<Particle>(),
@@ -102,13 +111,12 @@ fn predict_shape_match_load_and_the_term_sync_write_only_the_solver() {
 fn store_writes_the_particles_motion_only() {
     let mut w = world();
     let (particle, _) = ids(&mut w);
-    let mut access = access_of(&mut w, store::store_particles);
-    access.writes.sort();
+    let access = access_of(&mut w, store::store_particles);
     // positions, velocities, orientations, angular velocities
-    let mut expected = vec![particle[1], particle[2], particle[5], particle[6]];
-    expected.sort();
-    assert_eq!(access.writes, expected);
-    assert!(!access.deferred);
+    writes_only(
+        access,
+        vec![particle[1], particle[2], particle[5], particle[6]],
+    );
 }
 
 #[test]
@@ -127,12 +135,8 @@ fn moving_and_settling_kinematic_things_writes_their_poses_only() {
     let access = access_of(&mut w, move_attachments::move_attachments);
     assert_eq!(access.writes, vec![target]);
     assert!(!access.deferred);
-    let mut access = access_of(&mut w, settle_poses::settle_poses);
-    access.writes.sort();
-    let mut expected = vec![tool, collider, target];
-    expected.sort();
-    assert_eq!(access.writes, expected);
-    assert!(!access.deferred);
+    let access = access_of(&mut w, settle_poses::settle_poses);
+    writes_only(access, vec![tool, collider, target]);
 }
 
 #[test]
@@ -190,17 +194,9 @@ fn the_wrench_stage_writes_colliders_only() {
     let message = w
         .component_id::<Messages<ColliderPushed>>()
         .expect("registered");
-    let mut expected = vec![wrench, message];
-    let mut writes = access.writes;
-    expected.sort();
-    writes.sort();
-    assert_eq!(writes, expected);
-    assert!(!access.deferred);
-    let mut writes = access_of(&mut w, wrench::dynamic_colliders).writes;
-    let mut expected = vec![pose, dynamic];
-    expected.sort();
-    writes.sort();
-    assert_eq!(writes, expected);
+    writes_only(access, vec![wrench, message]);
+    let access = access_of(&mut w, wrench::dynamic_colliders);
+    writes_only(access, vec![pose, dynamic]);
 }
 
 #[test]
@@ -212,12 +208,7 @@ fn the_surface_stage_writes_surfaces_only() {
     let message = w
         .component_id::<Messages<SurfaceChanged>>()
         .expect("registered");
-    let mut expected = vec![surface, message];
-    let mut writes = access.writes;
-    expected.sort();
-    writes.sort();
-    assert_eq!(writes, expected);
-    assert!(!access.deferred);
+    writes_only(access, vec![surface, message]);
 }
 
 #[test]

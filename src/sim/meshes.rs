@@ -89,27 +89,41 @@ fn sync_meshes(
 ) {
     let Some(mut meshes) = meshes else { return };
     for (surface, handle, mut sync) in &mut bodies {
-        if !surface.is_changed() {
-            if sync.previous != sync.current {
-                let sync = &mut *sync;
-                sync.previous.clone_from(&sync.current);
-            }
+        let resting = !surface.is_changed();
+        if resting && sync.previous.is_empty() {
             continue;
         }
         let Some(mut mesh) = meshes.get_mut(&handle.0) else {
             continue;
         };
-        let positions: Vec<[f32; 3]> = surface.positions.iter().map(|p| p.to_array()).collect();
+        if resting {
+            // drawn where it is, once, and no longer blended (`blend_meshes` skips a
+            // mesh without a previous frame)
+            write_vec3(
+                &mut mesh,
+                Mesh::ATTRIBUTE_POSITION,
+                sync.current.iter().copied(),
+            );
+            sync.previous.clear();
+            continue;
+        }
+        // the last frame's positions become the previous ones, their buffer the new
+        // frame's (after a change of the triangles there is nothing to blend from)
+        let sync = &mut *sync;
+        std::mem::swap(&mut sync.previous, &mut sync.current);
+        sync.current.clear();
+        (sync.current).extend(surface.positions.iter().map(|p| p.to_array()));
         let new_topology = sync.topology_version != surface.topology_version;
-        sync.previous = if new_topology {
-            positions.clone()
-        } else {
-            std::mem::take(&mut sync.current)
-        };
-        sync.current = positions;
-        write_vec3(&mut mesh, Mesh::ATTRIBUTE_POSITION, &sync.current);
-        let normals: Vec<[f32; 3]> = surface.normals.iter().map(|n| n.to_array()).collect();
-        write_vec3(&mut mesh, Mesh::ATTRIBUTE_NORMAL, &normals);
+        if new_topology {
+            sync.previous.clone_from(&sync.current);
+        }
+        write_vec3(
+            &mut mesh,
+            Mesh::ATTRIBUTE_POSITION,
+            sync.current.iter().copied(),
+        );
+        let normals = surface.normals.iter().map(|n| n.to_array());
+        write_vec3(&mut mesh, Mesh::ATTRIBUTE_NORMAL, normals);
         if new_topology {
             let indices = surface.triangles().iter().flatten().copied().collect();
             mesh.insert_indices(Indices::U32(indices));
@@ -123,16 +137,22 @@ fn sync_meshes(
     }
 }
 
-/// Writes `values` into the mesh's attribute `id` in place when it has the length,
+/// Writes `values` into the mesh's attribute `id` in place when it has their count,
 /// else replaces it.
-fn write_vec3(mesh: &mut Mesh, id: bevy_mesh::MeshVertexAttribute, values: &[[f32; 3]]) {
+fn write_vec3(
+    mesh: &mut Mesh,
+    id: bevy_mesh::MeshVertexAttribute,
+    values: impl ExactSizeIterator<Item = [f32; 3]>,
+) {
     if let Some(VertexAttributeValues::Float32x3(old)) = mesh.attribute_mut(id)
         && old.len() == values.len()
     {
-        old.copy_from_slice(values);
+        for (at, v) in old.iter_mut().zip(values) {
+            *at = v;
+        }
         return;
     }
-    mesh.insert_attribute(id, values.to_vec());
+    mesh.insert_attribute(id, values.collect::<Vec<_>>());
 }
 
 /// Blends every mesh's positions between the last two frames by the fixed clock's

@@ -20,7 +20,7 @@ use glam::Vec3A;
 pub use posed::PosedCollider;
 use posed::{Pushes, with_friction};
 use rayon::prelude::*;
-pub use rigid::{RigidMotion, lowest_point, solid_inertia};
+pub use rigid::{RigidMotion, solid_inertia};
 
 mod posed;
 pub mod rigid;
@@ -327,9 +327,6 @@ impl Term for Colliders {
                     if !this.reaches(lo.min(before.0), hi.max(before.1), this.largest_margin) {
                         return sums;
                     }
-                    if tagged {
-                        sums.resize(this.shapes.len(), Pushes::default());
-                    }
                     for (i, p) in positions.iter_mut().enumerate() {
                         // (most balls of a resting body touch nothing: they are left
                         // as they are, unwritten)
@@ -340,6 +337,10 @@ impl Term for Colliders {
                             let w = inv_mass[i];
                             let at = *p;
                             this.resolve_reporting(at, previous[i], margins[i], |s, push| {
+                                // (a block that pushes nothing allocates nothing)
+                                if sums.is_empty() {
+                                    sums.resize(this.shapes.len(), Pushes::default());
+                                }
                                 let sum = &mut sums[s];
                                 let part = this.shapes[s].rigid.as_ref().map(|rigid| {
                                     sum.contacts += 1;

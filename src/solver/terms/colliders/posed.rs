@@ -113,7 +113,7 @@ impl PosedCollider {
         let Some(rigid) = &mut self.rigid else { return };
         rigid.apply(shares.shift, shares.spin, &self.shape, ground);
         rigid.contacts = shares.contacts;
-        let (start, end) = (self.start_inverse.inverse(), affine(rigid.now));
+        let (start, end) = (affine(rigid.start), affine(rigid.now));
         self.move_end(start, end);
     }
 

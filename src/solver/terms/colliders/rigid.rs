@@ -13,6 +13,7 @@ use crate::cut::tool::Pose;
 use crate::geometry::collider::ColliderShape;
 use crate::solver::particles::turn;
 use glam::{Quat, Vec3, Vec3A};
+use smallvec::{SmallVec, smallvec};
 
 /// A rigid body's mass properties and motion.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -147,24 +148,18 @@ fn turned(q: Quat, spin: Vec3A) -> Quat {
     (q + dq).normalize()
 }
 
-/// The height of the lowest point of `shape` at `pose` (a mesh's by its bounding box).
-pub fn lowest_point(shape: &ColliderShape, pose: Pose) -> f32 {
-    let (points, radius) = support(shape);
-    let low = points
-        .iter()
-        .map(|p| (pose.position + pose.rotation * *p).y);
-    low.fold(f32::INFINITY, f32::min) - radius
-}
-
 /// The points (local) and radius whose balls' hull is `shape` for the ground: a ball's
 /// centre, a capsule's ends, a box's (or a mesh's bounding box's) corners.
-fn support(shape: &ColliderShape) -> (Vec<Vec3>, f32) {
+fn support(shape: &ColliderShape) -> (SmallVec<[Vec3; 8]>, f32) {
     match *shape {
-        ColliderShape::Sphere { radius } => (vec![Vec3::ZERO], radius),
+        ColliderShape::Sphere { radius } => (smallvec![Vec3::ZERO], radius),
         ColliderShape::Capsule {
             radius,
             half_length,
-        } => (vec![Vec3::X * half_length, -Vec3::X * half_length], radius),
+        } => (
+            smallvec![Vec3::X * half_length, -Vec3::X * half_length],
+            radius,
+        ),
         ref other => {
             let h = other.local_half_extents();
             let corners = (0..8)
