@@ -17,7 +17,8 @@ use crate::cut::tear::find_tears;
 use crate::cut::tool::{BladePlane, CutMode};
 use crate::cut::tool_sweep::ToolSweep;
 use crate::ecs::components::{Body, BodyLattice, Tool, ToolPose};
-use crate::ecs::resources::{BodyCut, CutList, CutReport, DetectCulling, SimSettings, SolverCache};
+use crate::ecs::resources::{BodyCut, CutList, CutReport, DetectCulling, SimSettings};
+use crate::ecs::layout::SolverCache;
 use bevy_ecs::prelude::*;
 use glam::Quat;
 
@@ -33,7 +34,7 @@ pub fn detect(
 ) {
     let start = std::time::Instant::now();
     out.cuts.clear();
-    if cache.entities.is_empty() {
+    if cache.layout.is_empty() {
         return;
     }
     detect_tears(&cache, &bodies, &mut out.cuts);
@@ -64,13 +65,13 @@ pub fn detect(
     let (carving, slicing): (Vec<ToolSweep>, Vec<ToolSweep>) =
         severers.into_iter().partition(|t| t.carves());
     let positions = &cache.particles.positions;
-    for i in particles_hit(positions, &cache.live, &removers, near) {
-        if let Some((body, local)) = cache.owner(i) {
+    for i in particles_hit(positions, cache.layout.live(), &removers, near) {
+        if let Some((body, local)) = cache.layout.owner(i) {
             BodyCut::entry(&mut out.cuts, body).particles.push(local);
         }
     }
-    for i in particles_inside(positions, &cache.live, &carving, near) {
-        if let Some((body, local)) = cache.owner(i) {
+    for i in particles_inside(positions, cache.layout.live(), &carving, near) {
+        if let Some((body, local)) = cache.layout.owner(i) {
             BodyCut::entry(&mut out.cuts, body).carved.push(local);
         }
     }
@@ -91,26 +92,26 @@ pub fn detect(
         if tools.is_empty() {
             continue;
         }
-        for (k, b) in cache.body_dense.iter().enumerate() {
+        let (bodies_dense, locals) = (cache.layout.bodies(), cache.layout.locals());
+        for (k, b) in bodies_dense.iter().enumerate() {
             let Ok((_, lattice)) = bodies.get(b.body) else {
                 continue;
             };
             let lattice = &lattice.lattice;
             // the body's slots: up to the next body's (its lattice may have more
             // particles than slots, those it had lost when it was laid out)
-            let next = cache
-                .body_dense
+            let next = bodies_dense
                 .get(k + 1)
                 .map_or(positions.len(), |n| n.first as usize);
             let range = b.first as usize..next.min(positions.len());
             let partners = |i: usize| {
-                let local = cache.locals[i];
+                let local = locals[i];
                 [1, 3, 5].map(|d| match lattice.link(local, d) {
                     NO_PARTICLE => u32::MAX,
                     n => b.slot(n).map_or(u32::MAX, |s| s as u32),
                 })
             };
-            let separated = edges_separated(positions, &cache.live, range, partners, &tools, near);
+            let separated = edges_separated(positions, cache.layout.live(), range, partners, &tools, near);
             if separated.is_empty() {
                 continue;
             }
@@ -119,7 +120,7 @@ pub fn detect(
             let mut crossings = Vec::with_capacity(separated.len());
             let mut turn = Quat::IDENTITY;
             for s in separated {
-                let (a, q) = (cache.locals[s.ends.0], cache.locals[s.ends.1]);
+                let (a, q) = (locals[s.ends.0], locals[s.ends.1]);
                 let c = rest_crossing(lattice, a, s.fraction, s.normal, position, &mut turn);
                 edges.push((a.min(q), a.max(q)));
                 crossings.push(((a.min(q), a.max(q)), if a < q { c } else { c.reversed() }));
@@ -167,13 +168,10 @@ fn carve_crossings(
     let positions = &cache.particles.positions;
     for cut in cuts.iter_mut().filter(|c| !c.carved.is_empty()) {
         cut.carved.sort_unstable();
-        let (Ok((_, lattice)), Ok(b)) = (
-            bodies.get(cut.body),
-            cache.body_dense.binary_search_by_key(&cut.body, |b| b.body),
-        ) else {
+        let (Ok((_, lattice)), Some(b)) = (bodies.get(cut.body), cache.layout.body(cut.body)) else {
             continue;
         };
-        let (lattice, b) = (&lattice.lattice, &cache.body_dense[b]);
+        let lattice = &lattice.lattice;
         let position = |p: u32| b.position(positions, p);
         let mut turn = Quat::IDENTITY;
         for &c in &cut.carved {
@@ -213,15 +211,16 @@ fn near_blocks(
     }
     // each dense particle's +x, +y, +z partners, by the links of its body's lattice
     // (its body: the last whose dense range starts at or before it)
-    culling.set_layout(cache.layout_version, n, |i| {
-        let body = cache.body_dense.partition_point(|b| b.first as usize <= i);
-        let Some(b) = body.checked_sub(1).and_then(|b| cache.body_dense.get(b)) else {
+    let layout = &cache.layout;
+    culling.set_layout(layout.version(), n, |i| {
+        let body = layout.bodies().partition_point(|b| b.first as usize <= i);
+        let Some(b) = body.checked_sub(1).and_then(|b| layout.bodies().get(b)) else {
             return [u32::MAX; 3];
         };
         let Ok((_, lattice)) = bodies.get(b.body) else {
             return [u32::MAX; 3];
         };
-        let local = cache.locals[i];
+        let local = layout.locals()[i];
         [1, 3, 5].map(|d| match lattice.lattice.link(local, d) {
             NO_PARTICLE => u32::MAX,
             p => b.slot(p).map_or(u32::MAX, |s| s as u32),
@@ -231,7 +230,7 @@ fn near_blocks(
         tools.iter().map(|(t, s)| (t.clone(), s)).collect();
     culling.follow(&pairs);
     let sweeps: Vec<&ToolSweep> = tools.iter().map(|(_, s)| s).collect();
-    culling.near_blocks(&cache.particles.positions, &cache.live, &sweeps)
+    culling.near_blocks(&cache.particles.positions, layout.live(), &sweeps)
 }
 
 /// What a group of tools does with the edges it separates.
@@ -252,7 +251,7 @@ fn detect_tears(
     cuts: &mut Vec<BodyCut>,
 ) {
     let positions = &cache.particles.positions;
-    for b in &cache.body_dense {
+    for b in cache.layout.bodies() {
         let Ok((body, lattice)) = bodies.get(b.body) else {
             continue;
         };

@@ -5,8 +5,8 @@
 //! only.
 
 use crate::ecs::components::{AngularVelocity, InvMass, Orientation, Position, Velocity};
-use crate::ecs::resources::SolverCache;
-use crate::ecs::table_rows::ParticleColumns;
+use crate::ecs::layout::SolverCache;
+use crate::ecs::layout::table_rows::ParticleColumns;
 use bevy_ecs::prelude::*;
 use glam::Vec3A;
 
@@ -38,20 +38,11 @@ pub fn load_particles(mut cache: ResMut<SolverCache>, particles: Query<ParticleD
                 spins,
                 inv_mass,
             };
-            cache.rows.load(
-                &mut cache.particles,
-                &cache.entities,
-                &cache.dense_of,
-                table,
-            );
+            cache.layout.load(&mut cache.particles, table);
         }
         _ => {
             for (e, x, v, q, w, inv_mass) in &particles {
-                if let Some(&d) = cache.dense_of.get(e.index_u32() as usize)
-                    && d != u32::MAX
-                    && cache.entities[d as usize] == e
-                {
-                    let d = d as usize;
+                if let Some(d) = cache.layout.dense_of(e) {
                     cache.particles.positions[d] = Vec3A::from(x.0);
                     cache.particles.velocities[d] = Vec3A::from(v.0);
                     cache.particles.orientations[d] = q.0;

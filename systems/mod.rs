@@ -48,6 +48,7 @@ pub mod surface;
 pub mod term_sync;
 pub mod wrench;
 
+use crate::ecs::layout::SolverCache;
 use crate::ecs::resources::*;
 use bevy_ecs::message::MessageRegistry;
 use bevy_ecs::prelude::*;

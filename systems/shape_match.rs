@@ -4,7 +4,8 @@
 //! (the dense arrays) only.
 
 use crate::ecs::components::*;
-use crate::ecs::resources::{ParticlesRepaired, SimSettings, SolverCache, SubstepClock};
+use crate::ecs::resources::{ParticlesRepaired, SimSettings, SubstepClock};
+use crate::ecs::layout::SolverCache;
 use crate::ecs::spawn::checked_pose;
 use crate::error::CleaveError;
 use crate::solver::term::Substep;
@@ -58,26 +59,19 @@ pub fn shape_match(
 /// them.
 fn repair_non_finite(cache: &mut SolverCache, bodies: &Query<(Entity, &BodyLattice)>) -> Vec<u32> {
     let SolverCache {
-        particles,
-        live,
-        locals,
-        body_dense,
-        ..
+        particles, layout, ..
     } = cache;
-    particles.repair_non_finite(live, |d, positions| {
-        let Some((body, local)) = crate::ecs::resources::dense_owner(locals, body_dense, d) else {
+    particles.repair_non_finite(layout.live(), |d, positions| {
+        let Some((body, local)) = layout.owner(d) else {
             return Vec3A::ZERO;
         };
-        let (Ok((_, lattice)), Ok(b)) = (
-            bodies.get(body),
-            body_dense.binary_search_by_key(&body, |b| b.body),
-        ) else {
+        let (Ok((_, lattice)), Some(b)) = (bodies.get(body), layout.body(body)) else {
             return Vec3A::ZERO;
         };
         let (sum, count) = lattice
             .lattice
             .neighbours(local)
-            .filter_map(|n| body_dense[b].dense.get(n as usize).copied())
+            .filter_map(|n| b.dense.get(n as usize).copied())
             .filter(|n| *n != u32::MAX && positions[*n as usize].is_finite())
             .fold((Vec3A::ZERO, 0u32), |(sum, count), n| {
                 (sum + positions[n as usize], count + 1)
@@ -98,7 +92,7 @@ fn report_repaired(
 ) {
     let mut by_body: Vec<(Entity, u32)> = repaired
         .iter()
-        .filter_map(|&d| cache.owner(d as usize))
+        .filter_map(|&d| cache.layout.owner(d as usize))
         .collect();
     by_body.sort_unstable();
     for group in by_body.chunk_by(|a, b| a.0 == b.0) {

@@ -3,8 +3,8 @@
 //! particles' components. Writes particle data only.
 
 use crate::ecs::components::{AngularVelocity, Orientation, Position, Velocity};
-use crate::ecs::resources::SolverCache;
-use crate::ecs::table_rows::StoredColumns;
+use crate::ecs::layout::SolverCache;
+use crate::ecs::layout::table_rows::StoredColumns;
 use bevy_ecs::prelude::*;
 use glam::Vec3;
 
@@ -37,16 +37,12 @@ pub fn store_particles(cache: Res<SolverCache>, mut particles: Query<ParticleDat
                     orientations: &mut orientations,
                     spins: &mut spins,
                 };
-                cache.rows.store(&cache.particles, columns);
+                cache.layout.store(&cache.particles, columns);
             }
         }
     } else {
         for (e, mut x, mut v, mut q, mut w) in &mut particles {
-            if let Some(&d) = cache.dense_of.get(e.index_u32() as usize)
-                && d != u32::MAX
-                && cache.entities[d as usize] == e
-            {
-                let d = d as usize;
+            if let Some(d) = cache.layout.dense_of(e) {
                 x.0 = Vec3::from(cache.particles.positions[d]);
                 v.0 = Vec3::from(cache.particles.velocities[d]);
                 q.0 = cache.particles.orientations[d];

@@ -10,7 +10,8 @@
 
 use crate::body::lattice::Lattice;
 use crate::ecs::components::{BodyLattice, Position};
-use crate::ecs::resources::{BodyCutReport, CutReport, SimClock, SolverCache, SurfaceChanged};
+use crate::ecs::resources::{BodyCutReport, CutReport, SimClock, SurfaceChanged};
+use crate::ecs::layout::SolverCache;
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::surface::extract::extract_with_faces;
 use crate::surface::smooth::smooth;
@@ -78,11 +79,7 @@ pub fn update_surfaces(
             r.splits.iter().flat_map(|&(a, b)| [a, b]).collect()
         });
         moved.sort_unstable();
-        let dense = (cache
-            .body_dense
-            .binary_search_by_key(&body, |b| b.body)
-            .ok())
-        .map(|b| &cache.body_dense[b]);
+        let dense = cache.layout.body(body);
         let solved = &cache.particles.positions;
         mesh.gathered
             .par_iter_mut()

@@ -8,7 +8,8 @@
 use crate::ecs::components::{
     Attachment, AttachmentTarget, AttachmentVelocity, Body, BodyLattice, Hold,
 };
-use crate::ecs::resources::{SimSettings, SolverCache};
+use crate::ecs::resources::SimSettings;
+use crate::ecs::layout::SolverCache;
 use crate::solver::term::{BodyTopology, ParticleKey, Topology};
 use crate::solver::terms::attachments::{self, Attachments};
 use crate::solver::terms::centroids::Centroids;
@@ -32,12 +33,7 @@ pub fn sync_terms(
     changed: Query<(), Changed<Attachment>>,
     mut removed: RemovedComponents<Attachment>,
 ) {
-    let SolverCache {
-        solver,
-        body_dense,
-        pending_topology,
-        ..
-    } = &mut *cache;
+    let SolverCache { solver, layout, .. } = &mut *cache;
     let contacts_changed = solver.terms.get_mut::<Contacts>().is_some_and(|c| {
         c.set_culling(settings.0.culling);
         c.set_enabled(settings.0.contacts)
@@ -48,10 +44,11 @@ pub fn sync_terms(
     let (each, centroids): (Vec<AttachmentItem>, Vec<AttachmentItem>) = list
         .into_iter()
         .partition(|(_, a, ..)| a.hold == Hold::Each);
-    let pending = pending_topology.take();
+    let pending = layout.take_pending_topology();
     if pending.is_some() || contacts_changed || attachments_changed {
         let pending = pending.unwrap_or_default();
-        let views: Vec<BodyTopology> = body_dense
+        let views: Vec<BodyTopology> = layout
+            .bodies()
             .iter()
             .filter_map(|b| {
                 let (body, lattice) = bodies.get(b.body).ok()?;

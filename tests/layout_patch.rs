@@ -3,10 +3,10 @@
 //! with the same members, rest offsets and weights; cut particles frozen.
 
 use bevy_ecs::prelude::*;
-use cleave::ecs::resources::{CutReport, SolverCache};
+use cleave::ecs::layout::{BodyItem, ClusterItem, SolverCache};
+use cleave::ecs::resources::CutReport;
 use cleave::io::scene::builtin;
 use cleave::prelude::*;
-use cleave::systems::layout_sync::{BodyItem, rebuild_cache};
 use glam::Vec4;
 use std::collections::BTreeMap;
 
@@ -22,20 +22,18 @@ fn clusters_of(cache: &SolverCache) -> Clusters {
             let mut list: Vec<(u32, Vec4)> = members
                 .iter()
                 .zip(cache.solver.clusters.member_moments(k))
-                .map(|(d, q)| (cache.locals[*d as usize], q))
+                .map(|(d, q)| (cache.layout.locals()[*d as usize], q))
                 .collect();
             list.sort_by_key(|(p, _)| *p);
-            (cache.clusters[k], list)
+            (cache.layout.cluster_entities()[k], list)
         })
         .collect()
 }
 
 fn fresh_rebuild(world: &mut World, mode: SolverMode) -> SolverCache {
     let mut bodies = world.query::<BodyItem>();
-    let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf, &Compliance)>();
-    let mut fresh = SolverCache::default();
-    rebuild_cache(&mut fresh, bodies.iter(world), clusters.iter(world), mode);
-    fresh
+    let mut clusters = world.query::<ClusterItem>();
+    SolverCache::laid_out(bodies.iter(world), clusters.iter(world), mode)
 }
 
 fn check_scene(name: &str, mode: SolverMode) -> usize {
@@ -51,10 +49,10 @@ fn check_scene(name: &str, mode: SolverMode) -> usize {
     }
     let mut patches = 0;
     for _ in 0..scene.frames.min(240) {
-        sim.world_mut().resource_mut::<SolverCache>().last_update = None;
+        sim.world_mut().resource_mut::<SolverCache>().layout.forget_last_update();
         sim.step();
         let world = sim.world_mut();
-        let Some(update) = world.resource::<SolverCache>().last_update else {
+        let Some(update) = world.resource::<SolverCache>().layout.last_update() else {
             continue;
         };
         // the layout is patched in the first substep after a cut; compare it when this
@@ -83,11 +81,11 @@ fn check_scene(name: &str, mode: SolverMode) -> usize {
             }
         }
         // every particle a cut removed is frozen and hidden from detection
-        for d in 0..cache.locals.len() {
-            let (body, local) = cache.owner(d).unwrap();
+        for d in 0..cache.layout.len() {
+            let (body, local) = cache.layout.owner(d).unwrap();
             let lattice = &world.get::<BodyLattice>(body).unwrap().lattice;
-            assert_eq!(cache.live[d], lattice.is_live(local));
-            if !cache.live[d] {
+            assert_eq!(cache.layout.live()[d], lattice.is_live(local));
+            if !cache.layout.live()[d] {
                 assert_eq!(cache.particles.inv_mass[d], 0.0);
             }
         }
@@ -141,15 +139,15 @@ fn particles_lost_outside_a_cut_report_are_still_frozen() {
         } else {
             Vec::new()
         };
-        world.resource_mut::<SolverCache>().last_update = None;
+        world.resource_mut::<SolverCache>().layout.forget_last_update();
         sim.step();
         let world = sim.world();
         let cache = world.resource::<SolverCache>();
-        assert!(cache.last_update.is_some_and(|u| u.patched));
+        assert!(cache.layout.last_update().is_some_and(|u| u.patched));
         let lattice = &world.get::<BodyLattice>(body).unwrap().lattice;
-        for (d, local) in cache.locals.iter().enumerate() {
+        for (d, local) in cache.layout.locals().iter().enumerate() {
             assert_eq!(
-                cache.live[d],
+                cache.layout.live()[d],
                 lattice.is_live(*local),
                 "round {round}, particle {local}"
             );

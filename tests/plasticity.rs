@@ -4,7 +4,7 @@
 //! both models the dent survives the solver laying its layout out afresh and a cut
 //! beside it.
 
-use cleave::ecs::resources::SolverCache;
+use cleave::ecs::layout::SolverCache;
 use cleave::io::scene::builtin;
 use cleave::prelude::*;
 
@@ -101,7 +101,7 @@ fn dent_with(model: Model, yield_strain: f32, change: Change) -> (f32, f32) {
         }
         sim.step();
         if spawn {
-            let update = sim.world().resource::<SolverCache>().last_update;
+            let update = sim.world().resource::<SolverCache>().layout.last_update();
             assert!(update.is_some_and(|u| !u.patched), "a fresh layout");
         }
         deepest = deepest.max(depth(&sim));

@@ -13,6 +13,7 @@ use bevy_ecs::prelude::*;
 use bevy_ecs::system::{IntoSystem, System};
 use cleave::config::SimConfig;
 use cleave::ecs::components::*;
+use cleave::ecs::layout::SolverCache;
 use cleave::ecs::resources::*;
 use cleave::systems::*;
 

@@ -5,7 +5,7 @@
 use cleave::analysis::stats::body_stats;
 use cleave::bevy_ecs::entity::Entity;
 use cleave::bevy_ecs::query::With;
-use cleave::ecs::resources::SolverCache;
+use cleave::ecs::layout::SolverCache;
 use cleave::prelude::*;
 use cleave::solver::term::{
     ParticleKey, ParticleState, ProjectiveTerm, Substep, Term, Topology, Unknowns,

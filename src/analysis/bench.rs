@@ -9,9 +9,10 @@ use crate::body::shape::Shape;
 use crate::clusters::clustering::initial_clusters;
 use crate::config::{Material, SimConfig, SolverMode};
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
-use crate::ecs::components::{BodyLattice, ClusterMembers, ClusterOf, Compliance};
+use crate::ecs::components::{BodyLattice, ClusterMembers};
 use crate::ecs::desc::{BodyDesc, ToolDesc};
-use crate::ecs::resources::{CutTimings, SimSettings, SolverCache};
+use crate::ecs::resources::{CutTimings, SimSettings};
+use crate::ecs::layout::{BodyItem, ClusterItem, SolverCache};
 use crate::error::Result;
 use crate::sim::simulation::Simulation;
 use crate::solver::particles::Particles;
@@ -20,8 +21,6 @@ use crate::solver::solve::Solver;
 use crate::solver::term::Substep;
 use crate::solver::terms::colliders::Colliders;
 use crate::solver::terms::edges::Edges;
-use crate::systems::layout_sync::{BodyItem, rebuild_cache};
-use bevy_ecs::prelude::Entity;
 use glam::{Quat, UVec3, Vec3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -258,8 +257,7 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
     if let Some(colliders) = bare_terms.get_mut::<Colliders>() {
         *colliders = Colliders::from_config(config, std::iter::empty());
     }
-    let mut solver = Solver::new(cache.solver.clusters.clone(), bare_terms);
-    let mut dense = cache.particles.clone();
+    let (mut solver, mut dense) = cache.bare(bare_terms);
     // Engine and bare steps alternate, so both see the same machine noise.
     let (mut engine, mut bare) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
     let mut kinds: Vec<(String, f64)> = Vec::new();
@@ -276,20 +274,14 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
     drop((solver, dense));
     let (ms_per_step, bare_ms_per_step) = (median(&mut engine), median(&mut bare));
     let (cut_event_ms, cut_frame_ms, recluster_ms) = slice_event(&mut sim, n, CutMode::Remove)?;
-    sim.world_mut().resource_mut::<SolverCache>().last_update = None;
+    sim.world_mut().resource_mut::<SolverCache>().layout.forget_last_update();
     sim.step();
-    let update = sim.world().resource::<SolverCache>().last_update;
+    let update = sim.world().resource::<SolverCache>().layout.last_update();
     let rebuild_ms = time_ms(1, || {
         let world = sim.world_mut();
         let mut bodies = world.query::<BodyItem>();
-        let mut clusters = world.query::<(Entity, &ClusterMembers, &ClusterOf, &Compliance)>();
-        let mut fresh = SolverCache::default();
-        rebuild_cache(
-            &mut fresh,
-            bodies.iter(world),
-            clusters.iter(world),
-            config.solver,
-        );
+        let mut clusters = world.query::<ClusterItem>();
+        SolverCache::laid_out(bodies.iter(world), clusters.iter(world), config.solver);
     });
     drop(sim);
     let mut by_mode = Vec::new();

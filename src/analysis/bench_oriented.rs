@@ -7,7 +7,7 @@ use super::bench::{kind_seconds, median, time_ms};
 use crate::body::shape::Shape;
 use crate::config::{Material, Model, SimConfig};
 use crate::ecs::desc::BodyDesc;
-use crate::ecs::resources::SolverCache;
+use crate::ecs::layout::SolverCache;
 use crate::error::Result;
 use crate::sim::simulation::Simulation;
 use crate::solver::terms::oriented::Oriented;

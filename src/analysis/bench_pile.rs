@@ -6,7 +6,8 @@ use crate::analysis::bench::{kind_seconds, median, time_ms};
 use crate::config::SimConfig;
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::ecs::desc::ToolDesc;
-use crate::ecs::resources::{DetectCulling, SolverCache};
+use crate::ecs::resources::DetectCulling;
+use crate::ecs::layout::SolverCache;
 use crate::error::Result;
 use crate::sim::simulation::Simulation;
 use crate::solver::terms::contacts::Contacts;
@@ -125,7 +126,7 @@ pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileR
     Ok(PileRow {
         row: "pile",
         spacing,
-        bodies: cache.body_dense.len(),
+        bodies: cache.layout.bodies().len(),
         particles,
         frames,
         contact_particles: contacts.map_or(0, |c| c.particle_count()),

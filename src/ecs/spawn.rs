@@ -7,6 +7,7 @@ use crate::cut::tool::{Path, Pose};
 use crate::ecs::components::*;
 use crate::ecs::desc::{ColliderDesc, ToolDesc};
 use crate::ecs::groups::cluster_compliance;
+use crate::ecs::layout::SolverCache;
 use crate::ecs::resources::*;
 pub use crate::ecs::spawn_body::spawn_body;
 use crate::ecs::spawn_body::spawn_clusters;
@@ -165,6 +166,6 @@ pub fn recluster(world: &mut World, body: Entity) -> Result<Vec<Entity>> {
     }
     let (body_clusters, clusters) = spawn_clusters(world, body, &table, particles, compliance);
     world.entity_mut(body).insert(body_clusters);
-    world.resource_mut::<SolverCache>().valid = false;
+    world.resource_mut::<SolverCache>().layout.invalidate();
     Ok(clusters)
 }

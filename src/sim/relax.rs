@@ -18,7 +18,8 @@
 use crate::body::patches::boundary_sets;
 use crate::config::RelaxOptions;
 use crate::ecs::components::{BodyLattice, InvMass, Position, Velocity};
-use crate::ecs::resources::{SimSettings, SolverCache, SubstepClock};
+use crate::ecs::resources::{SimSettings, SubstepClock};
+use crate::ecs::layout::SolverCache;
 use crate::error::{CleaveError, Result};
 use crate::math::rigid_fit::rigid_fit_error;
 use crate::sim::relax_report::{RelaxReport, RelaxReports};
@@ -127,11 +128,7 @@ fn relax_frame(world: &mut World) -> Result<()> {
 /// Tells the terms that `body`'s material changed.
 fn material_changed(world: &mut World, body: Entity) {
     let mut cache = world.resource_mut::<SolverCache>();
-    cache
-        .pending_topology
-        .get_or_insert_default()
-        .bodies
-        .push(body);
+    cache.layout.body_changed(body);
 }
 
 impl Simulation {

@@ -4,7 +4,8 @@ use crate::config::SimConfig;
 use crate::cut::tool::Pose;
 use crate::ecs::components::*;
 use crate::ecs::desc::{BodyDesc, ColliderDesc, ToolDesc};
-use crate::ecs::resources::{SceneLabel, SimSettings, SolverCache};
+use crate::ecs::resources::{SceneLabel, SimSettings};
+use crate::ecs::layout::SolverCache;
 use crate::ecs::spawn::{recluster, spawn_body, spawn_collider, spawn_tool};
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::{CleaveError, Result};
@@ -227,7 +228,7 @@ impl Simulation {
         let mut cache = self.world.resource_mut::<SolverCache>();
         cache.solver.terms.register(term);
         // every term hears of the bodies again at the next frame, the new one with them
-        cache.pending_topology.get_or_insert_default().relaid = true;
+        cache.layout.retell_terms();
     }
 
     /// Stops keeping the drawable surfaces of the bodies spawned so far (their

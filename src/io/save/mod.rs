@@ -25,7 +25,8 @@
 
 use crate::ecs::components::*;
 use crate::ecs::handles::HandlePose;
-use crate::ecs::resources::{CutReport, SceneLabel, SimClock, SimRng, SimSettings, SolverCache};
+use crate::ecs::resources::{CutReport, SceneLabel, SimClock, SimRng, SimSettings};
+use crate::ecs::layout::SolverCache;
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::Result;
 use crate::io::save_file::{SaveReader, SaveWriter};
@@ -185,7 +186,7 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
         .collect();
     attachments.sort_unstable_by_key(|a| a.entity);
     let cache = world.resource::<SolverCache>();
-    if !cache.valid {
+    if !cache.layout.is_valid() {
         return Err(invalid("the solver layout could not be brought up to date"));
     }
     Ok(Snapshot {
@@ -204,11 +205,7 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
             gauss_seidel: cache.solver.gauss_seidel.clone(),
             terms: cache.solver.terms.saved_states(),
             particles: cache.particles.clone(),
-            entities: cache.entities.clone(),
-            locals: cache.locals.clone(),
-            live: cache.live.clone(),
-            body_dense: cache.body_dense.clone(),
-            clusters: cache.clusters.clone(),
+            layout: cache.layout.saved_state(),
         },
         cut: world.resource::<CutReport>().clone(),
         label: world.resource::<SceneLabel>().clone(),

@@ -6,9 +6,8 @@ use super::state::*;
 use crate::ecs::check::check_invariants;
 use crate::ecs::components::*;
 use crate::ecs::handles::HandlePose;
-use crate::ecs::resources::{
-    ClusterSlots, CutReport, PendingTopology, SimClock, SimRng, SolverCache,
-};
+use crate::ecs::layout::{SolverCache, SolverLayout};
+use crate::ecs::resources::{CutReport, SimClock, SimRng};
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::{CleaveError, Result};
 use crate::systems::{SyncSchedule, install};
@@ -199,8 +198,6 @@ pub(super) fn restore(snapshot: Snapshot) -> Result<World> {
     }
     *world.resource_mut::<CutReport>() = cut;
     restore_cache(world, cache, &map)?;
-    // the loaded entities count as seen: the layout already holds them
-    world.resource_mut::<SolverCache>().adopt_changes = true;
     world.run_schedule(SyncSchedule);
     let violations = check_invariants(world);
     if let Some((_, v)) = violations.first() {
@@ -258,13 +255,7 @@ fn spawn_ascending(world: &mut World, count: usize) -> Vec<Entity> {
 /// Puts the saved solver state in `world`'s cache, with its entities mapped.
 fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Result<()> {
     let slots = saved.particles.len();
-    if [
-        saved.clusters_term.particle_count(),
-        saved.entities.len(),
-        saved.locals.len(),
-        saved.live.len(),
-    ] != [slots; 4]
-    {
+    if saved.clusters_term.particle_count() != slots {
         return Err(invalid("the solver's particle tables disagree in length"));
     }
     if !saved.clusters_term.plasticity_fits() {
@@ -277,24 +268,7 @@ fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Resul
     {
         return Err(invalid("solver layout: non-finite particle state"));
     }
-    let particles: Vec<Entity> = saved.entities.iter().map(|e| map.get(*e)).collect();
-    let clusters: Vec<Entity> = saved.clusters.iter().map(|e| map.get(*e)).collect();
-    let mut body_dense = saved.body_dense;
-    for b in &mut body_dense {
-        b.body = map.required(b.body, "the solver layout")?;
-    }
-    let max_index = particles
-        .iter()
-        .filter(|e| **e != Entity::PLACEHOLDER)
-        .map(|e| e.index_u32() as usize + 1)
-        .max()
-        .unwrap_or(0);
-    let mut dense_of = vec![u32::MAX; max_index];
-    for (d, e) in particles.iter().enumerate() {
-        if *e != Entity::PLACEHOLDER {
-            dense_of[e.index_u32() as usize] = d as u32;
-        }
-    }
+    let layout = SolverLayout::restore(saved.layout, slots, |e| map.get(e)).map_err(invalid)?;
     let mut cache = world.resource_mut::<SolverCache>();
     cache.solver.clusters = saved.clusters_term;
     cache.solver.gauss_seidel = saved.gauss_seidel;
@@ -304,19 +278,7 @@ fn restore_cache(world: &mut World, saved: CacheState, map: &EntityMap) -> Resul
         .resume_states(saved.terms)
         .map_err(|e| invalid(format!("solver layout: {e}")))?;
     cache.particles = saved.particles;
-    cache.slot_of = ClusterSlots::from_clusters(&clusters);
-    cache.entities = particles;
-    cache.clusters = clusters;
-    cache.locals = saved.locals;
-    cache.live = saved.live;
-    cache.body_dense = body_dense;
-    cache.dense_of = dense_of;
-    cache.valid = true;
-    // every term takes its particles again from the loaded entities
-    cache.pending_topology = Some(PendingTopology {
-        relaid: true,
-        bodies: Vec::new(),
-    });
+    cache.layout = layout;
     Ok(())
 }
 

@@ -5,7 +5,8 @@
 use crate::config::SimConfig;
 use crate::ecs::components::*;
 use crate::ecs::handles::SavedHandlePose;
-use crate::ecs::resources::{BodyDense, CutReport, SceneLabel, SimClock, SimRng};
+use crate::ecs::resources::{CutReport, SceneLabel, SimClock, SimRng};
+use crate::ecs::layout::saved::LayoutState;
 use crate::ecs::surface_mesh::SavedSurface;
 use crate::error::CleaveError;
 use crate::solver::clusters::term::ClusterTerm;
@@ -86,11 +87,8 @@ pub(super) struct CacheState {
     /// Each term's own saved state, by name ([`crate::solver::term::Term::saved_state`]).
     pub(super) terms: Vec<(String, Vec<u8>)>,
     pub(super) particles: Particles,
-    pub(super) entities: Vec<Entity>,
-    pub(super) locals: Vec<u32>,
-    pub(super) live: Vec<bool>,
-    pub(super) body_dense: Vec<BodyDense>,
-    pub(super) clusters: Vec<Entity>,
+    /// The layout's own state (encoded inline, after the particles).
+    pub(super) layout: LayoutState,
 }
 
 /// Everything saved.
