@@ -17,8 +17,8 @@ use crate::cut::tear::find_tears;
 use crate::cut::tool::{BladePlane, CutMode};
 use crate::cut::tool_sweep::ToolSweep;
 use crate::ecs::components::{Body, BodyLattice, Tool, ToolPose};
-use crate::ecs::resources::{BodyCut, CutList, CutReport, DetectCulling, SimSettings};
 use crate::ecs::layout::SolverCache;
+use crate::ecs::resources::{BodyCut, CutList, CutReport, DetectCulling, SimSettings};
 use bevy_ecs::prelude::*;
 use glam::Quat;
 
@@ -111,7 +111,14 @@ pub fn detect(
                     n => b.slot(n).map_or(u32::MAX, |s| s as u32),
                 })
             };
-            let separated = edges_separated(positions, cache.layout.live(), range, partners, &tools, near);
+            let separated = edges_separated(
+                positions,
+                cache.layout.live(),
+                range,
+                partners,
+                &tools,
+                near,
+            );
             if separated.is_empty() {
                 continue;
             }
@@ -168,7 +175,8 @@ fn carve_crossings(
     let positions = &cache.particles.positions;
     for cut in cuts.iter_mut().filter(|c| !c.carved.is_empty()) {
         cut.carved.sort_unstable();
-        let (Ok((_, lattice)), Some(b)) = (bodies.get(cut.body), cache.layout.body(cut.body)) else {
+        let (Ok((_, lattice)), Some(b)) = (bodies.get(cut.body), cache.layout.body(cut.body))
+        else {
             continue;
         };
         let lattice = &lattice.lattice;

@@ -50,6 +50,7 @@ pub mod wrench;
 
 use crate::ecs::layout::SolverCache;
 use crate::ecs::resources::*;
+use crate::solver::terms::{attachments::Attachments, centroids::Centroids, contacts::Contacts};
 use bevy_ecs::message::MessageRegistry;
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::{LogLevel, ScheduleBuildSettings, ScheduleLabel, SingleThreadedExecutor};
@@ -138,6 +139,11 @@ pub fn build_substep_schedule() -> Schedule {
 pub fn build_sync_schedule() -> Schedule {
     let mut s = Schedule::new(SyncSchedule);
     strict(&mut s);
+    s.configure_sets(
+        term_sync::TermData
+            .after(layout_sync::sync_solver)
+            .before(term_sync::sync_terms),
+    );
     s.add_systems(
         (
             layout_sync::sync_solver,
@@ -146,6 +152,10 @@ pub fn build_sync_schedule() -> Schedule {
         )
             .chain(),
     );
+    // the built-in terms that read the ECS, one line each
+    s.add_systems(term_sync::term_data_system::<Contacts>());
+    s.add_systems(term_sync::term_data_system::<Attachments>());
+    s.add_systems(term_sync::term_data_system::<Centroids>());
     s
 }
 

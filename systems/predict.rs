@@ -1,8 +1,8 @@
 //! Stage predict: gravity, damping, predicted positions, on the solver's dense particle
 //! arrays ([`crate::solver::particles::Particles::predict`]). Particle data only.
 
-use crate::ecs::resources::SimSettings;
 use crate::ecs::layout::SolverCache;
+use crate::ecs::resources::SimSettings;
 use bevy_ecs::prelude::*;
 
 /// `v ← (v + g·dt)·e^(−damping·dt)`, `x_prev ← x`, `x ← x + v·dt`; kinematic particles

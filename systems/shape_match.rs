@@ -4,8 +4,8 @@
 //! (the dense arrays) only.
 
 use crate::ecs::components::*;
-use crate::ecs::resources::{ParticlesRepaired, SimSettings, SubstepClock};
 use crate::ecs::layout::SolverCache;
+use crate::ecs::resources::{ParticlesRepaired, SimSettings, SubstepClock};
 use crate::ecs::spawn::checked_pose;
 use crate::error::CleaveError;
 use crate::solver::term::Substep;

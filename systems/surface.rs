@@ -10,8 +10,8 @@
 
 use crate::body::lattice::Lattice;
 use crate::ecs::components::{BodyLattice, Position};
-use crate::ecs::resources::{BodyCutReport, CutReport, SimClock, SurfaceChanged};
 use crate::ecs::layout::SolverCache;
+use crate::ecs::resources::{BodyCutReport, CutReport, SimClock, SurfaceChanged};
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::surface::extract::extract_with_faces;
 use crate::surface::smooth::smooth;

@@ -1,107 +1,79 @@
 //! Keeps the terms in step with the ECS, once at the start of each frame (after the
-//! layout, in [`crate::systems::SyncSchedule`]): every term hears of a topology change
-//! of the layout ([`crate::solver::term::Topology`]); the attachments (each particle
-//! held, or only a set's centroid) are taken from their entities when those change,
-//! and their targets every frame; contacts follow the `contacts` and `culling` settings. Writes the
-//! solver cache only.
+//! layout, in [`crate::systems::SyncSchedule`]): first every term that takes data from
+//! the ECS takes it ([`sync_term`], one system per kind, registered with the kind by
+//! [`add_ecs_term`], the built-in ones in [`crate::systems::build_sync_schedule`]);
+//! then, when the layout changed or one of them said its particles did, every term
+//! hears of the topology ([`sync_terms`]). Writes the solver cache only.
 
-use crate::ecs::components::{
-    Attachment, AttachmentTarget, AttachmentVelocity, Body, BodyLattice, Hold,
-};
-use crate::ecs::resources::SimSettings;
+use crate::ecs::components::{Body, BodyLattice};
+use crate::ecs::ecs_term::EcsTerm;
 use crate::ecs::layout::SolverCache;
-use crate::solver::term::{BodyTopology, ParticleKey, Topology};
-use crate::solver::terms::attachments::{self, Attachments};
-use crate::solver::terms::centroids::Centroids;
-use crate::solver::terms::contacts::Contacts;
+use crate::solver::term::{BodyTopology, Topology};
+use crate::systems::SyncSchedule;
 use bevy_ecs::prelude::*;
+use bevy_ecs::schedule::ScheduleConfigs;
+use bevy_ecs::system::{ScheduleSystem, StaticSystemParam};
 
-/// Attachments as the term takes them.
-type AttachmentItem<'a> = (
-    Entity,
-    &'a Attachment,
-    &'a AttachmentTarget,
-    Option<&'a AttachmentVelocity>,
-);
+/// The systems of the terms that take data from the ECS: before [`sync_terms`]. Each
+/// writes only its own term (and asks for the topology), so their order among
+/// themselves does not matter.
+#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct TermData;
 
-/// Tells the terms what changed (see the module docs).
-pub fn sync_terms(
-    settings: Res<SimSettings>,
-    mut cache: ResMut<SolverCache>,
-    bodies: Query<(&Body, &BodyLattice)>,
-    attachments: Query<AttachmentItem>,
-    changed: Query<(), Changed<Attachment>>,
-    mut removed: RemovedComponents<Attachment>,
-) {
+/// Lets the term of kind `T`, if the solver has one, take its data from the ECS.
+pub fn sync_term<T: EcsTerm>(mut cache: ResMut<SolverCache>, data: StaticSystemParam<T::Data>) {
     let SolverCache { solver, layout, .. } = &mut *cache;
-    let contacts_changed = solver.terms.get_mut::<Contacts>().is_some_and(|c| {
-        c.set_culling(settings.0.culling);
-        c.set_enabled(settings.0.contacts)
-    });
-    let attachments_changed = !changed.is_empty() || removed.read().count() > 0;
-    let mut list: Vec<AttachmentItem> = attachments.iter().collect();
-    list.sort_unstable_by_key(|(e, ..)| *e);
-    let (each, centroids): (Vec<AttachmentItem>, Vec<AttachmentItem>) = list
-        .into_iter()
-        .partition(|(_, a, ..)| a.hold == Hold::Each);
-    let pending = layout.take_pending_topology();
-    if pending.is_some() || contacts_changed || attachments_changed {
-        let pending = pending.unwrap_or_default();
-        let views: Vec<BodyTopology> = layout
-            .bodies()
-            .iter()
-            .filter_map(|b| {
-                let (body, lattice) = bodies.get(b.body).ok()?;
-                Some(BodyTopology {
-                    id: b.body.to_bits(),
-                    lattice: &lattice.lattice,
-                    dense: &b.dense,
-                    material: &body.material,
-                    groups: &body.groups,
-                    pieces: lattice.pieces,
-                    changed: pending.relaid || pending.bodies.contains(&b.body),
-                })
-            })
-            .collect();
-        let topology = Topology {
-            bodies: &views,
-            relaid: pending.relaid,
-        };
-        solver.topology(&topology);
-        if attachments_changed && let Some(term) = solver.terms.get_mut::<Attachments>() {
-            term.set(each.iter().map(as_term).collect(), &topology);
-        }
-        if attachments_changed && let Some(term) = solver.terms.get_mut::<Centroids>() {
-            term.set(centroids.iter().map(as_term).collect(), &topology);
-        }
-    }
-    if let Some(term) = solver.terms.get_mut::<Attachments>() {
-        for (i, (_, _, target, _)) in each.iter().enumerate() {
-            term.set_poses(i, target.reached, target.pose);
-        }
-    }
-    if let Some(term) = solver.terms.get_mut::<Centroids>() {
-        for (i, (_, _, target, _)) in centroids.iter().enumerate() {
-            term.set_poses(i, target.reached, target.pose);
-        }
+    let Some(term) = solver.terms.get_mut::<T>() else {
+        return;
+    };
+    if term.sync(data.into_inner(), layout) {
+        layout.request_topology();
     }
 }
 
-/// An attachment entity as its term (attachments or centroid holds) takes it.
-fn as_term((_, a, target, velocity): &AttachmentItem) -> attachments::Attachment {
-    attachments::Attachment {
-        particles: a
-            .particles
-            .iter()
-            .map(|&local| ParticleKey {
-                body: a.body.to_bits(),
-                local,
+/// The [`sync_term`] system of `T`, in [`TermData`].
+pub fn term_data_system<T: EcsTerm>() -> ScheduleConfigs<ScheduleSystem> {
+    sync_term::<T>
+        .in_set(TermData)
+        .ambiguous_with(TermData)
+        .into_configs()
+}
+
+/// Registers `term` with the solver and its ECS side with the frame: one call adds a
+/// kind that reads the ECS. Every term hears of the bodies again at the next frame.
+pub fn add_ecs_term<T: EcsTerm>(world: &mut World, term: T) {
+    let mut cache = world.resource_mut::<SolverCache>();
+    cache.solver.terms.register(term);
+    cache.layout.retell_terms();
+    world.schedule_scope(SyncSchedule, |_, schedule| {
+        schedule.add_systems(term_data_system::<T>());
+    });
+}
+
+/// Tells every term of the topology when it changed (see the module docs).
+pub fn sync_terms(mut cache: ResMut<SolverCache>, bodies: Query<(&Body, &BodyLattice)>) {
+    let SolverCache { solver, layout, .. } = &mut *cache;
+    let Some(pending) = layout.take_pending_topology() else {
+        return;
+    };
+    let views: Vec<BodyTopology> = layout
+        .bodies()
+        .iter()
+        .filter_map(|b| {
+            let (body, lattice) = bodies.get(b.body).ok()?;
+            Some(BodyTopology {
+                id: b.body.to_bits(),
+                lattice: &lattice.lattice,
+                dense: &b.dense,
+                material: &body.material,
+                groups: &body.groups,
+                pieces: lattice.pieces,
+                changed: pending.relaid || pending.bodies.contains(&b.body),
             })
-            .collect(),
-        offsets: a.offsets.clone(),
-        compliance: a.compliance,
-        from: target.reached,
-        to: target.pose,
-        velocity: velocity.map(|v| v.0),
-    }
+        })
+        .collect();
+    solver.topology(&Topology {
+        bodies: &views,
+        relaid: pending.relaid,
+    });
 }

@@ -5,8 +5,8 @@
 //! left it ([`Colliders::rigid_bodies`]). Writes collider data only.
 
 use crate::ecs::components::{ColliderPose, ColliderWrench, DynamicCollider};
-use crate::ecs::resources::{ColliderPushed, SimSettings};
 use crate::ecs::layout::SolverCache;
+use crate::ecs::resources::{ColliderPushed, SimSettings};
 use crate::solver::terms::colliders::Colliders;
 use bevy_ecs::prelude::*;
 use glam::Vec3;

@@ -49,7 +49,10 @@ fn check_scene(name: &str, mode: SolverMode) -> usize {
     }
     let mut patches = 0;
     for _ in 0..scene.frames.min(240) {
-        sim.world_mut().resource_mut::<SolverCache>().layout.forget_last_update();
+        sim.world_mut()
+            .resource_mut::<SolverCache>()
+            .layout
+            .forget_last_update();
         sim.step();
         let world = sim.world_mut();
         let Some(update) = world.resource::<SolverCache>().layout.last_update() else {
@@ -139,7 +142,10 @@ fn particles_lost_outside_a_cut_report_are_still_frozen() {
         } else {
             Vec::new()
         };
-        world.resource_mut::<SolverCache>().layout.forget_last_update();
+        world
+            .resource_mut::<SolverCache>()
+            .layout
+            .forget_last_update();
         sim.step();
         let world = sim.world();
         let cache = world.resource::<SolverCache>();

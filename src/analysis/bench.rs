@@ -11,8 +11,8 @@ use crate::config::{Material, SimConfig, SolverMode};
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::ecs::components::{BodyLattice, ClusterMembers};
 use crate::ecs::desc::{BodyDesc, ToolDesc};
-use crate::ecs::resources::{CutTimings, SimSettings};
 use crate::ecs::layout::{BodyItem, ClusterItem, SolverCache};
+use crate::ecs::resources::{CutTimings, SimSettings};
 use crate::error::Result;
 use crate::sim::simulation::Simulation;
 use crate::solver::particles::Particles;
@@ -274,7 +274,10 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
     drop((solver, dense));
     let (ms_per_step, bare_ms_per_step) = (median(&mut engine), median(&mut bare));
     let (cut_event_ms, cut_frame_ms, recluster_ms) = slice_event(&mut sim, n, CutMode::Remove)?;
-    sim.world_mut().resource_mut::<SolverCache>().layout.forget_last_update();
+    sim.world_mut()
+        .resource_mut::<SolverCache>()
+        .layout
+        .forget_last_update();
     sim.step();
     let update = sim.world().resource::<SolverCache>().layout.last_update();
     let rebuild_ms = time_ms(1, || {

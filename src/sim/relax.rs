@@ -18,8 +18,8 @@
 use crate::body::patches::boundary_sets;
 use crate::config::RelaxOptions;
 use crate::ecs::components::{BodyLattice, InvMass, Position, Velocity};
-use crate::ecs::resources::{SimSettings, SubstepClock};
 use crate::ecs::layout::SolverCache;
+use crate::ecs::resources::{SimSettings, SubstepClock};
 use crate::error::{CleaveError, Result};
 use crate::math::rigid_fit::rigid_fit_error;
 use crate::sim::relax_report::{RelaxReport, RelaxReports};

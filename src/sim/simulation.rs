@@ -4,8 +4,9 @@ use crate::config::SimConfig;
 use crate::cut::tool::Pose;
 use crate::ecs::components::*;
 use crate::ecs::desc::{BodyDesc, ColliderDesc, ToolDesc};
-use crate::ecs::resources::{SceneLabel, SimSettings};
+use crate::ecs::ecs_term::EcsTerm;
 use crate::ecs::layout::SolverCache;
+use crate::ecs::resources::{SceneLabel, SimSettings};
 use crate::ecs::spawn::{recluster, spawn_body, spawn_collider, spawn_tool};
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::{CleaveError, Result};
@@ -137,6 +138,17 @@ impl Simulation {
         crate::io::save::load(reader).map(|world| Self { world })
     }
 
+    /// [`Simulation::load`], with `setup` run on the loaded world before the solver's
+    /// state is put back (see [`crate::io::save::load_with`]): register your own terms
+    /// there ([`crate::systems::term_sync::add_ecs_term`], or the solver's registry) so
+    /// that they take up the state they saved.
+    pub fn load_with(
+        reader: impl std::io::Read,
+        setup: impl FnOnce(&mut World) -> Result<()>,
+    ) -> Result<Self> {
+        crate::io::save::load_with(reader, setup).map(|world| Self { world })
+    }
+
     /// The entity that `saved` — a body, tool, collider or attachment of the simulation
     /// this one was loaded from — has here. Entities kept from before a save name nothing
     /// in the loaded simulation (every call given one is refused): map them with this.
@@ -221,9 +233,18 @@ impl Simulation {
             .unwrap_or_default()
     }
 
+    /// Adds a term of your own that takes data from the ECS (see
+    /// [`crate::ecs::ecs_term`]): the term, after the built-in ones, and its sync, run
+    /// at the start of every frame. Not saved: add it again when loading, in
+    /// [`Simulation::load_with`], so that it takes up its saved state.
+    pub fn add_ecs_term<T: EcsTerm>(&mut self, term: T) {
+        crate::systems::term_sync::add_ecs_term(&mut self.world, term);
+    }
+
     /// Adds a term of your own to the solver, after the built-in ones: it is solved with
     /// them under every scheme (see [`crate::solver::term`]). Not saved: add it again
-    /// after [`Simulation::load`].
+    /// after [`Simulation::load`] (in [`Simulation::load_with`] if it keeps a saved
+    /// state).
     pub fn add_term(&mut self, term: impl Term) {
         let mut cache = self.world.resource_mut::<SolverCache>();
         cache.solver.terms.register(term);

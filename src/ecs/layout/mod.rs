@@ -278,6 +278,12 @@ impl SolverLayout {
         self.pending.get_or_insert_default().relaid = true;
     }
 
+    /// Has every term hear the topology again this frame, though the layout did not
+    /// change (a term's own particles did).
+    pub fn request_topology(&mut self) {
+        self.pending.get_or_insert_default();
+    }
+
     /// Tells the terms that `body` changed (its material or its rest shape).
     pub fn body_changed(&mut self, body: Entity) {
         self.pending.get_or_insert_default().bodies.push(body);

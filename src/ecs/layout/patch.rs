@@ -37,8 +37,9 @@ impl SolverLayout {
         if !solver.clusters.can_patch() {
             return false;
         }
-        let body_index =
-            |layout: &Self, body: Entity| layout.bodies.binary_search_by_key(&body, |b| b.body).ok();
+        let body_index = |layout: &Self, body: Entity| {
+            layout.bodies.binary_search_by_key(&body, |b| b.body).ok()
+        };
         // Particles cut from their bodies: frozen, and no longer offered to detect.
         let mut retired = Vec::new();
         for &body in changed_bodies {

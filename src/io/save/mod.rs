@@ -25,8 +25,8 @@
 
 use crate::ecs::components::*;
 use crate::ecs::handles::HandlePose;
-use crate::ecs::resources::{CutReport, SceneLabel, SimClock, SimRng, SimSettings};
 use crate::ecs::layout::SolverCache;
+use crate::ecs::resources::{CutReport, SceneLabel, SimClock, SimRng, SimSettings};
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::Result;
 use crate::io::save_file::{SaveReader, SaveWriter};
@@ -216,8 +216,16 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
 /// [`crate::systems::install`] prepares one, that goes on exactly as the saved one would
 /// have.
 pub fn load(reader: impl Read) -> Result<World> {
+    load_with(reader, |_| Ok(()))
+}
+
+/// [`load`], with `setup` run on the loaded world once its entities are spawned (their
+/// saved ids mapped in [`LoadedEntities`]) and before the solver's state is put back:
+/// there the game registers its own terms — whose saved state the loading hands them
+/// — and gives their components back to the entities it keeps them on.
+pub fn load_with(reader: impl Read, setup: impl FnOnce(&mut World) -> Result<()>) -> Result<World> {
     let mut file = SaveReader::new(reader)?;
     let snapshot = read_sections(&mut file)?;
     file.finish()?;
-    restore::restore(snapshot)
+    restore::restore(snapshot, setup)
 }

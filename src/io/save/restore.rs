@@ -33,7 +33,10 @@ impl EntityMap {
     }
 }
 
-pub(super) fn restore(snapshot: Snapshot) -> Result<World> {
+pub(super) fn restore(
+    snapshot: Snapshot,
+    setup: impl FnOnce(&mut World) -> Result<()>,
+) -> Result<World> {
     let Snapshot {
         entity_bound,
         config,
@@ -197,6 +200,7 @@ pub(super) fn restore(snapshot: Snapshot) -> Result<World> {
         b.body = map.get(b.body);
     }
     *world.resource_mut::<CutReport>() = cut;
+    setup(world)?;
     restore_cache(world, cache, &map)?;
     world.run_schedule(SyncSchedule);
     let violations = check_invariants(world);

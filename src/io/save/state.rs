@@ -5,8 +5,8 @@
 use crate::config::SimConfig;
 use crate::ecs::components::*;
 use crate::ecs::handles::SavedHandlePose;
-use crate::ecs::resources::{CutReport, SceneLabel, SimClock, SimRng};
 use crate::ecs::layout::saved::LayoutState;
+use crate::ecs::resources::{CutReport, SceneLabel, SimClock, SimRng};
 use crate::ecs::surface_mesh::SavedSurface;
 use crate::error::CleaveError;
 use crate::solver::clusters::term::ClusterTerm;

@@ -78,6 +78,12 @@ impl Attachments {
         self.resolve(topology);
     }
 
+    /// Replaces the attachments; their particles are found at the next topology change
+    /// ([`Term::topology`]).
+    pub fn replace(&mut self, list: Vec<Attachment>) {
+        self.list = list;
+    }
+
     /// Moves attachment `i` from pose `from` (the frame's start) to `to` (its end).
     pub fn set_poses(&mut self, i: usize, from: Pose, to: Pose) {
         if let Some(a) = self.list.get_mut(i) {

@@ -44,6 +44,12 @@ impl Centroids {
         self.resolve(topology);
     }
 
+    /// Replaces the holds; their particles are found at the next topology change
+    /// ([`Term::topology`]).
+    pub fn replace(&mut self, list: Vec<Attachment>) {
+        self.list = list;
+    }
+
     /// Moves hold `i` from pose `from` (the frame's start) to `to` (its end).
     pub fn set_poses(&mut self, i: usize, from: Pose, to: Pose) {
         if let Some(c) = self.list.get_mut(i) {

@@ -1,0 +1,25 @@
+//! A term's ECS side: the seam through which a constraint kind takes its data from the
+//! ECS. A kind that reads components implements [`EcsTerm`] beside its kernel (the
+//! data it reads as a [`SystemParam`], what it does with them in [`EcsTerm::sync`]) and
+//! is registered by one call — [`crate::sim::simulation::Simulation::add_ecs_term`], or
+//! [`crate::systems::term_sync::add_ecs_term`] on a bare world; the schedule runs its
+//! sync once a frame, after the layout is brought up to date and before the terms hear
+//! of what changed. What it carries from frame to frame is saved through
+//! [`crate::solver::term::Term::saved_state`].
+
+use crate::ecs::layout::SolverLayout;
+use crate::solver::term::Term;
+use bevy_ecs::system::{ReadOnlySystemParam, SystemParamItem};
+
+/// A constraint kind that takes its data from the ECS (see the module docs).
+pub trait EcsTerm: Term + Sized {
+    /// What the term reads: queries and resources, read-only.
+    type Data: ReadOnlySystemParam + 'static;
+
+    /// Takes this frame's data. Runs at the start of every frame (and when a simulation
+    /// is saved or loaded), the layout already up to date; `layout` says which dense
+    /// index each particle has. Returns true when the particles the term acts on
+    /// changed: every term then hears the topology again this frame (the term resolves
+    /// its particles' dense indices in [`Term::topology`]).
+    fn sync(&mut self, data: SystemParamItem<Self::Data>, layout: &SolverLayout) -> bool;
+}
