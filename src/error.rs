@@ -13,7 +13,7 @@ pub enum CleaveError {
         /// The value that was given, formatted.
         value: String,
         /// Human-readable allowed range, e.g. `0 ≤ x ≤ 1`.
-        allowed: &'static str,
+        allowed: std::borrow::Cow<'static, str>,
     },
     /// The shape voxelised to zero particles.
     #[error("empty shape: `{field}` produced no particles at spacing {spacing}")]
@@ -179,7 +179,7 @@ pub fn out_of_range(
     CleaveError::OutOfRange {
         field: field.to_string(),
         value: format!("{value:?}"),
-        allowed,
+        allowed: allowed.into(),
     }
 }
 

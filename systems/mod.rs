@@ -48,6 +48,7 @@ pub mod surface;
 pub mod term_sync;
 pub mod wrench;
 
+use crate::ecs::ecs_term::EcsTerm;
 use crate::ecs::layout::SolverCache;
 use crate::ecs::resources::*;
 use crate::solver::terms::{attachments::Attachments, centroids::Centroids, contacts::Contacts};
@@ -232,6 +233,17 @@ pub fn install(world: &mut World, config: crate::config::SimConfig) {
     world.add_schedule(build_sync_schedule());
     world.add_schedule(build_substep_schedule());
     world.add_schedule(build_schedule());
+}
+
+/// Registers `term` with the solver and its ECS side with the frame: one call adds a
+/// kind that reads the ECS. Every term hears of the bodies again at the next frame.
+pub fn add_ecs_term<T: EcsTerm>(world: &mut World, term: T) {
+    let mut cache = world.resource_mut::<SolverCache>();
+    cache.solver.terms.register(term);
+    cache.layout.retell_terms();
+    world.schedule_scope(SyncSchedule, |_, schedule| {
+        schedule.add_systems(term_sync::term_data_system::<T>());
+    });
 }
 
 /// Exclusive system: runs the layout-update schedule.

@@ -1,7 +1,7 @@
 //! Keeps the terms in step with the ECS, once at the start of each frame (after the
 //! layout, in [`crate::systems::SyncSchedule`]): first every term that takes data from
 //! the ECS takes it ([`sync_term`], one system per kind, registered with the kind by
-//! [`add_ecs_term`], the built-in ones in [`crate::systems::build_sync_schedule`]);
+//! [`crate::systems::add_ecs_term`], the built-in ones in [`crate::systems::build_sync_schedule`]);
 //! then, when the layout changed or one of them said its particles did, every term
 //! hears of the topology ([`sync_terms`]). Writes the solver cache only.
 
@@ -9,7 +9,6 @@ use crate::ecs::components::{Body, BodyLattice};
 use crate::ecs::ecs_term::EcsTerm;
 use crate::ecs::layout::SolverCache;
 use crate::solver::term::{BodyTopology, Topology};
-use crate::systems::SyncSchedule;
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::ScheduleConfigs;
 use bevy_ecs::system::{ScheduleSystem, StaticSystemParam};
@@ -37,17 +36,6 @@ pub fn term_data_system<T: EcsTerm>() -> ScheduleConfigs<ScheduleSystem> {
         .in_set(TermData)
         .ambiguous_with(TermData)
         .into_configs()
-}
-
-/// Registers `term` with the solver and its ECS side with the frame: one call adds a
-/// kind that reads the ECS. Every term hears of the bodies again at the next frame.
-pub fn add_ecs_term<T: EcsTerm>(world: &mut World, term: T) {
-    let mut cache = world.resource_mut::<SolverCache>();
-    cache.solver.terms.register(term);
-    cache.layout.retell_terms();
-    world.schedule_scope(SyncSchedule, |_, schedule| {
-        schedule.add_systems(term_data_system::<T>());
-    });
 }
 
 /// Tells every term of the topology when it changed (see the module docs).

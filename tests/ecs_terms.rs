@@ -11,7 +11,7 @@ use cleave::prelude::*;
 use cleave::solver::term::{
     ParticleKey, ParticleState, ProjectiveTerm, Substep, Term, Topology, Unknowns,
 };
-use cleave::systems::term_sync::add_ecs_term;
+use cleave::systems::add_ecs_term;
 use glam::{DVec3, Vec3A};
 
 /// This file's component: a particle of a body tethered, by a spring of `compliance`

@@ -1,7 +1,8 @@
 //! A body's material: its elasticity, mass, clustering, contacts, tearing and shape
 //! keeping, with validation of every field.
 
-use crate::error::{Result, check_range, out_of_range};
+use super::allowed::{Allowed, CheckedField};
+use crate::error::{Result, out_of_range};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -26,6 +27,7 @@ crate::util::named_enum::named_enum!(Model, "model", [
 
 /// Material and clustering parameters of one body.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct Material {
     /// Compliance of the material, `1/E` in 1/Pa (E: Young's modulus, Poisson's ratio
     /// 0); 0 makes every cluster rigid; default 1e-6 (rubber, see [`Material::rubber`]). Each cluster stores the elastic energy
@@ -35,82 +37,103 @@ pub struct Material {
     /// the as-rigid-as-possible energy density `(E/2)·|F − R|²`. The solvers take it
     /// into one implicit step the way XPBD does (Macklin et al. 2016), so the stiffness
     /// does not depend on the time step or the iteration count.
+    #[serde(deserialize_with = "checked::compliance")]
     pub compliance: f32,
     /// Density in kg/m³ (default 1100): a particle's mass is `density · spacing³`
     /// unless [`Material::particle_mass`] overrides it.
+    #[serde(deserialize_with = "checked::density")]
     pub density: f32,
     /// Mass of one particle in kg, overriding the density (`None`: from the density).
+    #[serde(deserialize_with = "checked::particle_mass")]
     pub particle_mass: Option<f32>,
     /// Cluster radius in lattice units (Chebyshev): a cluster spans up to `2r+1` cells per axis.
+    #[serde(deserialize_with = "checked::cluster_radius")]
     pub cluster_radius: u32,
     /// Layers shared by neighbouring clusters; cluster centres are `2r+1-overlap` cells apart.
     pub cluster_overlap: u32,
     /// Largest allowed cluster (≥ 2): the initial clustering truncates its balls here,
     /// and no cut makes a cluster larger (see [`Material::split_size`]).
+    #[serde(deserialize_with = "checked::max_cluster_size")]
     pub max_cluster_size: u32,
     /// Particles added to each part of a split cluster by the expand stage.
+    #[serde(deserialize_with = "checked::expand_count")]
     pub expand_count: u32,
     /// Radius of each particle's contact ball, with which it meets other particles, the
     /// ground and colliders; `None`: half the lattice spacing, so that neighbouring balls
     /// touch and a body rests on the ground with its lowest particle centres half a
     /// spacing above it.
+    #[serde(deserialize_with = "checked::contact_radius")]
     pub contact_radius: Option<f32>,
     /// Static friction coefficient of particle contacts (≥ 0).
+    #[serde(deserialize_with = "checked::static_friction")]
     pub static_friction: f32,
     /// Dynamic friction coefficient of particle contacts (≥ 0).
+    #[serde(deserialize_with = "checked::dynamic_friction")]
     pub dynamic_friction: f32,
     /// Whether particles of one piece collide when the piece folds onto itself
     /// (particles more than two lattice cells apart).
     pub self_contact: bool,
     /// The largest principal stretch a voxel (the 8 particles around one lattice cell)
     /// bears before it tears; `None`: the body never tears (see [`crate::cut::tear`]).
+    #[serde(deserialize_with = "checked::tear_stretch")]
     pub tear_stretch: Option<f32>,
     /// Most voxels of one body that tear in one frame (≥ 1): the strongest stretches
     /// go first, the rest wait for the next frame, so a crack grows over frames instead
     /// of shattering the body at once.
+    #[serde(deserialize_with = "checked::tear_budget")]
     pub tear_budget: u32,
     /// Smallest piece, in particles, that tearing may cut off (≥ 1): a tear that would
     /// leave a smaller piece is taken back.
+    #[serde(deserialize_with = "checked::tear_min_piece")]
     pub tear_min_piece: u32,
     /// Compliance of the lattice edges' distance constraints, `1/E` of the edges in 1/Pa
     /// (each edge a bar of the material, h² in section and h long, of stiffness `E h`);
     /// `None` (the default): no edge constraints. With soft clusters (a large
     /// [`Material::compliance`]) and stiff edges a body bends easily but barely
     /// stretches; 0 makes every edge hard.
+    #[serde(deserialize_with = "checked::edge_compliance")]
     pub edge_compliance: Option<f32>,
     /// Rings of the surface patches that shape keeping holds (1–8, default 2): each
     /// surface particle centres a patch of the surface particles within this many rings
     /// (see [`crate::solver::terms::patches`]).
+    #[serde(deserialize_with = "checked::patch_rings")]
     pub patch_rings: u32,
     /// Compliance of each patch's mean displacement along its rest normal, `1/E` in
     /// 1/Pa as [`Material::compliance`] (a patch of the material, h² in section and h
     /// deep: `α = patch_normal_compliance / h` m/N); 0 holds it hard. `None` (the
     /// default): no patch constraints while the body simulates; relaxation
     /// ([`crate::sim::relax`]) then holds the patches with the material's compliance.
+    #[serde(deserialize_with = "checked::patch_normal_compliance")]
     pub patch_normal_compliance: Option<f32>,
     /// Compliance of each patch's mean displacement across its rest normal, 1/Pa;
     /// `None`: 100 times the normal compliance, so the surface keeps its place far more
     /// firmly than it may slide along itself.
+    #[serde(deserialize_with = "checked::patch_tangent_compliance")]
     pub patch_tangent_compliance: Option<f32>,
     /// The normal displacement, in lattice spacings (> 0, default 0.1), past which a
     /// patch's normal stiffness grows, as the square of the displacement over it.
+    #[serde(deserialize_with = "checked::patch_threshold")]
     pub patch_threshold: f32,
     /// How the body's elasticity is modelled (default: clusters).
     pub model: Model,
     /// Radii of each particle's ellipsoid along its own axes, in metres (> 0), whose
     /// moment matrix generalised shape matching adds (oriented model); `None`: a sphere
     /// of half the lattice spacing.
+    #[serde(deserialize_with = "checked::particle_radii")]
     pub particle_radii: Option<Vec3>,
     /// Plasticity (both models): the strain of a cluster's or a group's shape past which
     /// its rest shape creeps toward its deformed shape (≥ 0; 0, the default: elastic).
     /// The strain is the shape's RMS deviation from its fitted rigid motion over its RMS
     /// rest offset. See [`crate::solver::yielding`].
+    #[serde(deserialize_with = "checked::yield_strain")]
     pub yield_strain: f32,
     /// How fast a yielded rest shape creeps, as the share of its excess strain taken per
     /// second (0–1).
+    #[serde(deserialize_with = "checked::creep")]
     pub creep: f32,
     /// The most a cluster's or a group's rest shape may drift from its lattice shape, as
     /// strain (≥ 0).
+    #[serde(deserialize_with = "checked::max_plastic_strain")]
     pub max_plastic_strain: f32,
 }
 
@@ -248,37 +271,40 @@ impl Material {
         Some((normal, tangent))
     }
 
-    /// Checks every field; the error names the field and its allowed range.
+    /// Checks every field; the error names the field and its allowed range (the ranges
+    /// of [`ranges`], which the scene file's reader checks too).
     pub fn validate(&self) -> Result<()> {
-        check_range(
-            "material.compliance",
-            self.compliance,
-            0.0,
-            1.0,
-            "0 ≤ compliance ≤ 1 (1/Pa)",
-        )?;
-        check_range(
-            "material.density",
-            self.density,
-            1e-3,
-            1e6,
-            "1e-3 ≤ density ≤ 1e6 (kg/m³)",
-        )?;
-        if let Some(mass) = self.particle_mass {
-            check_range(
-                "material.particle_mass",
-                mass,
-                1e-9,
-                1e9,
-                "1e-9 ≤ particle_mass ≤ 1e9 (kg)",
-            )?;
+        use super::ranges::*;
+        let path = |a: &Allowed| format!("material.{}", a.field);
+        for (allowed, value) in [
+            (COMPLIANCE, Some(self.compliance)),
+            (DENSITY, Some(self.density)),
+            (PARTICLE_MASS, self.particle_mass),
+            (CONTACT_RADIUS, self.contact_radius),
+            (STATIC_FRICTION, Some(self.static_friction)),
+            (DYNAMIC_FRICTION, Some(self.dynamic_friction)),
+            (TEAR_STRETCH, self.tear_stretch),
+            (EDGE_COMPLIANCE, self.edge_compliance),
+            (PATCH_NORMAL_COMPLIANCE, self.patch_normal_compliance),
+            (PATCH_TANGENT_COMPLIANCE, self.patch_tangent_compliance),
+            (PATCH_THRESHOLD, Some(self.patch_threshold)),
+            (YIELD_STRAIN, Some(self.yield_strain)),
+            (CREEP, Some(self.creep)),
+            (MAX_PLASTIC_STRAIN, Some(self.max_plastic_strain)),
+        ] {
+            if let Some(v) = value {
+                allowed.check(&path(&allowed), v)?;
+            }
         }
-        if self.cluster_radius == 0 || self.cluster_radius > 8 {
-            return Err(out_of_range(
-                "material.cluster_radius",
-                self.cluster_radius,
-                "1 ≤ cluster_radius ≤ 8 (lattice units)",
-            ));
+        for (allowed, value) in [
+            (CLUSTER_RADIUS, self.cluster_radius),
+            (MAX_CLUSTER_SIZE, self.max_cluster_size),
+            (EXPAND_COUNT, self.expand_count),
+            (TEAR_BUDGET, self.tear_budget),
+            (TEAR_MIN_PIECE, self.tear_min_piece),
+            (PATCH_RINGS, self.patch_rings),
+        ] {
+            allowed.check(&path(&allowed), value)?;
         }
         if self.cluster_overlap > 2 * self.cluster_radius {
             return Err(out_of_range(
@@ -287,128 +313,72 @@ impl Material {
                 "0 ≤ cluster_overlap ≤ 2·cluster_radius",
             ));
         }
-        if self.max_cluster_size < 2 || self.max_cluster_size > 100_000 {
-            return Err(out_of_range(
-                "material.max_cluster_size",
-                self.max_cluster_size,
-                "2 ≤ max_cluster_size ≤ 100000",
-            ));
-        }
-        if self.expand_count > 1000 {
-            return Err(out_of_range(
-                "material.expand_count",
-                self.expand_count,
-                "0 ≤ expand_count ≤ 1000",
-            ));
-        }
-        if let Some(r) = self.contact_radius {
-            check_range(
-                "material.contact_radius",
-                r,
-                1e-6,
-                1e6,
-                "1e-6 ≤ contact_radius ≤ 1e6 (metres)",
-            )?;
-        }
-        check_range(
-            "material.static_friction",
-            self.static_friction,
-            0.0,
-            100.0,
-            "0 ≤ static_friction ≤ 100",
-        )?;
-        check_range(
-            "material.dynamic_friction",
-            self.dynamic_friction,
-            0.0,
-            100.0,
-            "0 ≤ dynamic_friction ≤ 100",
-        )?;
-        if let Some(stretch) = self.tear_stretch
-            && !(stretch > 1.0 && stretch <= 1000.0)
-        {
-            return Err(out_of_range(
-                "material.tear_stretch",
-                stretch,
-                "1 < tear_stretch ≤ 1000",
-            ));
-        }
-        if let Some(c) = self.edge_compliance {
-            check_range(
-                "material.edge_compliance",
-                c,
-                0.0,
-                1.0,
-                "0 ≤ edge_compliance ≤ 1 (1/Pa)",
-            )?;
-        }
-        for (field, value) in [
-            (
-                "material.patch_normal_compliance",
-                self.patch_normal_compliance,
-            ),
-            (
-                "material.patch_tangent_compliance",
-                self.patch_tangent_compliance,
-            ),
-        ] {
-            if let Some(c) = value {
-                check_range(field, c, 0.0, 1.0, "0 ≤ compliance ≤ 1 (1/Pa)")?;
-            }
-        }
         if let Some(r) = self.particle_radii
-            && !(r.is_finite() && r.cmpgt(Vec3::ZERO).all())
+            && !radii_allowed(r)
         {
-            return Err(out_of_range(
-                "material.particle_radii",
-                r,
-                "each radius finite and > 0 (metres)",
-            ));
-        }
-        check_range(
-            "material.yield_strain",
-            self.yield_strain,
-            0.0,
-            1e3,
-            "0 ≤ yield_strain ≤ 1000 (0: elastic)",
-        )?;
-        check_range(
-            "material.creep",
-            self.creep,
-            0.0,
-            1.0,
-            "0 ≤ creep ≤ 1 (per second)",
-        )?;
-        check_range(
-            "material.max_plastic_strain",
-            self.max_plastic_strain,
-            0.0,
-            1e3,
-            "0 ≤ max_plastic_strain ≤ 1000",
-        )?;
-        if !(1..=crate::body::patches::MAX_RINGS).contains(&self.patch_rings) {
-            return Err(out_of_range(
-                "material.patch_rings",
-                self.patch_rings,
-                "1 ≤ patch_rings ≤ 8",
-            ));
-        }
-        if !(self.patch_threshold > 0.0 && self.patch_threshold <= 1000.0) {
-            return Err(out_of_range(
-                "material.patch_threshold",
-                self.patch_threshold,
-                "0 < patch_threshold ≤ 1000 (lattice spacings)",
-            ));
-        }
-        for (field, value) in [
-            ("material.tear_budget", self.tear_budget),
-            ("material.tear_min_piece", self.tear_min_piece),
-        ] {
-            if !(1..=10_000_000).contains(&value) {
-                return Err(out_of_range(field, value, "1 ≤ value ≤ 10000000"));
-            }
+            return Err(out_of_range("material.particle_radii", r, RADII));
         }
         Ok(())
+    }
+}
+
+/// What [`Material::particle_radii`] allows.
+const RADII: &str = "each radius finite and > 0 (metres)";
+
+fn radii_allowed(r: Vec3) -> bool {
+    r.is_finite() && r.cmpgt(Vec3::ZERO).all()
+}
+
+/// The scene file's readers of the checked fields (serde's `deserialize_with`): each
+/// checks its field against [`crate::config::ranges`], the error stating the range.
+mod checked {
+    use super::{CheckedField, RADII, radii_allowed};
+    use crate::config::ranges::*;
+    use glam::Vec3;
+    use serde::de::Error as _;
+    use serde::{Deserialize, Deserializer};
+
+    macro_rules! readers {
+        ($($field:ident: $ty:ty = $allowed:ident;)*) => {$(
+            pub(super) fn $field<'de, D: Deserializer<'de>>(d: D) -> Result<$ty, D::Error> {
+                <$ty>::read(d, &$allowed)
+            }
+        )*};
+    }
+
+    readers! {
+        compliance: f32 = COMPLIANCE;
+        density: f32 = DENSITY;
+        particle_mass: Option<f32> = PARTICLE_MASS;
+        cluster_radius: u32 = CLUSTER_RADIUS;
+        max_cluster_size: u32 = MAX_CLUSTER_SIZE;
+        expand_count: u32 = EXPAND_COUNT;
+        contact_radius: Option<f32> = CONTACT_RADIUS;
+        static_friction: f32 = STATIC_FRICTION;
+        dynamic_friction: f32 = DYNAMIC_FRICTION;
+        tear_stretch: Option<f32> = TEAR_STRETCH;
+        tear_budget: u32 = TEAR_BUDGET;
+        tear_min_piece: u32 = TEAR_MIN_PIECE;
+        edge_compliance: Option<f32> = EDGE_COMPLIANCE;
+        patch_rings: u32 = PATCH_RINGS;
+        patch_normal_compliance: Option<f32> = PATCH_NORMAL_COMPLIANCE;
+        patch_tangent_compliance: Option<f32> = PATCH_TANGENT_COMPLIANCE;
+        patch_threshold: f32 = PATCH_THRESHOLD;
+        yield_strain: f32 = YIELD_STRAIN;
+        creep: f32 = CREEP;
+        max_plastic_strain: f32 = MAX_PLASTIC_STRAIN;
+    }
+
+    pub(super) fn particle_radii<'de, D: Deserializer<'de>>(
+        d: D,
+    ) -> Result<Option<Vec3>, D::Error> {
+        let v = Option::<Vec3>::deserialize(d)?;
+        match v {
+            Some(r) if !radii_allowed(r) => Err(D::Error::custom(format!(
+                "{r} is out of range (allowed: {RADII})"
+            ))),
+            _ => Ok(v),
+        }
     }
 }
 

@@ -4,7 +4,9 @@ use crate::error::{MAX_COORDINATE, Result, check_range, check_vec_within, out_of
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
+pub mod allowed;
 mod material;
+pub mod ranges;
 mod relax;
 pub use material::{Material, Model, Yield};
 pub use relax::RelaxOptions;
@@ -133,40 +135,24 @@ impl SimConfig {
 
     /// Checks every field; the error names the field and its allowed range.
     pub fn validate(&self) -> Result<()> {
-        check_range("config.dt", self.dt, 1e-6, 1.0, "1e-6 ≤ dt ≤ 1 (seconds)")?;
-        check_range(
-            "config.memory_budget_gb",
-            self.memory_budget_gb,
-            1e-3,
-            1024.0,
-            "0.001 ≤ memory_budget_gb ≤ 1024",
-        )?;
-        if self.substeps == 0 || self.substeps > 1000 {
-            return Err(out_of_range(
-                "config.substeps",
-                self.substeps,
-                "1 ≤ substeps ≤ 1000",
-            ));
+        for (allowed, value) in [
+            (ranges::DT, self.dt),
+            (ranges::MEMORY_BUDGET_GB, self.memory_budget_gb),
+            (ranges::DAMPING, self.damping),
+        ] {
+            allowed.check(&format!("config.{}", allowed.field), value)?;
         }
-        if self.iterations == 0 || self.iterations > 10_000 {
-            return Err(out_of_range(
-                "config.iterations",
-                self.iterations,
-                "1 ≤ iterations ≤ 10000",
-            ));
+        for (allowed, value) in [
+            (ranges::SUBSTEPS, self.substeps),
+            (ranges::ITERATIONS, self.iterations),
+        ] {
+            allowed.check(&format!("config.{}", allowed.field), value)?;
         }
         check_vec_within(
             "config.gravity",
             self.gravity,
             1e4,
             "|gx|, |gy|, |gz| ≤ 1e4 (m/s²)",
-        )?;
-        check_range(
-            "config.damping",
-            self.damping,
-            0.0,
-            1000.0,
-            "0 ≤ damping ≤ 1000 (per second)",
         )?;
         if let Some(relax) = &self.relax {
             relax.validate()?;
@@ -179,13 +165,7 @@ impl SimConfig {
                 MAX_COORDINATE,
                 "-1e6 ≤ height ≤ 1e6 (metres)",
             )?;
-            check_range(
-                "config.ground.friction",
-                g.friction,
-                0.0,
-                100.0,
-                "0 ≤ friction ≤ 100",
-            )?;
+            ranges::FRICTION.check("config.ground.friction", g.friction)?;
         }
         for (i, b) in self.boxes.iter().enumerate() {
             for (corner, v) in [("min", b.min), ("max", b.max)] {
@@ -203,13 +183,7 @@ impl SimConfig {
                     "min ≤ max on every axis",
                 ));
             }
-            check_range(
-                &format!("config.boxes[{i}].friction"),
-                b.friction,
-                0.0,
-                100.0,
-                "0 ≤ friction ≤ 100",
-            )?;
+            ranges::FRICTION.check(&format!("config.boxes[{i}].friction"), b.friction)?;
         }
         Ok(())
     }

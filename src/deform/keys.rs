@@ -66,7 +66,7 @@ impl HandlePath {
                 Err(CleaveError::OutOfRange {
                     field: field(what),
                     value,
-                    allowed,
+                    allowed: allowed.into(),
                 })
             };
             if !(t.is_finite() && *t > last) {

@@ -2,7 +2,7 @@
 //! ECS. A kind that reads components implements [`EcsTerm`] beside its kernel (the
 //! data it reads as a [`SystemParam`], what it does with them in [`EcsTerm::sync`]) and
 //! is registered by one call — [`crate::sim::simulation::Simulation::add_ecs_term`], or
-//! [`crate::systems::term_sync::add_ecs_term`] on a bare world; the schedule runs its
+//! [`crate::systems::add_ecs_term`] on a bare world; the schedule runs its
 //! sync once a frame, after the layout is brought up to date and before the terms hear
 //! of what changed. What it carries from frame to frame is saved through
 //! [`crate::solver::term::Term::saved_state`].

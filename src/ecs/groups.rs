@@ -3,9 +3,9 @@
 //! ([`ParticleGroups`]), and the compliance a cluster takes from its particles.
 
 use crate::body::groups::{ExplicitGroup, ParticleGroups};
-use crate::config::{Material, Model};
+use crate::config::{Material, Model, ranges};
 use crate::ecs::desc::{GroupDesc, Region, StiffnessRegion};
-use crate::error::{Result, check_finite_vec, check_range, out_of_range};
+use crate::error::{Result, check_finite_vec, out_of_range};
 use glam::Vec3;
 
 /// The groups and compliances of a body of `material` whose live particles `live` sit
@@ -29,13 +29,7 @@ pub fn select_groups(
     let select = |field: String, region: &Region, compliance: f32| -> Result<Vec<u32>> {
         check_finite_vec(&format!("{field}.region.min"), region.min)?;
         check_finite_vec(&format!("{field}.region.max"), region.max)?;
-        check_range(
-            &format!("{field}.compliance"),
-            compliance,
-            0.0,
-            1.0,
-            "0 ≤ compliance ≤ 1 (1/Pa)",
-        )?;
+        ranges::COMPLIANCE.check(&format!("{field}.compliance"), compliance)?;
         let members: Vec<u32> = live
             .iter()
             .copied()

@@ -140,7 +140,7 @@ impl Simulation {
 
     /// [`Simulation::load`], with `setup` run on the loaded world before the solver's
     /// state is put back (see [`crate::io::save::load_with`]): register your own terms
-    /// there ([`crate::systems::term_sync::add_ecs_term`], or the solver's registry) so
+    /// there ([`crate::systems::add_ecs_term`], or the solver's registry) so
     /// that they take up the state they saved.
     pub fn load_with(
         reader: impl std::io::Read,
@@ -238,7 +238,7 @@ impl Simulation {
     /// at the start of every frame. Not saved: add it again when loading, in
     /// [`Simulation::load_with`], so that it takes up its saved state.
     pub fn add_ecs_term<T: EcsTerm>(&mut self, term: T) {
-        crate::systems::term_sync::add_ecs_term(&mut self.world, term);
+        crate::systems::add_ecs_term(&mut self.world, term);
     }
 
     /// Adds a term of your own to the solver, after the built-in ones: it is solved with

@@ -3,6 +3,7 @@
 //! flag.
 
 /// A viewer token: 8 to 128 letters, digits, `-` or `_` (it goes into a URL as is).
+#[cfg(feature = "viewer")]
 pub fn token(text: &str) -> Result<String, String> {
     let fits = (8..=128).contains(&text.len())
         && text

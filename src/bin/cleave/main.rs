@@ -17,7 +17,9 @@ use cleave::ecs::handles::PoseMethod;
 use cleave::io::render::{ColorMode, Draw};
 use cleave::io::scene::BUILTIN_SCENES;
 use cleave::io::scene_file::SceneFile;
-use flags::{budget_seconds, frame_count, token, whole};
+#[cfg(feature = "viewer")]
+use flags::token;
+use flags::{budget_seconds, frame_count, whole};
 use std::path::PathBuf;
 use std::process::ExitCode;
 

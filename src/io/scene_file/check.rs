@@ -3,7 +3,8 @@
 //! adds the file position and the field path.
 
 use super::{BodyFile, ColliderShapeFile, PoseFile};
-use crate::config::{GroundPlane, StaticBox};
+use crate::config::allowed::{CheckedField, whole_number};
+use crate::config::{GroundPlane, StaticBox, ranges};
 use crate::cut::tool::ToolShape;
 use crate::ecs::desc::{PinRegion, Region};
 use glam::{Quat, UVec3, Vec3};
@@ -28,16 +29,10 @@ pub fn finite<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     range::<D>(v, true, "a finite number")
 }
 pub fn dt<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(v, (1e-6..=1.0).contains(&v), "1e-6 ≤ dt ≤ 1 (seconds)")
+    f32::read(d, &ranges::DT)
 }
 pub fn damping<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(
-        v,
-        (0.0..=1000.0).contains(&v),
-        "0 ≤ damping ≤ 1000 (per second)",
-    )
+    f32::read(d, &ranges::DAMPING)
 }
 pub fn vec3<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
     let v = Vec3::deserialize(d)?;
@@ -84,80 +79,9 @@ pub fn spacing<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
         "1e-4 ≤ spacing ≤ 100 (metres)",
     )
 }
-pub fn particle_mass<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
-    match Option::<f32>::deserialize(d)? {
-        Some(v) => range::<D>(
-            v,
-            (1e-9..=1e9).contains(&v),
-            "1e-9 ≤ particle_mass ≤ 1e9 (kg)",
-        )
-        .map(Some),
-        None => Ok(None),
-    }
-}
+/// A material compliance (a region's, a group's).
 pub fn compliance<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(v, (0.0..=1.0).contains(&v), "0 ≤ compliance ≤ 1 (1/Pa)")
-}
-/// An optional material compliance (1/Pa) named `name`, within 0..=1.
-fn optional_compliance<'de, D: Deserializer<'de>>(
-    d: D,
-    name: &str,
-) -> Result<Option<f32>, D::Error> {
-    match Option::<f32>::deserialize(d)? {
-        Some(c) => range::<D>(
-            c,
-            (0.0..=1.0).contains(&c),
-            &format!("0 ≤ {name} ≤ 1 (1/Pa)"),
-        )
-        .map(Some),
-        None => Ok(None),
-    }
-}
-pub fn edge_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
-    optional_compliance(d, "edge_compliance")
-}
-pub fn patch_normal_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
-    optional_compliance(d, "patch_normal_compliance")
-}
-pub fn patch_tangent_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
-    optional_compliance(d, "patch_tangent_compliance")
-}
-pub fn patch_rings<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    count(d, 1, crate::body::patches::MAX_RINGS, "patch_rings")
-}
-pub fn particle_radii<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Vec3>, D::Error> {
-    let v = Option::<Vec3>::deserialize(d)?;
-    match v {
-        Some(r) if !(r.is_finite() && r.cmpgt(Vec3::ZERO).all()) => Err(D::Error::custom(format!(
-            "particle_radii {r} is out of range (allowed: each radius finite and > 0, metres)"
-        ))),
-        _ => Ok(v),
-    }
-}
-pub fn yield_strain<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(
-        v,
-        (0.0..=1e3).contains(&v),
-        "0 ≤ yield_strain ≤ 1000 (0: elastic)",
-    )
-}
-pub fn creep<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(v, (0.0..=1.0).contains(&v), "0 ≤ creep ≤ 1 (per second)")
-}
-pub fn max_plastic_strain<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(v, (0.0..=1e3).contains(&v), "0 ≤ max_plastic_strain ≤ 1000")
-}
-pub fn patch_threshold<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(
-        v,
-        v > 0.0 && v <= 1000.0,
-        "0 < patch_threshold ≤ 1000 (lattice spacings)",
-    )
+    f32::read(d, &ranges::COMPLIANCE)
 }
 pub fn relax<'de, D: Deserializer<'de>>(
     d: D,
@@ -190,10 +114,6 @@ pub fn region<'de, D: Deserializer<'de>>(d: D) -> Result<Region, D::Error> {
     }
     Ok(r)
 }
-pub fn density<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(v, (1e-3..=1e6).contains(&v), "1e-3 ≤ density ≤ 1e6 (kg/m³)")
-}
 pub fn rotation<'de, D: Deserializer<'de>>(d: D) -> Result<Quat, D::Error> {
     let q = Quat::deserialize(d)?;
     match crate::math::rotation::unit_quaternion(q) {
@@ -210,12 +130,7 @@ pub fn rotation<'de, D: Deserializer<'de>>(d: D) -> Result<Quat, D::Error> {
     }
 }
 pub fn memory_budget_gb<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(
-        v,
-        (1e-3..=1024.0).contains(&v),
-        "0.001 ≤ memory_budget_gb ≤ 1024",
-    )
+    f32::read(d, &ranges::MEMORY_BUDGET_GB)
 }
 /// A whole number within `lo..=hi` (errors name `name` and the range).
 fn count<'de, D: Deserializer<'de>>(d: D, lo: u32, hi: u32, name: &str) -> Result<u32, D::Error> {
@@ -226,30 +141,8 @@ fn count<'de, D: Deserializer<'de>>(d: D, lo: u32, hi: u32, name: &str) -> Resul
 /// fraction, a negative number or one out of range is refused with the field's range
 /// rather than a parser's complaint.
 fn whole<'de, D: Deserializer<'de>>(d: D, lo: u64, hi: u64, name: &str) -> Result<u64, D::Error> {
-    struct Whole;
-    impl serde::de::Visitor<'_> for Whole {
-        type Value = Result<u64, String>;
-        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-            f.write_str("a whole number")
-        }
-        fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Self::Value, E> {
-            Ok(Ok(v))
-        }
-        fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Self::Value, E> {
-            Ok(u64::try_from(v).map_err(|_| v.to_string()))
-        }
-        fn visit_u128<E: serde::de::Error>(self, v: u128) -> Result<Self::Value, E> {
-            Ok(u64::try_from(v).map_err(|_| v.to_string()))
-        }
-        fn visit_i128<E: serde::de::Error>(self, v: i128) -> Result<Self::Value, E> {
-            Ok(u64::try_from(v).map_err(|_| v.to_string()))
-        }
-        fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Self::Value, E> {
-            Ok(Err(v.to_string()))
-        }
-    }
     let range = format!("allowed: a whole number, {lo} ≤ {name} ≤ {hi}");
-    match d.deserialize_any(Whole)? {
+    match whole_number(d)? {
         Ok(v) if (lo..=hi).contains(&v) => Ok(v),
         Ok(v) => Err(D::Error::custom(format!("{v} is out of range ({range})"))),
         Err(v) => Err(D::Error::custom(format!("{v} is out of range ({range})"))),
@@ -266,16 +159,10 @@ pub fn mesh_resolution<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error>
     count(d, 4, 256, "resolution")
 }
 pub fn substeps<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    count(d, 1, 1000, "substeps")
+    u32::read(d, &ranges::SUBSTEPS)
 }
 pub fn iterations<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    count(d, 1, 10_000, "iterations")
-}
-pub fn cluster_radius<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    count(d, 1, 8, "cluster_radius")
-}
-pub fn max_cluster_size<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    count(d, 2, 100_000, "max_cluster_size")
+    u32::read(d, &ranges::ITERATIONS)
 }
 pub fn frames<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
     count(d, 0, crate::ecs::desc::MAX_FRAMES, "frames")
@@ -298,11 +185,9 @@ pub fn ground<'de, D: Deserializer<'de>>(d: D) -> Result<Option<GroundPlane>, D:
             g.height.abs() <= crate::error::MAX_COORDINATE,
             "-1e6 ≤ height ≤ 1e6 (metres)",
         )?;
-        range::<D>(
-            g.friction,
-            (0.0..=100.0).contains(&g.friction),
-            "0 ≤ friction ≤ 100",
-        )?;
+        if !ranges::FRICTION.allows(g.friction as f64) {
+            return Err(ranges::FRICTION.refuse(g.friction));
+        }
     }
     Ok(ground)
 }
@@ -315,11 +200,9 @@ pub fn boxes<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<StaticBox>, D::Error
                 b.min, b.max
             )));
         }
-        range::<D>(
-            b.friction,
-            (0.0..=100.0).contains(&b.friction),
-            "0 ≤ friction ≤ 100",
-        )?;
+        if !ranges::FRICTION.allows(b.friction as f64) {
+            return Err(ranges::FRICTION.refuse(b.friction));
+        }
     }
     Ok(boxes)
 }
@@ -431,17 +314,5 @@ pub fn scale<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
     }
 }
 pub fn friction<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(v, (0.0..=100.0).contains(&v), "0 ≤ friction ≤ 100")
-}
-pub fn contact_radius<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
-    let v = Option::<f32>::deserialize(d)?;
-    if let Some(r) = v {
-        range::<D>(
-            r,
-            (1e-6..=1e6).contains(&r),
-            "1e-6 ≤ contact_radius ≤ 1e6 (metres), or None for half the spacing",
-        )?;
-    }
-    Ok(v)
+    f32::read(d, &ranges::FRICTION)
 }

@@ -3,7 +3,7 @@
 //! range); conversion to and from [`Scene`], so every built-in scene is also a file.
 
 use crate::body::shape::{Shape, ShapePart};
-use crate::config::{Material, SimConfig};
+use crate::config::SimConfig;
 use crate::cut::tool::{Path as ToolPath, Pose};
 use crate::deform::keys::HandlePath;
 use crate::ecs::components::Hold;
@@ -109,66 +109,6 @@ impl SettingsFile {
     }
 }
 
-impl MaterialFile {
-    fn from_material(m: &Material) -> Self {
-        Self {
-            compliance: m.compliance,
-            density: m.density,
-            particle_mass: m.particle_mass,
-            cluster_radius: m.cluster_radius,
-            cluster_overlap: m.cluster_overlap,
-            max_cluster_size: m.max_cluster_size,
-            expand_count: m.expand_count,
-            contact_radius: m.contact_radius,
-            static_friction: m.static_friction,
-            dynamic_friction: m.dynamic_friction,
-            self_contact: m.self_contact,
-            tear_stretch: m.tear_stretch,
-            tear_budget: m.tear_budget,
-            tear_min_piece: m.tear_min_piece,
-            edge_compliance: m.edge_compliance,
-            patch_rings: m.patch_rings,
-            patch_normal_compliance: m.patch_normal_compliance,
-            patch_tangent_compliance: m.patch_tangent_compliance,
-            patch_threshold: m.patch_threshold,
-            model: m.model,
-            particle_radii: m.particle_radii,
-            yield_strain: m.yield_strain,
-            creep: m.creep,
-            max_plastic_strain: m.max_plastic_strain,
-        }
-    }
-
-    fn to_material(&self) -> Material {
-        Material {
-            compliance: self.compliance,
-            density: self.density,
-            particle_mass: self.particle_mass,
-            cluster_radius: self.cluster_radius,
-            cluster_overlap: self.cluster_overlap,
-            max_cluster_size: self.max_cluster_size,
-            expand_count: self.expand_count,
-            contact_radius: self.contact_radius,
-            static_friction: self.static_friction,
-            dynamic_friction: self.dynamic_friction,
-            self_contact: self.self_contact,
-            tear_stretch: self.tear_stretch,
-            tear_budget: self.tear_budget,
-            tear_min_piece: self.tear_min_piece,
-            edge_compliance: self.edge_compliance,
-            patch_rings: self.patch_rings,
-            patch_normal_compliance: self.patch_normal_compliance,
-            patch_tangent_compliance: self.patch_tangent_compliance,
-            patch_threshold: self.patch_threshold,
-            model: self.model,
-            particle_radii: self.particle_radii,
-            yield_strain: self.yield_strain,
-            creep: self.creep,
-            max_plastic_strain: self.max_plastic_strain,
-        }
-    }
-}
-
 impl SceneFile {
     /// The file form of `scene`; `None` if a body's shape has no file form (a signed
     /// distance function, or a mesh given in memory).
@@ -188,7 +128,7 @@ impl SceneFile {
                     rotation: b.rotation,
                     velocity: b.velocity,
                     angular_velocity: b.angular_velocity,
-                    material: MaterialFile::from_material(&b.material),
+                    material: b.material.clone(),
                     pins: b.pins.clone(),
                     attachments: attachment_files(&b.attachments, Hold::Each),
                     centroids: attachment_files(&b.attachments, Hold::Centroid),
@@ -249,7 +189,7 @@ impl SceneFile {
         let mut bodies = Vec::new();
         for (i, b) in self.bodies.iter().enumerate() {
             let shape = shape_of(&b.shape, base_dir, &format!("bodies[{i}].shape"))?;
-            let material = b.material.to_material();
+            let material = b.material.clone();
             material
                 .validate()
                 .map_err(|e| format!("bodies[{i}]: {e}"))?;

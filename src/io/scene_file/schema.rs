@@ -1,7 +1,7 @@
 //! The scene file's schema: every struct and enum a RON scene file is read into, each
 //! field checked while it is read ([`super::check`]).
 
-use crate::config::{GroundPlane, Material, Model, SimConfig, SolverMode, StaticBox};
+use crate::config::{GroundPlane, Material, SimConfig, SolverMode, StaticBox};
 use crate::cut::tool::{CutMode, Pose, ToolShape};
 use crate::deform::keys::HandleKey;
 use crate::ecs::desc::{GroupDesc, PinRegion, Region, StiffnessRegion};
@@ -107,7 +107,7 @@ pub struct BodyFile {
     pub angular_velocity: Vec3,
     /// Material and clustering.
     #[serde(default)]
-    pub material: MaterialFile,
+    pub material: Material,
     /// Pinned regions (world space).
     #[serde(default, deserialize_with = "super::check::pins")]
     pub pins: Vec<PinRegion>,
@@ -311,85 +311,6 @@ pub struct ShapePartFile {
     /// Where its local origin sits in the union's frame.
     #[serde(deserialize_with = "super::check::vec3")]
     pub at: Vec3,
-}
-
-/// Material and clustering parameters.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct MaterialFile {
-    /// Compliance `1/E` in 1/Pa (0: rigid clusters).
-    #[serde(deserialize_with = "super::check::compliance")]
-    pub compliance: f32,
-    /// Density in kg/m³.
-    #[serde(deserialize_with = "super::check::density")]
-    pub density: f32,
-    /// Mass of one particle in kg, overriding the density.
-    #[serde(deserialize_with = "super::check::particle_mass")]
-    pub particle_mass: Option<f32>,
-    /// Cluster radius in lattice units.
-    #[serde(deserialize_with = "super::check::cluster_radius")]
-    pub cluster_radius: u32,
-    /// Overlap of neighbouring clusters in lattice units (≤ 2·radius).
-    pub cluster_overlap: u32,
-    /// Largest cluster size.
-    #[serde(deserialize_with = "super::check::max_cluster_size")]
-    pub max_cluster_size: u32,
-    /// Particles added to each part of a cluster split after a cut.
-    pub expand_count: u32,
-    /// Contact ball radius in metres; `None`: half the spacing.
-    #[serde(deserialize_with = "super::check::contact_radius")]
-    pub contact_radius: Option<f32>,
-    /// Static friction of particle contacts.
-    #[serde(deserialize_with = "super::check::friction")]
-    pub static_friction: f32,
-    /// Dynamic friction of particle contacts.
-    #[serde(deserialize_with = "super::check::friction")]
-    pub dynamic_friction: f32,
-    /// Whether a piece folded onto itself collides with itself.
-    pub self_contact: bool,
-    /// Largest principal stretch of a voxel before it tears; `None`: never tears.
-    pub tear_stretch: Option<f32>,
-    /// Most voxels of the body that tear in one frame.
-    pub tear_budget: u32,
-    /// Smallest piece (particles) tearing may cut off.
-    pub tear_min_piece: u32,
-    /// Compliance of the lattice edges' distance constraints, 1/Pa; `None`: none.
-    #[serde(deserialize_with = "super::check::edge_compliance")]
-    pub edge_compliance: Option<f32>,
-    /// Rings of the shape-keeping surface patches (1–8).
-    #[serde(deserialize_with = "super::check::patch_rings")]
-    pub patch_rings: u32,
-    /// Compliance of a patch's normal displacement, 1/Pa; `None`: no patch constraints
-    /// (relaxation uses the material's compliance).
-    #[serde(deserialize_with = "super::check::patch_normal_compliance")]
-    pub patch_normal_compliance: Option<f32>,
-    /// Compliance of a patch's tangential displacement, 1/Pa; `None`: 100 × the normal.
-    #[serde(deserialize_with = "super::check::patch_tangent_compliance")]
-    pub patch_tangent_compliance: Option<f32>,
-    /// Normal displacement (lattice spacings, > 0) past which a patch stiffens.
-    #[serde(deserialize_with = "super::check::patch_threshold")]
-    pub patch_threshold: f32,
-    /// `"clusters"` (the default) or `"oriented"` (oriented particles, SPEC §5).
-    pub model: Model,
-    /// Radii `(x, y, z)` in metres of each particle's ellipsoid (oriented model); `None`:
-    /// a sphere of half the spacing.
-    #[serde(deserialize_with = "super::check::particle_radii")]
-    pub particle_radii: Option<Vec3>,
-    /// Strain past which a group's rest shape creeps (oriented model; 0: elastic).
-    #[serde(deserialize_with = "super::check::yield_strain")]
-    pub yield_strain: f32,
-    /// Share of a yielded group's excess strain taken into its rest shape per second (0–1).
-    #[serde(deserialize_with = "super::check::creep")]
-    pub creep: f32,
-    /// Most a group's rest shape may drift from its lattice shape, as strain.
-    #[serde(deserialize_with = "super::check::max_plastic_strain")]
-    pub max_plastic_strain: f32,
-}
-
-impl Default for MaterialFile {
-    fn default() -> Self {
-        Self::from_material(&Material::default())
-    }
 }
 
 /// A tool.
