@@ -6,6 +6,7 @@ mod flags;
 mod notices;
 mod pictures;
 mod run;
+mod run_frames;
 mod summary;
 #[cfg(feature = "viewer")]
 mod view;

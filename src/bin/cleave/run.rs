@@ -2,20 +2,16 @@
 //! state dump), print a table.
 
 use crate::pictures::{PictureOptions, Pictures};
+use crate::run_frames::FrameLog;
 use crate::summary::*;
 use bevy_ecs::prelude::*;
-use cleave::analysis::bench::median;
-use cleave::analysis::frames::FrameStats;
 use cleave::analysis::profile::{StageProfile, solver_table};
-use cleave::analysis::stats::BodyStats;
 use cleave::config::{Model, RelaxOptions, SimConfig, SolverMode};
 use cleave::cut::tool::CutMode;
-use cleave::ecs::check::check_invariants;
 use cleave::ecs::components::BodyLattice;
 use cleave::ecs::desc::Scene;
 use cleave::ecs::handles::{HandlePose, PoseMethod};
 use cleave::ecs::layout::SolverCache;
-use cleave::ecs::resources::{CutReport, CutTimings, ParticlesCut};
 use cleave::io::dump::dump_world;
 use cleave::io::render::Draw;
 use cleave::io::scene::{BUILTIN_SCENES, builtin};
@@ -24,7 +20,6 @@ use cleave::sim::simulation::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 /// The built-in scene `name`, or an error listing the built-ins.
 pub fn builtin_scene(name: &str, seed: u64) -> Result<Scene, String> {
@@ -268,46 +263,14 @@ fn check_posing(
 
 /// Runs the scene and writes the outputs.
 pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
-    let (scene_name, frames, out, seed, dump) = (
-        args.scene.as_str(),
-        args.frames,
-        args.out.clone(),
-        args.seed,
-        args.dump_state.clone(),
-    );
     // The systems' spans are made when the schedule is built: profile from the start.
     let profile = StageProfile::default();
     let _profiling = args.profile.then(|| profile.install());
-    let mut scene = load_scene(scene_name, seed)?;
-    args.overrides.apply(&mut scene.config)?;
-    if let Some(mode) = args.overrides.cut_mode {
-        for tool in &mut scene.tools {
-            tool.cut_mode = mode;
-        }
-    }
-    if let Some(model) = args.overrides.model {
-        for body in &mut scene.bodies {
-            body.material.model = model;
-        }
-    }
-    let seed_given = seed.is_some();
-    if args.relax && scene.config.relax.is_none() {
-        scene.config.relax = Some(RelaxOptions::default());
-    }
-    let frames = frames.unwrap_or(if args.relax { 0 } else { scene.frames });
-    if let Some(at) = args.recluster_at
-        && at > frames
-    {
-        return Err(format!(
-            "--recluster-at: {at} is past the last frame (allowed 0 ≤ recluster-at ≤ {frames})"
-        ));
-    }
+    let (scene, frames) = prepared_scene(args)?;
     let (mut sim, bodies) = match &args.load_state {
-        Some(path) => resume(path, args, seed_given, &scene)?,
-        None => start(&scene, scene_name, args.pose)?,
+        Some(path) => resume(path, args, args.seed.is_some(), &scene)?,
+        None => start(&scene, &args.scene, args.pose)?,
     };
-    let seed = sim.config().seed;
-    let dt = sim.config().dt;
     let spacings: Vec<f32> = bodies
         .iter()
         .map(|b| {
@@ -317,9 +280,9 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         })
         .collect();
     let mut pictures = Pictures::new(
-        &out,
+        &args.out,
         PictureOptions {
-            dt,
+            dt: sim.config().dt,
             ..args.pictures.clone()
         },
     )?;
@@ -329,167 +292,20 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
         sim.drop_surfaces();
     }
     sim.update_surfaces().map_err(|e| e.to_string())?;
-    // a resumed run was relaxed, if at all, before it was saved
-    let relaxing = scene
-        .config
-        .relax
-        .as_ref()
-        .filter(|_| args.load_state.is_none());
-    if relaxing.is_some() {
-        pictures.still(sim.world_mut(), "before_relax")?;
-    }
-    let mut tracked = Vec::with_capacity(bodies.len());
-    for (i, (body, h)) in bodies.iter().zip(&spacings).enumerate() {
-        let relaxed = match relaxing {
-            Some(options) => Some(
-                sim.relax(*body, options)
-                    .map_err(|e| format!("{scene_name}: settings.relax: bodies[{i}]: {e}"))?,
-            ),
-            None => None,
-        };
-        tracked.push(Tracked::new(&mut sim, *body, *h, relaxed)?);
-    }
-    let h = spacings.iter().copied().fold(f32::INFINITY, f32::min);
-    let h_first = spacings.first().copied().unwrap_or(1.0);
-    let mut step_ms = Vec::new();
-    let mut cut_frames = Vec::new();
-    let mut cut_particles = 0;
-    let mut min_gap: Option<f64> = None;
-    let mut cursor = sim
-        .world()
-        .resource::<Messages<ParticlesCut>>()
-        .get_cursor();
-    pictures.frame(sim.world_mut(), 0)?;
-    let recluster = |sim: &mut Simulation, frame: u32| -> Result<(), String> {
-        if args.recluster_at == Some(frame) {
-            for &body in &bodies {
-                sim.recluster(body).map_err(|e| e.to_string())?;
-            }
-        }
-        Ok(())
-    };
-    recluster(&mut sim, 0)?;
-    let progress = progress_bar(frames, args.quiet);
-    let mut factor_ms = Vec::new();
-    let mut factor_seconds = 0.0;
-    for frame in 1..=frames {
-        progress.inc(1);
-        let t = Instant::now();
-        sim.step();
-        step_ms.push(t.elapsed().as_secs_f64() * 1e3);
-        cut_frames.push(!sim.world().resource::<CutReport>().bodies.is_empty());
-        // (a layout built afresh starts its count at zero)
-        let seconds = sim
-            .world()
-            .resource::<SolverCache>()
-            .solver
-            .projective
-            .factor_seconds;
-        if seconds != factor_seconds {
-            factor_ms.push(
-                1e3 * (seconds
-                    - if seconds > factor_seconds {
-                        factor_seconds
-                    } else {
-                        0.0
-                    }),
-            );
-            factor_seconds = seconds;
-        }
-        recluster(&mut sim, frame)?;
-        pictures.frame(sim.world_mut(), frame)?;
-        cut_particles += cursor
-            .read(sim.world().resource::<Messages<ParticlesCut>>())
-            .map(|m| m.particles.len())
-            .sum::<usize>();
-        // (the statistic of the run, not the engine's work: between frames, outside
-        // the timed step)
-        let pieces: usize = sim
-            .world_mut()
-            .query::<&BodyLattice>()
-            .iter(sim.world())
-            .map(|b| b.pieces)
-            .sum();
-        if pieces > 1
-            && let (Some(gap), _) = gaps(&mut sim, h)
-        {
-            min_gap = Some(min_gap.map_or(gap, |m| m.min(gap)));
-        }
-        if frame == frames / 2 {
-            for t in &mut tracked {
-                t.at_half_time(&mut sim)?;
-            }
-        }
-    }
-    progress.finish_and_clear();
-    let violations = check_invariants(sim.world());
-    let final_gaps = gaps(&mut sim, h);
-    let mut per_body = Vec::with_capacity(tracked.len());
-    for t in tracked {
-        per_body.push(t.summary(&mut sim)?);
-    }
-    let mut events = sim.world().resource::<CutTimings>().event_ms.clone();
-    let total = |f: fn(&BodyStats) -> usize| per_body.iter().map(|b| f(&b.after)).sum();
-    let summary = Summary {
-        scene: scene_name.into(),
+    let mut tracked = track_bodies(&mut sim, &scene, args, &bodies, &spacings, &mut pictures)?;
+    let run = FrameLog::simulate(
+        &mut sim,
+        args,
         frames,
-        seed,
-        reclustered_at: args.recluster_at,
-        threads,
-        particles: total(|s| s.particles),
-        clusters: total(|s| s.clusters),
-        memberships: total(|s| s.memberships),
-        pieces: total(|s| s.pieces),
-        cut_particles,
-        simulate_ms_total: step_ms.iter().fold(0.0, |sum, ms| sum + ms),
-        frame_ms: FrameStats::of(&step_ms),
-        cut_frame_ms: FrameStats::of_where(&step_ms, |f| cut_frames[f]),
-        pictures_ms_total: pictures.ms,
-        pictures_written: pictures.files,
-        median_ms_per_step: median(&mut step_ms),
-        final_shape_error_h: per_body
-            .iter()
-            .map(|b| b.after.shape_error_h)
-            .fold(0.0, f64::max),
-        lowest_particle_y_h: per_body
-            .iter()
-            .map(|b| b.after.lowest_y)
-            .fold(f64::INFINITY, f64::min)
-            / h_first as f64,
-        finite: per_body.iter().all(|b| b.after.finite),
-        min_gap_between_pieces_h: min_gap,
-        final_min_gap_between_bodies_h: final_gaps.1,
-        cut_events: events.len(),
-        cut_event_ms_max: events.iter().copied().fold(0.0, f64::max),
-        cut_event_ms_median: median(&mut events),
-        factor_ms,
-        invariant_violations: violations.len(),
-        bodies: per_body,
-    };
-    std::fs::create_dir_all(&out).map_err(|e| format!("cannot create `{}`: {e}", out.display()))?;
-    let path = out.join("summary.json");
-    std::fs::write(
-        &path,
-        serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?,
-    )
-    .map_err(|e| format!("cannot write `{}`: {e}", path.display()))?;
-    if let Some(path) = &args.save_state {
-        let file = std::fs::File::create(path)
-            .map_err(|e| format!("cannot create `{}`: {e}", path.display()))?;
-        sim.save(std::io::BufWriter::new(file))
-            .map_err(|e| format!("{}: {e}", path.display()))?;
-    }
-    if let Some(file) = dump {
-        let state = dump_world(sim.world_mut());
-        std::fs::write(
-            &file,
-            serde_json::to_string(&state).map_err(|e| e.to_string())?,
-        )
-        .map_err(|e| format!("cannot write `{}`: {e}", file.display()))?;
-    }
-    if !args.quiet {
-        print_table(&summary, &path, &out);
-    }
+        &bodies,
+        &mut tracked,
+        &mut pictures,
+        &spacings,
+    )?;
+    let summary = run.summary(
+        &mut sim, args, frames, threads, tracked, &pictures, &spacings,
+    )?;
+    write_outputs(&mut sim, args, &summary)?;
     if args.profile {
         print!("{}", profile.table(frames));
         let parts = sim.world().resource::<SolverCache>().solver.seconds();
@@ -501,8 +317,101 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     Ok(())
 }
 
+/// The scene with the command line's overrides, and the frames to run.
+fn prepared_scene(args: &RunArgs) -> Result<(Scene, u32), String> {
+    let mut scene = load_scene(&args.scene, args.seed)?;
+    args.overrides.apply(&mut scene.config)?;
+    if let Some(mode) = args.overrides.cut_mode {
+        for tool in &mut scene.tools {
+            tool.cut_mode = mode;
+        }
+    }
+    if let Some(model) = args.overrides.model {
+        for body in &mut scene.bodies {
+            body.material.model = model;
+        }
+    }
+    if args.relax && scene.config.relax.is_none() {
+        scene.config.relax = Some(RelaxOptions::default());
+    }
+    let frames = args
+        .frames
+        .unwrap_or(if args.relax { 0 } else { scene.frames });
+    if let Some(at) = args.recluster_at
+        && at > frames
+    {
+        return Err(format!(
+            "--recluster-at: {at} is past the last frame (allowed 0 ≤ recluster-at ≤ {frames})"
+        ));
+    }
+    Ok((scene, frames))
+}
+
+/// Relaxes every body if the scene asks (a resumed run was relaxed, if at all, before
+/// it was saved) and starts following each one for the summary.
+fn track_bodies(
+    sim: &mut Simulation,
+    scene: &Scene,
+    args: &RunArgs,
+    bodies: &[Entity],
+    spacings: &[f32],
+    pictures: &mut Pictures,
+) -> Result<Vec<Tracked>, String> {
+    let relaxing = scene
+        .config
+        .relax
+        .as_ref()
+        .filter(|_| args.load_state.is_none());
+    if relaxing.is_some() {
+        pictures.still(sim.world_mut(), "before_relax")?;
+    }
+    let mut tracked = Vec::with_capacity(bodies.len());
+    for (i, (body, h)) in bodies.iter().zip(spacings).enumerate() {
+        let relaxed = match relaxing {
+            Some(options) => Some(
+                sim.relax(*body, options)
+                    .map_err(|e| format!("{}: settings.relax: bodies[{i}]: {e}", args.scene))?,
+            ),
+            None => None,
+        };
+        tracked.push(Tracked::new(sim, *body, *h, relaxed)?);
+    }
+    Ok(tracked)
+}
+
+/// Writes `summary.json`, the saved simulation and the state dump as asked, and prints
+/// the table.
+fn write_outputs(sim: &mut Simulation, args: &RunArgs, summary: &Summary) -> Result<(), String> {
+    let out = &args.out;
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create `{}`: {e}", out.display()))?;
+    let path = out.join("summary.json");
+    std::fs::write(
+        &path,
+        serde_json::to_string_pretty(summary).map_err(|e| e.to_string())?,
+    )
+    .map_err(|e| format!("cannot write `{}`: {e}", path.display()))?;
+    if let Some(path) = &args.save_state {
+        let file = std::fs::File::create(path)
+            .map_err(|e| format!("cannot create `{}`: {e}", path.display()))?;
+        sim.save(std::io::BufWriter::new(file))
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    if let Some(file) = &args.dump_state {
+        let state = dump_world(sim.world_mut());
+        std::fs::write(
+            file,
+            serde_json::to_string(&state).map_err(|e| e.to_string())?,
+        )
+        .map_err(|e| format!("cannot write `{}`: {e}", file.display()))?;
+    }
+    if !args.quiet {
+        print_table(summary, &path, out);
+    }
+    Ok(())
+}
+
 /// A progress bar on stderr when it is a terminal (hidden otherwise or with `--quiet`).
-fn progress_bar(frames: u32, quiet: bool) -> ProgressBar {
+pub(crate) fn progress_bar(frames: u32, quiet: bool) -> ProgressBar {
     if quiet || !std::io::stderr().is_terminal() {
         return ProgressBar::hidden();
     }

@@ -4,9 +4,11 @@
 //! derived from the dense indices has to be rebuilt.
 
 use super::rebuild::{dense_members, solver_compliance};
-use super::{BodyDense, BodyItem, ClusterSlots, LayoutChanges, SolverLayout, dense_owner};
+use super::{
+    BodyDense, BodyItem, ClusterItem, ClusterSlots, LayoutChanges, SolverLayout, dense_owner,
+};
 use crate::body::lattice::Lattice;
-use crate::config::SolverMode;
+use crate::config::{SolverMode, Yield};
 use crate::ecs::components::ParticleClusters;
 use crate::ecs::resources::BodyCutReport;
 use crate::solver::clusters::plastic::PlasticSpec;
@@ -15,6 +17,43 @@ use crate::solver::particles::Particles;
 use crate::solver::solve::Solver;
 use bevy_ecs::prelude::*;
 use glam::Quat;
+use std::ops::Range;
+
+/// The clusters a patch lays out again, their members in one flat array.
+struct ChangedClusters {
+    flat: Vec<u32>,
+    entries: Vec<ChangedCluster>,
+}
+
+/// One cluster a patch lays out again.
+struct ChangedCluster {
+    entity: Entity,
+    /// Its members' range in the flat array.
+    members: Range<usize>,
+    compliance: f32,
+    /// Its warm-start rotation (kept from its old slot, if it had one).
+    rotation: Quat,
+    /// Its body's plasticity.
+    yielding: Option<Yield>,
+}
+
+impl ChangedClusters {
+    /// The clusters as the solver takes them (a changed cluster starts again from its
+    /// lattice shape).
+    fn specs(&self) -> Vec<ClusterSpec<'_>> {
+        (self.entries.iter())
+            .map(|c| ClusterSpec {
+                members: &self.flat[c.members.clone()],
+                compliance: c.compliance,
+                rotation: c.rotation,
+                plastic: c.yielding.map(|yielding| PlasticSpec {
+                    yielding,
+                    shift: &[],
+                }),
+            })
+            .collect()
+    }
+}
 
 impl SolverLayout {
     /// Patches the changed clusters and cut particles into the layout, `solver` and
@@ -30,101 +69,24 @@ impl SolverLayout {
         let LayoutChanges {
             bodies: changed_bodies,
             cut,
-            clusters: mut changed,
+            clusters: changed,
             removed,
             indices,
         } = changes;
         if !solver.clusters.can_patch() {
             return false;
         }
-        let body_index = |layout: &Self, body: Entity| {
-            layout.bodies.binary_search_by_key(&body, |b| b.body).ok()
+        let Some(retired) = self.retired(bodies, changed_bodies, cut) else {
+            return false;
         };
-        // Particles cut from their bodies: frozen, and no longer offered to detect.
-        let mut retired = Vec::new();
-        for &body in changed_bodies {
-            let (Some(b), Ok((_, lattice, _))) = (body_index(self, body), bodies.get(body)) else {
-                return false;
-            };
-            let lattice = &lattice.lattice;
-            let entry = &self.bodies[b];
-            if entry.dense.len() != lattice.len() {
-                return false; // a replaced lattice: not a cut
-            }
-            if !retired_from_report(entry, lattice, cut, &self.live, &mut retired)
-                && !retired_by_scan(entry, lattice, &self.live, &mut retired)
-            {
-                return false;
-            }
-            self.bodies[b].live = lattice.live_count();
-        }
-        let mut removed_slots: Vec<u32> = removed
+        let mut freed: Vec<u32> = removed
             .iter()
             .filter_map(|e| self.slot_of.remove(*e, &self.clusters))
             .collect();
-        // (by body and key: an order that does not depend on the entities' ids)
-        changed.sort_unstable_by_key(|(_, _, of, _)| (of.body, of.key));
-        let mut flat = Vec::new();
-        let mut entries = Vec::with_capacity(changed.len());
-        for (e, members, of, compliance) in changed {
-            let (Some(b), Ok((_, _, body))) = (body_index(self, of.body), bodies.get(of.body))
-            else {
-                return false;
-            };
-            let rotation = match self.slot_of.remove(e, &self.clusters) {
-                Some(slot) => {
-                    removed_slots.push(slot);
-                    solver.clusters.rotations()[slot as usize]
-                }
-                None => Quat::IDENTITY,
-            };
-            let start = flat.len();
-            dense_members(&self.bodies[b].dense, &members.0, &mut flat);
-            entries.push((
-                e,
-                start..flat.len(),
-                solver_compliance(compliance),
-                rotation,
-                body.material.yielding(),
-            ));
-        }
-        // (a changed cluster starts again from its lattice shape)
-        let specs: Vec<ClusterSpec> = entries
-            .iter()
-            .map(|(_, range, compliance, rotation, yielding)| ClusterSpec {
-                members: &flat[range.clone()],
-                compliance: *compliance,
-                rotation: *rotation,
-                plastic: yielding.map(|yielding| PlasticSpec {
-                    yielding,
-                    shift: &[],
-                }),
-            })
-            .collect();
-        // Reading the neighbours off the index costs ≈ 18 instructions per membership of
-        // a removed or added cluster, the layout's pass ≈ 7.6 per membership of the
-        // layout; but the index is read at random (cache misses) on one thread and the
-        // pass streams on all, so the index is only chosen for cuts well below a
-        // twelfth of the layout.
-        let touched: usize = removed_slots
-            .iter()
-            .map(|k| solver.clusters.cluster_members(*k as usize).len())
-            .sum::<usize>()
-            + flat.len();
-        let clusters_of = &mut solver.clusters;
-        let patched = if clusters_of.mode() == SolverMode::Jacobi
-            && touched * 12 < clusters_of.membership_count()
-        {
-            let kept = KeptClusters {
-                layout: self,
-                indices: &indices,
-            };
-            clusters_of
-                .patch_with_neighbours(&removed_slots, &specs, |particles| kept.holding(particles))
-        } else {
-            clusters_of.patch(&removed_slots, &specs)
+        let Some(changed) = self.changed_clusters(solver, bodies, changed, &mut freed) else {
+            return false;
         };
-        let Some(slots) = patched else {
+        let Some(slots) = self.patch_clusters(solver, &freed, &changed, &indices) else {
             self.clusters.clear(); // warm starts no longer match their slots
             return false;
         };
@@ -133,20 +95,126 @@ impl SolverLayout {
             self.live[d as usize] = false;
             particles.inv_mass[d as usize] = 0.0;
         }
-        for &slot in &removed_slots {
+        for &slot in &freed {
             self.clusters[slot as usize] = Entity::PLACEHOLDER;
         }
-        for ((e, ..), slot) in entries.iter().zip(slots) {
+        for (c, slot) in changed.entries.iter().zip(slots) {
             if slot == u32::MAX {
                 continue;
             }
             if self.clusters.len() <= slot as usize {
                 self.clusters.resize(slot as usize + 1, Entity::PLACEHOLDER);
             }
-            self.clusters[slot as usize] = *e;
-            self.slot_of.insert(*e, slot);
+            self.clusters[slot as usize] = c.entity;
+            self.slot_of.insert(c.entity, slot);
         }
         true
+    }
+
+    /// The body of `body` in the layout, by its index.
+    fn body_index(&self, body: Entity) -> Option<usize> {
+        self.bodies.binary_search_by_key(&body, |b| b.body).ok()
+    }
+
+    /// The dense particles the changed bodies lost (frozen, and no longer offered to
+    /// detect), each body's live count brought up to date; `None` when a body is not
+    /// the layout's or its lattice was replaced rather than cut.
+    fn retired(
+        &mut self,
+        bodies: &Query<BodyItem>,
+        changed_bodies: &[Entity],
+        cut: &[BodyCutReport],
+    ) -> Option<Vec<u32>> {
+        let mut retired = Vec::new();
+        for &body in changed_bodies {
+            let (Some(b), Ok((_, lattice, _))) = (self.body_index(body), bodies.get(body)) else {
+                return None;
+            };
+            let lattice = &lattice.lattice;
+            let entry = &self.bodies[b];
+            if entry.dense.len() != lattice.len() {
+                return None; // a replaced lattice: not a cut
+            }
+            if !retired_from_report(entry, lattice, cut, &self.live, &mut retired)
+                && !retired_by_scan(entry, lattice, &self.live, &mut retired)
+            {
+                return None;
+            }
+            self.bodies[b].live = lattice.live_count();
+        }
+        Some(retired)
+    }
+
+    /// The changed clusters, in the order of their body and key (not of their entities'
+    /// ids); the slots of those the layout had are added to `freed` (each keeps its
+    /// warm-start rotation). `None` when one's body is not the layout's.
+    fn changed_clusters(
+        &mut self,
+        solver: &Solver,
+        bodies: &Query<BodyItem>,
+        mut changed: Vec<ClusterItem>,
+        freed: &mut Vec<u32>,
+    ) -> Option<ChangedClusters> {
+        changed.sort_unstable_by_key(|(_, _, of, _)| (of.body, of.key));
+        let mut out = ChangedClusters {
+            flat: Vec::new(),
+            entries: Vec::with_capacity(changed.len()),
+        };
+        for (e, members, of, compliance) in changed {
+            let (Some(b), Ok((_, _, body))) = (self.body_index(of.body), bodies.get(of.body))
+            else {
+                return None;
+            };
+            let rotation = match self.slot_of.remove(e, &self.clusters) {
+                Some(slot) => {
+                    freed.push(slot);
+                    solver.clusters.rotations()[slot as usize]
+                }
+                None => Quat::IDENTITY,
+            };
+            let start = out.flat.len();
+            dense_members(&self.bodies[b].dense, &members.0, &mut out.flat);
+            out.entries.push(ChangedCluster {
+                entity: e,
+                members: start..out.flat.len(),
+                compliance: solver_compliance(compliance),
+                rotation,
+                yielding: body.material.yielding(),
+            });
+        }
+        Some(out)
+    }
+
+    /// Frees the `freed` slots of the solver's clusters and lays the `changed` ones in;
+    /// the slot each took, or `None` when the colouring overflowed.
+    fn patch_clusters(
+        &self,
+        solver: &mut Solver,
+        freed: &[u32],
+        changed: &ChangedClusters,
+        indices: &[(Entity, &ParticleClusters)],
+    ) -> Option<Vec<u32>> {
+        let specs = changed.specs();
+        // Reading the neighbours off the index costs ≈ 18 instructions per membership of
+        // a removed or added cluster, the layout's pass ≈ 7.6 per membership of the
+        // layout; but the index is read at random (cache misses) on one thread and the
+        // pass streams on all, so the index is only chosen for cuts well below a
+        // twelfth of the layout.
+        let clusters = &mut solver.clusters;
+        let touched: usize = freed
+            .iter()
+            .map(|k| clusters.cluster_members(*k as usize).len())
+            .sum::<usize>()
+            + changed.flat.len();
+        if clusters.mode() == SolverMode::Jacobi && touched * 12 < clusters.membership_count() {
+            let kept = KeptClusters {
+                layout: self,
+                indices,
+            };
+            clusters.patch_with_neighbours(freed, &specs, |particles| kept.holding(particles))
+        } else {
+            clusters.patch(freed, &specs)
+        }
     }
 }
 

@@ -77,6 +77,38 @@ pub(super) fn restore(
     for (b, e) in bodies.iter().zip(spawn_ascending(world, bodies.len())) {
         map.0.insert(b.entity, e);
     }
+    spawn_particles(world, particles, &mut map)?;
+    spawn_clusters(world, clusters, &mut map)?;
+    let mut handles = LoadedEntities::default();
+    spawn_tools_and_colliders(world, tools, colliders, &mut handles)?;
+    spawn_attachments(world, attachments, &map, &mut handles)?;
+    restore_bodies(world, bodies, &map, memory, &mut handles)?;
+    handles.0.sort_unstable();
+    world.insert_resource(handles);
+    *world.resource_mut::<SimClock>() = clock;
+    *world.resource_mut::<SimRng>() = rng;
+    world.insert_resource(label);
+    let mut cut = cut;
+    for b in &mut cut.bodies {
+        b.body = map.get(b.body);
+    }
+    *world.resource_mut::<CutReport>() = cut;
+    setup(world)?;
+    restore_cache(world, cache, &map)?;
+    world.run_schedule(SyncSchedule);
+    let violations = check_invariants(world);
+    if let Some((_, v)) = violations.first() {
+        return Err(invalid(format!("inconsistent: {v}")));
+    }
+    Ok(loaded)
+}
+
+/// Spawns the saved particles, each checked, in the saved order.
+fn spawn_particles(
+    world: &mut World,
+    particles: Vec<ParticleState>,
+    map: &mut EntityMap,
+) -> Result<()> {
     for p in particles {
         let finite = p.position.0.is_finite()
             && p.velocity.0.is_finite()
@@ -105,6 +137,15 @@ pub(super) fn restore(
             .id();
         map.0.insert(p.entity, e);
     }
+    Ok(())
+}
+
+/// Spawns the saved clusters.
+fn spawn_clusters(
+    world: &mut World,
+    clusters: Vec<ClusterState>,
+    map: &mut EntityMap,
+) -> Result<()> {
     for c in clusters {
         let of = ClusterOf {
             body: map.required(c.of.body, "a cluster")?,
@@ -113,7 +154,16 @@ pub(super) fn restore(
         let e = world.spawn((c.members, of, c.compliance)).id();
         map.0.insert(c.entity, e);
     }
-    let mut handles = LoadedEntities::default();
+    Ok(())
+}
+
+/// Spawns the saved tools and colliders, noting each one's new entity.
+fn spawn_tools_and_colliders(
+    world: &mut World,
+    tools: Vec<ToolState>,
+    colliders: Vec<ColliderState>,
+    handles: &mut LoadedEntities,
+) -> Result<()> {
     for t in tools {
         let mut e = world.spawn((t.tool, t.pose));
         if let Some(path) = t.path {
@@ -132,7 +182,17 @@ pub(super) fn restore(
         }
         handles.0.push((c.entity, e.id()));
     }
-    // (attachments reach their terms in entity order: saved ascending, so spawned)
+    Ok(())
+}
+
+/// Spawns the saved attachments, in the saved (entity) order, in which they reach their
+/// terms.
+fn spawn_attachments(
+    world: &mut World,
+    attachments: Vec<AttachmentState>,
+    map: &EntityMap,
+    handles: &mut LoadedEntities,
+) -> Result<()> {
     let ids = spawn_ascending(world, attachments.len());
     for (a, id) in attachments.into_iter().zip(ids) {
         let attachment = Attachment {
@@ -149,6 +209,18 @@ pub(super) fn restore(
         }
         handles.0.push((a.entity, e.id()));
     }
+    Ok(())
+}
+
+/// Gives every body entity its saved components: lattice (its particles mapped),
+/// clusters index, surface and handle pose, each checked.
+fn restore_bodies(
+    world: &mut World,
+    bodies: Vec<BodyState>,
+    map: &EntityMap,
+    memory: u64,
+    handles: &mut LoadedEntities,
+) -> Result<()> {
     for (i, b) in bodies.into_iter().enumerate() {
         if let Some((edge, c)) = b.lattice.lattice.invalid_crossing() {
             return Err(invalid(format!(
@@ -190,24 +262,7 @@ pub(super) fn restore(
         }
         handles.0.push((b.entity, body));
     }
-    handles.0.sort_unstable();
-    world.insert_resource(handles);
-    *world.resource_mut::<SimClock>() = clock;
-    *world.resource_mut::<SimRng>() = rng;
-    world.insert_resource(label);
-    let mut cut = cut;
-    for b in &mut cut.bodies {
-        b.body = map.get(b.body);
-    }
-    *world.resource_mut::<CutReport>() = cut;
-    setup(world)?;
-    restore_cache(world, cache, &map)?;
-    world.run_schedule(SyncSchedule);
-    let violations = check_invariants(world);
-    if let Some((_, v)) = violations.first() {
-        return Err(invalid(format!("inconsistent: {v}")));
-    }
-    Ok(loaded)
+    Ok(())
 }
 
 /// Takes every entity index below `bound` once and frees it again, each past the
