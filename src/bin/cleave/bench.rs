@@ -1,9 +1,9 @@
 //! `cleave bench`: the report of [`cleave::analysis::bench`] as a table or as JSON lines.
 
 use cleave::analysis::bench::{
-    CONVERGED_RESIDUAL, ConvergenceOptions, bench_edges, bench_size, convergence,
+    BenchRow, CONVERGED_RESIDUAL, ConvergenceOptions, EdgeRow, bench_edges, bench_size, convergence,
 };
-use cleave::analysis::bench_pile::bench_pile;
+use cleave::analysis::bench_pile::{PileRow, bench_pile};
 use cleave::analysis::bench_surface::bench_surface;
 use cleave::config::SimConfig;
 
@@ -27,6 +27,45 @@ pub fn bench(
     pile: PileOptions,
     no_edges: bool,
 ) -> Result<(), String> {
+    let sizes = checked_sizes(sizes, steps, &pile, &config)?;
+    if !json {
+        print_size_header(&config, steps);
+    }
+    for &n in &sizes {
+        let row = bench_size(n, steps, &config).map_err(|e| e.to_string())?;
+        if json {
+            print_json(&row)?;
+        } else {
+            print_size_row(&row);
+        }
+    }
+    if let (false, Some(&n)) = (no_edges, sizes.last()) {
+        let row = bench_edges(n, steps, &config).map_err(|e| e.to_string())?;
+        if json {
+            print_json(&row)?;
+        } else {
+            print_edge_row(&row);
+        }
+    }
+    if let Some(spacing) = pile.spacing {
+        let row = bench_pile(spacing, pile.frames, &config).map_err(|e| e.to_string())?;
+        if json {
+            print_json(&row)?;
+        } else {
+            print_pile_row(&row);
+        }
+    }
+    Ok(())
+}
+
+/// The sizes asked for, ascending and each once; an error for a size past what the
+/// memory budget allows, a pile spacing out of range or no timed step.
+fn checked_sizes(
+    sizes: &[u32],
+    steps: usize,
+    pile: &PileOptions,
+    config: &SimConfig,
+) -> Result<Vec<u32>, String> {
     if let Some(h) = pile.spacing
         && !(h.is_finite() && (0.02..=0.5).contains(&h))
     {
@@ -50,117 +89,106 @@ pub fn bench(
     let mut sizes = sizes.to_vec();
     sizes.sort_unstable();
     sizes.dedup();
-    if !json {
-        println!(
-            "cleave bench: {}, {} substeps × {} iterations, {} timed steps, {} thread(s), {} lanes",
-            config.solver,
-            config.substeps,
-            config.iterations,
-            steps,
-            rayon::current_num_threads(),
-            cleave::math::simd::backend()
-        );
-        println!(
-            "{:>5} {:>9} {:>8} {:>11} {:>10} {:>9} {:>10} {:>9} {:>7} {:>8} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>11} {:>10} {:>9}",
-            "size",
-            "particles",
-            "clusters",
-            "memberships",
-            "ms/step",
-            "ns/m-it",
-            "bare ms",
-            "bare ns",
-            "ratio",
-            "B/part",
-            "cut ms",
-            "cut frame",
-            "sever ms",
-            "sev frame",
-            "split ms",
-            "spl frame",
-            "recluster",
-            "relayout",
-            "rebuild"
-        );
-    }
-    for &n in &sizes {
-        let row = bench_size(n, steps, &config).map_err(|e| e.to_string())?;
-        if json {
-            print_json(&row)?;
-        } else {
-            println!(
-                "{:>5} {:>9} {:>8} {:>11} {:>10.3} {:>9.3} {:>10.3} {:>9.3} {:>7.3} {:>8.0} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>11.3} {:>9.3}{} {:>9.3}",
-                row.size,
-                row.particles,
-                row.clusters,
-                row.memberships,
-                row.ms_per_step,
-                row.ns_per_membership_iteration,
-                row.bare_ms_per_step,
-                row.bare_ns_per_membership_iteration,
-                row.engine_over_bare,
-                row.bytes_per_particle,
-                row.cut_event_ms,
-                row.cut_frame_ms,
-                row.sever_event_ms,
-                row.sever_frame_ms,
-                row.split_event_ms,
-                row.split_frame_ms,
-                row.recluster_ms,
-                row.relayout_ms,
-                if row.relayout_patched { "p" } else { "r" },
-                row.rebuild_ms
-            );
-            let kinds: Vec<String> = row
-                .kinds
-                .iter()
-                .map(|k| format!("{} {:.3}", k.name, k.ms_per_step))
-                .collect();
-            println!("      ms/step by part: {}", kinds.join(", "));
-        }
-    }
-    if let (false, Some(&n)) = (no_edges, sizes.last()) {
-        let row = bench_edges(n, steps, &config).map_err(|e| e.to_string())?;
-        if json {
-            print_json(&row)?;
-        } else {
-            println!(
-                "edges: {}³ box, {} edge constraints; {:.3} ms/step, edges {:.3} ms/step, \
-                 {:.2} ns per edge-iteration",
-                row.size,
-                row.edges,
-                row.ms_per_step,
-                row.edge_ms_per_step,
-                row.ns_per_edge_iteration
-            );
-        }
-    }
-    if let Some(spacing) = pile.spacing {
-        let row = bench_pile(spacing, pile.frames, &config).map_err(|e| e.to_string())?;
-        if json {
-            print_json(&row)?;
-        } else {
-            println!(
-                "pile (contacts): {} bodies, {} particles at h = {}, {} taking part, {} pairs; \
-                 {:.3} ms/step with contacts, {:.3} without: ×{:.2}; contacts {:.2} ns per particle-iteration; \
-                 in the step: contacts {:.3} ms, +{:.0} % on the rest; a far blade's detection {:.3} ms ({:.2} % of the step)",
-                row.bodies,
-                row.particles,
-                row.spacing,
-                row.contact_particles,
-                row.contact_pairs,
-                row.ms_per_step,
-                row.ms_per_step_without_contacts,
-                row.contacts_over_without,
-                row.contact_ns_per_particle_iteration,
-                row.contact_ms_per_step,
-                100.0 * row.contact_share,
-                row.far_tool_detect_ms_per_step,
-                100.0 * row.far_tool_detect_share
-            );
-        }
-    }
-    Ok(())
+    Ok(sizes)
+}
+
+/// The size table's title and column names.
+fn print_size_header(config: &SimConfig, steps: usize) {
+    println!(
+        "cleave bench: {}, {} substeps × {} iterations, {} timed steps, {} thread(s), {} lanes",
+        config.solver,
+        config.substeps,
+        config.iterations,
+        steps,
+        rayon::current_num_threads(),
+        cleave::math::simd::backend()
+    );
+    println!(
+        "{:>5} {:>9} {:>8} {:>11} {:>10} {:>9} {:>10} {:>9} {:>7} {:>8} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>11} {:>10} {:>9}",
+        "size",
+        "particles",
+        "clusters",
+        "memberships",
+        "ms/step",
+        "ns/m-it",
+        "bare ms",
+        "bare ns",
+        "ratio",
+        "B/part",
+        "cut ms",
+        "cut frame",
+        "sever ms",
+        "sev frame",
+        "split ms",
+        "spl frame",
+        "recluster",
+        "relayout",
+        "rebuild"
+    );
+}
+
+/// One size's row, and its step's time by part.
+fn print_size_row(row: &BenchRow) {
+    println!(
+        "{:>5} {:>9} {:>8} {:>11} {:>10.3} {:>9.3} {:>10.3} {:>9.3} {:>7.3} {:>8.0} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>11.3} {:>9.3}{} {:>9.3}",
+        row.size,
+        row.particles,
+        row.clusters,
+        row.memberships,
+        row.ms_per_step,
+        row.ns_per_membership_iteration,
+        row.bare_ms_per_step,
+        row.bare_ns_per_membership_iteration,
+        row.engine_over_bare,
+        row.bytes_per_particle,
+        row.cut_event_ms,
+        row.cut_frame_ms,
+        row.sever_event_ms,
+        row.sever_frame_ms,
+        row.split_event_ms,
+        row.split_frame_ms,
+        row.recluster_ms,
+        row.relayout_ms,
+        if row.relayout_patched { "p" } else { "r" },
+        row.rebuild_ms
+    );
+    let kinds: Vec<String> = row
+        .kinds
+        .iter()
+        .map(|k| format!("{} {:.3}", k.name, k.ms_per_step))
+        .collect();
+    println!("      ms/step by part: {}", kinds.join(", "));
+}
+
+/// The edge constraints' row.
+fn print_edge_row(row: &EdgeRow) {
+    println!(
+        "edges: {}³ box, {} edge constraints; {:.3} ms/step, edges {:.3} ms/step, \
+         {:.2} ns per edge-iteration",
+        row.size, row.edges, row.ms_per_step, row.edge_ms_per_step, row.ns_per_edge_iteration
+    );
+}
+
+/// The pile's row.
+fn print_pile_row(row: &PileRow) {
+    println!(
+        "pile (contacts): {} bodies, {} particles at h = {}, {} taking part, {} pairs; \
+         {:.3} ms/step with contacts, {:.3} without: ×{:.2}; contacts {:.2} ns per particle-iteration; \
+         in the step: contacts {:.3} ms, +{:.0} % on the rest; a far blade's detection {:.3} ms ({:.2} % of the step)",
+        row.bodies,
+        row.particles,
+        row.spacing,
+        row.contact_particles,
+        row.contact_pairs,
+        row.ms_per_step,
+        row.ms_per_step_without_contacts,
+        row.contacts_over_without,
+        row.contact_ns_per_particle_iteration,
+        row.contact_ms_per_step,
+        100.0 * row.contact_share,
+        row.far_tool_detect_ms_per_step,
+        100.0 * row.far_tool_detect_share
+    );
 }
 
 /// `cleave bench --surface`: a surface row per size (see

@@ -1,6 +1,7 @@
 //! The `cleave` command-line program: run scenes, list them, benchmark the engine.
 
 mod bench;
+mod bench_flags;
 mod fidelity;
 mod flags;
 mod notices;
@@ -12,7 +13,7 @@ mod summary;
 mod view;
 
 use clap::{Parser, Subcommand};
-use cleave::config::{Model, SimConfig, SolverMode};
+use cleave::config::{Model, SolverMode};
 use cleave::cut::tool::CutMode;
 use cleave::ecs::handles::PoseMethod;
 use cleave::io::render::{ColorMode, Draw};
@@ -20,7 +21,7 @@ use cleave::io::scene::BUILTIN_SCENES;
 use cleave::io::scene_file::SceneFile;
 #[cfg(feature = "viewer")]
 use flags::token;
-use flags::{budget_seconds, frame_count, whole};
+use flags::{frame_count, whole};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -172,74 +173,7 @@ enum Command {
         action: Option<ScenesAction>,
     },
     /// Benchmark boxes of n³ particles: engine vs bare kernel, memory, cut event.
-    Bench {
-        /// Print one JSON object per row.
-        #[arg(long)]
-        json: bool,
-        /// Box edge lengths in particles.
-        #[arg(long, value_delimiter = ',', default_value = "16,32,48,64", value_parser = whole::<u32>, allow_negative_numbers = true)]
-        sizes: Vec<u32>,
-        /// Worker threads (default: all cores).
-        #[arg(long, value_parser = whole::<usize>, allow_negative_numbers = true)]
-        threads: Option<usize>,
-        /// Timed steps per size (median reported).
-        #[arg(long, default_value_t = 30, value_parser = whole::<usize>, allow_negative_numbers = true)]
-        steps: usize,
-        /// Solver scheme: jacobi, gauss-seidel or projective.
-        #[arg(long, default_value = "jacobi")]
-        solver: SolverMode,
-        /// Instead of the sizes and the pile: how fast each solver converges on two static
-        /// solves (a twisted box, the `cantilever`), one row per solver.
-        #[arg(long)]
-        convergence: bool,
-        /// With `--convergence`: edge of the twisted box in particles.
-        #[arg(long, default_value_t = 32, value_parser = whole::<u32>, allow_negative_numbers = true)]
-        convergence_size: u32,
-        /// With `--convergence`: wall-clock budget of each run, in seconds.
-        #[arg(long, default_value_t = 120.0, value_parser = budget_seconds, allow_negative_numbers = true)]
-        budget: f64,
-        /// Substeps per frame (step).
-        #[arg(long, default_value_t = 2, value_parser = whole::<u32>, allow_negative_numbers = true)]
-        substeps: u32,
-        /// Solver iterations per substep.
-        #[arg(long, default_value_t = 10, value_parser = whole::<u32>, allow_negative_numbers = true)]
-        iterations: u32,
-        /// Lattice spacing of the contact row's `pile` scene (0.025: about 40k particles).
-        #[arg(long, default_value_t = 0.025)]
-        pile_spacing: f32,
-        /// Frames of the contact row.
-        #[arg(long, default_value_t = 160, value_parser = frame_count, allow_negative_numbers = true)]
-        pile_frames: u32,
-        /// Skip the contact row.
-        #[arg(long)]
-        no_pile: bool,
-        /// Skip the edge-constraint row (a box of the largest size with edge constraints).
-        #[arg(long)]
-        no_edges: bool,
-        /// Instead of the engine rows: what each size's drawable surface costs (the
-        /// per-frame update, the extraction intact and after a slice).
-        #[arg(long)]
-        surface: bool,
-        /// Instead of the engine rows: whole frames as a game steps them, surfaces on —
-        /// the median, 95th percentile and slowest frame, the same for the frames that
-        /// cut, and each cut frame's time by stage — for `cuts` in each cut mode, a 32³
-        /// block crossed by a blade every 10 frames in each mode and a 64³ box sliced
-        /// once, each against the same bodies without their tools.
-        #[arg(long)]
-        cutting: bool,
-        /// Turn conservative culling off (to compare: the results are the same).
-        #[arg(long)]
-        no_culling: bool,
-        /// Instead of the engine rows: what handle deformation costs (the subspace's
-        /// weights at 16³ and 32³, the pose at 64³, full ARAP at 32³, reduced ARAP and
-        /// reduced projective dynamics at 64³), in one run.
-        #[arg(long)]
-        deform: bool,
-        /// `oriented`: instead of the engine rows, each size's box in both models in one
-        /// run — step times, and each model's elastic part per membership-iteration.
-        #[arg(long)]
-        model: Option<Model>,
-    },
+    Bench(bench_flags::BenchFlags),
     /// Serve an interactive page: the simulation runs here, the browser draws it; orbit,
     /// cut with a mouse stroke, grab and drag.
     #[cfg(feature = "viewer")]
@@ -481,60 +415,7 @@ fn main() -> ExitCode {
             };
             fidelity::fidelity(options, json)
         }),
-        Command::Bench {
-            json,
-            sizes,
-            threads,
-            steps,
-            solver,
-            convergence,
-            convergence_size,
-            budget,
-            substeps,
-            iterations,
-            pile_spacing,
-            pile_frames,
-            no_pile,
-            no_edges,
-            surface,
-            cutting,
-            no_culling,
-            deform,
-            model,
-        } => with_threads(threads, |_| {
-            if deform {
-                return bench::bench_deform(steps, json);
-            }
-            if cutting {
-                return bench::bench_cutting(json);
-            }
-            let config = SimConfig {
-                solver,
-                substeps,
-                iterations,
-                culling: !no_culling,
-                ..SimConfig::default()
-            };
-            config.validate().map_err(|e| e.to_string())?;
-            if convergence {
-                let options = cleave::analysis::bench::ConvergenceOptions {
-                    box_size: convergence_size,
-                    budget_seconds: budget,
-                };
-                return bench::bench_convergence(options, json);
-            }
-            if surface {
-                return bench::bench_surfaces(&sizes, steps, &config, json);
-            }
-            if model == Some(Model::Oriented) {
-                return bench::bench_models(&sizes, steps, &config, json);
-            }
-            let pile = bench::PileOptions {
-                spacing: (!no_pile).then_some(pile_spacing),
-                frames: pile_frames,
-            };
-            bench::bench(&sizes, steps, config, json, pile, no_edges)
-        }),
+        Command::Bench(flags) => with_threads(flags.threads, |_| bench_flags::bench(flags)),
         #[cfg(feature = "viewer")]
         Command::View {
             scene,
