@@ -21,6 +21,7 @@ use crate::ecs::resources::{
     ParticlesSplit,
 };
 use bevy_ecs::prelude::*;
+use bevy_ecs::system::SystemParam;
 use glam::Vec3;
 use std::borrow::Cow;
 
@@ -44,10 +45,7 @@ pub fn cut(
     mut bodies: Query<(Entity, &Body, &mut BodyLattice, &ParticleClusters)>,
     mut despawned: RemovedComponents<Particle>,
     mut despawned_here: Local<Vec<Entity>>,
-    mut particles_cut: MessageWriter<ParticlesCut>,
-    mut edges_severed: MessageWriter<EdgesSevered>,
-    mut particles_split: MessageWriter<ParticlesSplit>,
-    mut body_split: MessageWriter<BodySplit>,
+    mut messages: CutMessages,
     mut particles: Query<ParticleState>,
 ) {
     report.bodies.clear();
@@ -88,22 +86,7 @@ pub fn cut(
         severed.extend(cut.grazed.iter().copied().filter(|&(a, b)| {
             !(lattice.is_carved(a) && lattice.is_carved(b)) && lattice.sever(a, b)
         }));
-        // where the tools crossed the edges they cut (a torn edge has no crossing)
-        for &(a, b) in &severed {
-            if let Some(c) = cut.crossing(a, b) {
-                body.lattice.set_crossing(a, b, c);
-            }
-        }
-        for &(p, moves, _) in &cut.splits.splits {
-            for d in (0..6).filter(|&d| moves[d]) {
-                // (the pairs follow the plan, ascending by particle)
-                let q = (splits.binary_search_by_key(&p, |s| s.0).ok())
-                    .map_or(NO_PARTICLE, |k| body.lattice.link(splits[k].1, d));
-                if let Some(c) = cut.crossing(p, q).filter(|_| q != NO_PARTICLE) {
-                    body.lattice.set_crossing(p, q, c);
-                }
-            }
-        }
+        set_crossings(&mut body, cut, &severed, &splits);
         let min_piece = material.material.tear_min_piece as usize;
         let torn = sever_keeping_pieces(&mut body.lattice, &cut.torn, min_piece);
         for &(a, b) in severed.iter().chain(&torn) {
@@ -129,40 +112,81 @@ pub fn cut(
         cut_clusters.dedup();
         let before = body.pieces;
         body.pieces = body.lattice.piece_count();
-        if body.pieces != before {
-            body_split.write(BodySplit {
-                body: cut.body,
-                pieces_before: before,
-                pieces_after: body.pieces,
-            });
-        }
-        if !removed.is_empty() {
-            particles_cut.write(ParticlesCut {
-                body: cut.body,
-                particles: removed.clone(),
-            });
-        }
-        if !(severed.is_empty() && torn.is_empty()) {
-            edges_severed.write(EdgesSevered {
-                body: cut.body,
-                edges: severed.clone(),
-                torn: torn.clone(),
-            });
-        }
-        if !splits.is_empty() {
-            particles_split.write(ParticlesSplit {
-                body: cut.body,
-                pairs: splits.clone(),
-            });
-        }
-        report.bodies.push(BodyCutReport {
+        let report_body = BodyCutReport {
             body: cut.body,
             removed,
             splits,
             relinked,
-            severed: [severed, torn].concat(),
+            severed: [severed, torn.clone()].concat(),
             cut_clusters,
-        });
+        };
+        messages.announce(&report_body, before, body.pieces, &torn);
+        report.bodies.push(report_body);
+    }
+}
+
+/// What the cut stage tells outside code.
+#[derive(SystemParam)]
+pub struct CutMessages<'w> {
+    particles_cut: MessageWriter<'w, ParticlesCut>,
+    edges_severed: MessageWriter<'w, EdgesSevered>,
+    particles_split: MessageWriter<'w, ParticlesSplit>,
+    body_split: MessageWriter<'w, BodySplit>,
+}
+
+impl CutMessages<'_> {
+    /// The messages of one body's cut: its pieces (from `before` to `after`), the
+    /// particles removed, the edges severed (the tools' and the `torn`), the particles
+    /// split.
+    fn announce(&mut self, cut: &BodyCutReport, before: usize, after: usize, torn: &[(u32, u32)]) {
+        let body = cut.body;
+        if after != before {
+            self.body_split.write(BodySplit {
+                body,
+                pieces_before: before,
+                pieces_after: after,
+            });
+        }
+        if !cut.removed.is_empty() {
+            self.particles_cut.write(ParticlesCut {
+                body,
+                particles: cut.removed.clone(),
+            });
+        }
+        if !cut.severed.is_empty() {
+            let edges = cut.severed[..cut.severed.len() - torn.len()].to_vec();
+            self.edges_severed.write(EdgesSevered {
+                body,
+                edges,
+                torn: torn.to_vec(),
+            });
+        }
+        if !cut.splits.is_empty() {
+            self.particles_split.write(ParticlesSplit {
+                body,
+                pairs: cut.splits.clone(),
+            });
+        }
+    }
+}
+
+/// Records where the tools crossed the edges they cut (a torn edge has no crossing),
+/// and the edges between split particles' halves.
+fn set_crossings(body: &mut BodyLattice, cut: &BodyCut, severed: &[(u32, u32)], splits: &Pairs) {
+    for &(a, b) in severed {
+        if let Some(c) = cut.crossing(a, b) {
+            body.lattice.set_crossing(a, b, c);
+        }
+    }
+    for &(p, moves, _) in &cut.splits.splits {
+        for d in (0..6).filter(|&d| moves[d]) {
+            // (the pairs follow the plan, ascending by particle)
+            let q = (splits.binary_search_by_key(&p, |s| s.0).ok())
+                .map_or(NO_PARTICLE, |k| body.lattice.link(splits[k].1, d));
+            if let Some(c) = cut.crossing(p, q).filter(|_| q != NO_PARTICLE) {
+                body.lattice.set_crossing(p, q, c);
+            }
+        }
     }
 }
 

@@ -89,61 +89,8 @@ pub fn detect(
         )
         .chain(std::iter::once((carving.iter().collect(), Severed::Grazed)));
     for (tools, kind) in groups {
-        if tools.is_empty() {
-            continue;
-        }
-        let (bodies_dense, locals) = (cache.layout.bodies(), cache.layout.locals());
-        for (k, b) in bodies_dense.iter().enumerate() {
-            let Ok((_, lattice)) = bodies.get(b.body) else {
-                continue;
-            };
-            let lattice = &lattice.lattice;
-            // the body's slots: up to the next body's (its lattice may have more
-            // particles than slots, those it had lost when it was laid out)
-            let next = bodies_dense
-                .get(k + 1)
-                .map_or(positions.len(), |n| n.first as usize);
-            let range = b.first as usize..next.min(positions.len());
-            let partners = |i: usize| {
-                let local = locals[i];
-                [1, 3, 5].map(|d| match lattice.link(local, d) {
-                    NO_PARTICLE => u32::MAX,
-                    n => b.slot(n).map_or(u32::MAX, |s| s as u32),
-                })
-            };
-            let separated = edges_separated(
-                positions,
-                cache.layout.live(),
-                range,
-                partners,
-                &tools,
-                near,
-            );
-            if separated.is_empty() {
-                continue;
-            }
-            let position = |p: u32| b.position(positions, p);
-            let mut edges = Vec::with_capacity(separated.len());
-            let mut crossings = Vec::with_capacity(separated.len());
-            let mut turn = Quat::IDENTITY;
-            for s in separated {
-                let (a, q) = (locals[s.ends.0], locals[s.ends.1]);
-                let c = rest_crossing(lattice, a, s.fraction, s.normal, position, &mut turn);
-                edges.push((a.min(q), a.max(q)));
-                crossings.push(((a.min(q), a.max(q)), if a < q { c } else { c.reversed() }));
-            }
-            let cut = BodyCut::entry(&mut out.cuts, b.body);
-            cut.crossings.append(&mut crossings);
-            match kind {
-                Severed::Edges => cut.edges.append(&mut edges),
-                Severed::Grazed => cut.grazed.append(&mut edges),
-                Severed::Split(plane) => {
-                    edges.sort_unstable();
-                    let plan = plan_splits(lattice, &edges, position, plane);
-                    cut.splits.splits.extend(plan.splits);
-                    cut.splits.sever.extend(plan.sever);
-                }
-            }
+        if !tools.is_empty() {
+            separate_edges(&cache, &bodies, &tools, kind, near, &mut out.cuts);
         }
     }
     out.cuts.sort_by_key(|c| c.body);
@@ -160,6 +107,66 @@ pub fn detect(
         }
     }
     culling.last_ms = start.elapsed().as_secs_f64() * 1e3;
+}
+
+/// Adds to each body's cut the edges `tools` separate, with where each is crossed,
+/// as `kind` says (severed, grazed, or planned as splits).
+fn separate_edges(
+    cache: &SolverCache,
+    bodies: &Query<(&Body, &BodyLattice)>,
+    tools: &[&ToolSweep],
+    kind: Severed,
+    near: Option<&[bool]>,
+    cuts: &mut Vec<BodyCut>,
+) {
+    let positions = &cache.particles.positions;
+    let (bodies_dense, locals) = (cache.layout.bodies(), cache.layout.locals());
+    for (k, b) in bodies_dense.iter().enumerate() {
+        let Ok((_, lattice)) = bodies.get(b.body) else {
+            continue;
+        };
+        let lattice = &lattice.lattice;
+        // the body's slots: up to the next body's (its lattice may have more
+        // particles than slots, those it had lost when it was laid out)
+        let next = bodies_dense
+            .get(k + 1)
+            .map_or(positions.len(), |n| n.first as usize);
+        let range = b.first as usize..next.min(positions.len());
+        let partners = |i: usize| {
+            let local = locals[i];
+            [1, 3, 5].map(|d| match lattice.link(local, d) {
+                NO_PARTICLE => u32::MAX,
+                n => b.slot(n).map_or(u32::MAX, |s| s as u32),
+            })
+        };
+        let separated =
+            edges_separated(positions, cache.layout.live(), range, partners, tools, near);
+        if separated.is_empty() {
+            continue;
+        }
+        let position = |p: u32| b.position(positions, p);
+        let mut edges = Vec::with_capacity(separated.len());
+        let mut crossings = Vec::with_capacity(separated.len());
+        let mut turn = Quat::IDENTITY;
+        for s in separated {
+            let (a, q) = (locals[s.ends.0], locals[s.ends.1]);
+            let c = rest_crossing(lattice, a, s.fraction, s.normal, position, &mut turn);
+            edges.push((a.min(q), a.max(q)));
+            crossings.push(((a.min(q), a.max(q)), if a < q { c } else { c.reversed() }));
+        }
+        let cut = BodyCut::entry(cuts, b.body);
+        cut.crossings.append(&mut crossings);
+        match kind {
+            Severed::Edges => cut.edges.append(&mut edges),
+            Severed::Grazed => cut.grazed.append(&mut edges),
+            Severed::Split(plane) => {
+                edges.sort_unstable();
+                let plan = plan_splits(lattice, &edges, position, plane);
+                cut.splits.splits.extend(plan.splits);
+                cut.splits.sever.extend(plan.sever);
+            }
+        }
+    }
 }
 
 /// Adds to each body's cut where the carving tools cross the edges from the particles

@@ -431,3 +431,98 @@ fn no_source_file_passes_600_lines() {
     long.sort();
     assert!(long.is_empty(), "over {MAX_LINES} lines: {long:?}");
 }
+
+/// Longest function the house allows, in lines.
+const MAX_FUNCTION_LINES: usize = 120;
+
+/// The functions of `source` (formatted by rustfmt, so a function's body closes on the
+/// first line holding only `}` at the indent its `fn` line has), unit tests left out:
+/// each one's name and length in lines.
+fn function_lengths(source: &str) -> Vec<(String, usize)> {
+    let lines: Vec<&str> = source.lines().collect();
+    let indent = |l: &str| l.len() - l.trim_start().len();
+    let close = |from: usize, at: usize| {
+        (from..lines.len()).find(|&j| indent(lines[j]) == at && lines[j].trim() == "}")
+    };
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < lines.len() {
+        let line = lines[i].trim_start();
+        if line.starts_with("#[cfg(test)]") {
+            // the test module (or item) that follows, whole
+            let at = indent(lines[i]);
+            i = close(i + 1, at).map_or(lines.len(), |j| j + 1);
+            continue;
+        }
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let fn_at = words.iter().position(|w| *w == "fn");
+        let is_fn = fn_at.is_some_and(|k| {
+            k + 1 < words.len()
+                && words[..k].iter().all(|w| {
+                    w.starts_with("pub") || ["const", "async", "unsafe", "extern"].contains(w)
+                })
+        });
+        if let (true, Some(k)) = (is_fn, fn_at) {
+            let name: String = words[k + 1]
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_')
+                .collect();
+            // a declaration without a body (in a trait) ends on its own line
+            let header_end = (i..lines.len()).find(|&j| {
+                let t = lines[j].trim_end();
+                t.ends_with('{') || t.ends_with(';')
+            });
+            if let Some(h) = header_end
+                && lines[h].trim_end().ends_with('{')
+                && let Some(end) = close(h, indent(lines[i]))
+            {
+                out.push((name, end - i + 1));
+            }
+        }
+        i += 1;
+    }
+    out
+}
+
+#[test]
+fn no_function_passes_120_lines() {
+    let top = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut long = Vec::new();
+    let mut longest = (0, String::new());
+    let mut folders: Vec<PathBuf> = ["src", "systems"].iter().map(|d| top.join(d)).collect();
+    while let Some(folder) = folders.pop() {
+        for entry in std::fs::read_dir(&folder).expect("a folder").flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                folders.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                for (name, lines) in function_lengths(&read(&path)) {
+                    let at = format!("{}: {name}", path.display());
+                    if lines >= MAX_FUNCTION_LINES {
+                        long.push(format!("{at} ({lines} lines)"));
+                    }
+                    if lines > longest.0 {
+                        longest = (lines, at);
+                    }
+                }
+            }
+        }
+    }
+    long.sort();
+    assert!(
+        long.is_empty(),
+        "{MAX_FUNCTION_LINES} lines or more: {long:?}"
+    );
+    // (the check sees functions at all: the longest is a real one, and long enough)
+    assert!(longest.0 > 60, "longest function found: {longest:?}");
+    println!("longest function: {} ({} lines)", longest.1, longest.0);
+}
+
+#[test]
+fn function_lengths_are_counted_to_the_closing_brace() {
+    let source = "pub fn a(\n    x: u32,\n) -> u32 {\n    x\n}\n\nimpl T {\n    fn b(&self) {\n        if true {\n        }\n    }\n    fn c(&self);\n}\n\n#[cfg(test)]\nmod tests {\n    fn long() {\n    }\n}\n";
+    assert_eq!(
+        function_lengths(source),
+        [("a".to_string(), 5), ("b".to_string(), 4)]
+    );
+}

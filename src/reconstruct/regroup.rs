@@ -71,24 +71,8 @@ pub fn regroup<S: ClusterStore>(
         cut: &cut,
     };
     // 3.1: the pieces of every cut cluster, and their intact neighbours.
-    let pieces = {
-        let lists: Vec<&[u32]> = cut.iter().map(|k| store.members(*k)).collect();
-        let found: Vec<Pieces> = lists
-            .par_chunks(CUT_PER_TASK)
-            .map_init(PieceScratch::default, |scratch, lists| {
-                let mut out = Pieces::default();
-                for members in lists {
-                    scratch.find(members, &view, &mut out);
-                }
-                out
-            })
-            .collect();
-        let mut all = Pieces::default();
-        for chunk in found {
-            all.append(chunk);
-        }
-        all
-    };
+    let lists: Vec<&[u32]> = cut.iter().map(|k| store.members(*k)).collect();
+    let pieces = find_pieces(&lists, &view);
     // first piece of each cut cluster
     let mut first = Vec::with_capacity(cut.len() + 1);
     first.push(0u32);
@@ -109,24 +93,7 @@ pub fn regroup<S: ClusterStore>(
         .collect();
     groups.sort_unstable();
     let groups: Vec<&[(u32, u32)]> = groups.chunk_by(|a, b| a.0 == b.0).collect();
-    let unions: Vec<(Vec<u32>, Vec<[u32; 2]>)> = groups
-        .par_chunks(GROUPS_PER_TASK)
-        .map(|groups| {
-            let (mut particles, mut spans) = (Vec::new(), Vec::with_capacity(groups.len()));
-            for group in groups {
-                let start = particles.len();
-                for (_, p) in *group {
-                    particles.extend_from_slice(pieces.members(*p as usize));
-                }
-                if group.len() > 1 {
-                    let len = sort_dedup(&mut particles[start..]);
-                    particles.truncate(start + len);
-                }
-                spans.push([start as u32, particles.len() as u32]);
-            }
-            (particles, spans)
-        })
-        .collect();
+    let unions = merged_members(&groups, &pieces);
     let owner_of_piece = |p: u32| first.partition_point(|f| *f <= p) - 1;
     let mut edits = ClusterEdits::default();
     let mut produced = Vec::with_capacity(groups.len());
@@ -175,6 +142,49 @@ pub fn regroup<S: ClusterStore>(
     produced.sort_unstable();
     produced.dedup();
     produced
+}
+
+/// The pieces of the cut clusters whose member `lists` these are, in order (in
+/// parallel, each task's pieces appended in order).
+fn find_pieces(lists: &[&[u32]], view: &CutView) -> Pieces {
+    let found: Vec<Pieces> = lists
+        .par_chunks(CUT_PER_TASK)
+        .map_init(PieceScratch::default, |scratch, lists| {
+            let mut out = Pieces::default();
+            for members in lists {
+                scratch.find(members, view, &mut out);
+            }
+            out
+        })
+        .collect();
+    let mut all = Pieces::default();
+    for chunk in found {
+        all.append(chunk);
+    }
+    all
+}
+
+/// Each merge group's members — the union of its pieces', sorted when more than one —
+/// in parallel: per task, the members in one list and each group's span of it.
+fn merged_members(groups: &[&[(u32, u32)]], pieces: &Pieces) -> Vec<(Vec<u32>, Vec<[u32; 2]>)> {
+    groups
+        .par_chunks(GROUPS_PER_TASK)
+        .map(|groups| {
+            let (mut particles, mut spans) = (Vec::new(), Vec::with_capacity(groups.len()));
+            for group in groups {
+                let start = particles.len();
+                for (_, p) in *group {
+                    particles.extend_from_slice(pieces.members(*p as usize));
+                }
+                if group.len() > 1 {
+                    let len = sort_dedup(&mut particles[start..]);
+                    particles.truncate(start + len);
+                }
+                spans.push([start as u32, particles.len() as u32]);
+            }
+            (particles, spans)
+        })
+        .collect()
 }
 
 /// Sorts `list` and moves its distinct values to the front; returns how many there are.

@@ -20,7 +20,7 @@
 
 use super::cells::{CellOwners, face_corners, octant};
 use super::extract::{SurfaceTopology, add_vertices, finish, place_on_cut, push_faces, push_quad};
-use super::fans::vertex_classes;
+use super::fans::{Quad, vertex_classes};
 use super::placement::is_cut_face;
 use crate::body::lattice::Lattice;
 use glam::IVec3;
@@ -53,16 +53,7 @@ pub fn update(
         Some(corners) => corners.contains(w),
         None => (0..8).any(|k| near.contains(owners.cell_of(w - octant(k)))),
     };
-    // the fresh quads of the region, in a fixed order
-    let mut quads = Vec::new();
-    for c in region.cells() {
-        for k in 0..(res * res * res) as u32 {
-            let s = c * res + octant(k) * (res - 1);
-            if let Some(p) = owners.owner(s) {
-                push_faces(&owners, s, p, &mut quads);
-            }
-        }
-    }
+    let quads = region_quads(&owners, &region);
     let (class_of, classes) = vertex_classes(&owners, &quads);
     // the old quads inside the region are replaced; the old vertices at rebuilt corners
     // go, the others are renumbered in order
@@ -73,34 +64,8 @@ pub fn update(
         .filter(|(_, q)| in_region(q.cell))
         .map(|(i, q)| ((q.cell, q.direction), i))
         .collect();
-    let mut topology = SurfaceTopology {
-        binding_start: vec![0],
-        resolution: res,
-        ..SurfaceTopology::default()
-    };
-    let mut renumbered = vec![u32::MAX; old.vertex_count()];
-    for (v, &corner) in old.corners.iter().enumerate() {
-        if !rebuilt(corner) {
-            renumbered[v] = topology.rest.len() as u32;
-            topology.rest.push(old.rest[v]);
-            topology.corners.push(corner);
-            topology.bindings.extend_from_slice(old.bindings_of(v));
-            topology.binding_start.push(topology.bindings.len() as u32);
-        }
-    }
-    let old_corners = |q: usize| -> [u32; 4] {
-        let [a, b, c] = old.triangles[2 * q];
-        [a, b, c, old.triangles[2 * q + 1][2]]
-    };
-    for (q, quad) in old.quads.iter().enumerate() {
-        if !in_region(quad.cell) {
-            topology.quads.push(*quad);
-            push_quad(
-                &mut topology,
-                old_corners(q).map(|v| renumbered[v as usize]),
-            );
-        }
-    }
+    let (mut topology, renumbered) = kept_outside(old, &rebuilt, &in_region);
+    let old_corners = |q: usize| quad_corners(old, q);
     // the fresh quads' corners: a new vertex for each class at a rebuilt corner (made
     // in parallel, numbered in order of first use), the kept one elsewhere
     let mut vertex_of_class = vec![u32::MAX; classes.len()];
@@ -150,6 +115,63 @@ pub fn update(
     place_on_cut(&owners, &mut topology, &on_cut);
     finish(lattice, &mut topology);
     Some(topology)
+}
+
+/// The fresh quads of the cells of `region`, in a fixed order.
+fn region_quads(owners: &CellOwners, region: &CellSet) -> Vec<Quad> {
+    let res = owners.resolution();
+    let mut quads = Vec::new();
+    for c in region.cells() {
+        for k in 0..(res * res * res) as u32 {
+            let s = c * res + octant(k) * (res - 1);
+            if let Some(p) = owners.owner(s) {
+                push_faces(owners, s, p, &mut quads);
+            }
+        }
+    }
+    quads
+}
+
+/// The four corner vertices of quad `q` of `topology` (its two triangles share the
+/// first and third).
+fn quad_corners(topology: &SurfaceTopology, q: usize) -> [u32; 4] {
+    let [a, b, c] = topology.triangles[2 * q];
+    [a, b, c, topology.triangles[2 * q + 1][2]]
+}
+
+/// What stays of the `old` surface: its quads outside the region (`in_region` of a
+/// cell says), and its vertices except those at `rebuilt` corners, renumbered in order;
+/// with each old vertex's new number (`u32::MAX` for one that goes).
+fn kept_outside(
+    old: &SurfaceTopology,
+    rebuilt: &impl Fn(IVec3) -> bool,
+    in_region: &impl Fn(IVec3) -> bool,
+) -> (SurfaceTopology, Vec<u32>) {
+    let mut topology = SurfaceTopology {
+        binding_start: vec![0],
+        resolution: old.resolution,
+        ..SurfaceTopology::default()
+    };
+    let mut renumbered = vec![u32::MAX; old.vertex_count()];
+    for (v, &corner) in old.corners.iter().enumerate() {
+        if !rebuilt(corner) {
+            renumbered[v] = topology.rest.len() as u32;
+            topology.rest.push(old.rest[v]);
+            topology.corners.push(corner);
+            topology.bindings.extend_from_slice(old.bindings_of(v));
+            topology.binding_start.push(topology.bindings.len() as u32);
+        }
+    }
+    for (q, quad) in old.quads.iter().enumerate() {
+        if !in_region(quad.cell) {
+            topology.quads.push(*quad);
+            push_quad(
+                &mut topology,
+                quad_corners(old, q).map(|v| renumbered[v as usize]),
+            );
+        }
+    }
+    (topology, renumbered)
 }
 
 /// A set of cells: a bit per cell of a box, rows along x packed in words (so that

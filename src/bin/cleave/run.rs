@@ -17,8 +17,6 @@ use cleave::io::render::Draw;
 use cleave::io::scene::{BUILTIN_SCENES, builtin};
 use cleave::io::scene_file::{entry_position, load_scene_file};
 use cleave::sim::simulation::Simulation;
-use indicatif::{ProgressBar, ProgressStyle};
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 /// The built-in scene `name`, or an error listing the built-ins.
@@ -295,15 +293,23 @@ pub fn run(args: &RunArgs, threads: usize) -> Result<(), String> {
     let mut tracked = track_bodies(&mut sim, &scene, args, &bodies, &spacings, &mut pictures)?;
     let run = FrameLog::simulate(
         &mut sim,
-        args,
         frames,
+        args.recluster_at,
+        args.quiet,
         &bodies,
         &mut tracked,
         &mut pictures,
         &spacings,
     )?;
     let summary = run.summary(
-        &mut sim, args, frames, threads, tracked, &pictures, &spacings,
+        &mut sim,
+        &args.scene,
+        args.recluster_at,
+        frames,
+        threads,
+        tracked,
+        &pictures,
+        &spacings,
     )?;
     write_outputs(&mut sim, args, &summary)?;
     if args.profile {
@@ -408,18 +414,4 @@ fn write_outputs(sim: &mut Simulation, args: &RunArgs, summary: &Summary) -> Res
         print_table(summary, &path, out);
     }
     Ok(())
-}
-
-/// A progress bar on stderr when it is a terminal (hidden otherwise or with `--quiet`).
-pub(crate) fn progress_bar(frames: u32, quiet: bool) -> ProgressBar {
-    if quiet || !std::io::stderr().is_terminal() {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new(frames as u64);
-    if let Ok(style) =
-        ProgressStyle::with_template("{bar:40} {pos}/{len} frames {elapsed_precise} (eta {eta})")
-    {
-        bar.set_style(style);
-    }
-    bar
 }

@@ -3,7 +3,6 @@
 //! and the summary made of them.
 
 use crate::pictures::Pictures;
-use crate::run::RunArgs;
 use crate::summary::*;
 use bevy_ecs::prelude::*;
 use cleave::analysis::bench::median;
@@ -14,6 +13,8 @@ use cleave::ecs::components::BodyLattice;
 use cleave::ecs::layout::SolverCache;
 use cleave::ecs::resources::{CutReport, CutTimings, ParticlesCut};
 use cleave::sim::simulation::Simulation;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::IsTerminal;
 use std::time::Instant;
 
 /// What the frame loop recorded.
@@ -33,10 +34,12 @@ pub(crate) struct FrameLog {
 impl FrameLog {
     /// Steps `sim` `frames` times, drawing and recording each frame (see the module
     /// docs); reclusters at `--recluster-at`.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn simulate(
         sim: &mut Simulation,
-        args: &RunArgs,
         frames: u32,
+        recluster_at: Option<u32>,
+        quiet: bool,
         bodies: &[Entity],
         tracked: &mut [Tracked],
         pictures: &mut Pictures,
@@ -56,7 +59,7 @@ impl FrameLog {
             .get_cursor();
         pictures.frame(sim.world_mut(), 0)?;
         let recluster = |sim: &mut Simulation, frame: u32| -> Result<(), String> {
-            if args.recluster_at == Some(frame) {
+            if recluster_at == Some(frame) {
                 for &body in bodies {
                     sim.recluster(body).map_err(|e| e.to_string())?;
                 }
@@ -64,7 +67,7 @@ impl FrameLog {
             Ok(())
         };
         recluster(sim, 0)?;
-        let progress = crate::run::progress_bar(frames, args.quiet);
+        let progress = progress_bar(frames, quiet);
         let mut factor_seconds = 0.0;
         for frame in 1..=frames {
             progress.inc(1);
@@ -124,7 +127,8 @@ impl FrameLog {
     pub(crate) fn summary(
         mut self,
         sim: &mut Simulation,
-        args: &RunArgs,
+        scene: &str,
+        recluster_at: Option<u32>,
         frames: u32,
         threads: usize,
         tracked: Vec<Tracked>,
@@ -143,10 +147,10 @@ impl FrameLog {
         let total = |f: fn(&BodyStats) -> usize| per_body.iter().map(|b| f(&b.after)).sum();
         let cut_frames = &self.cut_frames;
         Ok(Summary {
-            scene: args.scene.clone(),
+            scene: scene.into(),
             frames,
             seed: sim.config().seed,
-            reclustered_at: args.recluster_at,
+            reclustered_at: recluster_at,
             threads,
             particles: total(|s| s.particles),
             clusters: total(|s| s.clusters),
@@ -179,4 +183,18 @@ impl FrameLog {
             bodies: per_body,
         })
     }
+}
+
+/// A progress bar on stderr when it is a terminal (hidden otherwise or with `--quiet`).
+fn progress_bar(frames: u32, quiet: bool) -> ProgressBar {
+    if quiet || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(frames as u64);
+    if let Ok(style) =
+        ProgressStyle::with_template("{bar:40} {pos}/{len} frames {elapsed_precise} (eta {eta})")
+    {
+        bar.set_style(style);
+    }
+    bar
 }

@@ -86,105 +86,12 @@ sections!(
 );
 
 fn snapshot(world: &mut World) -> Result<Snapshot> {
-    let mut bodies: Vec<BodyState> = world
-        .query::<(
-            Entity,
-            &Body,
-            &BodyLattice,
-            &ParticleClusters,
-            Option<&SurfaceMesh>,
-            Option<&HandlePose>,
-        )>()
-        .iter(world)
-        .map(
-            |(entity, body, lattice, clusters, surface, pose)| BodyState {
-                entity,
-                body: body.clone(),
-                lattice: lattice.clone(),
-                clusters: clusters.clone(),
-                surface: surface.map(SurfaceMesh::saved),
-                pose: pose.map(HandlePose::saved),
-            },
-        )
-        .collect();
-    bodies.sort_unstable_by_key(|b| b.entity);
-    let particles = world
-        .query::<(
-            Entity,
-            &Particle,
-            &Position,
-            &Velocity,
-            &Orientation,
-            &AngularVelocity,
-            &InvMass,
-        )>()
-        .iter(world)
-        .map(|(entity, p, x, v, q, w, m)| ParticleState {
-            entity,
-            particle: *p,
-            position: *x,
-            velocity: *v,
-            orientation: *q,
-            spin: *w,
-            inv_mass: *m,
-        })
-        .collect();
-    let clusters = world
-        .query::<(Entity, &ClusterMembers, &ClusterOf, &Compliance)>()
-        .iter(world)
-        .map(|(entity, m, of, c)| ClusterState {
-            entity,
-            members: m.clone(),
-            of: *of,
-            compliance: *c,
-        })
-        .collect();
-    let tools = world
-        .query::<(Entity, &Tool, &ToolPose, Option<&ToolPath>)>()
-        .iter(world)
-        .map(|(entity, tool, pose, path)| ToolState {
-            entity,
-            tool: *tool,
-            pose: *pose,
-            path: path.cloned(),
-        })
-        .collect();
-    let colliders = world
-        .query::<(
-            Entity,
-            &Collider,
-            &ColliderPose,
-            Option<&ColliderPath>,
-            Option<&DynamicCollider>,
-        )>()
-        .iter(world)
-        .map(|(entity, collider, pose, path, dynamic)| ColliderState {
-            entity,
-            collider: collider.clone(),
-            pose: *pose,
-            path: path.cloned(),
-            dynamic: dynamic.copied(),
-        })
-        .collect();
-
-    let mut attachments: Vec<AttachmentState> = world
-        .query::<(
-            Entity,
-            &Attachment,
-            &AttachmentTarget,
-            Option<&AttachmentPath>,
-            Option<&AttachmentVelocity>,
-        )>()
-        .iter(world)
-        .map(|(entity, a, target, path, velocity)| AttachmentState {
-            entity,
-            attachment: a.clone(),
-            target: *target,
-            path: path.cloned(),
-            velocity: velocity.copied(),
-        })
-        .collect();
-    attachments.sort_unstable_by_key(|a| a.entity);
+    let bodies = saved_bodies(world);
+    let particles = saved_particles(world);
+    let clusters = saved_clusters(world);
+    let tools = saved_tools(world);
+    let colliders = saved_colliders(world);
+    let attachments = saved_attachments(world);
     let cache = world.resource::<SolverCache>();
     if !cache.layout.is_valid() {
         return Err(invalid("the solver layout could not be brought up to date"));
@@ -210,6 +117,130 @@ fn snapshot(world: &mut World) -> Result<Snapshot> {
         cut: world.resource::<CutReport>().clone(),
         label: world.resource::<SceneLabel>().clone(),
     })
+}
+
+/// The bodies, in entity order (the solver finds bodies by it).
+fn saved_bodies(world: &mut World) -> Vec<BodyState> {
+    let mut bodies: Vec<BodyState> = world
+        .query::<(
+            Entity,
+            &Body,
+            &BodyLattice,
+            &ParticleClusters,
+            Option<&SurfaceMesh>,
+            Option<&HandlePose>,
+        )>()
+        .iter(world)
+        .map(
+            |(entity, body, lattice, clusters, surface, pose)| BodyState {
+                entity,
+                body: body.clone(),
+                lattice: lattice.clone(),
+                clusters: clusters.clone(),
+                surface: surface.map(SurfaceMesh::saved),
+                pose: pose.map(HandlePose::saved),
+            },
+        )
+        .collect();
+    bodies.sort_unstable_by_key(|b| b.entity);
+    bodies
+}
+
+/// The particles, in the order the world stores them (which decides the order new ones join).
+fn saved_particles(world: &mut World) -> Vec<ParticleState> {
+    world
+        .query::<(
+            Entity,
+            &Particle,
+            &Position,
+            &Velocity,
+            &Orientation,
+            &AngularVelocity,
+            &InvMass,
+        )>()
+        .iter(world)
+        .map(|(entity, p, x, v, q, w, m)| ParticleState {
+            entity,
+            particle: *p,
+            position: *x,
+            velocity: *v,
+            orientation: *q,
+            spin: *w,
+            inv_mass: *m,
+        })
+        .collect()
+}
+
+/// The clusters.
+fn saved_clusters(world: &mut World) -> Vec<ClusterState> {
+    world
+        .query::<(Entity, &ClusterMembers, &ClusterOf, &Compliance)>()
+        .iter(world)
+        .map(|(entity, m, of, c)| ClusterState {
+            entity,
+            members: m.clone(),
+            of: *of,
+            compliance: *c,
+        })
+        .collect()
+}
+
+/// The tools.
+fn saved_tools(world: &mut World) -> Vec<ToolState> {
+    world
+        .query::<(Entity, &Tool, &ToolPose, Option<&ToolPath>)>()
+        .iter(world)
+        .map(|(entity, tool, pose, path)| ToolState {
+            entity,
+            tool: *tool,
+            pose: *pose,
+            path: path.cloned(),
+        })
+        .collect()
+}
+
+/// The colliders.
+fn saved_colliders(world: &mut World) -> Vec<ColliderState> {
+    world
+        .query::<(
+            Entity,
+            &Collider,
+            &ColliderPose,
+            Option<&ColliderPath>,
+            Option<&DynamicCollider>,
+        )>()
+        .iter(world)
+        .map(|(entity, collider, pose, path, dynamic)| ColliderState {
+            entity,
+            collider: collider.clone(),
+            pose: *pose,
+            path: path.cloned(),
+            dynamic: dynamic.copied(),
+        })
+        .collect()
+}
+
+/// The attachments, in entity order (the order they reach their terms).
+fn saved_attachments(world: &mut World) -> Vec<AttachmentState> {
+    let mut attachments: Vec<AttachmentState> = world
+        .query::<(
+            Entity,
+            &Attachment,
+            &AttachmentTarget,
+            Option<&AttachmentPath>,
+            Option<&AttachmentVelocity>,
+        )>()
+        .iter(world)
+        .map(|(entity, a, target, path, velocity)| AttachmentState {
+            entity,
+            attachment: a.clone(),
+            target: *target,
+            path: path.cloned(),
+            velocity: velocity.copied(),
+        })
+        .collect();
+    attachments.sort_unstable_by_key(|a| a.entity);
+    attachments
 }
 
 /// Reads a simulation written by [`save`]: a new world, prepared as
