@@ -51,7 +51,9 @@ pub mod wrench;
 use crate::ecs::ecs_term::EcsTerm;
 use crate::ecs::layout::SolverCache;
 use crate::ecs::resources::*;
-use crate::solver::terms::{attachments::Attachments, centroids::Centroids, contacts::Contacts};
+use crate::solver::terms::{
+    attachments::Attachments, centroids::Centroids, colliders::Colliders, contacts::Contacts,
+};
 use bevy_ecs::message::MessageRegistry;
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::{LogLevel, ScheduleBuildSettings, ScheduleLabel, SingleThreadedExecutor};
@@ -130,8 +132,17 @@ fn strict(schedule: &mut Schedule) {
 pub fn build_substep_schedule() -> Schedule {
     let mut s = Schedule::new(SubstepSchedule);
     strict(&mut s);
-    s.configure_sets((SimStage::Predict, SimStage::ShapeMatch).chain());
+    s.configure_sets(
+        (
+            SimStage::Predict,
+            term_sync::TermSubstepData,
+            SimStage::ShapeMatch,
+        )
+            .chain(),
+    );
     s.add_systems(predict::predict.in_set(SimStage::Predict));
+    // the built-in terms that read the ECS every substep, one line each
+    s.add_systems(term_sync::term_substep_system::<Colliders>());
     s.add_systems(shape_match::shape_match.in_set(SimStage::ShapeMatch));
     s
 }

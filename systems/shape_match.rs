@@ -1,22 +1,15 @@
 //! Stage shape-match: one substep's solve on the solver's dense arrays — puts back any
-//! particle whose position is not finite, places the colliders for this substep, runs
-//! the iterations with every term, and derives the velocities. Writes particle data
-//! (the dense arrays) only.
+//! particle whose position is not finite, runs the iterations with every term (the
+//! terms that read the ECS each substep have just taken their data:
+//! [`super::term_sync::TermSubstepData`]), and derives the velocities. Writes particle
+//! data (the dense arrays) only.
 
 use crate::ecs::components::*;
 use crate::ecs::layout::SolverCache;
 use crate::ecs::resources::{ParticlesRepaired, SimSettings, SubstepClock};
-use crate::ecs::spawn::checked_pose;
-use crate::error::CleaveError;
 use crate::solver::term::Substep;
-use crate::solver::terms::colliders::{Colliders, PosedCollider};
 use bevy_ecs::prelude::*;
 use glam::Vec3A;
-
-/// How fast (m/s) a particle that began a substep inside a collider is pushed out of
-/// it (see [`Colliders::depenetration_step`]): a body spawned in a collider comes out at
-/// a walk, not shot out.
-pub const MAX_DEPENETRATION_SPEED: f32 = 2.0;
 
 /// One solver substep over all bodies.
 pub fn shape_match(
@@ -24,19 +17,11 @@ pub fn shape_match(
     substep: Res<SubstepClock>,
     mut cache: ResMut<SolverCache>,
     bodies: Query<(Entity, &BodyLattice)>,
-    colliders: Query<(Entity, &Collider, &ColliderPose, Option<&DynamicCollider>)>,
-    mut refused: Local<Vec<Entity>>,
     mut repaired_messages: MessageWriter<ParticlesRepaired>,
 ) {
     let config = &settings.0;
     let cache = &mut *cache;
     let repaired = repair_non_finite(cache, &bodies);
-    if let Some(term) = cache.solver.terms.get_mut::<Colliders>() {
-        term.place(
-            substep_colliders(config, &substep, &colliders, &mut refused),
-            substep.index == 0,
-        );
-    }
     let count = substep.count.max(1) as f32;
     let step = Substep {
         dt: config.dt / config.substeps as f32,
@@ -101,67 +86,4 @@ fn report_repaired(
             particles: group.iter().map(|(_, i)| *i).collect(),
         });
     }
-}
-
-/// The ground, the config's static boxes and every collider entity, placed for this
-/// substep (a kinematic collider moves from its frame-start pose to its frame-end pose
-/// over the substeps; a dynamic one starts the frame where it is, and the term carries
-/// it on from substep to substep). Game code may have written anything into the
-/// components: a collider whose pose is out of bounds is left out, a dynamic one whose
-/// state is out of bounds is kinematic, each with a warning the first time (`refused`
-/// lists them).
-fn substep_colliders(
-    config: &crate::config::SimConfig,
-    substep: &SubstepClock,
-    entities: &Query<(Entity, &Collider, &ColliderPose, Option<&DynamicCollider>)>,
-    refused: &mut Vec<Entity>,
-) -> Colliders {
-    let dt = config.dt / config.substeps as f32;
-    let count = substep.count.max(1) as f32;
-    let (t0, t1) = (
-        substep.index as f32 / count,
-        (substep.index + 1) as f32 / count,
-    );
-    let mut refuse = |e: Entity, error: Option<(CleaveError, &str)>| match error {
-        Some((error, so)) if !refused.contains(&e) => {
-            tracing::warn!("cleave: collider {e} {so}: {error}");
-            refused.push(e);
-        }
-        Some(_) => {}
-        None => refused.retain(|r| *r != e),
-    };
-    let moving = entities.iter().filter_map(|(e, c, pose, dynamic)| {
-        let posed = checked_pose("collider.pose.current", pose.current)
-            .and_then(|_| checked_pose("collider.pose.last", pose.last));
-        if let Err(error) = posed {
-            refuse(e, Some((error, "left out")));
-            return None;
-        }
-        // (tagged by its entity, for its wrench: see `systems::wrench`)
-        let shape = c.shape.clone();
-        match dynamic.map(|d| d.check().map(|()| d.motion())) {
-            Some(Ok(motion)) => {
-                refuse(e, None);
-                let posed = PosedCollider::dynamic(
-                    shape,
-                    c.friction,
-                    pose.current,
-                    motion,
-                    config.gravity,
-                    dt,
-                );
-                return Some(posed.tagged(e.to_bits()));
-            }
-            Some(Err(error)) => refuse(e, Some((error, "stays kinematic"))),
-            None => refuse(e, None),
-        }
-        let (start, end) = (
-            pose.last.lerp(&pose.current, t0),
-            pose.last.lerp(&pose.current, t1),
-        );
-        Some(PosedCollider::new(shape, c.friction, start, end).tagged(e.to_bits()))
-    });
-    let mut colliders = Colliders::from_config(config, moving);
-    colliders.depenetration_step = MAX_DEPENETRATION_SPEED * config.dt / count;
-    colliders
 }

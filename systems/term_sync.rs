@@ -6,7 +6,7 @@
 //! hears of the topology ([`sync_terms`]). Writes the solver cache only.
 
 use crate::ecs::components::{Body, BodyLattice};
-use crate::ecs::ecs_term::EcsTerm;
+use crate::ecs::ecs_term::{EcsSubstepTerm, EcsTerm};
 use crate::ecs::layout::SolverCache;
 use crate::solver::term::{BodyTopology, Topology};
 use bevy_ecs::prelude::*;
@@ -35,6 +35,30 @@ pub fn term_data_system<T: EcsTerm>() -> ScheduleConfigs<ScheduleSystem> {
     sync_term::<T>
         .in_set(TermData)
         .ambiguous_with(TermData)
+        .into_configs()
+}
+
+/// The systems of the terms that take data from the ECS every substep: after predict,
+/// before the solve. Each writes only its own term, so their order among themselves
+/// does not matter.
+#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct TermSubstepData;
+
+/// Lets the term of kind `T`, if the solver has one, take this substep's data.
+pub fn substep_term<T: EcsSubstepTerm>(
+    mut cache: ResMut<SolverCache>,
+    data: StaticSystemParam<T::SubstepData>,
+) {
+    if let Some(term) = cache.solver.terms.get_mut::<T>() {
+        term.substep(data.into_inner());
+    }
+}
+
+/// The [`substep_term`] system of `T`, in [`TermSubstepData`].
+pub fn term_substep_system<T: EcsSubstepTerm>() -> ScheduleConfigs<ScheduleSystem> {
+    substep_term::<T>
+        .in_set(TermSubstepData)
+        .ambiguous_with(TermSubstepData)
         .into_configs()
 }
 

@@ -5,7 +5,7 @@
 //! left it ([`Colliders::rigid_bodies`]). Writes collider data only.
 
 use crate::ecs::components::{ColliderPose, ColliderWrench, DynamicCollider};
-use crate::ecs::layout::SolverCache;
+use crate::ecs::ecs_term::TermOf;
 use crate::ecs::resources::{ColliderPushed, SimSettings};
 use crate::solver::terms::colliders::Colliders;
 use bevy_ecs::prelude::*;
@@ -13,10 +13,10 @@ use glam::Vec3;
 
 /// Sets every dynamic collider's pose and velocities to where the solve moved it.
 pub fn dynamic_colliders(
-    cache: Res<SolverCache>,
+    term: TermOf<Colliders>,
     mut colliders: Query<(Entity, &mut ColliderPose, &mut DynamicCollider)>,
 ) {
-    let Some(term) = cache.solver.terms.get::<Colliders>() else {
+    let Some(term) = term.get() else {
         return;
     };
     for (tag, pose, motion) in term.rigid_bodies() {
@@ -34,11 +34,11 @@ pub fn dynamic_colliders(
 /// Sets every collider's wrench to the frame's mean (zero where nothing touched it).
 pub fn collider_wrenches(
     settings: Res<SimSettings>,
-    cache: Res<SolverCache>,
+    term: TermOf<Colliders>,
     mut colliders: Query<(Entity, &mut ColliderWrench)>,
     mut pushed: MessageWriter<ColliderPushed>,
 ) {
-    let impulses = (cache.solver.terms.get::<Colliders>()).map_or(&[][..], |t| t.frame_impulses());
+    let impulses = term.get().map_or(&[][..], |t| t.frame_impulses());
     let per_second = 1.0 / settings.0.dt;
     for (collider, mut wrench) in &mut colliders {
         let found = impulses.iter().find(|i| i.tag == collider.to_bits());

@@ -1,7 +1,7 @@
 //! The access contract of every stage, read from the systems' own access sets: predict
-//! and shape-match (with every term) write only the solver's dense particle state; load
-//! and the term sync write only the solver; store writes only particle positions and
-//! velocities; the tool, collider and attachment movers and the settle stage write their
+//! and shape-match (with every term) write only the solver's dense particle state; load,
+//! the term sync and the terms' ECS sides write only the solver; store writes only
+//! particle positions and velocities; the tool, collider and attachment movers and the settle stage write their
 //! poses only; detect writes only its CutList (and its culling memory) and spawns
 //! nothing; cut writes no cluster data; regroup/split/expand write no particle data; the
 //! surface stage writes only the surfaces (and its message); the wrench stage only the
@@ -15,6 +15,9 @@ use cleave::config::SimConfig;
 use cleave::ecs::components::*;
 use cleave::ecs::layout::SolverCache;
 use cleave::ecs::resources::*;
+use cleave::solver::terms::{
+    attachments::Attachments, centroids::Centroids, colliders::Colliders, contacts::Contacts,
+};
 use cleave::systems::*;
 
 struct Access {
@@ -94,6 +97,11 @@ fn predict_shape_match_load_and_the_term_sync_write_only_the_solver() {
         access_of(&mut w, shape_match::shape_match),
         access_of(&mut w, load::load_particles),
         access_of(&mut w, term_sync::sync_terms),
+        // every built-in term's ECS side, per frame and per substep
+        access_of(&mut w, term_sync::sync_term::<Attachments>),
+        access_of(&mut w, term_sync::sync_term::<Centroids>),
+        access_of(&mut w, term_sync::sync_term::<Contacts>),
+        access_of(&mut w, term_sync::substep_term::<Colliders>),
     ];
     let solver = w.component_id::<SolverCache>().expect("registered");
     for access in accesses {

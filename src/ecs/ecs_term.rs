@@ -7,7 +7,7 @@
 //! of what changed. What it carries from frame to frame is saved through
 //! [`crate::solver::term::Term::saved_state`].
 
-use crate::ecs::layout::SolverLayout;
+use crate::ecs::layout::{SolverCache, SolverLayout};
 use crate::solver::term::Term;
 use bevy_ecs::system::{ReadOnlySystemParam, SystemParamItem};
 
@@ -22,4 +22,32 @@ pub trait EcsTerm: Term + Sized {
     /// changed: every term then hears the topology again this frame (the term resolves
     /// its particles' dense indices in [`Term::topology`]).
     fn sync(&mut self, data: SystemParamItem<Self::Data>, layout: &SolverLayout) -> bool;
+}
+
+/// A constraint kind that takes data from the ECS at every substep (the colliders
+/// placed where they are over it). Registered with
+/// [`crate::systems::term_sync::term_substep_system`] in the substep schedule, after
+/// predict and before the solve.
+pub trait EcsSubstepTerm: Term + Sized {
+    /// What the term reads each substep: queries and resources, read-only (and its own
+    /// `Local` state).
+    type SubstepData: ReadOnlySystemParam + 'static;
+
+    /// Takes this substep's data (the substep's index: [`crate::ecs::resources::SubstepClock`]).
+    fn substep(&mut self, data: SystemParamItem<Self::SubstepData>);
+}
+
+/// Read access to the solver's term of kind `T` from a system: the stage that hands
+/// what a term found back to the ECS reads it through this.
+#[derive(bevy_ecs::system::SystemParam)]
+pub struct TermOf<'w, T: Term> {
+    cache: bevy_ecs::prelude::Res<'w, SolverCache>,
+    kind: std::marker::PhantomData<T>,
+}
+
+impl<T: Term> TermOf<'_, T> {
+    /// The solver's term of kind `T`, if it has one.
+    pub fn get(&self) -> Option<&T> {
+        self.cache.solver.terms.get::<T>()
+    }
 }

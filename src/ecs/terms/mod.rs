@@ -3,4 +3,5 @@
 //! registered in [`crate::systems::build_sync_schedule`].
 
 pub mod attachments;
+pub mod colliders;
 pub mod contacts;
