@@ -8,11 +8,13 @@
 //!    [`SimStage::PoseHandles`]: bodies posed by handles given the velocities that take
 //!    their kinematic particles to the pose ([`pose_handles`]);
 //! 3. [`SimStage::Sync`]: an exclusive system that runs [`SyncSchedule`] — the solver
-//!    layout brought up to date ([`layout_sync`]), the terms told what changed and
-//!    where the attachments' targets go ([`term_sync`]), the particles' state loaded
-//!    into the solver ([`load`]);
+//!    layout brought up to date ([`layout_sync`]), every term that reads the ECS given
+//!    its data ([`term_sync::TermData`]: the attachments and their targets, the contacts'
+//!    settings) and every term told what changed ([`term_sync`]), the particles' state
+//!    loaded into the solver ([`load`]);
 //! 4. [`SimStage::Substeps`]: an exclusive system that runs [`SubstepSchedule`] —
-//!    predict → shape-match — `substeps` times;
+//!    predict → the terms' substep data ([`term_sync::TermSubstepData`]: the colliders
+//!    placed) → shape-match — `substeps` times;
 //! 5. [`SimStage::Store`]: the particles' state written back to their components, and
 //!    [`SimStage::Wrench`]: each collider's wrench and the dynamic colliders' motion
 //!    ([`wrench`]);

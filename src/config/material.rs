@@ -272,7 +272,7 @@ impl Material {
     }
 
     /// Checks every field; the error names the field and its allowed range (the ranges
-    /// of [`ranges`], which the scene file's reader checks too).
+    /// of [`crate::config::ranges`], which the scene file's reader checks too).
     pub fn validate(&self) -> Result<()> {
         use super::ranges::*;
         let path = |a: &Allowed| format!("material.{}", a.field);

@@ -1,11 +1,14 @@
 //! A term's ECS side: the seam through which a constraint kind takes its data from the
-//! ECS. A kind that reads components implements [`EcsTerm`] beside its kernel (the
-//! data it reads as a [`SystemParam`], what it does with them in [`EcsTerm::sync`]) and
-//! is registered by one call — [`crate::sim::simulation::Simulation::add_ecs_term`], or
-//! [`crate::systems::add_ecs_term`] on a bare world; the schedule runs its
-//! sync once a frame, after the layout is brought up to date and before the terms hear
-//! of what changed. What it carries from frame to frame is saved through
-//! [`crate::solver::term::Term::saved_state`].
+//! ECS. A kind that reads components implements [`EcsTerm`] beside its kernel — the
+//! data it reads as a [`bevy_ecs::system::SystemParam`], what it does with them in
+//! [`EcsTerm::sync`] — and is registered by one call:
+//! [`crate::sim::simulation::Simulation::add_ecs_term`], or
+//! [`crate::systems::add_ecs_term`] on a bare world. The schedule runs its sync once a
+//! frame, after the layout is brought up to date and before the terms hear of what
+//! changed; a kind that needs the ECS every substep implements [`EcsSubstepTerm`]. What
+//! a kind carries from frame to frame is saved through
+//! [`crate::solver::term::Term::saved_state`]; a stage that hands what a term found back
+//! to the ECS reads it through [`TermOf`].
 
 use crate::ecs::layout::{SolverCache, SolverLayout};
 use crate::solver::term::Term;
