@@ -58,5 +58,5 @@ pub const ITERATIONS: Allowed = Allowed::count("iterations", 1, 10_000);
 pub const DAMPING: Allowed = Allowed::closed("damping", 0.0, 1000.0, "per second");
 /// [`super::SimConfig::memory_budget_gb`].
 pub const MEMORY_BUDGET_GB: Allowed = Allowed::closed("memory_budget_gb", 1e-3, 1024.0, "");
-/// The friction of the ground and of static boxes.
+/// The friction of the ground, of static boxes and of colliders.
 pub const FRICTION: Allowed = Allowed::closed("friction", 0.0, 100.0, "");

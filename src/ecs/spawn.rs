@@ -12,9 +12,7 @@ use crate::ecs::resources::*;
 pub use crate::ecs::spawn_body::spawn_body;
 use crate::ecs::spawn_body::spawn_clusters;
 use crate::ecs::spawn_body::spawn_into;
-use crate::error::{
-    CleaveError, MAX_COORDINATE, Result, check_length, check_range, check_vec_within,
-};
+use crate::error::{CleaveError, MAX_COORDINATE, Result, check_length, check_vec_within};
 use crate::math::rotation::unit_quaternion;
 use bevy_ecs::prelude::*;
 
@@ -107,13 +105,7 @@ pub(crate) fn spawn_collider_into(
     desc: &ColliderDesc,
 ) -> Result<Entity> {
     desc.shape.validate("collider.shape")?;
-    check_range(
-        "collider.friction",
-        desc.friction,
-        0.0,
-        100.0,
-        "0 ≤ friction ≤ 100",
-    )?;
+    crate::config::ranges::FRICTION.check("collider.friction", desc.friction)?;
     let (pose, path) = starting_pose(world, "collider", &desc.path, desc.pose)?;
     let collider = Collider {
         shape: desc.shape.clone(),
