@@ -55,6 +55,21 @@ impl Held {
                 .collect(),
         }
     }
+
+    /// Gives `term` the attachments (by `replace`, when they changed) and their targets'
+    /// poses (by `set_poses`); whether they changed.
+    fn give<T>(
+        self,
+        term: &mut T,
+        replace: fn(&mut T, Vec<attachments::Attachment>),
+        set_poses: fn(&mut T, usize, Pose, Pose),
+    ) -> bool {
+        let changed = self.changed.map(|list| replace(term, list)).is_some();
+        for (i, (from, to)) in self.poses.into_iter().enumerate() {
+            set_poses(term, i, from, to);
+        }
+        changed
+    }
 }
 
 impl EcsTerm for Attachments {
@@ -62,12 +77,7 @@ impl EcsTerm for Attachments {
 
     /// Takes the attachments again when any changed; moves their targets every frame.
     fn sync(&mut self, data: SystemParamItem<Self::Data>, _layout: &SolverLayout) -> bool {
-        let held = Held::read(data, true);
-        let changed = held.changed.map(|list| self.replace(list)).is_some();
-        for (i, (from, to)) in held.poses.into_iter().enumerate() {
-            self.set_poses(i, from, to);
-        }
-        changed
+        Held::read(data, true).give(self, Attachments::replace, Attachments::set_poses)
     }
 }
 
@@ -77,12 +87,7 @@ impl EcsTerm for Centroids {
     /// Takes the centroid holds again when any attachment changed; moves their targets
     /// every frame.
     fn sync(&mut self, data: SystemParamItem<Self::Data>, _layout: &SolverLayout) -> bool {
-        let held = Held::read(data, false);
-        let changed = held.changed.map(|list| self.replace(list)).is_some();
-        for (i, (from, to)) in held.poses.into_iter().enumerate() {
-            self.set_poses(i, from, to);
-        }
-        changed
+        Held::read(data, false).give(self, Centroids::replace, Centroids::set_poses)
     }
 }
 
