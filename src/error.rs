@@ -147,17 +147,62 @@ pub const MAX_COORDINATE: f32 = 1e6;
 /// a velocity, and a path's mean speed between two keys.
 pub const MAX_SPEED: f32 = 1e4;
 
-/// Checks that every component of a vector lies within `±max` (and so is finite).
-pub fn check_vec_within(
-    field: &str,
-    value: glam::Vec3,
-    max: f32,
-    allowed: &'static str,
-) -> Result<()> {
-    if value.is_finite() && value.abs().max_element() <= max {
+/// The bound of a vector field, declared once: every component finite and within
+/// `±max`. The API's checks ([`check_vec_within`]) and the scene file's reader state it
+/// with the same text.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VecBound {
+    /// How the text names the components, e.g. `|vx|, |vy|, |vz|`.
+    pub components: &'static str,
+    /// The largest magnitude of a component.
+    pub max: f32,
+    /// The unit.
+    pub unit: &'static str,
+}
+
+impl VecBound {
+    /// Whether `v` is within the bound.
+    pub fn allows(&self, v: glam::Vec3) -> bool {
+        v.is_finite() && v.abs().max_element() <= self.max
+    }
+
+    /// The bound as errors state it, e.g. `|x|, |y|, |z| ≤ 1e6 (metres)`.
+    pub fn text(&self) -> String {
+        format!("{} ≤ {:e} ({})", self.components, self.max, self.unit)
+    }
+}
+
+/// A position anywhere in a scene.
+pub const POSITION: VecBound = VecBound {
+    components: "|x|, |y|, |z|",
+    max: MAX_COORDINATE,
+    unit: "metres",
+};
+/// A velocity.
+pub const VELOCITY: VecBound = VecBound {
+    components: "|vx|, |vy|, |vz|",
+    max: MAX_SPEED,
+    unit: "m/s",
+};
+/// An angular velocity.
+pub const ANGULAR_VELOCITY: VecBound = VecBound {
+    components: "|ωx|, |ωy|, |ωz|",
+    max: MAX_SPEED,
+    unit: "rad/s",
+};
+/// Gravity.
+pub const GRAVITY: VecBound = VecBound {
+    components: "|gx|, |gy|, |gz|",
+    max: 1e4,
+    unit: "m/s²",
+};
+
+/// Checks `value` of the field at `field` against `bound`.
+pub fn check_vec_within(field: &str, value: glam::Vec3, bound: &VecBound) -> Result<()> {
+    if bound.allows(value) {
         Ok(())
     } else {
-        Err(out_of_range(field, value, allowed))
+        Err(out_of_range(field, value, bound.text()))
     }
 }
 
@@ -174,7 +219,7 @@ pub fn check_finite_vec(field: &str, value: glam::Vec3) -> Result<()> {
 pub fn out_of_range(
     field: &str,
     value: impl std::fmt::Debug,
-    allowed: &'static str,
+    allowed: impl Into<std::borrow::Cow<'static, str>>,
 ) -> CleaveError {
     CleaveError::OutOfRange {
         field: field.to_string(),

@@ -69,3 +69,47 @@ fn the_file_and_the_api_state_each_material_range_alike() {
         api(good).unwrap_or_else(|e| panic!("{field} = {good}: {e}"));
     }
 }
+
+/// A body's spacing, position and velocity: the file and the API state the same
+/// declared bound.
+#[test]
+fn the_file_and_the_api_state_a_body_bound_alike() {
+    use cleave::error::{POSITION, VELOCITY};
+    let body = |field: &str| {
+        GOOD.replace(
+            "position: (0.0, 0.5, 0.0))",
+            &format!("position: (0.0, 0.5, 0.0), {field})"),
+        )
+    };
+    type Set = fn(&mut BodyDesc);
+    let cases: [(String, String, Set); 3] = [
+        (body("velocity: (2e4, 0.0, 0.0)"), VELOCITY.text(), |d| {
+            d.velocity = Vec3::new(2e4, 0.0, 0.0)
+        }),
+        (
+            GOOD.replace("position: (0.0, 0.5, 0.0)", "position: (0.0, 2e6, 0.0)"),
+            POSITION.text(),
+            |d| d.position = Vec3::new(0.0, 2e6, 0.0),
+        ),
+        (
+            GOOD.replace("spacing: 0.1,", "spacing: 1000.0,"),
+            SPACING.text(),
+            |d| d.spacing = 1000.0,
+        ),
+    ];
+    for (text, declared, set) in cases {
+        let from_file = SceneFile::parse(&text).map(|_| ()).expect_err("refused");
+        assert!(
+            from_file.contains(&declared),
+            "{from_file} (declared: {declared})"
+        );
+        let mut desc = BodyDesc::new(Shape::cuboid(UVec3::new(4, 4, 4)), 0.1);
+        set(&mut desc);
+        let mut sim = Simulation::new(SimConfig::default()).expect("a simulation");
+        let from_api = sim.spawn_body(&desc).expect_err("refused").to_string();
+        assert!(
+            from_api.contains(&declared),
+            "{from_api} (declared: {declared})"
+        );
+    }
+}

@@ -1,6 +1,6 @@
 //! Simulation settings, with validation of every field; a body's material is [`Material`].
 
-use crate::error::{MAX_COORDINATE, Result, check_range, check_vec_within, out_of_range};
+use crate::error::{Result, check_vec_within, out_of_range};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -148,23 +148,12 @@ impl SimConfig {
         ] {
             allowed.check(&format!("config.{}", allowed.field), value)?;
         }
-        check_vec_within(
-            "config.gravity",
-            self.gravity,
-            1e4,
-            "|gx|, |gy|, |gz| ≤ 1e4 (m/s²)",
-        )?;
+        check_vec_within("config.gravity", self.gravity, &crate::error::GRAVITY)?;
         if let Some(relax) = &self.relax {
             relax.validate()?;
         }
         if let Some(g) = &self.ground {
-            check_range(
-                "config.ground.height",
-                g.height,
-                -MAX_COORDINATE,
-                MAX_COORDINATE,
-                "-1e6 ≤ height ≤ 1e6 (metres)",
-            )?;
+            ranges::GROUND_HEIGHT.check("config.ground.height", g.height)?;
             ranges::FRICTION.check("config.ground.friction", g.friction)?;
         }
         for (i, b) in self.boxes.iter().enumerate() {
@@ -172,8 +161,7 @@ impl SimConfig {
                 check_vec_within(
                     &format!("config.boxes[{i}].{corner}"),
                     v,
-                    MAX_COORDINATE,
-                    "|x|, |y|, |z| ≤ 1e6 (metres)",
+                    &crate::error::POSITION,
                 )?;
             }
             if !b.min.cmple(b.max).all() {

@@ -58,5 +58,11 @@ pub const ITERATIONS: Allowed = Allowed::count("iterations", 1, 10_000);
 pub const DAMPING: Allowed = Allowed::closed("damping", 0.0, 1000.0, "per second");
 /// [`super::SimConfig::memory_budget_gb`].
 pub const MEMORY_BUDGET_GB: Allowed = Allowed::closed("memory_budget_gb", 1e-3, 1024.0, "");
+/// [`super::GroundPlane::height`].
+pub const GROUND_HEIGHT: Allowed = Allowed::closed("height", -1e6, 1e6, "metres");
+/// A body's lattice spacing.
+pub const SPACING: Allowed = Allowed::closed("spacing", 1e-4, 100.0, "metres");
+/// How far a body's particles are jittered from the lattice.
+pub const JITTER: Allowed = Allowed::closed("jitter", 0.0, 0.5, "lattice spacings");
 /// The friction of the ground, of static boxes and of colliders.
 pub const FRICTION: Allowed = Allowed::closed("friction", 0.0, 100.0, "");

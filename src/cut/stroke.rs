@@ -38,7 +38,7 @@ pub struct StrokeCut {
 /// a direction is zero, the two rays are parallel or opposite (no plane, or no turn
 /// to make), or not `0 ≤ near < far ≤ 1e6`.
 pub fn stroke_cut(eye: Vec3, from: Vec3, to: Vec3, near: f32, far: f32) -> Result<StrokeCut> {
-    check_vec_within("stroke.eye", eye, MAX_COORDINATE, "finite, within ±1e6 m")?;
+    check_vec_within("stroke.eye", eye, &crate::error::POSITION)?;
     let direction = |field: &str, d: Vec3| {
         d.try_normalize()
             .ok_or_else(|| CleaveError::InvalidEntity(format!("{field}: {d} is not a direction")))

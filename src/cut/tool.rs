@@ -2,9 +2,7 @@
 //! paths, and the swept test that detection uses: exact for a translating tool, so a fast
 //! tool cannot skip particles and cuts what a slow one cuts along the same path.
 
-use crate::error::{
-    MAX_COORDINATE, MAX_SPEED, Result, check_length, check_vec_within, out_of_range,
-};
+use crate::error::{MAX_SPEED, Result, check_length, check_vec_within, out_of_range};
 use crate::geometry::convex::{self, Convex};
 use crate::math::rotation::unit_quaternion;
 use glam::{Quat, Vec3};
@@ -239,8 +237,7 @@ impl Path {
             check_vec_within(
                 &format!("{owner}.path[{i}].position"),
                 pose.position,
-                MAX_COORDINATE,
-                "|x|, |y|, |z| ≤ 1e6 (metres)",
+                &crate::error::POSITION,
             )?;
             if unit_quaternion(pose.rotation).is_none() {
                 return Err(out_of_range(

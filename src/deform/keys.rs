@@ -4,7 +4,7 @@
 //! its particle's position (its rotation and scale must be the identity).
 
 use super::handles::{Handle, HandleTarget};
-use crate::error::{CleaveError, MAX_COORDINATE, Result, check_vec_within};
+use crate::error::{CleaveError, Result, check_vec_within};
 use glam::{Affine3A, Quat, Vec3};
 
 /// The smallest scale a key may give along an axis.
@@ -73,12 +73,7 @@ impl HandlePath {
                 return bad("time", t.to_string(), "finite, after the previous key's");
             }
             last = *t;
-            check_vec_within(
-                &field("position"),
-                key.position,
-                MAX_COORDINATE,
-                "|x|, |y|, |z| ≤ 1e6",
-            )?;
+            check_vec_within(&field("position"), key.position, &crate::error::POSITION)?;
             let length = key.rotation.length();
             if !(length.is_finite() && length > 0.0) {
                 return bad(

@@ -297,21 +297,18 @@ impl DynamicCollider {
     /// Checks mass, inertia and velocities: finite, the first two in 1e-6 ..= 1e9, the
     /// speeds at most [`crate::error::MAX_SPEED`].
     pub fn check(&self) -> crate::error::Result<()> {
-        use crate::error::{MAX_SPEED, check_range, check_vec_within};
+        use crate::error::{check_range, check_vec_within};
         let allowed = "1e-6 ≤ mass ≤ 1e9 (kg)";
         check_range("dynamic.mass", self.mass, 1e-6, 1e9, allowed)?;
         for (axis, value) in ["x", "y", "z"].iter().zip(self.inertia.to_array()) {
             let field = format!("dynamic.inertia.{axis}");
             check_range(&field, value, 1e-9, 1e9, "1e-9 ≤ inertia ≤ 1e9 (kg·m²)")?;
         }
-        let speed = "|vx|, |vy|, |vz| ≤ 1e4 (m/s)";
-        check_vec_within("dynamic.velocity", self.velocity, MAX_SPEED, speed)?;
-        let spin = "|ωx|, |ωy|, |ωz| ≤ 1e4 (rad/s)";
+        check_vec_within("dynamic.velocity", self.velocity, &crate::error::VELOCITY)?;
         check_vec_within(
             "dynamic.angular_velocity",
             self.angular_velocity,
-            MAX_SPEED,
-            spin,
+            &crate::error::ANGULAR_VELOCITY,
         )
     }
 

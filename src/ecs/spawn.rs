@@ -12,7 +12,7 @@ use crate::ecs::resources::*;
 pub use crate::ecs::spawn_body::spawn_body;
 use crate::ecs::spawn_body::spawn_clusters;
 use crate::ecs::spawn_body::spawn_into;
-use crate::error::{CleaveError, MAX_COORDINATE, Result, check_length, check_vec_within};
+use crate::error::{CleaveError, Result, check_length, check_vec_within};
 use crate::math::rotation::unit_quaternion;
 use bevy_ecs::prelude::*;
 
@@ -80,8 +80,7 @@ pub fn checked_pose(field: &str, pose: Pose) -> Result<Pose> {
     check_vec_within(
         &format!("{field}.position"),
         pose.position,
-        MAX_COORDINATE,
-        "|x|, |y|, |z| ≤ 1e6 (metres)",
+        &crate::error::POSITION,
     )?;
     let rotation = unit_quaternion(pose.rotation).ok_or_else(|| {
         crate::error::out_of_range(

@@ -9,15 +9,14 @@ use crate::body::shape::BYTES_PER_PARTICLE;
 use crate::clusters::clustering::{clusters_on_grid, seed_grid_offset};
 use crate::clusters::index::ClusterIndex;
 use crate::clusters::store::ClusterTable;
+use crate::config::ranges;
 use crate::ecs::attach::{TargetMotion, centroid_pose, check_compliance, spawn_attachment};
 use crate::ecs::components::*;
 use crate::ecs::desc::{BodyDesc, HandleDesc, Region};
 use crate::ecs::groups::cluster_compliance;
 use crate::ecs::resources::*;
 use crate::ecs::surface_mesh::SurfaceMesh;
-use crate::error::{
-    CleaveError, MAX_COORDINATE, MAX_SPEED, Result, check_finite_vec, check_range, check_vec_within,
-};
+use crate::error::{CleaveError, Result, check_finite_vec, check_range, check_vec_within};
 use crate::math::rotation::unit_quaternion;
 use crate::solver::clusters::term::MAX_SOLVER_PARTICLES;
 use crate::surface::embed::EmbeddedMesh;
@@ -84,13 +83,7 @@ pub(crate) fn spawn_into(world: &mut World, into: Option<Entity>, bundle: impl B
 /// rotation, normalised.
 fn check_placement(desc: &BodyDesc) -> Result<Quat> {
     desc.material.validate()?;
-    check_range(
-        "spacing",
-        desc.spacing,
-        1e-4,
-        100.0,
-        "1e-4 ≤ spacing ≤ 100 (metres)",
-    )?;
+    ranges::SPACING.check("spacing", desc.spacing)?;
     // a ball wider than two spacings would overlap balls two cells away at rest, and
     // makes every particle's neighbourhood search grow as its cube
     if let Some(r) = desc.material.contact_radius
@@ -102,18 +95,8 @@ fn check_placement(desc: &BodyDesc) -> Result<Quat> {
             "≤ 2 × spacing (metres)",
         ));
     }
-    check_vec_within(
-        "body.position",
-        desc.position,
-        MAX_COORDINATE,
-        "|x|, |y|, |z| ≤ 1e6 (metres)",
-    )?;
-    check_vec_within(
-        "body.velocity",
-        desc.velocity,
-        MAX_SPEED,
-        "|vx|, |vy|, |vz| ≤ 1e4 (m/s)",
-    )?;
+    check_vec_within("body.position", desc.position, &crate::error::POSITION)?;
+    check_vec_within("body.velocity", desc.velocity, &crate::error::VELOCITY)?;
     let rotation = unit_quaternion(desc.rotation).ok_or_else(|| {
         crate::error::out_of_range(
             "body.rotation",
@@ -124,8 +107,7 @@ fn check_placement(desc: &BodyDesc) -> Result<Quat> {
     check_vec_within(
         "body.angular_velocity",
         desc.angular_velocity,
-        MAX_SPEED,
-        "|ωx|, |ωy|, |ωz| ≤ 1e4 (rad/s)",
+        &crate::error::ANGULAR_VELOCITY,
     )?;
     for (i, pin) in desc.pins.iter().enumerate() {
         check_finite_vec(&format!("body.pins[{i}].min"), pin.min)?;
@@ -133,8 +115,7 @@ fn check_placement(desc: &BodyDesc) -> Result<Quat> {
         check_vec_within(
             &format!("body.pins[{i}].velocity"),
             pin.velocity,
-            MAX_SPEED,
-            "|vx|, |vy|, |vz| ≤ 1e4 (m/s)",
+            &crate::error::VELOCITY,
         )?;
     }
     Ok(rotation)
@@ -167,13 +148,7 @@ fn check_holds(desc: &BodyDesc) -> Result<Vec<HandleDesc>> {
     let mut handles = desc.handles.clone();
     crate::ecs::handles::check_handles(&mut handles)?;
     crate::ecs::handles::check_rigid_keys(&handles)?;
-    check_range(
-        "body.jitter",
-        desc.jitter,
-        0.0,
-        0.5,
-        "0 ≤ jitter ≤ 0.5 (lattice spacings)",
-    )?;
+    ranges::JITTER.check("body.jitter", desc.jitter)?;
     check_range(
         "material.particle_mass",
         desc.material.mass_at_spacing(desc.spacing),

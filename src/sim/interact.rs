@@ -249,7 +249,7 @@ struct Picked {
 
 /// `direction` normalised, after checking the ray.
 fn ray(eye: Vec3, direction: Vec3) -> Result<Vec3> {
-    check_vec_within("ray.eye", eye, MAX_COORDINATE, "finite, within ±1e6 m")?;
+    check_vec_within("ray.eye", eye, &crate::error::POSITION)?;
     direction
         .try_normalize()
         .ok_or_else(|| CleaveError::InvalidEntity(format!("ray: {direction} is not a direction")))

@@ -7,6 +7,7 @@ use crate::config::allowed::{CheckedField, whole_number};
 use crate::config::{GroundPlane, StaticBox, ranges};
 use crate::cut::tool::ToolShape;
 use crate::ecs::desc::{PinRegion, Region};
+use crate::error::VecBound;
 use glam::{Quat, UVec3, Vec3};
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer};
@@ -44,40 +45,32 @@ pub fn vec3<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
         )))
     }
 }
-/// A vector whose components lie within `±max`; `allowed` is the text shown.
-fn bounded<'de, D: Deserializer<'de>>(d: D, max: f32, allowed: &str) -> Result<Vec3, D::Error> {
+/// A vector within `bound`.
+fn bounded<'de, D: Deserializer<'de>>(d: D, bound: &VecBound) -> Result<Vec3, D::Error> {
     let v = Vec3::deserialize(d)?;
-    if v.is_finite() && v.abs().max_element() <= max {
+    if bound.allows(v) {
         Ok(v)
     } else {
         Err(D::Error::custom(format!(
-            "{v} is out of range (allowed: {allowed})"
+            "{v} is out of range (allowed: {})",
+            bound.text()
         )))
     }
 }
 pub fn coordinates<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
-    bounded(
-        d,
-        crate::error::MAX_COORDINATE,
-        "|x|, |y|, |z| ≤ 1e6 (metres)",
-    )
+    bounded(d, &crate::error::POSITION)
 }
 pub fn velocity<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
-    bounded(d, 1e4, "|vx|, |vy|, |vz| ≤ 1e4 (m/s)")
+    bounded(d, &crate::error::VELOCITY)
 }
 pub fn angular_velocity<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
-    bounded(d, 1e4, "|ωx|, |ωy|, |ωz| ≤ 1e4 (rad/s)")
+    bounded(d, &crate::error::ANGULAR_VELOCITY)
 }
 pub fn gravity<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
-    bounded(d, 1e4, "|gx|, |gy|, |gz| ≤ 1e4 (m/s²)")
+    bounded(d, &crate::error::GRAVITY)
 }
 pub fn spacing<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(
-        v,
-        (1e-4..=100.0).contains(&v),
-        "1e-4 ≤ spacing ≤ 100 (metres)",
-    )
+    f32::read(d, &ranges::SPACING)
 }
 /// A material compliance (a region's, a group's).
 pub fn compliance<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
@@ -93,12 +86,7 @@ pub fn relax<'de, D: Deserializer<'de>>(
     Ok(v)
 }
 pub fn jitter<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(
-        v,
-        (0.0..=0.5).contains(&v),
-        "0 ≤ jitter ≤ 0.5 (lattice spacings)",
-    )
+    f32::read(d, &ranges::JITTER)
 }
 pub fn attachment_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     let v = f32::deserialize(d)?;
@@ -180,11 +168,9 @@ pub fn cells<'de, D: Deserializer<'de>>(d: D) -> Result<UVec3, D::Error> {
 pub fn ground<'de, D: Deserializer<'de>>(d: D) -> Result<Option<GroundPlane>, D::Error> {
     let ground = Option::<GroundPlane>::deserialize(d)?;
     if let Some(g) = &ground {
-        range::<D>(
-            g.height,
-            g.height.abs() <= crate::error::MAX_COORDINATE,
-            "-1e6 ≤ height ≤ 1e6 (metres)",
-        )?;
+        if !ranges::GROUND_HEIGHT.allows(g.height as f64) {
+            return Err(ranges::GROUND_HEIGHT.refuse(g.height));
+        }
         if !ranges::FRICTION.allows(g.friction as f64) {
             return Err(ranges::FRICTION.refuse(g.friction));
         }
