@@ -50,7 +50,7 @@ pub mod surface;
 pub mod term_sync;
 pub mod wrench;
 
-use crate::ecs::ecs_term::EcsTerm;
+use crate::ecs::ecs_term::{EcsSubstepTerm, EcsTerm};
 use crate::ecs::layout::SolverCache;
 use crate::ecs::resources::*;
 use crate::solver::terms::{
@@ -249,13 +249,24 @@ pub fn install(world: &mut World, config: crate::config::SimConfig) {
 }
 
 /// Registers `term` with the solver and its ECS side with the frame: one call adds a
-/// kind that reads the ECS. Every term hears of the bodies again at the next frame.
+/// kind that reads the ECS (one term of each kind: the sync finds the first). Every
+/// term hears of the bodies again at the next frame.
 pub fn add_ecs_term<T: EcsTerm>(world: &mut World, term: T) {
     let mut cache = world.resource_mut::<SolverCache>();
     cache.solver.terms.register(term);
     cache.layout.retell_terms();
     world.schedule_scope(SyncSchedule, |_, schedule| {
         schedule.add_systems(term_sync::term_data_system::<T>());
+    });
+}
+
+/// [`add_ecs_term`] for a kind that takes its ECS data every substep.
+pub fn add_ecs_substep_term<T: EcsSubstepTerm>(world: &mut World, term: T) {
+    let mut cache = world.resource_mut::<SolverCache>();
+    cache.solver.terms.register(term);
+    cache.layout.retell_terms();
+    world.schedule_scope(SubstepSchedule, |_, schedule| {
+        schedule.add_systems(term_sync::term_substep_system::<T>());
     });
 }
 

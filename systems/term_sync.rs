@@ -1,7 +1,8 @@
 //! Keeps the terms in step with the ECS, once at the start of each frame (after the
 //! layout, in [`crate::systems::SyncSchedule`]): first every term that takes data from
 //! the ECS takes it ([`sync_term`], one system per kind, registered with the kind by
-//! [`crate::systems::add_ecs_term`], the built-in ones in [`crate::systems::build_sync_schedule`]);
+//! [`crate::systems::add_ecs_term`], the built-in ones in
+//! [`crate::systems::build_sync_schedule`]);
 //! then, when the layout changed or one of them said its particles did, every term
 //! hears of the topology ([`sync_terms`]). Writes the solver cache only.
 

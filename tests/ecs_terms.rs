@@ -1,11 +1,13 @@
 //! The term seam with its ECS side: a constraint kind written here that reads a
 //! component of its own is added by one call, solved under every scheme, and saved and
-//! resumed bit for bit — its state carried through the save by the term itself.
+//! resumed bit for bit — its state carried through the save by the term itself; and a
+//! kind that reads a resource of its own every substep follows it as it changes.
 
 use cleave::bevy_ecs::prelude::*;
 use cleave::bevy_ecs::system::SystemParamItem;
-use cleave::ecs::ecs_term::EcsTerm;
+use cleave::ecs::ecs_term::{EcsSubstepTerm, EcsTerm};
 use cleave::ecs::layout::SolverLayout;
+use cleave::ecs::resources::SimSettings;
 use cleave::io::save::LoadedEntities;
 use cleave::prelude::*;
 use cleave::solver::term::{
@@ -299,4 +301,74 @@ fn a_term_reading_its_own_component_is_solved_under_every_scheme_and_resumes_bit
         let message = refused.expect_err("no term takes the anchors").to_string();
         assert!(message.contains("tethers"), "{solver}: {message}");
     }
+}
+
+/// This file's resource: a steady wind, as a velocity.
+#[derive(Resource, Clone, Copy)]
+struct Wind(Vec3);
+
+/// A kind that reads [`Wind`] every substep and carries every free particle with it:
+/// each is held where the wind takes it from its substep-start position.
+#[derive(Default)]
+struct Drift {
+    step: Vec3A,
+}
+
+impl EcsSubstepTerm for Drift {
+    type SubstepData = Option<Res<'static, Wind>>;
+
+    fn substep(&mut self, wind: SystemParamItem<Self::SubstepData>) {
+        self.step = Vec3A::from(wind.map_or(Vec3::ZERO, |w| w.0));
+    }
+}
+
+impl Term for Drift {
+    fn name(&self) -> &'static str {
+        "drift"
+    }
+
+    fn is_empty(&self) -> bool {
+        self.step == Vec3A::ZERO
+    }
+
+    fn project(&mut self, step: &Substep, state: &mut ParticleState) {
+        for i in 0..state.positions.len() {
+            if state.inv_mass[i] > 0.0 {
+                let target = state.previous[i] + self.step * step.dt;
+                state.shift(i, target - state.positions[i]);
+            }
+        }
+    }
+}
+
+#[test]
+fn a_term_reading_the_ecs_every_substep_follows_it_as_it_changes() {
+    let (mut sim, body, _) = hung_block(SolverMode::Jacobi);
+    sim.world_mut().resource_mut::<SimSettings>().0.gravity = Vec3::ZERO;
+    sim.add_ecs_substep_term(Drift::default());
+    let centre = |sim: &Simulation| {
+        let positions = sim.positions(body).expect("a body");
+        positions.iter().map(|(_, x)| *x).sum::<Vec3>() / positions.len() as f32
+    };
+    let start = centre(&sim);
+    // no wind: the block stays; a wind of 1.5 m/s along x for 60 frames (1 s) carries it
+    // 1.5 m; turned to z, it goes on along z
+    sim.run(10);
+    assert!(centre(&sim).distance(start) < 1e-4, "no wind, no drift");
+    sim.world_mut()
+        .insert_resource(Wind(Vec3::new(1.5, 0.0, 0.0)));
+    sim.run(60);
+    let moved = centre(&sim) - start;
+    assert!(
+        (moved.x - 1.5).abs() < 0.02 && moved.z.abs() < 1e-3,
+        "{moved}"
+    );
+    sim.world_mut()
+        .insert_resource(Wind(Vec3::new(0.0, 0.0, 1.5)));
+    sim.run(60);
+    let moved = centre(&sim) - start;
+    assert!(
+        (moved.x - 1.5).abs() < 0.05 && (moved.z - 1.5).abs() < 0.02,
+        "{moved}"
+    );
 }

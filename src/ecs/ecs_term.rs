@@ -28,9 +28,9 @@ pub trait EcsTerm: Term + Sized {
 }
 
 /// A constraint kind that takes data from the ECS at every substep (the colliders
-/// placed where they are over it). Registered with
-/// [`crate::systems::term_sync::term_substep_system`] in the substep schedule, after
-/// predict and before the solve.
+/// placed where they are over it), after predict and before the solve. Registered by
+/// [`crate::sim::simulation::Simulation::add_ecs_substep_term`] (the built-ins: with
+/// [`crate::systems::term_sync::term_substep_system`] in the substep schedule).
 pub trait EcsSubstepTerm: Term + Sized {
     /// What the term reads each substep: queries and resources, read-only (and its own
     /// `Local` state).

@@ -4,7 +4,7 @@ use crate::config::SimConfig;
 use crate::cut::tool::Pose;
 use crate::ecs::components::*;
 use crate::ecs::desc::{BodyDesc, ColliderDesc, ToolDesc};
-use crate::ecs::ecs_term::EcsTerm;
+use crate::ecs::ecs_term::{EcsSubstepTerm, EcsTerm};
 use crate::ecs::layout::SolverCache;
 use crate::ecs::resources::{SceneLabel, SimSettings};
 use crate::ecs::spawn::{recluster, spawn_body, spawn_collider, spawn_tool};
@@ -239,6 +239,12 @@ impl Simulation {
     /// [`Simulation::load_with`], so that it takes up its saved state.
     pub fn add_ecs_term<T: EcsTerm>(&mut self, term: T) {
         crate::systems::add_ecs_term(&mut self.world, term);
+    }
+
+    /// [`Simulation::add_ecs_term`] for a kind that takes its ECS data every substep
+    /// ([`crate::ecs::ecs_term::EcsSubstepTerm`]).
+    pub fn add_ecs_substep_term<T: EcsSubstepTerm>(&mut self, term: T) {
+        crate::systems::add_ecs_substep_term(&mut self.world, term);
     }
 
     /// Adds a term of your own to the solver, after the built-in ones: it is solved with
