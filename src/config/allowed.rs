@@ -53,14 +53,13 @@ impl Allowed {
         }
     }
 
-    /// Whether `v` is allowed.
+    /// Whether `v` is allowed. The bounds are taken as the `f32` nearest them, as the
+    /// fields hold them: a field set to `1e-4` holds the `f32` below the decimal, and is
+    /// allowed where the bound is `1e-4`.
     pub fn allows(&self, v: f64) -> bool {
-        let above = if self.open_min {
-            v > self.min
-        } else {
-            v >= self.min
-        };
-        v.is_finite() && above && v <= self.max && (!self.whole || v.fract() == 0.0)
+        let (min, max) = (self.min as f32 as f64, self.max as f32 as f64);
+        let above = if self.open_min { v > min } else { v >= min };
+        v.is_finite() && above && v <= max && (!self.whole || v.fract() == 0.0)
     }
 
     /// The range as errors state it, e.g. `0 ≤ compliance ≤ 1 (1/Pa)`.
@@ -207,6 +206,9 @@ mod tests {
         assert!(c.allows(0.0) && c.allows(1.0) && !c.allows(1.5) && !c.allows(f64::NAN));
         assert!(!t.allows(1.0) && t.allows(1.5));
         assert!(n.allows(2.0) && !n.allows(2.5) && !n.allows(1.0));
+        // a bound met by a field set to it: the f32 nearest 1e-4 lies below 1e-4
+        let s = Allowed::closed("spacing", 1e-4, 100.0, "metres");
+        assert!(s.allows(1e-4f32 as f64) && !s.allows(0.99e-4f32 as f64));
         let e = c
             .check("material.compliance", 2.0f32)
             .expect_err("out of range");
