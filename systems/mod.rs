@@ -53,6 +53,7 @@ pub mod wrench;
 use crate::ecs::ecs_term::{EcsSubstepTerm, EcsTerm};
 use crate::ecs::layout::SolverCache;
 use crate::ecs::resources::*;
+use crate::solver::term::Term;
 use crate::solver::terms::{
     attachments::Attachments, centroids::Centroids, colliders::Colliders, contacts::Contacts,
 };
@@ -248,13 +249,19 @@ pub fn install(world: &mut World, config: crate::config::SimConfig) {
     world.add_schedule(build_schedule());
 }
 
+/// Registers `term` with the solver, after the terms it has: every term hears of the
+/// bodies again at the next frame, the new one with them.
+pub fn add_term(world: &mut World, term: impl Term) {
+    let mut cache = world.resource_mut::<SolverCache>();
+    cache.solver.terms.register(term);
+    cache.layout.retell_terms();
+}
+
 /// Registers `term` with the solver and its ECS side with the frame: one call adds a
 /// kind that reads the ECS (one term of each kind: the sync finds the first). Every
 /// term hears of the bodies again at the next frame.
 pub fn add_ecs_term<T: EcsTerm>(world: &mut World, term: T) {
-    let mut cache = world.resource_mut::<SolverCache>();
-    cache.solver.terms.register(term);
-    cache.layout.retell_terms();
+    add_term(world, term);
     world.schedule_scope(SyncSchedule, |_, schedule| {
         schedule.add_systems(term_sync::term_data_system::<T>());
     });
@@ -262,9 +269,7 @@ pub fn add_ecs_term<T: EcsTerm>(world: &mut World, term: T) {
 
 /// [`add_ecs_term`] for a kind that takes its ECS data every substep.
 pub fn add_ecs_substep_term<T: EcsSubstepTerm>(world: &mut World, term: T) {
-    let mut cache = world.resource_mut::<SolverCache>();
-    cache.solver.terms.register(term);
-    cache.layout.retell_terms();
+    add_term(world, term);
     world.schedule_scope(SubstepSchedule, |_, schedule| {
         schedule.add_systems(term_sync::term_substep_system::<T>());
     });

@@ -26,7 +26,7 @@ pub fn sync_term<T: EcsTerm>(mut cache: ResMut<SolverCache>, data: StaticSystemP
     let Some(term) = solver.terms.get_mut::<T>() else {
         return;
     };
-    if term.sync(data.into_inner(), layout) {
+    if term.sync(data.into_inner()) {
         layout.request_topology();
     }
 }

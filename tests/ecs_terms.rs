@@ -6,7 +6,6 @@
 use cleave::bevy_ecs::prelude::*;
 use cleave::bevy_ecs::system::SystemParamItem;
 use cleave::ecs::ecs_term::{EcsSubstepTerm, EcsTerm};
-use cleave::ecs::layout::SolverLayout;
 use cleave::ecs::resources::SimSettings;
 use cleave::io::save::LoadedEntities;
 use cleave::prelude::*;
@@ -54,7 +53,7 @@ impl EcsTerm for Tethers {
     type Data = Query<'static, 'static, (Entity, &'static Tethered)>;
 
     /// Takes the tethers; one kept from the last frame keeps its anchor.
-    fn sync(&mut self, tethers: SystemParamItem<Self::Data>, _layout: &SolverLayout) -> bool {
+    fn sync(&mut self, tethers: SystemParamItem<Self::Data>) -> bool {
         let mut found: Vec<(Entity, &Tethered)> = tethers.iter().collect();
         found.sort_unstable_by_key(|(e, _)| *e);
         let list: Vec<(ParticleKey, f32)> = found

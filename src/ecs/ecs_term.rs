@@ -10,7 +10,7 @@
 //! [`crate::solver::term::Term::saved_state`]; a stage that hands what a term found back
 //! to the ECS reads it through [`TermOf`].
 
-use crate::ecs::layout::{SolverCache, SolverLayout};
+use crate::ecs::layout::SolverCache;
 use crate::solver::term::Term;
 use bevy_ecs::system::{ReadOnlySystemParam, SystemParamItem};
 
@@ -20,11 +20,10 @@ pub trait EcsTerm: Term + Sized {
     type Data: ReadOnlySystemParam + 'static;
 
     /// Takes this frame's data. Runs at the start of every frame (and when a simulation
-    /// is saved or loaded), the layout already up to date; `layout` says which dense
-    /// index each particle has. Returns true when the particles the term acts on
-    /// changed: every term then hears the topology again this frame (the term resolves
-    /// its particles' dense indices in [`Term::topology`]).
-    fn sync(&mut self, data: SystemParamItem<Self::Data>, layout: &SolverLayout) -> bool;
+    /// is saved or loaded), the layout already up to date. Returns true when the
+    /// particles the term acts on changed: every term then hears the topology again this
+    /// frame, where the term resolves its particles' dense indices ([`Term::topology`]).
+    fn sync(&mut self, data: SystemParamItem<Self::Data>) -> bool;
 }
 
 /// A constraint kind that takes data from the ECS at every substep (the colliders

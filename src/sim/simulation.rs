@@ -5,7 +5,6 @@ use crate::cut::tool::Pose;
 use crate::ecs::components::*;
 use crate::ecs::desc::{BodyDesc, ColliderDesc, ToolDesc};
 use crate::ecs::ecs_term::{EcsSubstepTerm, EcsTerm};
-use crate::ecs::layout::SolverCache;
 use crate::ecs::resources::{SceneLabel, SimSettings};
 use crate::ecs::spawn::{recluster, spawn_body, spawn_collider, spawn_tool};
 use crate::ecs::surface_mesh::SurfaceMesh;
@@ -252,10 +251,7 @@ impl Simulation {
     /// after [`Simulation::load`] (in [`Simulation::load_with`] if it keeps a saved
     /// state).
     pub fn add_term(&mut self, term: impl Term) {
-        let mut cache = self.world.resource_mut::<SolverCache>();
-        cache.solver.terms.register(term);
-        // every term hears of the bodies again at the next frame, the new one with them
-        cache.layout.retell_terms();
+        crate::systems::add_term(&mut self.world, term);
     }
 
     /// Stops keeping the drawable surfaces of the bodies spawned so far (their

@@ -5,7 +5,6 @@
 use crate::cut::tool::Pose;
 use crate::ecs::components::{Attachment, AttachmentTarget, AttachmentVelocity, Hold};
 use crate::ecs::ecs_term::EcsTerm;
-use crate::ecs::layout::SolverLayout;
 use crate::solver::term::ParticleKey;
 use crate::solver::terms::attachments::{self, Attachments};
 use crate::solver::terms::centroids::Centroids;
@@ -76,7 +75,7 @@ impl EcsTerm for Attachments {
     type Data = AttachmentData;
 
     /// Takes the attachments again when any changed; moves their targets every frame.
-    fn sync(&mut self, data: SystemParamItem<Self::Data>, _layout: &SolverLayout) -> bool {
+    fn sync(&mut self, data: SystemParamItem<Self::Data>) -> bool {
         Held::read(data, true).give(self, Attachments::replace, Attachments::set_poses)
     }
 }
@@ -86,7 +85,7 @@ impl EcsTerm for Centroids {
 
     /// Takes the centroid holds again when any attachment changed; moves their targets
     /// every frame.
-    fn sync(&mut self, data: SystemParamItem<Self::Data>, _layout: &SolverLayout) -> bool {
+    fn sync(&mut self, data: SystemParamItem<Self::Data>) -> bool {
         Held::read(data, false).give(self, Centroids::replace, Centroids::set_poses)
     }
 }

@@ -1,7 +1,6 @@
 //! The contacts' ECS side: the simulation's `contacts` and `culling` settings.
 
 use crate::ecs::ecs_term::EcsTerm;
-use crate::ecs::layout::SolverLayout;
 use crate::ecs::resources::SimSettings;
 use crate::solver::terms::contacts::Contacts;
 use bevy_ecs::prelude::*;
@@ -12,7 +11,7 @@ impl EcsTerm for Contacts {
 
     /// Follows the settings; true when contacts were turned on or off (the particles are
     /// chosen again).
-    fn sync(&mut self, settings: SystemParamItem<Self::Data>, _layout: &SolverLayout) -> bool {
+    fn sync(&mut self, settings: SystemParamItem<Self::Data>) -> bool {
         self.set_culling(settings.0.culling);
         self.set_enabled(settings.0.contacts)
     }
