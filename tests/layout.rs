@@ -523,3 +523,28 @@ fn function_lengths_are_counted_to_the_closing_brace() {
         [("a".to_string(), 5), ("b".to_string(), 4)]
     );
 }
+
+/// A kind of term is reached by its type only by the solver, which owns the terms, and
+/// by the generic seam that gives each kind its own ECS side (`TermOf<T>`, and the
+/// systems generic over `T` that sync it); everything else names a kind by the term it
+/// registers or reads what every term reports (`Terms::extent`, `Terms::seconds`).
+#[test]
+fn no_term_is_reached_by_its_type_outside_the_solver() {
+    let top = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut found = Vec::new();
+    for path in rust_files(top, &["src", "systems"]) {
+        if path.starts_with(top.join("src/solver")) {
+            continue;
+        }
+        for (n, line) in read(&path).lines().enumerate() {
+            let typed = ["terms.get::<", "terms.get_mut::<"]
+                .iter()
+                .any(|call| line.contains(call));
+            let generic = line.contains("::<T>()");
+            if typed && !generic {
+                found.push(format!("{}:{}: {}", path.display(), n + 1, line.trim()));
+            }
+        }
+    }
+    assert!(found.is_empty(), "a term reached by its type: {found:#?}");
+}

@@ -20,7 +20,6 @@ use crate::solver::registry::Terms;
 use crate::solver::solve::Solver;
 use crate::solver::term::Substep;
 use crate::solver::terms::colliders::Colliders;
-use crate::solver::terms::edges::Edges;
 use glam::{Quat, UVec3, Vec3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -141,7 +140,11 @@ pub fn bench_edges(n: u32, steps: usize, config: &SimConfig) -> Result<EdgeRow> 
         .collect();
     let edge_ms_per_step = (kind_seconds(&sim, "edges") - before) * 1e3 / steps.max(1) as f64;
     let cache = sim.world().resource::<SolverCache>();
-    let edges = cache.solver.terms.get::<Edges>().map_or(0, |e| e.len());
+    let edges = cache
+        .solver
+        .terms
+        .extent("edges")
+        .map_or(0, |e| e.constraints);
     let iterations = config.substeps * config.iterations;
     Ok(EdgeRow {
         row: "edges",
@@ -254,9 +257,7 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
     let bytes_per_particle = peak_resident_bytes().unwrap_or(0) as f64 / particles as f64;
     // the bare kernel: the same clusters and particles, the ground and no other term
     let mut bare_terms = Terms::builtin();
-    if let Some(colliders) = bare_terms.get_mut::<Colliders>() {
-        *colliders = Colliders::from_config(config, std::iter::empty());
-    }
+    bare_terms.replace(Colliders::from_config(config, std::iter::empty()));
     let (mut solver, mut dense) = cache.bare(bare_terms);
     // Engine and bare steps alternate, so both see the same machine noise.
     let (mut engine, mut bare) = (Vec::with_capacity(steps), Vec::with_capacity(steps));

@@ -10,7 +10,6 @@ use crate::ecs::desc::BodyDesc;
 use crate::ecs::layout::SolverCache;
 use crate::error::Result;
 use crate::sim::simulation::Simulation;
-use crate::solver::terms::oriented::Oriented;
 use glam::{UVec3, Vec3};
 use serde::Serialize;
 
@@ -98,8 +97,8 @@ pub fn bench_models(n: u32, steps: usize, config: &SimConfig) -> Result<Oriented
                 Model::Oriented => cache
                     .solver
                     .terms
-                    .get::<Oriented>()
-                    .map_or(0, Oriented::membership_count),
+                    .extent("oriented")
+                    .map_or(0, |e| e.constraints),
             };
             let elastic_ms_per_step = (kind_seconds(sim, part) - before) * 1e3 / steps;
             ModelRow {

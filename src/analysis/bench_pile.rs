@@ -10,7 +10,6 @@ use crate::ecs::layout::SolverCache;
 use crate::ecs::resources::DetectCulling;
 use crate::error::Result;
 use crate::sim::simulation::Simulation;
-use crate::solver::terms::contacts::Contacts;
 use glam::{Quat, Vec3};
 use serde::Serialize;
 
@@ -120,7 +119,7 @@ pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileR
     }
     let cache = with.world().resource::<SolverCache>();
     let particles = cache.particles.len();
-    let contacts = cache.solver.terms.get::<Contacts>();
+    let contacts = cache.solver.terms.extent("contacts").unwrap_or_default();
     let (ms_on, ms_off, ms_in) = (median(&mut on), median(&mut off), median(&mut inside));
     let iterations = (config.substeps * config.iterations) as f64;
     Ok(PileRow {
@@ -129,8 +128,8 @@ pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileR
         bodies: cache.layout.bodies().len(),
         particles,
         frames,
-        contact_particles: contacts.map_or(0, |c| c.particle_count()),
-        contact_pairs: contacts.map_or(0, |c| c.pair_count()),
+        contact_particles: contacts.particles,
+        contact_pairs: contacts.constraints,
         ms_per_step: ms_on,
         ms_per_step_without_contacts: ms_off,
         contacts_over_without: ms_on / ms_off,

@@ -117,9 +117,9 @@ impl StaticProblem {
                 velocity: None,
             }
         });
-        if let Some(attachments) = solver.terms.get_mut::<Attachments>() {
-            attachments.set(pins.collect(), &topology);
-        }
+        let mut attachments = Attachments::default();
+        attachments.set(pins.collect(), &topology);
+        solver.terms.replace(attachments);
         let mut particles = Particles::at_rest(&rest);
         let inv_mass = 1.0 / desc.material.mass_at_spacing(desc.spacing);
         particles.inv_mass.iter_mut().for_each(|w| *w = inv_mass);

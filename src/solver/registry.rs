@@ -57,6 +57,23 @@ impl Terms {
         index
     }
 
+    /// Puts `term` in the place of the registered term of its name (keeping its place in
+    /// the order and its accumulated seconds); adds it after the others if there is
+    /// none.
+    pub fn replace(&mut self, term: impl Term) {
+        match self.kinds.iter().position(|k| k.name() == term.name()) {
+            Some(i) => self.kinds[i] = Box::new(term),
+            None => {
+                self.register(term);
+            }
+        }
+    }
+
+    /// What the term named `name` holds ([`Term::extent`]); `None` if none is registered.
+    pub fn extent(&self, name: &str) -> Option<super::term::TermExtent> {
+        self.iter().find(|k| k.name() == name).map(|k| k.extent())
+    }
+
     /// The first registered term of type `T`.
     pub fn get<T: Term>(&self) -> Option<&T> {
         self.kinds

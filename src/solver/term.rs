@@ -265,6 +265,15 @@ pub trait ProjectiveTerm {
     );
 }
 
+/// What a term holds, as reports count it ([`Term::extent`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TermExtent {
+    /// Particles taking part.
+    pub particles: usize,
+    /// Constraints (edges, pairs found, …; each as the kind counts them).
+    pub constraints: usize,
+}
+
 /// A kind of constraint: its data, its parameters and its kernel (see the module docs).
 pub trait Term: std::any::Any + Send + Sync {
     /// A short name, for profiles and reports.
@@ -272,6 +281,11 @@ pub trait Term: std::any::Any + Send + Sync {
 
     /// Whether the term has nothing to do (the solver then skips it).
     fn is_empty(&self) -> bool;
+
+    /// What the term holds now, for reports (none by default).
+    fn extent(&self) -> TermExtent {
+        TermExtent::default()
+    }
 
     /// Dense particles the term moves itself and nothing else may (a hard attachment's):
     /// the solver gives them inverse mass 0, and the term places them in

@@ -20,7 +20,7 @@ use super::contact_list::ContactList;
 use super::contact_pairs::{ContactBall, ContactGroup, ContactParticles};
 use crate::body::lattice::Lattice;
 use crate::config::Material;
-use crate::solver::term::{NO_DENSE, ParticleState, Substep, Term, Topology};
+use crate::solver::term::{NO_DENSE, ParticleState, Substep, Term, TermExtent, Topology};
 use glam::Vec3A;
 use rayon::prelude::*;
 
@@ -239,6 +239,15 @@ impl Term for Contacts {
 
     fn is_empty(&self) -> bool {
         self.particles.is_empty()
+    }
+
+    /// The taking-part particles and the pairs found in the last substep (each counted
+    /// from both sides).
+    fn extent(&self) -> TermExtent {
+        TermExtent {
+            particles: self.particle_count(),
+            constraints: self.pair_count(),
+        }
     }
 
     /// Takes the surface particles of every body again, each labelled with its piece.

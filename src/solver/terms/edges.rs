@@ -17,7 +17,7 @@
 use crate::body::lattice::NO_PARTICLE;
 use crate::solver::disjoint::Disjoint;
 use crate::solver::term::{
-    NO_DENSE, ParticleState, ProjectiveTerm, Substep, Term, Topology, Unknowns,
+    NO_DENSE, ParticleState, ProjectiveTerm, Substep, Term, TermExtent, Topology, Unknowns,
 };
 use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
@@ -132,6 +132,13 @@ impl Term for Edges {
 
     fn is_empty(&self) -> bool {
         Edges::is_empty(self)
+    }
+
+    fn extent(&self) -> TermExtent {
+        TermExtent {
+            particles: 0,
+            constraints: self.len(),
+        }
     }
 
     /// Takes the edges of every body that changed (all, after a rebuild) from its

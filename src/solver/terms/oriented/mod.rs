@@ -193,6 +193,14 @@ impl Term for Oriented {
         self.bodies.is_empty()
     }
 
+    /// The groups' memberships (a particle in two groups counts twice).
+    fn extent(&self) -> crate::solver::term::TermExtent {
+        crate::solver::term::TermExtent {
+            particles: 0,
+            constraints: self.membership_count(),
+        }
+    }
+
     fn saved_state(&self) -> Option<Vec<u8>> {
         let saved = SavedGroups {
             moved: self.moved.clone(),
