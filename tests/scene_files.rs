@@ -181,7 +181,7 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
                 "Cells(cells: (4, 4, 4))",
                 "Capsule(radius: 0.2, half_length: -0.5)",
             ),
-            &["capsule.ron:3:14: bodies[0]", "shape.half_length", "-0.5"],
+            &["capsule.ron:3:60: bodies[0].shape.Capsule.half_length", "-0.5", "0 ≤ size ≤ 1e6"],
         ),
         (
             "union.ron",
@@ -214,7 +214,7 @@ fn bad_files_give_one_line_naming_file_position_and_field() {
         (
             "ball.ron",
             collider("Sphere(radius: -1.0)"),
-            &["ball.ron:4:", "colliders[0].shape", "allowed: radius finite and > 0"],
+            &["ball.ron:4:", "colliders[0].shape.radius:", "allowed: 0 < size ≤ 1e6 (metres)"],
         ),
         (
             "friction.ron",
@@ -486,7 +486,7 @@ fn numbers_that_are_not_whole_or_out_of_range_name_the_field_and_its_range() {
     for (args, expected) in [
         (
             &["run", "drop", "--frames", "-1"][..],
-            "'--frames <FRAMES>': -1 is out of range (allowed: a whole number, 0 to 10000000)",
+            "'--frames <FRAMES>': -1 is out of range (allowed: a whole number, 0 ≤ frames ≤ 1e7)",
         ),
         (
             &["run", "drop", "--substeps", "2.5"][..],

@@ -2,7 +2,10 @@
 //! triangle meshes, within a memory budget checked before anything is allocated.
 
 use super::lattice::{Lattice, MAX_LATTICE_CELLS};
-use crate::error::{CleaveError, Result, check_finite_vec, check_positive};
+use crate::error::{
+    CELLS, CleaveError, POSITION, Result, SIZE, SIZE_OR_ZERO, check_finite_vec, check_positive,
+    check_vec_within,
+};
 use crate::geometry::mesh::TriangleMesh;
 use glam::{IVec3, UVec3, Vec3};
 use std::sync::Arc;
@@ -127,26 +130,20 @@ impl Shape {
     fn bounds(&self) -> Result<(Vec3, Vec3)> {
         Ok(match self {
             Shape::Box { half_extents } => {
-                check_finite_vec("shape.half_extents", *half_extents)?;
+                SIZE.check_each("shape.half_extents", *half_extents)?;
                 (-*half_extents, *half_extents)
             }
             Shape::Cells { .. } => (Vec3::ZERO, Vec3::ZERO),
             Shape::Sphere { radius } => {
-                check_positive("shape.radius", *radius)?;
+                SIZE.check("shape.radius", *radius)?;
                 (Vec3::splat(-radius), Vec3::splat(*radius))
             }
             Shape::Capsule {
                 radius,
                 half_length,
             } => {
-                check_positive("shape.radius", *radius)?;
-                crate::error::check_range(
-                    "shape.half_length",
-                    *half_length,
-                    0.0,
-                    f32::MAX,
-                    "finite and ≥ 0",
-                )?;
+                SIZE.check("shape.radius", *radius)?;
+                SIZE_OR_ZERO.check("shape.half_length", *half_length)?;
                 let e = Vec3::new(radius + half_length, *radius, *radius);
                 (-e, e)
             }
@@ -154,8 +151,8 @@ impl Shape {
                 radius,
                 half_length,
             } => {
-                check_positive("shape.radius", *radius)?;
-                check_positive("shape.half_length", *half_length)?;
+                SIZE.check("shape.radius", *radius)?;
+                SIZE.check("shape.half_length", *half_length)?;
                 let e = Vec3::new(*radius, *radius, *half_length);
                 (-e, e)
             }
@@ -167,7 +164,7 @@ impl Shape {
             Shape::Union(parts) => {
                 let (mut min, mut max) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
                 for (i, part) in parts.iter().enumerate() {
-                    check_finite_vec(&format!("shape.parts[{i}].at"), part.at)?;
+                    check_vec_within(&format!("shape.parts[{i}].at"), part.at, &POSITION)?;
                     if matches!(part.shape, Shape::Cells { .. }) {
                         return Err(crate::error::out_of_range(
                             &format!("shape.parts[{i}].shape"),
@@ -248,13 +245,8 @@ impl Shape {
     pub fn voxelise_within(&self, h: f32, budget_gb: f32) -> Result<Lattice> {
         check_positive("spacing", h)?;
         if let Shape::Cells { cells } = self {
+            CELLS.check_each("shape.cells", cells.as_vec3())?;
             let total = cells.x as u64 * cells.y as u64 * cells.z as u64;
-            if total == 0 {
-                return Err(CleaveError::EmptyShape {
-                    field: "shape.cells".into(),
-                    spacing: h,
-                });
-            }
             check_budget("shape.cells", total, budget_gb)?;
             if total > MAX_LATTICE_CELLS {
                 return Err(CleaveError::TooLarge {
@@ -362,7 +354,15 @@ mod tests {
             half_extents: Vec3::ZERO,
         }
         .voxelise(1.0);
+        assert!(matches!(e, Err(CleaveError::OutOfRange { .. })), "{e:?}");
+        // a box between the lattice's points holds none of them
+        let e = Shape::Box {
+            half_extents: Vec3::splat(0.1),
+        }
+        .voxelise(1.0);
         assert!(matches!(e, Err(CleaveError::EmptyShape { .. })), "{e:?}");
+        let e = Shape::cuboid(UVec3::new(2, 0, 2)).voxelise(1.0);
+        assert!(matches!(e, Err(CleaveError::OutOfRange { .. })), "{e:?}");
         assert!(Shape::Sphere { radius: 1e9 }.voxelise(1e-3).is_err());
     }
 

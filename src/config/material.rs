@@ -1,7 +1,7 @@
 //! A body's material: its elasticity, mass, clustering, contacts, tearing and shape
 //! keeping, with validation of every field.
 
-use super::allowed::{Allowed, CheckedField};
+use crate::error::allowed::{Allowed, CheckedField};
 use crate::error::{Result, out_of_range};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};

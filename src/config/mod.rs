@@ -4,7 +4,6 @@ use crate::error::{Result, check_vec_within, out_of_range};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-pub mod allowed;
 mod material;
 pub mod ranges;
 mod relax;
@@ -153,27 +152,38 @@ impl SimConfig {
             relax.validate()?;
         }
         if let Some(g) = &self.ground {
-            ranges::GROUND_HEIGHT.check("config.ground.height", g.height)?;
-            ranges::FRICTION.check("config.ground.friction", g.friction)?;
+            g.validate("config.ground")?;
         }
         for (i, b) in self.boxes.iter().enumerate() {
-            for (corner, v) in [("min", b.min), ("max", b.max)] {
-                check_vec_within(
-                    &format!("config.boxes[{i}].{corner}"),
-                    v,
-                    &crate::error::POSITION,
-                )?;
-            }
-            if !b.min.cmple(b.max).all() {
-                return Err(out_of_range(
-                    &format!("config.boxes[{i}]"),
-                    (b.min, b.max),
-                    "min ≤ max on every axis",
-                ));
-            }
-            ranges::FRICTION.check(&format!("config.boxes[{i}].friction"), b.friction)?;
+            b.validate(&format!("config.boxes[{i}]"))?;
         }
         Ok(())
+    }
+}
+
+impl GroundPlane {
+    /// Checks the height and the friction; errors name `{field}.height` and so on.
+    pub fn validate(&self, field: &str) -> Result<()> {
+        ranges::GROUND_HEIGHT.check(&format!("{field}.height"), self.height)?;
+        ranges::FRICTION.check(&format!("{field}.friction"), self.friction)
+    }
+}
+
+impl StaticBox {
+    /// Checks the corners (positions, `min ≤ max`) and the friction; errors name
+    /// `{field}.min` and so on.
+    pub fn validate(&self, field: &str) -> Result<()> {
+        for (corner, v) in [("min", self.min), ("max", self.max)] {
+            check_vec_within(&format!("{field}.{corner}"), v, &crate::error::POSITION)?;
+        }
+        if !self.min.cmple(self.max).all() {
+            return Err(out_of_range(
+                field,
+                (self.min, self.max),
+                "min ≤ max on every axis",
+            ));
+        }
+        ranges::FRICTION.check(&format!("{field}.friction"), self.friction)
     }
 }
 

@@ -2,7 +2,7 @@
 //! once (see [`Allowed`]): checked by [`super::Material::validate`] and
 //! [`super::SimConfig::validate`], and by the scene file's reader.
 
-use super::allowed::Allowed;
+use crate::error::allowed::Allowed;
 
 /// [`super::Material::compliance`].
 pub const COMPLIANCE: Allowed = Allowed::closed("compliance", 0.0, 1.0, "1/Pa");
@@ -64,5 +64,7 @@ pub const GROUND_HEIGHT: Allowed = Allowed::closed("height", -1e6, 1e6, "metres"
 pub const SPACING: Allowed = Allowed::closed("spacing", 1e-4, 100.0, "metres");
 /// How far a body's particles are jittered from the lattice.
 pub const JITTER: Allowed = Allowed::closed("jitter", 0.0, 0.5, "lattice spacings");
+/// An attachment's (a handle's, a centroid hold's) spring.
+pub const ATTACHMENT_COMPLIANCE: Allowed = Allowed::closed("compliance", 0.0, 1e6, "m/N; 0: hard");
 /// The friction of the ground, of static boxes and of colliders.
 pub const FRICTION: Allowed = Allowed::closed("friction", 0.0, 100.0, "");

@@ -2,7 +2,7 @@
 //! paths, and the swept test that detection uses: exact for a translating tool, so a fast
 //! tool cannot skip particles and cuts what a slow one cuts along the same path.
 
-use crate::error::{MAX_SPEED, Result, check_length, check_vec_within, out_of_range};
+use crate::error::{MAX_SPEED, Result, SIZE, check_vec_within, out_of_range};
 use crate::geometry::convex::{self, Convex};
 use crate::math::rotation::unit_quaternion;
 use glam::{Quat, Vec3};
@@ -99,25 +99,23 @@ impl ToolShape {
         }
     }
 
-    /// Checks that every size is a length (finite, positive, at most 1e6 m).
-    pub fn validate(&self) -> Result<()> {
-        match *self {
-            ToolShape::Sphere { radius } => check_length("tool.radius", radius),
+    /// Checks that every size is a [`SIZE`]; errors name `{field}.radius` and so on.
+    pub fn validate(&self, field: &str) -> Result<()> {
+        let sizes: &[(&str, f32)] = match self {
+            ToolShape::Sphere { radius } => &[("radius", *radius)],
             ToolShape::Capsule {
                 radius,
                 half_length,
-            } => {
-                check_length("tool.radius", radius)?;
-                check_length("tool.half_length", half_length)
-            }
+            } => &[("radius", *radius), ("half_length", *half_length)],
             ToolShape::Blade {
                 half_width,
                 half_height,
-            } => {
-                check_length("tool.half_width", half_width)?;
-                check_length("tool.half_height", half_height)
-            }
+            } => &[("half_width", *half_width), ("half_height", *half_height)],
+        };
+        for (name, value) in sizes {
+            SIZE.check(&format!("{field}.{name}"), *value)?;
         }
+        Ok(())
     }
 }
 
@@ -181,12 +179,15 @@ impl BladePlane {
     }
 }
 
-/// A rigid pose.
+/// A rigid pose. A scene file writes it `(position: (x, y, z), rotation: (x, y, z, w))`,
+/// the rotation optional.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Pose {
     /// Translation.
     pub position: Vec3,
     /// Orientation.
+    #[serde(default)]
     pub rotation: Quat,
 }
 
@@ -226,30 +227,32 @@ impl Path {
     /// than [`MAX_SPEED`]; the error names the key as `{owner}.path[i]` (`owner`: `tool`,
     /// `collider`, …).
     pub fn validate(&self, owner: &str) -> Result<()> {
+        self.validate_keys(&format!("{owner}.path"))
+    }
+
+    /// [`Path::validate`], the error naming the key as `{field}[i]` (a scene file's
+    /// reader gives an empty `field`).
+    pub fn validate_keys(&self, field: &str) -> Result<()> {
         for (i, (t, pose)) in self.keys.iter().enumerate() {
             if !t.is_finite() {
-                return Err(out_of_range(
-                    &format!("{owner}.path[{i}].time"),
-                    t,
-                    "finite",
-                ));
+                return Err(out_of_range(&format!("{field}[{i}].time"), t, "finite"));
             }
             check_vec_within(
-                &format!("{owner}.path[{i}].position"),
+                &format!("{field}[{i}].position"),
                 pose.position,
                 &crate::error::POSITION,
             )?;
             if unit_quaternion(pose.rotation).is_none() {
                 return Err(out_of_range(
-                    &format!("{owner}.path[{i}].rotation"),
+                    &format!("{field}[{i}].rotation"),
                     pose.rotation,
-                    "finite, non-zero quaternion",
+                    crate::error::ROTATION,
                 ));
             }
             if let Some((before, from)) = i.checked_sub(1).map(|j| self.keys[j]) {
                 if *t <= before {
                     return Err(out_of_range(
-                        &format!("{owner}.path[{i}].time"),
+                        &format!("{field}[{i}].time"),
                         t,
                         "times strictly increasing (no two keys at one time)",
                     ));
@@ -257,7 +260,7 @@ impl Path {
                 let speed = (pose.position - from.position).length() / (t - before);
                 if speed.is_nan() || speed > MAX_SPEED {
                     return Err(out_of_range(
-                        &format!("{owner}.path[{i}]"),
+                        &format!("{field}[{i}]"),
                         format_args!("{speed} m/s from the key before"),
                         "≤ 1e4 m/s between keys",
                     ));
@@ -497,6 +500,6 @@ mod tests {
                 .to_string()
                 .contains("tool.path[0].position")
         );
-        assert!(ToolShape::Sphere { radius: 0.0 }.validate().is_err());
+        assert!(ToolShape::Sphere { radius: 0.0 }.validate("tool").is_err());
     }
 }

@@ -82,7 +82,7 @@ impl ToolSweep {
     /// The sweep of `tool` from pose `last` to `current`; `None` for a tool that cannot
     /// cut (invalid shape, cut width not finite and positive, or a non-finite pose).
     pub fn new(tool: &Tool, last: &Pose, current: &Pose) -> Option<Self> {
-        let valid = tool.shape.validate().is_ok()
+        let valid = tool.shape.validate("tool").is_ok()
             && tool.cut_width.is_finite()
             && tool.cut_width > 0.0
             && current.is_finite()

@@ -4,24 +4,26 @@
 //! its particle's position (its rotation and scale must be the identity).
 
 use super::handles::{Handle, HandleTarget};
-use crate::error::{CleaveError, Result, check_vec_within};
+use crate::error::{CleaveError, Result, SCALE, check_vec_within};
 use glam::{Affine3A, Quat, Vec3};
 
-/// The smallest scale a key may give along an axis.
-pub const MIN_SCALE: f32 = 1e-3;
-
-/// The largest scale a key may give along an axis.
-pub const MAX_SCALE: f32 = 1e3;
-
-/// One key of a handle's path.
+/// One key of a handle's path. A scene file writes it `(position: …, rotation: …,
+/// scale: …)`, the rotation and the scale optional.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct HandleKey {
     /// Where the handle's rest centroid (a point handle's particle) goes.
     pub position: Vec3,
     /// The rotation about it.
+    #[serde(default)]
     pub rotation: Quat,
     /// The scale along the body's axes about it, before the rotation.
+    #[serde(default = "unit_scale")]
     pub scale: Vec3,
+}
+
+fn unit_scale() -> Vec3 {
+    Vec3::ONE
 }
 
 impl HandleKey {
@@ -59,9 +61,16 @@ impl HandlePath {
     /// world, rotations finite and non-zero (they are normalised), scales finite and
     /// > 0; a point handle's keys neither turn nor scale. Errors name `{owner}.path[i]`.
     pub fn validate(&mut self, owner: &str, point: bool) -> Result<()> {
+        self.validate_keys(&format!("{owner}.path"), point)
+    }
+
+    /// [`HandlePath::validate`], the errors naming the key as `{field}[i]` (a scene
+    /// file's reader gives an empty `field`).
+    pub fn validate_keys(&mut self, field: &str, point: bool) -> Result<()> {
+        let path = field;
         let mut last = f32::NEG_INFINITY;
         for (i, (t, key)) in self.keys.iter_mut().enumerate() {
-            let field = |what: &str| format!("{owner}.path[{i}].{what}");
+            let field = |what: &str| format!("{path}[{i}].{what}");
             let bad = |what: &str, value: String, allowed: &'static str| {
                 Err(CleaveError::OutOfRange {
                     field: field(what),
@@ -79,15 +88,11 @@ impl HandlePath {
                 return bad(
                     "rotation",
                     format!("{:?}", key.rotation),
-                    "finite and non-zero",
+                    crate::error::ROTATION,
                 );
             }
             key.rotation /= length;
-            // a scale moves particles by itself times their distance from the centroid:
-            // past a thousandfold they leave any scene, and no finite body survives it
-            if !(key.scale.min_element() >= MIN_SCALE && key.scale.max_element() <= MAX_SCALE) {
-                return bad("scale", format!("{}", key.scale), "1e-3 ≤ each ≤ 1e3");
-            }
+            SCALE.check_each(&field("scale"), key.scale)?;
             if point && !key.is_rigid_translation() {
                 return bad(
                     "rotation",

@@ -3,9 +3,10 @@
 //! [`AttachmentTarget`] and what moves the target (an [`AttachmentPath`], an
 //! [`AttachmentVelocity`], or nothing: game code).
 
+use crate::config::ranges;
 use crate::cut::tool::{Path, Pose};
 use crate::ecs::components::*;
-use crate::error::{CleaveError, Result, check_range};
+use crate::error::{CleaveError, Result};
 use bevy_ecs::prelude::*;
 use glam::Vec3;
 
@@ -20,15 +21,10 @@ pub enum TargetMotion {
     Velocity(Vec3),
 }
 
-/// Checks an attachment's compliance (finite, ≥ 0); the error names `field`.
+/// Checks an attachment's compliance ([`ranges::ATTACHMENT_COMPLIANCE`]); the error
+/// names `{field}.compliance`.
 pub fn check_compliance(field: &str, compliance: f32) -> Result<()> {
-    check_range(
-        &format!("{field}.compliance"),
-        compliance,
-        0.0,
-        f32::MAX,
-        "finite and ≥ 0 (m/N; 0: hard)",
-    )
+    ranges::ATTACHMENT_COMPLIANCE.check(&format!("{field}.compliance"), compliance)
 }
 
 /// Makes `e` (a new entity: `world.spawn_empty()`) an attachment of `body`'s particles

@@ -21,6 +21,11 @@ pub struct Region {
 }
 
 impl Region {
+    /// Checks that its corners are finite; errors name `{field}.min` and `{field}.max`.
+    pub fn validate(&self, field: &str) -> crate::error::Result<()> {
+        crate::error::check_corners(field, self.min, self.max)
+    }
+
     /// Whether the world position `x` lies in the region (bounds included).
     pub fn contains(&self, x: Vec3) -> bool {
         x.cmpge(self.min).all() && x.cmple(self.max).all()
@@ -65,6 +70,17 @@ pub struct PinRegion {
 }
 
 impl PinRegion {
+    /// Checks that its corners are finite and its velocity within
+    /// [`crate::error::VELOCITY`]; errors name `{field}.min` and so on.
+    pub fn validate(&self, field: &str) -> crate::error::Result<()> {
+        crate::error::check_corners(field, self.min, self.max)?;
+        crate::error::check_vec_within(
+            &format!("{field}.velocity"),
+            self.velocity,
+            &crate::error::VELOCITY,
+        )
+    }
+
     /// Whether the world position `x` lies in the region (bounds included).
     pub fn contains(&self, x: Vec3) -> bool {
         self.region().contains(x)
@@ -221,6 +237,10 @@ pub struct ColliderDesc {
 
 /// The most frames a run may be asked for, in a scene file or on the command line.
 pub const MAX_FRAMES: u32 = 10_000_000;
+
+/// The frames a run may be given (a scene file's `frames`, `--frames`).
+pub const FRAMES: crate::error::allowed::Allowed =
+    crate::error::allowed::Allowed::count("frames", 0, MAX_FRAMES);
 
 /// A runnable scene.
 #[derive(Clone, Debug)]

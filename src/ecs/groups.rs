@@ -5,7 +5,7 @@
 use crate::body::groups::{ExplicitGroup, ParticleGroups};
 use crate::config::{Material, Model, ranges};
 use crate::ecs::desc::{GroupDesc, Region, StiffnessRegion};
-use crate::error::{Result, check_finite_vec, out_of_range};
+use crate::error::{Result, out_of_range};
 use glam::Vec3;
 
 /// The groups and compliances of a body of `material` whose live particles `live` sit
@@ -27,8 +27,7 @@ pub fn select_groups(
         ));
     }
     let select = |field: String, region: &Region, compliance: f32| -> Result<Vec<u32>> {
-        check_finite_vec(&format!("{field}.region.min"), region.min)?;
-        check_finite_vec(&format!("{field}.region.max"), region.max)?;
+        region.validate(&format!("{field}.region"))?;
         ranges::COMPLIANCE.check(&format!("{field}.compliance"), compliance)?;
         let members: Vec<u32> = live
             .iter()

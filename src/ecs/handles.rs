@@ -19,7 +19,7 @@ use crate::ecs::attach::{TargetMotion, check_compliance, pinned_particles, spawn
 use crate::ecs::components::*;
 use crate::ecs::desc::HandleDesc;
 use crate::ecs::resources::SimSettings;
-use crate::error::{CleaveError, Result, check_finite_vec};
+use crate::error::{CleaveError, Result};
 use bevy_ecs::prelude::*;
 use glam::{DMat3, Vec3};
 
@@ -114,8 +114,7 @@ pub(crate) struct SavedHandlePose {
 pub fn check_handles(handles: &mut [HandleDesc]) -> Result<()> {
     for (i, h) in handles.iter_mut().enumerate() {
         let field = format!("body.handles[{i}]");
-        check_finite_vec(&format!("{field}.region.min"), h.region.min)?;
-        check_finite_vec(&format!("{field}.region.max"), h.region.max)?;
+        h.region.validate(&format!("{field}.region"))?;
         check_compliance(&field, h.compliance)?;
         h.path.validate(&field, h.point)?;
     }

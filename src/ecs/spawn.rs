@@ -12,7 +12,7 @@ use crate::ecs::resources::*;
 pub use crate::ecs::spawn_body::spawn_body;
 use crate::ecs::spawn_body::spawn_clusters;
 use crate::ecs::spawn_body::spawn_into;
-use crate::error::{CleaveError, Result, check_length, check_vec_within};
+use crate::error::{CleaveError, Result, SIZE, check_vec_within};
 use crate::math::rotation::unit_quaternion;
 use bevy_ecs::prelude::*;
 
@@ -30,8 +30,8 @@ pub(crate) fn spawn_tool_into(
     into: Option<Entity>,
     desc: &ToolDesc,
 ) -> Result<Entity> {
-    desc.shape.validate()?;
-    check_length("tool.cut_width", desc.cut_width)?;
+    desc.shape.validate("tool.shape")?;
+    SIZE.check("tool.cut_width", desc.cut_width)?;
     let (pose, path) = starting_pose(world, "tool", &desc.path, desc.pose)?;
     let tool = Tool {
         shape: desc.shape,
@@ -86,7 +86,7 @@ pub fn checked_pose(field: &str, pose: Pose) -> Result<Pose> {
         crate::error::out_of_range(
             &format!("{field}.rotation"),
             pose.rotation,
-            "finite, non-zero quaternion",
+            crate::error::ROTATION,
         )
     })?;
     Ok(Pose { rotation, ..pose })

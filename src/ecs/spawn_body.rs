@@ -16,7 +16,7 @@ use crate::ecs::desc::{BodyDesc, HandleDesc, Region};
 use crate::ecs::groups::cluster_compliance;
 use crate::ecs::resources::*;
 use crate::ecs::surface_mesh::SurfaceMesh;
-use crate::error::{CleaveError, Result, check_finite_vec, check_range, check_vec_within};
+use crate::error::{CleaveError, Result, check_range, check_vec_within};
 use crate::math::rotation::unit_quaternion;
 use crate::solver::clusters::term::MAX_SOLVER_PARTICLES;
 use crate::surface::embed::EmbeddedMesh;
@@ -98,11 +98,7 @@ fn check_placement(desc: &BodyDesc) -> Result<Quat> {
     check_vec_within("body.position", desc.position, &crate::error::POSITION)?;
     check_vec_within("body.velocity", desc.velocity, &crate::error::VELOCITY)?;
     let rotation = unit_quaternion(desc.rotation).ok_or_else(|| {
-        crate::error::out_of_range(
-            "body.rotation",
-            desc.rotation,
-            "finite, non-zero quaternion",
-        )
+        crate::error::out_of_range("body.rotation", desc.rotation, crate::error::ROTATION)
     })?;
     check_vec_within(
         "body.angular_velocity",
@@ -110,13 +106,7 @@ fn check_placement(desc: &BodyDesc) -> Result<Quat> {
         &crate::error::ANGULAR_VELOCITY,
     )?;
     for (i, pin) in desc.pins.iter().enumerate() {
-        check_finite_vec(&format!("body.pins[{i}].min"), pin.min)?;
-        check_finite_vec(&format!("body.pins[{i}].max"), pin.max)?;
-        check_vec_within(
-            &format!("body.pins[{i}].velocity"),
-            pin.velocity,
-            &crate::error::VELOCITY,
-        )?;
+        pin.validate(&format!("body.pins[{i}]"))?;
     }
     Ok(rotation)
 }
@@ -140,8 +130,7 @@ fn attachment_field(desc: &BodyDesc, i: usize) -> String {
 fn check_holds(desc: &BodyDesc) -> Result<Vec<HandleDesc>> {
     for (i, a) in desc.attachments.iter().enumerate() {
         let field = attachment_field(desc, i);
-        check_finite_vec(&format!("{field}.region.min"), a.region.min)?;
-        check_finite_vec(&format!("{field}.region.max"), a.region.max)?;
+        a.region.validate(&format!("{field}.region"))?;
         check_compliance(&field, a.compliance)?;
         a.path.validate(&field)?;
     }

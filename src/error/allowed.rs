@@ -3,7 +3,9 @@
 //! `deserialize_with`) read the same declaration, so the two cannot disagree on the
 //! range or on how the error states it.
 
-use crate::error::CleaveError;
+use super::cleave_error::{CleaveError, Result as CheckResult};
+use glam::Vec3;
+use serde::de::Error as _;
 use serde::{Deserialize, Deserializer};
 
 /// The allowed values of one number field (see the module docs): finite, at least (or,
@@ -85,7 +87,7 @@ impl Allowed {
         &self,
         path: &str,
         value: impl Into<f64> + std::fmt::Debug + Copy,
-    ) -> crate::error::Result<()> {
+    ) -> CheckResult<()> {
         if self.allows(value.into()) {
             Ok(())
         } else {
@@ -103,6 +105,30 @@ impl Allowed {
             "{value} is out of range (allowed: {})",
             self.text()
         ))
+    }
+
+    /// Whether every component of `v` is allowed (a size per axis, a scale).
+    pub fn allows_each(&self, v: Vec3) -> bool {
+        v.to_array().iter().all(|&c| self.allows(c as f64))
+    }
+
+    /// The range of a vector whose every component is checked, e.g. `0 < size ≤ 1e6
+    /// (metres) on every axis`.
+    pub fn text_each(&self) -> String {
+        format!("{} on every axis", self.text())
+    }
+
+    /// Checks every component of `value` of the field at `path`.
+    pub fn check_each(&self, path: &str, value: Vec3) -> CheckResult<()> {
+        if self.allows_each(value) {
+            Ok(())
+        } else {
+            Err(CleaveError::OutOfRange {
+                field: path.to_string(),
+                value: format!("{value:?}"),
+                allowed: self.text_each().into(),
+            })
+        }
     }
 }
 
@@ -148,6 +174,21 @@ impl CheckedField for u32 {
             Ok(v) if allowed.allows(v as f64) => Ok(v as u32),
             Ok(v) => Err(allowed.refuse(v)),
             Err(text) => Err(allowed.refuse(text)),
+        }
+    }
+}
+
+impl CheckedField for Vec3 {
+    /// Every component checked.
+    fn read<'de, D: Deserializer<'de>>(d: D, allowed: &Allowed) -> Result<Self, D::Error> {
+        let v = Vec3::deserialize(d)?;
+        if allowed.allows_each(v) {
+            Ok(v)
+        } else {
+            Err(D::Error::custom(format!(
+                "{v} is out of range (allowed: {})",
+                allowed.text_each()
+            )))
         }
     }
 }

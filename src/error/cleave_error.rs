@@ -1,4 +1,5 @@
-//! Errors returned on bad input: each names the field or file and the allowed range.
+//! The error every fallible call returns, and the checks that build it: each names the
+//! field or file and the allowed range.
 
 use std::path::PathBuf;
 
@@ -124,85 +125,6 @@ pub fn check_positive(field: &str, value: f32) -> Result<()> {
         Ok(())
     } else {
         Err(out_of_range(field, value, "finite and > 0"))
-    }
-}
-
-/// Checks a length a user gives (metres): finite, above 0 and at most
-/// [`MAX_COORDINATE`], as every position is.
-pub fn check_length(field: &str, value: f32) -> Result<()> {
-    check_range(
-        field,
-        value,
-        f32::MIN_POSITIVE,
-        MAX_COORDINATE,
-        "0 < size ≤ 1e6 (metres)",
-    )
-}
-
-/// Largest coordinate (metres) of any position a user gives: far beyond any scene, and
-/// far below where single precision loses the lattice spacing.
-pub const MAX_COORDINATE: f32 = 1e6;
-
-/// Largest speed (m/s) a body, a pin or a keyframed path may be given: each component of
-/// a velocity, and a path's mean speed between two keys.
-pub const MAX_SPEED: f32 = 1e4;
-
-/// The bound of a vector field, declared once: every component finite and within
-/// `±max`. The API's checks ([`check_vec_within`]) and the scene file's reader state it
-/// with the same text.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VecBound {
-    /// How the text names the components, e.g. `|vx|, |vy|, |vz|`.
-    pub components: &'static str,
-    /// The largest magnitude of a component.
-    pub max: f32,
-    /// The unit.
-    pub unit: &'static str,
-}
-
-impl VecBound {
-    /// Whether `v` is within the bound.
-    pub fn allows(&self, v: glam::Vec3) -> bool {
-        v.is_finite() && v.abs().max_element() <= self.max
-    }
-
-    /// The bound as errors state it, e.g. `|x|, |y|, |z| ≤ 1e6 (metres)`.
-    pub fn text(&self) -> String {
-        format!("{} ≤ {:e} ({})", self.components, self.max, self.unit)
-    }
-}
-
-/// A position anywhere in a scene.
-pub const POSITION: VecBound = VecBound {
-    components: "|x|, |y|, |z|",
-    max: MAX_COORDINATE,
-    unit: "metres",
-};
-/// A velocity.
-pub const VELOCITY: VecBound = VecBound {
-    components: "|vx|, |vy|, |vz|",
-    max: MAX_SPEED,
-    unit: "m/s",
-};
-/// An angular velocity.
-pub const ANGULAR_VELOCITY: VecBound = VecBound {
-    components: "|ωx|, |ωy|, |ωz|",
-    max: MAX_SPEED,
-    unit: "rad/s",
-};
-/// Gravity.
-pub const GRAVITY: VecBound = VecBound {
-    components: "|gx|, |gy|, |gz|",
-    max: 1e4,
-    unit: "m/s²",
-};
-
-/// Checks `value` of the field at `field` against `bound`.
-pub fn check_vec_within(field: &str, value: glam::Vec3, bound: &VecBound) -> Result<()> {
-    if bound.allows(value) {
-        Ok(())
-    } else {
-        Err(out_of_range(field, value, bound.text()))
     }
 }
 

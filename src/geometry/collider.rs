@@ -2,7 +2,7 @@
 //! nearest surface point, and the first point where a segment enters the shape (the
 //! swept test that keeps fast particles and fast colliders from tunnelling).
 
-use crate::error::{MAX_COORDINATE, Result, out_of_range};
+use crate::error::{Result, SIZE, SIZE_OR_ZERO};
 use crate::geometry::mesh_sdf::MeshSdf;
 use glam::{Vec3, Vec3A};
 use serde::{Deserialize, Serialize};
@@ -36,43 +36,20 @@ pub enum ColliderShape {
 }
 
 impl ColliderShape {
-    /// Checks that every size is positive (a capsule's shaft may be 0) and at most the
-    /// world's bound, [`MAX_COORDINATE`].
+    /// Checks that every size is a [`SIZE`] (a capsule's shaft may be 0); errors name
+    /// `{field}.radius` and so on.
     pub fn validate(&self, field: &str) -> Result<()> {
-        let size = |name: &str, value: f32, zero: bool| {
-            if value.is_finite() && (value > 0.0 || zero && value == 0.0) && value <= MAX_COORDINATE
-            {
-                Ok(())
-            } else {
-                let allowed = if zero {
-                    "0 ≤ size ≤ 1e6 (metres)"
-                } else {
-                    "0 < size ≤ 1e6 (metres)"
-                };
-                Err(out_of_range(&format!("{field}.{name}"), value, allowed))
-            }
-        };
         match *self {
             ColliderShape::Box { half_extents } => {
-                let within = half_extents.is_finite()
-                    && half_extents.cmpgt(Vec3::ZERO).all()
-                    && half_extents.max_element() <= MAX_COORDINATE;
-                if !within {
-                    return Err(out_of_range(
-                        &format!("{field}.half_extents"),
-                        half_extents,
-                        "0 < size ≤ 1e6 (metres) on every axis",
-                    ));
-                }
-                Ok(())
+                SIZE.check_each(&format!("{field}.half_extents"), half_extents)
             }
-            ColliderShape::Sphere { radius } => size("radius", radius, false),
+            ColliderShape::Sphere { radius } => SIZE.check(&format!("{field}.radius"), radius),
             ColliderShape::Capsule {
                 radius,
                 half_length,
             } => {
-                size("radius", radius, false)?;
-                size("half_length", half_length, true)
+                SIZE.check(&format!("{field}.radius"), radius)?;
+                SIZE_OR_ZERO.check(&format!("{field}.half_length"), half_length)
             }
             ColliderShape::Mesh(_) => Ok(()),
         }

@@ -11,12 +11,16 @@
 //!   triangles (each triangle visits only the rows its shadow covers) are sorted, and the
 //!   cells between the first and second crossing, the third and fourth, … are inside.
 
+use crate::error::allowed::Allowed;
 use crate::error::{CleaveError, Result};
 use crate::geometry::mesh::TriangleMesh;
 use glam::{UVec3, Vec3, Vec3A};
 
 /// Most cells along the longest axis.
 pub const MAX_RESOLUTION: u32 = 256;
+
+/// The allowed sampling resolutions, as the API and the scene file state them.
+pub const RESOLUTION: Allowed = Allowed::count("resolution", 4, MAX_RESOLUTION);
 
 /// A closed mesh's signed distance on a grid (negative inside).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -39,13 +43,7 @@ impl MeshSdf {
     /// Samples the signed distance of `mesh` with `resolution` cells along its longest
     /// axis (4 ≤ resolution ≤ [`MAX_RESOLUTION`]), two cells of margin on every side.
     pub fn new(mesh: &TriangleMesh, resolution: u32) -> Result<Self> {
-        if !(4..=MAX_RESOLUTION).contains(&resolution) {
-            return Err(crate::error::out_of_range(
-                "collider.resolution",
-                resolution,
-                "4 ≤ resolution ≤ 256",
-            ));
-        }
+        RESOLUTION.check("collider.resolution", resolution)?;
         let (lo, hi) = mesh.bounds();
         let extent = (hi - lo).max_element();
         if !(extent > 0.0 && extent.is_finite()) {

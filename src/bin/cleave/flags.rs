@@ -27,11 +27,12 @@ pub fn budget_seconds(text: &str) -> Result<f64, String> {
 
 /// A count of frames: a whole number no larger than a scene file's `frames` may be.
 pub fn frame_count(text: &str) -> Result<u32, String> {
-    use cleave::ecs::desc::MAX_FRAMES;
+    use cleave::ecs::desc::FRAMES;
     match whole::<u32>(text) {
-        Ok(n) if n <= MAX_FRAMES => Ok(n),
+        Ok(n) if FRAMES.allows(n as f64) => Ok(n),
         _ => Err(format!(
-            "{text} is out of range (allowed: a whole number, 0 to {MAX_FRAMES})"
+            "{text} is out of range (allowed: {})",
+            FRAMES.text()
         )),
     }
 }

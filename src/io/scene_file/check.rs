@@ -1,49 +1,60 @@
 //! Checked readers for the scene-file schema (`deserialize_with`): each one rejects an
 //! out-of-range value with a message that states the allowed range, and the RON reader
-//! adds the file position and the field path.
+//! adds the file position and the field path. A reader checks by the declaration the
+//! API's check reads (an [`crate::error::allowed::Allowed`], a [`VecBound`]) or by calling the type's own
+//! check (`validate`), so that the file and the API refuse the same values with the
+//! same text.
 
-use super::{BodyFile, ColliderShapeFile, PoseFile};
-use crate::config::allowed::{CheckedField, whole_number};
+use super::{BodyFile, ColliderShapeFile};
 use crate::config::{GroundPlane, StaticBox, ranges};
-use crate::cut::tool::ToolShape;
+use crate::cut::tool::{Path, Pose, ToolShape};
+use crate::deform::keys::{HandleKey, HandlePath};
 use crate::ecs::desc::{PinRegion, Region};
-use crate::error::VecBound;
+use crate::error::allowed::{CheckedField, whole_number};
+use crate::error::{CleaveError, SIZE, SIZE_OR_ZERO, VecBound};
 use glam::{Quat, UVec3, Vec3};
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer};
 
-fn range<'de, D: Deserializer<'de>>(v: f32, ok: bool, allowed: &str) -> Result<f32, D::Error> {
-    if ok && v.is_finite() {
-        Ok(v)
-    } else {
-        Err(D::Error::custom(format!(
-            "{v} is out of range (allowed: {allowed})"
-        )))
+/// The reader's error for what a type's own check refused, in the check's words. The
+/// check was given an empty field, so the part of the value it names (`.radius`,
+/// `[2].time`) continues the file's field path (see `spanned`).
+fn refused<E: serde::de::Error>(e: CleaveError) -> E {
+    match e {
+        CleaveError::OutOfRange {
+            field,
+            value,
+            allowed,
+        } => {
+            let within = if field.is_empty() {
+                String::new()
+            } else {
+                format!("{field}: ")
+            };
+            E::custom(format!(
+                "{within}{value} is out of range (allowed: {allowed})"
+            ))
+        }
+        other => E::custom(other),
     }
 }
-pub fn positive<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(v, v > 0.0, "> 0")
+/// A size ([`SIZE`]).
+pub fn size<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    f32::read(d, &SIZE)
 }
-pub fn finite<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(v, true, "a finite number")
+/// A size that may be 0 ([`SIZE_OR_ZERO`]).
+pub fn size_or_zero<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    f32::read(d, &SIZE_OR_ZERO)
+}
+/// A size on every axis.
+pub fn sizes<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
+    Vec3::read(d, &SIZE)
 }
 pub fn dt<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     f32::read(d, &ranges::DT)
 }
 pub fn damping<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     f32::read(d, &ranges::DAMPING)
-}
-pub fn vec3<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
-    let v = Vec3::deserialize(d)?;
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(D::Error::custom(format!(
-            "{v} is out of range (allowed: finite x, y, z)"
-        )))
-    }
 }
 /// A vector within `bound`.
 fn bounded<'de, D: Deserializer<'de>>(d: D, bound: &VecBound) -> Result<Vec3, D::Error> {
@@ -89,40 +100,34 @@ pub fn jitter<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     f32::read(d, &ranges::JITTER)
 }
 pub fn attachment_compliance<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
-    let v = f32::deserialize(d)?;
-    range::<D>(v, v >= 0.0, "finite and ≥ 0 (m/N; 0: hard)")
+    f32::read(d, &ranges::ATTACHMENT_COMPLIANCE)
 }
 pub fn region<'de, D: Deserializer<'de>>(d: D) -> Result<Region, D::Error> {
     let r = Region::deserialize(d)?;
-    if !(r.min.is_finite() && r.max.is_finite()) {
-        return Err(D::Error::custom(format!(
-            "({}, {}) is out of range (allowed: finite corners)",
-            r.min, r.max
-        )));
-    }
+    r.validate("").map_err(refused)?;
     Ok(r)
 }
 pub fn rotation<'de, D: Deserializer<'de>>(d: D) -> Result<Quat, D::Error> {
     let q = Quat::deserialize(d)?;
     match crate::math::rotation::unit_quaternion(q) {
-        // keep unit quaternions bit-exact (files round-trip); normalise the rest
-        Some(unit) => Ok(if (q.length() - 1.0).abs() < 1e-5 {
-            q
-        } else {
-            unit
-        }),
-        None => Err(D::Error::custom(format!(
-            "({}, {}, {}, {}) is out of range (allowed: a finite, non-zero quaternion (x, y, z, w))",
-            q.x, q.y, q.z, q.w
+        Some(_) => Ok(as_read(q)),
+        None => Err(refused(crate::error::out_of_range(
+            "",
+            q,
+            crate::error::ROTATION,
         ))),
+    }
+}
+/// A valid rotation as the scene holds it: a unit quaternion kept bit-exact (so that a
+/// file round-trips), any other normalised.
+fn as_read(q: Quat) -> Quat {
+    match crate::math::rotation::unit_quaternion(q) {
+        Some(unit) if (q.length() - 1.0).abs() >= 1e-5 => unit,
+        _ => q,
     }
 }
 pub fn memory_budget_gb<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     f32::read(d, &ranges::MEMORY_BUDGET_GB)
-}
-/// A whole number within `lo..=hi` (errors name `name` and the range).
-fn count<'de, D: Deserializer<'de>>(d: D, lo: u32, hi: u32, name: &str) -> Result<u32, D::Error> {
-    whole(d, lo as u64, hi as u64, name).map(|v| v as u32)
 }
 
 /// A whole number within `lo..=hi`, read from any number the file holds, so that a
@@ -144,7 +149,7 @@ pub fn seed<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
 
 /// A mesh's sampling resolution.
 pub fn mesh_resolution<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    count(d, 4, 256, "resolution")
+    u32::read(d, &crate::geometry::mesh_sdf::RESOLUTION)
 }
 pub fn substeps<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
     u32::read(d, &ranges::SUBSTEPS)
@@ -153,101 +158,48 @@ pub fn iterations<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
     u32::read(d, &ranges::ITERATIONS)
 }
 pub fn frames<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    count(d, 0, crate::ecs::desc::MAX_FRAMES, "frames")
+    u32::read(d, &crate::ecs::desc::FRAMES)
 }
 pub fn cells<'de, D: Deserializer<'de>>(d: D) -> Result<UVec3, D::Error> {
     let v = UVec3::deserialize(d)?;
-    if v.min_element() >= 1 {
-        Ok(v)
-    } else {
-        Err(D::Error::custom(format!(
-            "{v} is out of range (allowed: at least 1 cell per axis)"
-        )))
-    }
+    crate::error::CELLS
+        .check_each("", v.as_vec3())
+        .map_err(refused)?;
+    Ok(v)
 }
 pub fn ground<'de, D: Deserializer<'de>>(d: D) -> Result<Option<GroundPlane>, D::Error> {
     let ground = Option::<GroundPlane>::deserialize(d)?;
     if let Some(g) = &ground {
-        if !ranges::GROUND_HEIGHT.allows(g.height as f64) {
-            return Err(ranges::GROUND_HEIGHT.refuse(g.height));
-        }
-        if !ranges::FRICTION.allows(g.friction as f64) {
-            return Err(ranges::FRICTION.refuse(g.friction));
-        }
+        g.validate("").map_err(refused)?;
     }
     Ok(ground)
 }
 pub fn boxes<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<StaticBox>, D::Error> {
     let boxes = Vec::<StaticBox>::deserialize(d)?;
     for (i, b) in boxes.iter().enumerate() {
-        if !(b.min.is_finite() && b.max.is_finite() && b.min.cmple(b.max).all()) {
-            return Err(D::Error::custom(format!(
-                "box {i}: ({}, {}) is out of range (allowed: finite corners, min ≤ max)",
-                b.min, b.max
-            )));
-        }
-        if !ranges::FRICTION.allows(b.friction as f64) {
-            return Err(ranges::FRICTION.refuse(b.friction));
-        }
+        b.validate(&format!("[{i}]")).map_err(refused)?;
     }
     Ok(boxes)
 }
 pub fn pins<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<PinRegion>, D::Error> {
     let pins = Vec::<PinRegion>::deserialize(d)?;
     for (i, p) in pins.iter().enumerate() {
-        if !(p.min.is_finite() && p.max.is_finite()) {
-            return Err(D::Error::custom(format!(
-                "pin {i}: ({}, {}) is out of range (allowed: finite corners)",
-                p.min, p.max
-            )));
-        }
-        if p.velocity.is_nan() || p.velocity.abs().max_element() > 1e4 {
-            return Err(D::Error::custom(format!(
-                "pin {i}: velocity {} is out of range (allowed: |vx|, |vy|, |vz| ≤ 1e4 m/s)",
-                p.velocity
-            )));
-        }
+        p.validate(&format!("[{i}]")).map_err(refused)?;
     }
     Ok(pins)
 }
+/// A collider's shape, checked by [`crate::geometry::collider::ColliderShape::validate`]
+/// (a mesh's file is read, and its shape checked, when the scene is built).
 pub fn collider_shape<'de, D: Deserializer<'de>>(d: D) -> Result<ColliderShapeFile, D::Error> {
     let shape = ColliderShapeFile::deserialize(d)?;
-    let (value, ok, allowed) = match &shape {
-        ColliderShapeFile::Box { half_extents: h } => (
-            format!("{h}"),
-            h.is_finite() && h.cmpgt(Vec3::ZERO).all(),
-            "half_extents finite and > 0",
-        ),
-        ColliderShapeFile::Sphere { radius } => (
-            format!("{radius}"),
-            radius.is_finite() && *radius > 0.0,
-            "radius finite and > 0",
-        ),
-        ColliderShapeFile::Capsule {
-            radius,
-            half_length,
-        } => (
-            format!("({radius}, {half_length})"),
-            radius.is_finite() && *radius > 0.0 && half_length.is_finite() && *half_length >= 0.0,
-            "radius finite and > 0, half_length finite and ≥ 0",
-        ),
-        ColliderShapeFile::Mesh { resolution, .. } => (
-            format!("{resolution}"),
-            (4..=256).contains(resolution),
-            "4 ≤ resolution ≤ 256",
-        ),
-    };
-    if ok {
-        Ok(shape)
-    } else {
-        Err(D::Error::custom(format!(
-            "{value} is out of range (allowed: {allowed})"
-        )))
+    if let Some(primitive) = shape.primitive() {
+        primitive.validate("").map_err(refused)?;
     }
+    Ok(shape)
 }
 pub fn tool_shape<'de, D: Deserializer<'de>>(d: D) -> Result<ToolShape, D::Error> {
     let shape = ToolShape::deserialize(d)?;
-    shape.validate().map_err(D::Error::custom)?;
+    shape.validate("").map_err(refused)?;
     Ok(shape)
 }
 pub fn bodies<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<BodyFile>, D::Error> {
@@ -260,44 +212,52 @@ pub fn bodies<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<BodyFile>, D::Error
         Ok(v)
     }
 }
-pub fn keys<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(f32, PoseFile)>, D::Error> {
-    let keys = Vec::<(f32, PoseFile)>::deserialize(d)?;
-    for (i, (t, _)) in keys.iter().enumerate() {
-        if !t.is_finite() {
-            return Err(D::Error::custom(format!(
-                "key {i}: time {t} is out of range (allowed: a finite number)"
-            )));
-        }
-        if i > 0 && *t <= keys[i - 1].0 {
-            return Err(D::Error::custom(format!(
-                "key {i}: time {t} is not after the previous key (allowed: strictly ascending times)"
-            )));
-        }
-    }
-    Ok(keys)
+/// A path's keys, checked by [`Path::validate_keys`].
+pub fn keys<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(f32, Pose)>, D::Error> {
+    let path = Path {
+        keys: Vec::deserialize(d)?,
+    };
+    path.validate_keys("").map_err(refused)?;
+    Ok(path
+        .keys
+        .into_iter()
+        .map(|(t, p)| {
+            (
+                t,
+                Pose {
+                    rotation: as_read(p.rotation),
+                    ..p
+                },
+            )
+        })
+        .collect())
 }
-pub fn handle_keys<'de, D: Deserializer<'de>>(
-    d: D,
-) -> Result<Vec<(f32, super::schema::HandleKeyFile)>, D::Error> {
-    let keys = Vec::<(f32, super::schema::HandleKeyFile)>::deserialize(d)?;
-    for (i, (t, _)) in keys.iter().enumerate() {
-        if !t.is_finite() || (i > 0 && *t <= keys[i - 1].0) {
-            return Err(D::Error::custom(format!(
-                "key {i}: time {t} is out of range (allowed: finite, strictly ascending times)"
-            )));
-        }
+/// A pose, checked by [`crate::ecs::spawn::checked_pose`].
+pub fn pose<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Pose>, D::Error> {
+    let pose = Option::<Pose>::deserialize(d)?;
+    if let Some(p) = pose {
+        crate::ecs::spawn::checked_pose("", p).map_err(refused)?;
     }
-    Ok(keys)
+    Ok(pose.map(|p| Pose {
+        rotation: as_read(p.rotation),
+        ..p
+    }))
 }
-pub fn scale<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
-    let v = Vec3::deserialize(d)?;
-    if v.is_finite() && v.min_element() > 0.0 {
-        Ok(v)
-    } else {
-        Err(D::Error::custom(format!(
-            "{v} is out of range (allowed: each component finite and > 0)"
-        )))
-    }
+/// A handle's keys, checked by [`HandlePath::validate_keys`] (whether a point handle's
+/// keys turn is checked when the scene is built: the reader of the keys does not see
+/// the handle's `point`).
+pub fn handle_keys<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(f32, HandleKey)>, D::Error> {
+    let keys = Vec::<(f32, HandleKey)>::deserialize(d)?;
+    // (checked on a copy: the check normalises every rotation its own way)
+    let mut path = HandlePath { keys: keys.clone() };
+    path.validate_keys("", false).map_err(refused)?;
+    Ok(keys
+        .into_iter()
+        .map(|(t, k)| {
+            let rotation = as_read(k.rotation);
+            (t, HandleKey { rotation, ..k })
+        })
+        .collect())
 }
 pub fn friction<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     f32::read(d, &ranges::FRICTION)

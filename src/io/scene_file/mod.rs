@@ -41,22 +41,28 @@ impl ColliderShapeFile {
         })
     }
 
-    /// The shape, checked; a mesh is read relative to `base_dir`. `field` names it in
-    /// errors.
-    fn to_shape(&self, base_dir: &Path, field: &str) -> Result<ColliderShape, String> {
-        let shape = match self {
-            Self::Box { half_extents } => ColliderShape::Box {
-                half_extents: *half_extents,
-            },
-            Self::Sphere { radius } => ColliderShape::Sphere { radius: *radius },
+    /// The shape, if it is not a mesh (whose file is read when the scene is built).
+    fn primitive(&self) -> Option<ColliderShape> {
+        Some(match *self {
+            Self::Box { half_extents } => ColliderShape::Box { half_extents },
+            Self::Sphere { radius } => ColliderShape::Sphere { radius },
             Self::Capsule {
                 radius,
                 half_length,
             } => ColliderShape::Capsule {
-                radius: *radius,
-                half_length: *half_length,
+                radius,
+                half_length,
             },
-            Self::Mesh { path, resolution } => {
+            Self::Mesh { .. } => return None,
+        })
+    }
+
+    /// The shape, checked; a mesh is read relative to `base_dir`. `field` names it in
+    /// errors.
+    fn to_shape(&self, base_dir: &Path, field: &str) -> Result<ColliderShape, String> {
+        let shape = match (self.primitive(), self) {
+            (Some(shape), _) => shape,
+            (None, Self::Mesh { path, resolution }) => {
                 let file = base_dir.join(path);
                 let mesh =
                     TriangleMesh::load_obj(&file).map_err(|e| format!("{field}.path: {e}"))?;
@@ -64,6 +70,7 @@ impl ColliderShapeFile {
                     .map_err(|e| format!("{field}: {e}"))?;
                 ColliderShape::Mesh(Arc::new(sdf))
             }
+            (None, _) => unreachable!("every collider shape but a mesh is a primitive"),
         };
         shape.validate(field).map_err(|e| e.to_string())?;
         Ok(shape)
@@ -158,8 +165,8 @@ impl SceneFile {
                 shape: t.shape,
                 cut_width: t.cut_width,
                 cut_mode: t.cut_mode,
-                path: t.path.keys.iter().map(|(k, p)| (*k, (*p).into())).collect(),
-                pose: Some(t.pose.into()),
+                path: t.path.keys.clone(),
+                pose: Some(t.pose),
             })
             .collect();
         let colliders = scene
@@ -169,8 +176,8 @@ impl SceneFile {
                 Some(ColliderFile {
                     shape: ColliderShapeFile::from_shape(&c.shape)?,
                     friction: c.friction,
-                    path: c.path.keys.iter().map(|(k, p)| (*k, (*p).into())).collect(),
-                    pose: Some(c.pose.into()),
+                    path: c.path.keys.clone(),
+                    pose: Some(c.pose),
                 })
             })
             .collect::<Option<Vec<_>>>()?;
@@ -308,7 +315,7 @@ fn handle_file(h: &HandleDesc) -> HandleFile {
     HandleFile {
         region: h.region,
         point: h.point,
-        path: h.path.keys.iter().map(|(t, k)| (*t, (*k).into())).collect(),
+        path: h.path.keys.clone(),
         compliance: h.compliance,
     }
 }
@@ -319,7 +326,7 @@ fn handle_desc(h: &HandleFile) -> HandleDesc {
         region: h.region,
         point: h.point,
         path: HandlePath {
-            keys: h.path.iter().map(|(t, k)| (*t, (*k).into())).collect(),
+            keys: h.path.clone(),
         },
         compliance: h.compliance,
     }
@@ -331,7 +338,7 @@ fn attachment_files(list: &[AttachmentDesc], hold: Hold) -> Vec<AttachmentFile> 
         .filter(|a| a.hold == hold)
         .map(|a| AttachmentFile {
             region: a.region,
-            path: a.path.keys.iter().map(|(k, p)| (*k, (*p).into())).collect(),
+            path: a.path.keys.clone(),
             compliance: a.compliance,
         })
         .collect()
@@ -339,24 +346,46 @@ fn attachment_files(list: &[AttachmentDesc], hold: Hold) -> Vec<AttachmentFile> 
 
 /// A keyframed path and the pose before it starts (default: the first key's, else the
 /// origin).
-fn path_and_pose(keys: &[(f32, PoseFile)], pose: Option<PoseFile>) -> (ToolPath, Pose) {
-    let keys: Vec<(f32, Pose)> = keys.iter().map(|(k, p)| (*k, (*p).into())).collect();
+fn path_and_pose(keys: &[(f32, Pose)], pose: Option<Pose>) -> (ToolPath, Pose) {
     let pose = pose
-        .map(Pose::from)
         .or_else(|| keys.first().map(|k| k.1))
         .unwrap_or(Pose::at(Vec3::ZERO));
-    (ToolPath { keys }, pose)
+    (
+        ToolPath {
+            keys: keys.to_vec(),
+        },
+        pose,
+    )
 }
 
 fn spanned(e: &ron::error::SpannedError, path: &str) -> String {
     // (a value where a field name belongs ends the path in `?`)
     let path = path.strip_suffix(".?").unwrap_or(path);
+    let (path, message) = within(path, e);
     let field = if path.is_empty() || path == "." || path == "?" {
         String::new()
     } else {
         format!(" {path}:")
     };
-    let message = match &e.code {
+    format!("{}:{}:{field} {message}", e.position.line, e.position.col)
+}
+
+/// The field path and the message of `e`. A checked reader's message that names a part
+/// of the value it read (`.radius: …`, `[2].time: …`: the type's own check, see
+/// `check::refused`) continues the path.
+fn within(path: &str, e: &ron::error::SpannedError) -> (String, String) {
+    let message = message(e);
+    match message.split_once(": ") {
+        Some((part, rest)) if part.starts_with(['.', '[']) && !part.contains(' ') => {
+            (format!("{path}{part}"), rest.to_string())
+        }
+        _ => (path.to_string(), message),
+    }
+}
+
+/// The message of `e`, in this file format's words where RON's own would mislead.
+fn message(e: &ron::error::SpannedError) -> String {
+    match &e.code {
         // RON reads `Sphere(0.6)` as a field named `0.6`
         ron::Error::SuggestRawIdentifier(found) => format!(
             "expected a field name, found `{found}`: fields are named, as in \
@@ -368,8 +397,7 @@ fn spanned(e: &ron::error::SpannedError, path: &str) -> String {
              and each shape Union inside another takes three: flatten the unions into one"
         ),
         code => code.to_string(),
-    };
-    format!("{}:{}:{field} {message}", e.position.line, e.position.col)
+    }
 }
 
 /// Reads a scene file; errors name the file.

@@ -207,7 +207,7 @@ pub struct AttachmentFile {
     pub region: Region,
     /// Keyframes `(time, pose)` of the target, strictly ascending times.
     #[serde(default, deserialize_with = "super::check::keys")]
-    pub path: Vec<(f32, PoseFile)>,
+    pub path: Vec<(f32, Pose)>,
     /// Compliance of each particle's spring, m/N (≥ 0; 0: hard).
     #[serde(deserialize_with = "super::check::attachment_compliance")]
     pub compliance: f32,
@@ -225,29 +225,10 @@ pub struct HandleFile {
     pub point: bool,
     /// Keyframes `(time, key)`, strictly ascending times.
     #[serde(default, deserialize_with = "super::check::handle_keys")]
-    pub path: Vec<(f32, HandleKeyFile)>,
+    pub path: Vec<(f32, HandleKey)>,
     /// Compliance of each particle's spring while simulating, m/N (≥ 0; 0: hard).
     #[serde(default, deserialize_with = "super::check::attachment_compliance")]
     pub compliance: f32,
-}
-
-/// A handle's key: where its rest centroid goes, turned and scaled about it.
-#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct HandleKeyFile {
-    /// Position of the handle's centroid.
-    #[serde(deserialize_with = "super::check::coordinates")]
-    pub position: Vec3,
-    /// Rotation about it, a quaternion (x, y, z, w).
-    #[serde(default, deserialize_with = "super::check::rotation")]
-    pub rotation: Quat,
-    /// Scale along the body's axes about it (each > 0).
-    #[serde(default = "unit_scale", deserialize_with = "super::check::scale")]
-    pub scale: Vec3,
-}
-
-fn unit_scale() -> Vec3 {
-    Vec3::ONE
 }
 
 /// A shape.
@@ -263,31 +244,31 @@ pub enum ShapeFile {
     /// An axis-aligned box.
     Box {
         /// Half size per axis.
-        #[serde(deserialize_with = "super::check::vec3")]
+        #[serde(deserialize_with = "super::check::sizes")]
         half_extents: Vec3,
     },
     /// A ball.
     Sphere {
         /// Radius.
-        #[serde(deserialize_with = "super::check::positive")]
+        #[serde(deserialize_with = "super::check::size")]
         radius: f32,
     },
     /// A capsule along X.
     Capsule {
         /// Radius.
-        #[serde(deserialize_with = "super::check::positive")]
+        #[serde(deserialize_with = "super::check::size")]
         radius: f32,
         /// Half length of the shaft.
-        #[serde(deserialize_with = "super::check::finite")]
+        #[serde(deserialize_with = "super::check::size_or_zero")]
         half_length: f32,
     },
     /// A solid cylinder along Z.
     Cylinder {
         /// Radius.
-        #[serde(deserialize_with = "super::check::positive")]
+        #[serde(deserialize_with = "super::check::size")]
         radius: f32,
         /// Half its length along Z.
-        #[serde(deserialize_with = "super::check::positive")]
+        #[serde(deserialize_with = "super::check::size")]
         half_length: f32,
     },
     /// A closed triangle mesh from an OBJ file (relative to the scene file).
@@ -309,7 +290,7 @@ pub struct ShapePartFile {
     /// The part's shape.
     pub shape: ShapeFile,
     /// Where its local origin sits in the union's frame.
-    #[serde(deserialize_with = "super::check::vec3")]
+    #[serde(deserialize_with = "super::check::coordinates")]
     pub at: Vec3,
 }
 
@@ -322,7 +303,7 @@ pub struct ToolFile {
     #[serde(deserialize_with = "super::check::tool_shape")]
     pub shape: ToolShape,
     /// Width of the cut zone.
-    #[serde(deserialize_with = "super::check::positive")]
+    #[serde(deserialize_with = "super::check::size")]
     pub cut_width: f32,
     /// What the tool does where it passes: `"remove"` (the default), `"sever"` or
     /// `"split"`.
@@ -331,10 +312,10 @@ pub struct ToolFile {
     /// Keyframes `(time in seconds, pose)`, strictly ascending, at most 1e4 m/s between
     /// keys; empty: the tool stays at `pose`.
     #[serde(default, deserialize_with = "super::check::keys")]
-    pub path: Vec<(f32, PoseFile)>,
+    pub path: Vec<(f32, Pose)>,
     /// Pose before the path starts (default: the first key's).
-    #[serde(default)]
-    pub pose: Option<PoseFile>,
+    #[serde(default, deserialize_with = "super::check::pose")]
+    pub pose: Option<Pose>,
 }
 
 /// A collider.
@@ -354,10 +335,10 @@ pub struct ColliderFile {
     /// Keyframes `(time in seconds, pose)`, strictly ascending, at most 1e4 m/s between
     /// keys; empty: the collider is static.
     #[serde(default, deserialize_with = "super::check::keys")]
-    pub path: Vec<(f32, PoseFile)>,
+    pub path: Vec<(f32, Pose)>,
     /// Pose before the path starts (default: the first key's).
-    #[serde(default)]
-    pub pose: Option<PoseFile>,
+    #[serde(default, deserialize_with = "super::check::pose")]
+    pub pose: Option<Pose>,
 }
 
 fn default_collider_friction() -> f32 {
@@ -401,54 +382,4 @@ pub enum ColliderShapeFile {
         )]
         resolution: u32,
     },
-}
-
-/// A pose.
-#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PoseFile {
-    /// Position.
-    #[serde(deserialize_with = "super::check::coordinates")]
-    pub position: Vec3,
-    /// Rotation, a quaternion (x, y, z, w).
-    #[serde(default, deserialize_with = "super::check::rotation")]
-    pub rotation: Quat,
-}
-
-impl From<HandleKey> for HandleKeyFile {
-    fn from(k: HandleKey) -> Self {
-        Self {
-            position: k.position,
-            rotation: k.rotation,
-            scale: k.scale,
-        }
-    }
-}
-
-impl From<HandleKeyFile> for HandleKey {
-    fn from(k: HandleKeyFile) -> Self {
-        Self {
-            position: k.position,
-            rotation: k.rotation,
-            scale: k.scale,
-        }
-    }
-}
-
-impl From<Pose> for PoseFile {
-    fn from(p: Pose) -> Self {
-        Self {
-            position: p.position,
-            rotation: p.rotation,
-        }
-    }
-}
-
-impl From<PoseFile> for Pose {
-    fn from(p: PoseFile) -> Self {
-        Self {
-            position: p.position,
-            rotation: p.rotation,
-        }
-    }
 }
