@@ -58,8 +58,9 @@ pub struct HandlePath {
 
 impl HandlePath {
     /// Checks the keys: times finite and strictly ascending, positions within the
-    /// world, rotations finite and non-zero (they are normalised), scales finite and
-    /// > 0; a point handle's keys neither turn nor scale. Errors name `{owner}.path[i]`.
+    /// world, rotations finite and non-zero (they are normalised), scales within
+    /// [`SCALE`] on every axis; a point handle's keys neither turn nor scale. Errors name
+    /// `{owner}.path[i]`.
     pub fn validate(&mut self, owner: &str, point: bool) -> Result<()> {
         self.validate_keys(&format!("{owner}.path"), point)
     }

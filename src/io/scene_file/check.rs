@@ -1,9 +1,9 @@
 //! Checked readers for the scene-file schema (`deserialize_with`): each one rejects an
 //! out-of-range value with a message that states the allowed range, and the RON reader
 //! adds the file position and the field path. A reader checks by the declaration the
-//! API's check reads (an [`crate::error::allowed::Allowed`], a [`VecBound`]) or by calling the type's own
-//! check (`validate`), so that the file and the API refuse the same values with the
-//! same text.
+//! API's check reads (an [`crate::error::allowed::Allowed`], a [`VecBound`]) or by
+//! calling the type's own check (`validate`), so that the file and the API refuse the
+//! same values with the same text.
 
 use super::{BodyFile, ColliderShapeFile};
 use crate::config::{GroundPlane, StaticBox, ranges};
