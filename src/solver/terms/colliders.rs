@@ -191,12 +191,7 @@ impl Colliders {
         if let Some(g) = &self.ground
             && p.y < g.height + margin
         {
-            let depth = g.height + margin - p.y;
-            let depth_before = g.height + margin - previous.y;
-            let held_back = self.held_back(depth, depth_before);
-            held |= held_back > 0.0;
-            p.y = g.height + margin - held_back;
-            p = with_friction(p, previous, Vec3A::Y, depth - held_back, g.friction);
+            (p, held) = self.on_ground(g, p, previous, margin);
         }
         let (lo, hi) = (p.min(previous), p.max(previous));
         for (i, shape) in self.shapes.iter().enumerate() {
@@ -217,6 +212,62 @@ impl Colliders {
             }
         }
         (p, held)
+    }
+
+    /// A ball of radius `margin` centred at `p`, below the ground's height by more than
+    /// `margin`, pushed out with friction ([`Colliders::resolve_reporting`]'s ground);
+    /// whether part of the push was held back.
+    fn on_ground(&self, g: &GroundPlane, p: Vec3A, previous: Vec3A, margin: f32) -> (Vec3A, bool) {
+        let depth = g.height + margin - p.y;
+        let depth_before = g.height + margin - previous.y;
+        let held_back = self.held_back(depth, depth_before);
+        let out = Vec3A::new(p.x, g.height + margin - held_back, p.z);
+        let p = with_friction(out, previous, Vec3A::Y, depth - held_back, g.friction);
+        (p, held_back > 0.0)
+    }
+
+    /// [`Term::project`] with the ground alone (no posed collider, so nothing to sum): a
+    /// particle costs one plane test, and a block's bounds, which spare a posed
+    /// collider's dearer tests, are not taken; a body within one block runs on the
+    /// calling thread.
+    fn project_on_ground(&mut self, state: &mut ParticleState) {
+        let Some(ground) = self.ground else {
+            return;
+        };
+        let mut held = std::mem::take(&mut self.held);
+        let this = &*self;
+        // (above this no ball reaches the ground: one load and one compare per particle)
+        let clear = ground.height + self.largest_margin;
+        let block =
+            |positions: &mut [Vec3A],
+             held: &mut [bool],
+             corrections: &mut [Vec3A],
+             (previous, inv_mass, margins): (&[Vec3A], &[f32], &[f32])| {
+                for (i, p) in positions.iter_mut().enumerate() {
+                    let below = p.y < clear && p.y < ground.height + margins[i];
+                    if !below || inv_mass[i] == 0.0 {
+                        continue;
+                    }
+                    let (resolved, held_back) =
+                        this.on_ground(&ground, *p, previous[i], margins[i]);
+                    held[i] |= held_back;
+                    corrections[i] += resolved - *p;
+                    *p = resolved;
+                }
+            };
+        let read = (state.previous, state.inv_mass, this.margins.as_slice());
+        if state.positions.len() <= PARTICLES_PER_TASK {
+            block(state.positions, &mut held, state.corrections, read);
+        } else {
+            (state.positions.par_chunks_mut(PARTICLES_PER_TASK))
+                .zip(held.par_chunks_mut(PARTICLES_PER_TASK))
+                .zip(state.corrections.par_chunks_mut(PARTICLES_PER_TASK))
+                .zip(read.0.par_chunks(PARTICLES_PER_TASK))
+                .zip(read.1.par_chunks(PARTICLES_PER_TASK))
+                .zip(read.2.par_chunks(PARTICLES_PER_TASK))
+                .for_each(|(((((p, h), c), previous), w), m)| block(p, h, c, (previous, w, m)));
+        }
+        self.held = held;
     }
 
     /// How much of a push of `depth` out of a collider waits for later substeps: of the
@@ -299,14 +350,21 @@ impl Term for Colliders {
         self.margins.resize(state.positions.len(), 0.0);
         self.held.clear();
         self.held.resize(state.positions.len(), false);
-        self.previous_bounds = state
-            .previous
-            .par_chunks(PARTICLES_PER_TASK)
-            .map(bounds)
-            .collect();
+        // (the ground alone tests every particle: no block is spared by its bounds)
+        if !self.shapes.is_empty() {
+            self.previous_bounds = state
+                .previous
+                .par_chunks(PARTICLES_PER_TASK)
+                .map(bounds)
+                .collect();
+        }
     }
 
     fn project(&mut self, step: &Substep, state: &mut ParticleState) {
+        if self.shapes.is_empty() {
+            self.project_on_ground(state);
+            return;
+        }
         let mut held = std::mem::take(&mut self.held);
         let this = &*self;
         // (only with a tagged collider is each push summed: the rest run as before)

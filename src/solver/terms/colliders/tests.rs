@@ -204,3 +204,58 @@ fn balls_rest_with_their_radius_on_the_ground_and_on_colliders() {
     let from = Vec3A::new(0.0, 0.5 + r, 0.0);
     assert_eq!(flat.resolve(Vec3A::new(0.1, 0.5 + r, 0.0), from, r), None);
 }
+
+/// The ground alone is projected by its own loop (`project_on_ground`): on a body of
+/// one block (run on the calling thread) and of several (in parallel), every particle
+/// ends where the general resolve puts it — pushed out, with friction, a deep one held
+/// back a step, a held one (inverse mass 0) and one above the ground untouched.
+#[test]
+fn the_ground_alone_moves_each_particle_as_the_general_resolve_does() {
+    let mut colliders = ground(0.6);
+    colliders.depenetration_step = 0.05;
+    for n in [100, 3 * PARTICLES_PER_TASK + 7] {
+        let previous: Vec<Vec3A> = (0..n)
+            .map(|i| {
+                let t = i as f32;
+                Vec3A::new((t * 0.37).sin(), 0.2 * (t * 0.11).cos(), (t * 0.53).cos())
+            })
+            .collect();
+        let start: Vec<Vec3A> = (previous.iter().enumerate())
+            .map(|(i, p)| *p + Vec3A::new(0.03 * (i as f32).cos(), -0.15, 0.02))
+            .collect();
+        let inv_mass: Vec<f32> = (0..n)
+            .map(|i| if i % 13 == 0 { 0.0 } else { 1.0 })
+            .collect();
+        let expected: Vec<(Vec3A, bool)> = (0..n)
+            .map(|i| match inv_mass[i] == 0.0 || start[i].y >= 0.0 {
+                true => (start[i], false),
+                false => colliders.resolve_holding_back(start[i], previous[i], 0.0),
+            })
+            .collect();
+        let mut positions = start.clone();
+        let mut corrections = vec![Vec3A::ZERO; n];
+        let mut orientations = vec![Quat::IDENTITY; n];
+        let mut state = ParticleState {
+            positions: &mut positions,
+            previous: &previous,
+            inv_mass: &inv_mass,
+            corrections: &mut corrections,
+            orientations: &mut orientations,
+            spins: &[],
+        };
+        let step = Substep {
+            dt: 0.01,
+            iterations: 1,
+            frame_span: [0.0, 1.0],
+        };
+        colliders.begin_substep(&step, &mut state);
+        colliders.project(&step, &mut state);
+        for (i, (to, held)) in expected.iter().enumerate() {
+            assert_eq!((positions[i], colliders.held[i]), (*to, *held), "{n}: {i}");
+            assert_eq!(corrections[i], *to - start[i], "{n}: {i}");
+        }
+        let pushed = (0..n).filter(|&i| positions[i] != start[i]).count();
+        assert!(pushed > n / 4, "{n}: only {pushed} pushed");
+        assert!(colliders.held.contains(&true), "{n}: none held back");
+    }
+}
