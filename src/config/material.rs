@@ -335,7 +335,6 @@ mod checked {
     use super::{CheckedField, RADII, radii_allowed};
     use crate::config::ranges::*;
     use glam::Vec3;
-    use serde::de::Error as _;
     use serde::{Deserialize, Deserializer};
 
     macro_rules! readers {
@@ -374,9 +373,7 @@ mod checked {
     ) -> Result<Option<Vec3>, D::Error> {
         let v = Option::<Vec3>::deserialize(d)?;
         match v {
-            Some(r) if !radii_allowed(r) => Err(D::Error::custom(format!(
-                "{r} is out of range (allowed: {RADII})"
-            ))),
+            Some(r) if !radii_allowed(r) => Err(crate::error::allowed::refusal(r, RADII)),
             _ => Ok(v),
         }
     }

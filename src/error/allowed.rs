@@ -3,9 +3,8 @@
 //! `deserialize_with`) read the same declaration, so the two cannot disagree on the
 //! range or on how the error states it.
 
-use super::cleave_error::{CleaveError, Result as CheckResult};
+use super::cleave_error::{Result as CheckResult, out_of_range};
 use glam::Vec3;
-use serde::de::Error as _;
 use serde::{Deserialize, Deserializer};
 
 /// The allowed values of one number field (see the module docs): finite, at least (or,
@@ -91,20 +90,13 @@ impl Allowed {
         if self.allows(value.into()) {
             Ok(())
         } else {
-            Err(CleaveError::OutOfRange {
-                field: path.to_string(),
-                value: format!("{value:?}"),
-                allowed: self.text().into(),
-            })
+            Err(out_of_range(path, value, self.text()))
         }
     }
 
     /// The file reader's error for `value`.
     pub fn refuse<E: serde::de::Error>(&self, value: impl std::fmt::Display) -> E {
-        E::custom(format!(
-            "{value} is out of range (allowed: {})",
-            self.text()
-        ))
+        refusal(value, self.text())
     }
 
     /// Whether every component of `v` is allowed (a size per axis, a scale).
@@ -123,13 +115,18 @@ impl Allowed {
         if self.allows_each(value) {
             Ok(())
         } else {
-            Err(CleaveError::OutOfRange {
-                field: path.to_string(),
-                value: format!("{value:?}"),
-                allowed: self.text_each().into(),
-            })
+            Err(out_of_range(path, value, self.text_each()))
         }
     }
+}
+
+/// A file reader's error for a value out of range, as every reader words it: the value
+/// as the file writes it, then what is allowed.
+pub fn refusal<E: serde::de::Error>(
+    value: impl std::fmt::Display,
+    allowed: impl std::fmt::Display,
+) -> E {
+    E::custom(format!("{value} is out of range (allowed: {allowed})"))
 }
 
 /// A bound as the range's text writes it: `1e-6`, `0.5`, `1000`, `1e6`.
@@ -185,10 +182,7 @@ impl CheckedField for Vec3 {
         if allowed.allows_each(v) {
             Ok(v)
         } else {
-            Err(D::Error::custom(format!(
-                "{v} is out of range (allowed: {})",
-                allowed.text_each()
-            )))
+            Err(refusal(v, allowed.text_each()))
         }
     }
 }

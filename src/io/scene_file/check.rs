@@ -10,7 +10,7 @@ use crate::config::{GroundPlane, StaticBox, ranges};
 use crate::cut::tool::{Path, Pose, ToolShape};
 use crate::deform::keys::{HandleKey, HandlePath};
 use crate::ecs::desc::{PinRegion, Region};
-use crate::error::allowed::{CheckedField, whole_number};
+use crate::error::allowed::{CheckedField, refusal, whole_number};
 use crate::error::{CleaveError, SIZE, SIZE_OR_ZERO, VecBound};
 use glam::{Quat, UVec3, Vec3};
 use serde::de::Error as _;
@@ -31,9 +31,7 @@ fn refused<E: serde::de::Error>(e: CleaveError) -> E {
             } else {
                 format!("{field}: ")
             };
-            E::custom(format!(
-                "{within}{value} is out of range (allowed: {allowed})"
-            ))
+            refusal(format_args!("{within}{value}"), allowed)
         }
         other => E::custom(other),
     }
@@ -62,10 +60,7 @@ fn bounded<'de, D: Deserializer<'de>>(d: D, bound: &VecBound) -> Result<Vec3, D:
     if bound.allows(v) {
         Ok(v)
     } else {
-        Err(D::Error::custom(format!(
-            "{v} is out of range (allowed: {})",
-            bound.text()
-        )))
+        Err(refusal(v, bound.text()))
     }
 }
 pub fn coordinates<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
@@ -109,22 +104,21 @@ pub fn region<'de, D: Deserializer<'de>>(d: D) -> Result<Region, D::Error> {
 }
 pub fn rotation<'de, D: Deserializer<'de>>(d: D) -> Result<Quat, D::Error> {
     let q = Quat::deserialize(d)?;
-    match crate::math::rotation::unit_quaternion(q) {
-        Some(_) => Ok(as_read(q)),
-        None => Err(refused(crate::error::out_of_range(
-            "",
-            q,
-            crate::error::ROTATION,
-        ))),
-    }
+    as_read(q).ok_or_else(|| refused(crate::error::out_of_range("", q, crate::error::ROTATION)))
 }
-/// A valid rotation as the scene holds it: a unit quaternion kept bit-exact (so that a
-/// file round-trips), any other normalised.
-fn as_read(q: Quat) -> Quat {
-    match crate::math::rotation::unit_quaternion(q) {
-        Some(unit) if (q.length() - 1.0).abs() >= 1e-5 => unit,
-        _ => q,
-    }
+/// A rotation a check has passed, as the scene holds it ([`as_read`]).
+fn kept(q: Quat) -> Quat {
+    as_read(q).unwrap_or(q)
+}
+/// A rotation as the scene holds it: a unit quaternion kept bit-exact (so that a file
+/// round-trips), any other normalised; `None` if it is no rotation (not finite, or 0).
+fn as_read(q: Quat) -> Option<Quat> {
+    let unit = crate::math::rotation::unit_quaternion(q)?;
+    Some(if (q.length() - 1.0).abs() < 1e-5 {
+        q
+    } else {
+        unit
+    })
 }
 pub fn memory_budget_gb<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
     f32::read(d, &ranges::MEMORY_BUDGET_GB)
@@ -225,7 +219,7 @@ pub fn keys<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(f32, Pose)>, D::Erro
             (
                 t,
                 Pose {
-                    rotation: as_read(p.rotation),
+                    rotation: kept(p.rotation),
                     ..p
                 },
             )
@@ -239,7 +233,7 @@ pub fn pose<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Pose>, D::Error> {
         crate::ecs::spawn::checked_pose("", p).map_err(refused)?;
     }
     Ok(pose.map(|p| Pose {
-        rotation: as_read(p.rotation),
+        rotation: kept(p.rotation),
         ..p
     }))
 }
@@ -254,7 +248,7 @@ pub fn handle_keys<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(f32, HandleKe
     Ok(keys
         .into_iter()
         .map(|(t, k)| {
-            let rotation = as_read(k.rotation);
+            let rotation = kept(k.rotation);
             (t, HandleKey { rotation, ..k })
         })
         .collect())
