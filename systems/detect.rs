@@ -11,10 +11,12 @@
 use crate::body::lattice::NO_PARTICLE;
 use crate::cut::crossings::rest_crossing;
 use crate::cut::culling::FollowedTool;
-use crate::cut::detection::{edges_separated, particles_hit, particles_inside};
+use crate::cut::detection::{
+    edges_separated, edges_separated_by_each, particles_hit, particles_inside,
+};
 use crate::cut::particle_split::plan_splits;
 use crate::cut::tear::find_tears;
-use crate::cut::tool::{BladePlane, CutMode};
+use crate::cut::tool::CutMode;
 use crate::cut::tool_sweep::ToolSweep;
 use crate::ecs::components::{Body, BodyLattice, Tool, ToolPose};
 use crate::ecs::layout::SolverCache;
@@ -81,13 +83,11 @@ pub fn detect(
     let (splitting, severing): (Vec<ToolSweep>, Vec<ToolSweep>) = slicing
         .into_iter()
         .partition(|t| t.mode() == CutMode::Split && t.blade_plane().is_some());
-    let groups = std::iter::once((severing.iter().collect::<Vec<_>>(), Severed::Edges))
-        .chain(
-            splitting
-                .iter()
-                .filter_map(|t| Some((vec![t], Severed::Split(t.blade_plane()?)))),
-        )
-        .chain(std::iter::once((carving.iter().collect(), Severed::Grazed)));
+    let groups = [
+        (severing.iter().collect::<Vec<_>>(), Severed::Edges),
+        (splitting.iter().collect(), Severed::Split),
+        (carving.iter().collect(), Severed::Grazed),
+    ];
     for (tools, kind) in groups {
         if !tools.is_empty() {
             separate_edges(&cache, &bodies, &tools, kind, near, &mut out.cuts);
@@ -139,31 +139,54 @@ fn separate_edges(
                 n => b.slot(n).map_or(u32::MAX, |s| s as u32),
             })
         };
-        let separated =
-            edges_separated(positions, cache.layout.live(), range, partners, tools, near);
+        let live = cache.layout.live();
+        let separated = match kind {
+            // each split blade plans the edges it separates by its own plane, so all of
+            // them are listed for every blade (one pass over the particles for all)
+            Severed::Split => {
+                edges_separated_by_each(positions, live, range, partners, tools, near)
+            }
+            Severed::Edges | Severed::Grazed => {
+                edges_separated(positions, live, range, partners, tools, near)
+            }
+        };
         if separated.is_empty() {
             continue;
         }
         let position = |p: u32| b.position(positions, p);
-        let mut edges = Vec::with_capacity(separated.len());
-        let mut crossings = Vec::with_capacity(separated.len());
-        let mut turn = Quat::IDENTITY;
-        for s in separated {
-            let (a, q) = (locals[s.ends.0], locals[s.ends.1]);
-            let c = rest_crossing(lattice, a, s.fraction, s.normal, position, &mut turn);
-            edges.push((a.min(q), a.max(q)));
-            crossings.push(((a.min(q), a.max(q)), if a < q { c } else { c.reversed() }));
-        }
-        let cut = BodyCut::entry(cuts, b.body);
-        cut.crossings.append(&mut crossings);
-        match kind {
-            Severed::Edges => cut.edges.append(&mut edges),
-            Severed::Grazed => cut.grazed.append(&mut edges),
-            Severed::Split(plane) => {
-                edges.sort_unstable();
-                let plan = plan_splits(lattice, &edges, position, plane);
-                cut.splits.splits.extend(plan.splits);
-                cut.splits.sever.extend(plan.sever);
+        // (the others' edges are one list; a split blade's its own, in the tools' order)
+        let lists = match kind {
+            Severed::Split => (0..tools.len())
+                .map(|t| separated.iter().filter(|s| s.tool == t).collect())
+                .collect(),
+            Severed::Edges | Severed::Grazed => vec![separated.iter().collect::<Vec<_>>()],
+        };
+        for (list, tool) in lists.into_iter().zip(tools) {
+            if list.is_empty() {
+                continue;
+            }
+            let mut edges = Vec::with_capacity(list.len());
+            let mut crossings = Vec::with_capacity(list.len());
+            let mut turn = Quat::IDENTITY;
+            for s in list {
+                let (a, q) = (locals[s.ends.0], locals[s.ends.1]);
+                let c = rest_crossing(lattice, a, s.fraction, s.normal, position, &mut turn);
+                edges.push((a.min(q), a.max(q)));
+                crossings.push(((a.min(q), a.max(q)), if a < q { c } else { c.reversed() }));
+            }
+            let cut = BodyCut::entry(cuts, b.body);
+            cut.crossings.append(&mut crossings);
+            match (kind, tool.blade_plane()) {
+                (Severed::Edges, _) => cut.edges.append(&mut edges),
+                (Severed::Grazed, _) => cut.grazed.append(&mut edges),
+                (Severed::Split, Some(plane)) => {
+                    edges.sort_unstable();
+                    let plan = plan_splits(lattice, &edges, position, plane);
+                    cut.splits.splits.extend(plan.splits);
+                    cut.splits.sever.extend(plan.sever);
+                }
+                // (only blades with a plane are split blades)
+                (Severed::Split, None) => {}
             }
         }
     }
@@ -253,8 +276,8 @@ fn near_blocks(
 enum Severed {
     /// Severs them (`sever` blades).
     Edges,
-    /// Splits the particles at them or severs them, by its plan (one `split` blade).
-    Split(BladePlane),
+    /// Splits the particles at them or severs them, by each `split` blade's plan.
+    Split,
     /// Severs them unless both ends are carved (spheres and capsules).
     Grazed,
 }

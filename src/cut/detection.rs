@@ -92,26 +92,30 @@ fn particles_where(
         .collect()
 }
 
-/// An edge a tool separates, found by [`edges_separated`].
+/// An edge a tool separates, found by [`edges_separated`] or
+/// [`edges_separated_by_each`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Separated {
     /// The edge's dense ends: a particle of the range tested, and its partner.
     pub ends: (usize, usize),
-    /// Where the first tool that separates it crossed it
-    /// ([`ToolSweep::crossing`]): the fraction from the first end, and the swept
-    /// surface's unit normal (world frame).
+    /// Where `tool` crossed it ([`ToolSweep::crossing`]): the fraction from the first
+    /// end, and the swept surface's unit normal (world frame).
     pub fraction: f32,
     /// See `fraction`.
     pub normal: Vec3,
+    /// The tool that separates it (an index into the tools tested; the first that does,
+    /// for [`edges_separated`]).
+    pub tool: usize,
 }
 
 /// The edges some tool separates ([`ToolSweep::separates`]), among the edges from the
 /// particles `range` of `positions` (dense indices) to their `partners` (the dense
 /// indices of the particles linked along +x, +y and +z, `u32::MAX` where none, so that
-/// each edge is tested once), each with where it was crossed. In ascending order of
-/// their ends. The range is taken in the dense blocks of [`BLOCK`] particles; blocks
-/// `near` marks far are skipped, the others are culled by a ball around their particles
-/// and partners, and run in parallel; the result does not depend on the thread count.
+/// each edge is tested once), each with the first tool that separates it and where it
+/// crossed it. In ascending order of their first end, then along +x, +y, +z. The range
+/// is taken in the dense blocks of [`BLOCK`] particles; blocks `near` marks far are
+/// skipped, the others are culled by a ball around their particles and partners, and
+/// run in parallel; the result does not depend on the thread count.
 ///
 /// A blade that stays in its plane ([`ToolSweep::in_plane`]) is tested in closed form
 /// (a sign test per edge, then the crossing point against the blade's sweep); the other
@@ -123,6 +127,34 @@ pub fn edges_separated(
     partners: impl Fn(usize) -> [u32; 3] + Sync,
     tools: &[&ToolSweep],
     near_blocks: NearBlocks,
+) -> Vec<Separated> {
+    separations(positions, live, range, partners, tools, near_blocks, false)
+}
+
+/// [`edges_separated`], but each edge once for every tool that separates it (in the
+/// order of `tools`), not for the first only: what each of several tools separates, in
+/// one pass over the particles.
+pub fn edges_separated_by_each(
+    positions: &[Vec3A],
+    live: &[bool],
+    range: std::ops::Range<usize>,
+    partners: impl Fn(usize) -> [u32; 3] + Sync,
+    tools: &[&ToolSweep],
+    near_blocks: NearBlocks,
+) -> Vec<Separated> {
+    separations(positions, live, range, partners, tools, near_blocks, true)
+}
+
+/// The separations of [`edges_separated`] (`every` false: the first tool's of each
+/// edge) or of [`edges_separated_by_each`] (`every` true: every tool's).
+fn separations(
+    positions: &[Vec3A],
+    live: &[bool],
+    range: std::ops::Range<usize>,
+    partners: impl Fn(usize) -> [u32; 3] + Sync,
+    tools: &[&ToolSweep],
+    near_blocks: NearBlocks,
+    every: bool,
 ) -> Vec<Separated> {
     if tools.is_empty() || range.is_empty() {
         return Vec::new();
@@ -154,13 +186,12 @@ pub fn edges_separated(
                     }
                 },
             );
-            let near: SmallVec<[&ToolSweep; 4]> = if lo.cmple(hi).all() {
+            // the tools that may reach the block, with their indices in `tools`
+            let near: SmallVec<[(usize, &ToolSweep); 4]> = if lo.cmple(hi).all() {
                 let centre = (lo + hi) * 0.5;
                 let radius = (hi - centre).length();
-                tools
-                    .iter()
-                    .copied()
-                    .filter(|t| t.may_hit_ball(Vec3::from(centre), radius))
+                (tools.iter().copied().enumerate())
+                    .filter(|(_, t)| t.may_hit_ball(Vec3::from(centre), radius))
                     .collect()
             } else {
                 SmallVec::new()
@@ -171,13 +202,13 @@ pub fn edges_separated(
             // the tools not in one plane need each end's distance to them, once: most
             // partners lie in the block, whose particles' distances are kept
             let general: SmallVec<[usize; 4]> = (0..near.len())
-                .filter(|&t| near[t].in_plane().is_none())
+                .filter(|&t| near[t].1.in_plane().is_none())
                 .collect();
             let distances = |k: usize| -> SmallVec<[f32; 4]> {
                 let x = Vec3::from(positions[k]);
                 general
                     .iter()
-                    .map(|&t| near[t].surface_distance(x))
+                    .map(|&t| near[t].1.surface_distance(x))
                     .collect()
             };
             let own: Vec<SmallVec<[f32; 4]>> = if edges.is_empty() || general.is_empty() {
@@ -194,10 +225,10 @@ pub fn edges_separated(
             };
             let kept: Vec<Separated> = edges
                 .into_iter()
-                .filter_map(|(i, j)| {
+                .flat_map(|(i, j)| {
                     let (a, b) = (Vec3::from(positions[i]), Vec3::from(positions[j]));
                     let ends = general.is_empty().not().then(|| (of(i), of(j)));
-                    near.iter().enumerate().find_map(|(t, tool)| {
+                    let mut by = near.iter().enumerate().filter_map(|(t, &(index, tool))| {
                         let (fraction, normal) = match tool.in_plane() {
                             Some(plane) => (tool.plane_crossing(plane, a, b)?, plane.normal),
                             None => {
@@ -213,8 +244,15 @@ pub fn edges_separated(
                             ends: (i, j),
                             fraction,
                             normal,
+                            tool: index,
                         })
-                    })
+                    });
+                    let found: SmallVec<[Separated; 1]> = if every {
+                        by.collect()
+                    } else {
+                        by.next().into_iter().collect()
+                    };
+                    found
                 })
                 .collect();
             kept
@@ -420,6 +458,69 @@ mod tests {
                 assert_eq!(found.len(), 64, "every x edge across the middle");
             }
         }
+    }
+
+    #[test]
+    fn one_pass_for_several_tools_finds_what_each_finds_alone() {
+        // blades and spheres crossing a cube: every tool's edges, in one pass, are those
+        // it separates alone; the first tool's of each edge, those of the tools in order
+        let (positions, partner_table) = morton_cube(8);
+        let live = vec![true; positions.len()];
+        let partners = |i: usize| partner_table[i];
+        let all = 0..positions.len();
+        let mut rng = ChaCha8Rng::seed_from_u64(17);
+        let (mut found, mut shared) = (0, 0);
+        for case in 0..20 {
+            let sweeps: Vec<ToolSweep> = (0..4)
+                .filter_map(|k| {
+                    let shape = if k % 2 == 0 {
+                        ToolShape::Blade {
+                            half_width: rng.random_range(0.3..1.0),
+                            half_height: 0.3,
+                        }
+                    } else {
+                        ToolShape::Sphere {
+                            radius: rng.random_range(0.1..0.3),
+                        }
+                    };
+                    let tool = Tool {
+                        shape,
+                        cut_width: 0.01,
+                        mode: CutMode::Sever,
+                    };
+                    // a tool translating across the cube
+                    let (from, to) = (random_pose(&mut rng), random_pose(&mut rng));
+                    let at = |p: Pose| Pose {
+                        position: p.position * 0.3,
+                        rotation: from.rotation,
+                    };
+                    ToolSweep::new(&tool, &at(from), &at(to))
+                })
+                .collect();
+            let tools: Vec<&ToolSweep> = sweeps.iter().collect();
+            let each =
+                edges_separated_by_each(&positions, &live, all.clone(), partners, &tools, None);
+            let mut alone: Vec<Separated> = (tools.iter().enumerate())
+                .flat_map(|(t, tool)| {
+                    edges_separated(&positions, &live, all.clone(), partners, &[*tool], None)
+                        .into_iter()
+                        .map(move |s| Separated { tool: t, ..s })
+                })
+                .collect();
+            // (an edge's tools follow each other, in order)
+            let mut first = each.clone();
+            first.dedup_by_key(|s| s.ends);
+            let together = edges_separated(&positions, &live, all.clone(), partners, &tools, None);
+            assert!(together == first, "case {case}: the first tools differ");
+            let mut each = each;
+            each.sort_by_key(|s| (s.ends, s.tool));
+            alone.sort_by_key(|s| (s.ends, s.tool));
+            assert!(each == alone, "case {case}: the tools' edges differ");
+            found += each.len();
+            shared += each.len() - first.len();
+        }
+        // the cases hold edges that two tools separate
+        assert!(shared > 0 && shared < found, "{shared} of {found}");
     }
 
     #[test]
