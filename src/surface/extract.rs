@@ -285,14 +285,19 @@ pub(super) fn finish(lattice: &Lattice, topology: &mut SurfaceTopology) {
 fn keep_pieces_whole(lattice: &Lattice, topology: &mut SurfaceTopology) {
     let scale = lattice.spacing() / topology.resolution.max(1) as f32;
     let grid = |t: &SurfaceTopology, v: u32| t.corners[v as usize].as_vec3() * scale;
-    let placed = |t: &SurfaceTopology, v: u32| t.rest[v as usize] != grid(t, v);
+    let placed: Vec<bool> = (0..topology.vertex_count() as u32)
+        .map(|v| topology.rest[v as usize] != grid(topology, v))
+        .collect();
+    if !placed.contains(&true) {
+        return;
+    }
     let pieces = lattice.pieces();
     // what placing took from (or gave to) each piece
     let mut change = vec![0.0f64; pieces.count];
     let volume = |x: [Vec3; 3]| x[0].as_dvec3().dot(x[1].as_dvec3().cross(x[2].as_dvec3())) / 6.0;
     let mut any = false;
     for (tri, &piece) in topology.triangles.iter().zip(&topology.triangle_piece) {
-        if tri.iter().any(|&v| placed(topology, v)) {
+        if tri.iter().any(|&v| placed[v as usize]) {
             any = true;
             change[piece as usize] += volume(tri.map(|i| topology.rest[i as usize]))
                 - volume(tri.map(|i| grid(topology, i)));
@@ -321,8 +326,8 @@ fn keep_pieces_whole(lattice: &Lattice, topology: &mut SurfaceTopology) {
             corners.extend(tri.iter().map(|&v| topology.corners[v as usize]));
         }
     }
-    for v in 0..topology.vertex_count() {
-        if placed(topology, v as u32) && corners.contains(&topology.corners[v]) {
+    for (v, _) in placed.iter().enumerate().filter(|(_, placed)| **placed) {
+        if corners.contains(&topology.corners[v]) {
             let x = grid(topology, v as u32);
             rest_vertex_at(lattice, topology, v, x);
         }

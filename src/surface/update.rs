@@ -51,7 +51,11 @@ pub fn update(
     let corners_near = (res == 1).then(|| near.forward());
     let rebuilt = |w: IVec3| match &corners_near {
         Some(corners) => corners.contains(w),
-        None => (0..8).any(|k| near.contains(owners.cell_of(w - octant(k)))),
+        // (most corners lie far from the cut: one box test before the eight cells)
+        None => {
+            near.meets(owners.cell_of(w - IVec3::ONE), owners.cell_of(w))
+                && (0..8).any(|k| near.contains(owners.cell_of(w - octant(k))))
+        }
     };
     let quads = region_quads(&owners, &region);
     let (class_of, classes) = vertex_classes(&owners, &quads);
@@ -120,8 +124,13 @@ pub fn update(
 /// The fresh quads of the cells of `region`, in a fixed order.
 fn region_quads(owners: &CellOwners, region: &CellSet) -> Vec<Quad> {
     let res = owners.resolution();
+    let lattice = owners.lattice();
     let mut quads = Vec::new();
     for c in region.cells() {
+        // (an enclosed particle's sub-cells have no face)
+        if lattice.at(c).is_some_and(|p| owners.is_enclosed(p)) {
+            continue;
+        }
         for k in 0..(res * res * res) as u32 {
             let s = c * res + octant(k) * (res - 1);
             if let Some(p) = owners.owner(s) {
@@ -217,6 +226,11 @@ impl CellSet {
         }
         let row = (d.z * self.dims.y + d.y) as usize;
         Some((row * self.row + d.x as usize / 64, 1 << (d.x % 64)))
+    }
+
+    /// Whether the box of cells from `lo` to `hi` (inclusive) meets this set's box.
+    fn meets(&self, lo: IVec3, hi: IVec3) -> bool {
+        hi.cmpge(self.min).all() && lo.cmplt(self.min + self.dims).all()
     }
 
     fn contains(&self, c: IVec3) -> bool {
