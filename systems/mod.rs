@@ -243,6 +243,7 @@ pub fn install(world: &mut World, config: crate::config::SimConfig) {
     MessageRegistry::register_message::<BodySplit>(world);
     MessageRegistry::register_message::<ParticlesRepaired>(world);
     MessageRegistry::register_message::<SurfaceChanged>(world);
+    MessageRegistry::register_message::<SurfaceDeferred>(world);
     MessageRegistry::register_message::<ColliderPushed>(world);
     world.add_schedule(build_sync_schedule());
     world.add_schedule(build_substep_schedule());

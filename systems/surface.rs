@@ -7,32 +7,47 @@
 //!
 //! The cut's report says what changed; a lattice edited from outside in a frame that
 //! also cuts it is updated around the cut's changes only.
+//!
+//! A change past the [`SurfaceBudget`] (a huge body diced at once) is not made within
+//! the frame: its rebuild runs on the rayon pool beside the frames that follow, the body
+//! drawing its last surface meanwhile, and is put in place at the frame it is due
+//! (waited for then, if need be), which a [`SurfaceDeferred`] names. A further change
+//! before then drops it for an extraction of the newest lattice.
 
 use crate::body::lattice::Lattice;
 use crate::ecs::components::{BodyLattice, Position};
 use crate::ecs::layout::SolverCache;
-use crate::ecs::resources::{BodyCutReport, CutReport, SimClock, SurfaceChanged};
-use crate::ecs::surface_mesh::SurfaceMesh;
-use crate::surface::extract::extract_with_faces;
+use crate::ecs::resources::{
+    BodyCutReport, CutReport, SimClock, SurfaceBudget, SurfaceChanged, SurfaceDeferred,
+};
+use crate::ecs::surface_mesh::{DeferredSurface, RebuiltSurface, SurfaceMesh};
+use crate::surface::embed::EmbeddedMesh;
+use crate::surface::extract::{SurfaceTopology, extract_with_faces, face_count};
 use crate::surface::smooth::smooth;
 use crate::surface::update::update;
 use crate::surface::{CarryLayout, deform, extract};
 use bevy_ecs::prelude::*;
 use glam::Mat3A;
 use rayon::prelude::*;
+use std::sync::{Arc, Condvar, Mutex};
 
 /// Updates the surface of every body that has one; a surface already brought up to
 /// date in this frame, whose lattice has not changed since, is left as it is (so that
 /// running the stage again — [`crate::sim::simulation::Simulation::update_surfaces`] —
-/// changes nothing).
+/// changes nothing). A change past the [`SurfaceBudget`] is rebuilt beside the frames
+/// and put in place when due.
+#[allow(clippy::too_many_arguments)]
 pub fn update_surfaces(
     mut bodies: Query<(Entity, &BodyLattice, &mut SurfaceMesh)>,
     positions: Query<&Position>,
     cut: Res<CutReport>,
     cache: Res<SolverCache>,
     clock: Res<SimClock>,
+    budget: Option<Res<SurfaceBudget>>,
     mut changed: MessageWriter<SurfaceChanged>,
+    mut deferred: MessageWriter<SurfaceDeferred>,
 ) {
+    let budget = budget.as_deref().copied().unwrap_or_default();
     for (body, lattice, mut marked) in &mut bodies {
         let l = &lattice.lattice;
         let seen = (l.len(), l.live_count(), l.edits());
@@ -42,31 +57,41 @@ pub fn update_surfaces(
         }
         // marked changed below only when it changed (see `SurfaceMesh::STILL`)
         let mesh = marked.bypass_change_detection();
+        let mut installed = false;
         if new_topology {
-            let start = std::time::Instant::now();
-            let touched = explained_by_cut(mesh, l, cut.bodies.iter().find(|c| c.body == body));
-            mesh.topology = match &mesh.render_mesh {
-                None if mesh.options.smooth => {
-                    let mut surface = extract(l);
-                    smooth(l, &mut surface);
-                    surface
+            match mesh.deferred.take() {
+                // a rebuild of this very lattice, running beside the frames
+                Some(job) if job.seen == seen => {
+                    if clock.frame >= job.due {
+                        install(mesh, l, job.wait(), seen);
+                        installed = true;
+                    } else {
+                        mesh.deferred = Some(job);
+                    }
                 }
-                None => touched
-                    .and_then(|touched| update(l, &mesh.topology, &touched))
-                    .unwrap_or_else(|| extract(l)),
-                Some(render) => {
-                    let (surface, faces) = extract_with_faces(l);
-                    render.drawn(l, &surface, &faces)
+                // none, or one for a lattice changed since (dropped: the cut report
+                // explains no change since then, so the surface is extracted again)
+                _ => {
+                    let touched =
+                        explained_by_cut(mesh, l, cut.bodies.iter().find(|c| c.body == body));
+                    let source = Source::of(mesh, touched);
+                    let quads = source.quads(mesh, l);
+                    if mesh.topology_version > 0 && quads > budget.quads {
+                        let due = clock.frame + budget.frames.max(1);
+                        mesh.deferred = Some(source.spawn(l.clone(), seen, due));
+                        tracing::warn!(
+                            "the surface of {body} changes by about {quads} quads, more than a frame's budget of {}: it is rebuilt beside the frames and in place at frame {due}",
+                            budget.quads
+                        );
+                        deferred.write(SurfaceDeferred { body, quads, due });
+                    } else {
+                        install(mesh, l, source.rebuild(l), seen);
+                        installed = true;
+                    }
                 }
-            };
-            let layout = CarryLayout::new(l, &mesh.topology);
-            mesh.frames = layout.carry_frames(l, &mesh.layout, &mesh.frames);
-            mesh.rotations = vec![Mat3A::IDENTITY; layout.carrier_count()];
-            mesh.gathered = layout.carry_positions(&mesh.layout, &mesh.gathered);
-            mesh.layout = layout;
-            mesh.seen = seen;
-            mesh.topology_version += 1;
-            mesh.topology_ms = start.elapsed().as_secs_f64() * 1e3;
+            }
+        }
+        if installed {
             changed.write(SurfaceChanged {
                 body,
                 topology_version: mesh.topology_version,
@@ -119,9 +144,105 @@ pub fn update_surfaces(
             &mut mesh.normals,
         );
         mesh.deformed_at = Some(clock.frame);
-        if mesh.moved_since_shown(l.spacing()) || new_topology {
+        if mesh.moved_since_shown(l.spacing()) || installed {
             marked.set_changed();
         }
+    }
+}
+
+/// Puts a rebuilt surface in place: its topology and carriers' layout, the carriers'
+/// frames and positions carried over from the last layout.
+fn install(
+    mesh: &mut SurfaceMesh,
+    l: &Lattice,
+    rebuilt: RebuiltSurface,
+    seen: (usize, usize, u64),
+) {
+    let (topology, layout, ms) = rebuilt;
+    mesh.topology = topology;
+    mesh.frames = layout.carry_frames(l, &mesh.layout, &mesh.frames);
+    mesh.rotations = vec![Mat3A::IDENTITY; layout.carrier_count()];
+    mesh.gathered = layout.carry_positions(&mesh.layout, &mesh.gathered);
+    mesh.layout = layout;
+    mesh.seen = seen;
+    mesh.topology_version += 1;
+    mesh.topology_ms = ms;
+}
+
+/// What a body's new surface is made from: the lattice's surface updated around the
+/// touched particles or extracted again (and smoothed, as the options say), or the
+/// render mesh with the lattice surface's cut faces.
+struct Source {
+    render: Option<Arc<EmbeddedMesh>>,
+    smooth: bool,
+    /// The last surface and the particles the cut touched, for a local update.
+    local: Option<(SurfaceTopology, Vec<u32>)>,
+}
+
+impl Source {
+    /// The source of `mesh`'s next surface, updated locally around `touched` when the
+    /// surface is the lattice's and unsmoothed.
+    fn of(mesh: &SurfaceMesh, touched: Option<Vec<u32>>) -> Self {
+        let lattice_surface = mesh.render_mesh.is_none() && !mesh.options.smooth;
+        Self {
+            render: mesh.render_mesh.clone(),
+            smooth: mesh.options.smooth,
+            local: touched
+                .filter(|_| lattice_surface)
+                .map(|t| (mesh.topology.clone(), t)),
+        }
+    }
+
+    /// About how many quads the rebuild makes: those of the touched particles' faces
+    /// for a local update (each touched particle gains about one face, drawn as
+    /// `resolution²` quads), the whole surface for an extraction.
+    /// A body's first split particle draws every cell as eight sub-cells: its surface
+    /// is extracted again, four quads per face.
+    fn quads(&self, mesh: &SurfaceMesh, l: &Lattice) -> usize {
+        let res = mesh.topology.resolution.max(1) as usize;
+        let split = |l: &Lattice| l.live_particles().any(|p| l.is_split_half(p));
+        let whole = |quads_per_face: usize| face_count(l) as usize * quads_per_face;
+        match &self.local {
+            Some((_, touched)) if res == 1 && touched.iter().any(|&p| l.is_split_half(p)) => {
+                whole(4)
+            }
+            Some((_, touched)) => touched.len() * res * res,
+            None => whole(if split(l) { 4 } else { 1 }),
+        }
+    }
+
+    /// The new surface of `l`, with its carriers' layout and the milliseconds it took.
+    fn rebuild(self, l: &Lattice) -> RebuiltSurface {
+        let start = std::time::Instant::now();
+        let topology = match (&self.render, self.local) {
+            (Some(render), _) => {
+                let (surface, faces) = extract_with_faces(l);
+                render.drawn(l, &surface, &faces)
+            }
+            (None, _) if self.smooth => {
+                let mut surface = extract(l);
+                smooth(l, &mut surface);
+                surface
+            }
+            (None, Some((old, touched))) => update(l, &old, &touched).unwrap_or_else(|| extract(l)),
+            (None, None) => extract(l),
+        };
+        let layout = CarryLayout::new(l, &topology);
+        (topology, layout, start.elapsed().as_secs_f64() * 1e3)
+    }
+
+    /// Rebuilds the surface of `lattice` (a copy, the body's meanwhile goes on) on the
+    /// rayon pool, to be put in place at frame `due`.
+    fn spawn(self, lattice: Lattice, seen: (usize, usize, u64), due: u64) -> DeferredSurface {
+        let result: Arc<(Mutex<Option<RebuiltSurface>>, Condvar)> = Arc::default();
+        let slot = result.clone();
+        rayon::spawn(move || {
+            let rebuilt = self.rebuild(&lattice);
+            let (slot, done) = &*slot;
+            *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(rebuilt);
+            done.notify_all();
+        });
+        DeferredSurface { seen, due, result }
     }
 }
 

@@ -214,10 +214,13 @@ fn the_surface_stage_writes_surfaces_only() {
     ids(&mut w);
     let surface = w.register_component::<cleave::ecs::surface_mesh::SurfaceMesh>();
     let access = access_of(&mut w, surface::update_surfaces);
-    let message = w
+    let changed = w
         .component_id::<Messages<SurfaceChanged>>()
         .expect("registered");
-    writes_only(access, vec![surface, message]);
+    let deferred = w
+        .component_id::<Messages<cleave::ecs::resources::SurfaceDeferred>>()
+        .expect("registered");
+    writes_only(access, vec![surface, changed, deferred]);
 }
 
 #[test]

@@ -286,3 +286,106 @@ fn a_smoothed_sphere_is_round_closed_and_keeps_its_volume() {
     assert!(smooth < rough / 2.5, "spread {rough} → {smooth}");
     assert!((volume - 1.0).abs() < 0.05, "volume {volume} of the cells'");
 }
+
+#[test]
+fn a_surface_change_past_the_budget_is_put_in_place_when_due_and_says_so() {
+    // the slice scene severed twice: by itself, and with a budget of 10 quads put in
+    // place 3 frames later, so that every cut's rebuild runs beside the frames
+    use cleave::ecs::resources::{SurfaceBudget, SurfaceChanged, SurfaceDeferred};
+    use cleave::surface::extract::extract;
+    let mut scene = builtin("slice", 0).unwrap();
+    scene.tools[0].cut_mode = CutMode::Sever;
+    let mut at_once = Simulation::from_scene(&scene).unwrap();
+    let mut spread = Simulation::from_scene(&scene).unwrap();
+    spread.world_mut().insert_resource(SurfaceBudget {
+        quads: 10,
+        frames: 3,
+    });
+    let (a, b) = (at_once.bodies()[0], spread.bodies()[0]);
+    let (mut due, mut deferrals, mut installs) = (None, 0, 0);
+    for frame in 1..=120u64 {
+        let version = surface(&spread, b).topology_version;
+        at_once.step();
+        spread.step();
+        let mesh = surface(&spread, b);
+        let deferred = spread.messages::<SurfaceDeferred>();
+        let changed = spread.messages::<SurfaceChanged>();
+        for m in &deferred {
+            assert!(
+                m.body == b && m.quads > 10 && m.due == frame + 3,
+                "frame {frame}"
+            );
+            due = Some(m.due);
+            deferrals += 1;
+        }
+        if frame == 1 || due == Some(frame) {
+            // the first surface at once; a deferred one at its frame, unless the body
+            // was cut again meanwhile (then it waits for the newest)
+            assert!(
+                deferred.is_empty() && !mesh.is_rebuilding(),
+                "frame {frame}"
+            );
+            assert_eq!(mesh.topology_version, version + 1, "frame {frame}");
+            assert_eq!(changed.len(), 1, "frame {frame}");
+            installs += (frame > 1) as u32;
+            due = None;
+        } else {
+            // meanwhile the last surface, carried by the particles
+            assert_eq!(mesh.topology_version, version, "frame {frame}");
+            assert!(changed.is_empty(), "frame {frame}");
+            assert_eq!(mesh.is_rebuilding(), due.is_some(), "frame {frame}");
+            assert!(mesh.positions.iter().all(|x| x.is_finite()));
+        }
+    }
+    assert!(
+        installs > 0 && deferrals >= installs,
+        "{deferrals} {installs}"
+    );
+    // the last rebuild: the local update the undeferred run made when the body was cut
+    // in one frame; the surface of the lattice extracted afresh when it was cut again
+    // while a rebuild ran
+    let lattice = &spread.world().get::<BodyLattice>(b).unwrap().lattice;
+    let last = surface(&spread, b);
+    if deferrals == 1 {
+        assert!(last.topology() == surface(&at_once, a).topology());
+    } else {
+        assert!(last.topology() == &extract(lattice));
+    }
+    // the physics never waits for a surface
+    let positions = |sim: &Simulation, body| -> Vec<glam::Vec3> {
+        let l = sim.world().get::<BodyLattice>(body).unwrap();
+        l.particles
+            .iter()
+            .filter_map(|e| sim.world().get::<Position>(*e).map(|p| p.0))
+            .collect()
+    };
+    assert_eq!(positions(&at_once, a), positions(&spread, b));
+}
+
+#[test]
+fn bringing_surfaces_up_to_date_puts_a_deferred_rebuild_in_place() {
+    use cleave::ecs::resources::SurfaceBudget;
+    let mut scene = builtin("slice", 0).unwrap();
+    scene.tools[0].cut_mode = CutMode::Sever;
+    let mut sim = Simulation::from_scene(&scene).unwrap();
+    sim.world_mut().insert_resource(SurfaceBudget {
+        quads: 10,
+        frames: 1000,
+    });
+    let body = sim.bodies()[0];
+    let mut frames = 0;
+    while !surface(&sim, body).is_rebuilding() {
+        sim.step();
+        frames += 1;
+        assert!(frames < 200, "the slice never cut");
+    }
+    let version = surface(&sim, body).topology_version;
+    sim.update_surfaces().unwrap();
+    let mesh = surface(&sim, body);
+    assert!(!mesh.is_rebuilding());
+    assert_eq!(mesh.topology_version, version + 1);
+    // two triangles for every face of the cells, the cut's faces among them
+    let lattice = &sim.world().get::<BodyLattice>(body).unwrap().lattice;
+    let faces = cleave::surface::extract::face_count(lattice) as usize;
+    assert_eq!(mesh.triangles().len(), 2 * faces);
+}

@@ -246,6 +246,47 @@ pub struct ColliderPushed {
     pub torque: Vec3,
 }
 
+/// How large a change of one body's surface the surface stage makes within the frame.
+/// A bigger one (a huge body diced at once) is rebuilt beside the frames that follow —
+/// the body keeps drawing its last surface, carried by its particles, meanwhile — and
+/// put in place `frames` frames after the change (the stage waits for it then, should it
+/// not be done), so that no frame stalls for the whole rebuild and a run shows the same
+/// surface at the same frame however fast the machine. The stage says so with a
+/// [`SurfaceDeferred`]. Not saved: a save taken meanwhile holds the last surface, and the
+/// run it resumes rebuilds it in its first frame.
+#[derive(Resource, Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceBudget {
+    /// Quads of surface (an estimate: the faces a local update rebuilds, or the whole
+    /// surface for an extraction) above which a rebuild is spread over frames.
+    pub quads: usize,
+    /// Frames after the change at which the rebuilt surface is put in place (at least
+    /// 1).
+    pub frames: u64,
+}
+
+impl Default for SurfaceBudget {
+    /// A change of up to 200 000 quads (the whole surface of a box 180 cells wide)
+    /// within the frame; a bigger one put in place two frames later.
+    fn default() -> Self {
+        Self {
+            quads: 200_000,
+            frames: 2,
+        }
+    }
+}
+
+/// Sent by the surface stage when a body's surface change passes the
+/// [`SurfaceBudget`]: the body draws its last surface until frame `due`.
+#[derive(Message, Clone, Copy, Debug)]
+pub struct SurfaceDeferred {
+    /// The body.
+    pub body: Entity,
+    /// The estimated quads of the change.
+    pub quads: usize,
+    /// The frame at whose end the new surface is in place.
+    pub due: u64,
+}
+
 /// Sent by the surface stage when a body's surface triangles change (its first surface,
 /// and after every cut, split or tear that changed its links).
 #[derive(Message, Clone, Copy, Debug)]

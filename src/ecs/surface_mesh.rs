@@ -11,7 +11,7 @@ use crate::surface::{CarryLayout, SurfaceTopology};
 use bevy_ecs::prelude::*;
 use glam::{Mat3A, Quat, Vec3, Vec3A};
 use std::ops::Range;
-use std::sync::Arc;
+use std::sync::{Arc, Condvar, Mutex};
 
 /// A piece and the range of its triangles in [`SurfaceMesh::triangles_by_piece`].
 pub type PieceRange = (u32, Range<usize>);
@@ -52,6 +52,48 @@ pub struct SurfaceMesh {
     /// Per slot of the layout, its particle's position when the mesh was last marked
     /// changed (see [`SurfaceMesh::STILL`]).
     pub(crate) shown: Vec<Vec3A>,
+    /// A rebuild running beside the frames (see [`crate::ecs::resources::SurfaceBudget`]).
+    pub(crate) deferred: Option<DeferredSurface>,
+}
+
+/// A surface rebuilt beside the frames: the lattice state it is made for, the frame it
+/// is due, and the result once the job is done.
+#[derive(Clone, Debug)]
+pub(crate) struct DeferredSurface {
+    /// The lattice's particles, live particles and edits it is made for.
+    pub(crate) seen: (usize, usize, u64),
+    /// The frame at whose end it is put in place.
+    pub(crate) due: u64,
+    /// The job's result: the topology, its carriers' layout and the milliseconds it took.
+    pub(crate) result: Arc<(Mutex<Option<RebuiltSurface>>, Condvar)>,
+}
+
+/// A rebuilt surface: its topology, its carriers' layout and the milliseconds it took.
+pub(crate) type RebuiltSurface = (SurfaceTopology, CarryLayout, f64);
+
+impl DeferredSurface {
+    /// The result, waited for. A thread of a rayon pool runs the pool's pending work
+    /// while it waits (the job itself, should it still be queued there).
+    pub(crate) fn wait(self) -> RebuiltSurface {
+        let (slot, done) = &*self.result;
+        let mut result = slot.lock().unwrap_or_else(|e| e.into_inner());
+        loop {
+            if let Some(rebuilt) = result.take() {
+                return rebuilt;
+            }
+            drop(result);
+            if rayon::yield_now() != Some(rayon::Yield::Executed) {
+                let guard = slot.lock().unwrap_or_else(|e| e.into_inner());
+                let timeout = std::time::Duration::from_millis(1);
+                result = done
+                    .wait_timeout(guard, timeout)
+                    .unwrap_or_else(|e| e.into_inner())
+                    .0;
+            } else {
+                result = slot.lock().unwrap_or_else(|e| e.into_inner());
+            }
+        }
+    }
 }
 
 impl SurfaceMesh {
@@ -71,6 +113,19 @@ impl SurfaceMesh {
             render_mesh: render_mesh.map(Arc::new),
             options,
             ..Self::default()
+        }
+    }
+
+    /// Whether a rebuild of the surface is running beside the frames (see
+    /// [`crate::ecs::resources::SurfaceBudget`]): the triangles are still the last ones.
+    pub fn is_rebuilding(&self) -> bool {
+        self.deferred.is_some()
+    }
+
+    /// Makes a rebuild running beside the frames due at `frame` at the latest.
+    pub(crate) fn hurry(&mut self, frame: u64) {
+        if let Some(job) = &mut self.deferred {
+            job.due = job.due.min(frame);
         }
     }
 
@@ -201,6 +256,7 @@ impl SurfaceMesh {
             seen: saved.seen,
             deformed_at: saved.deformed_at,
             shown,
+            deferred: None,
         })
     }
 }

@@ -265,9 +265,19 @@ impl Simulation {
     }
 
     /// Brings every body's surface up to date now, as the surface stage does at the end
-    /// of each frame: for pictures or exports of the state before the first frame.
+    /// of each frame: for pictures or exports of the state before the first frame, or of
+    /// the last one (a rebuild spread over frames, see
+    /// [`crate::ecs::resources::SurfaceBudget`], is waited for and put in place).
     pub fn update_surfaces(&mut self) -> Result<()> {
         use bevy_ecs::system::RunSystemOnce;
+        let frame = self
+            .world
+            .resource::<crate::ecs::resources::SimClock>()
+            .frame;
+        let mut meshes = self.world.query::<&mut SurfaceMesh>();
+        for mut mesh in meshes.iter_mut(&mut self.world) {
+            mesh.bypass_change_detection().hurry(frame);
+        }
         self.world
             .run_system_once(crate::systems::surface::update_surfaces)
             .map_err(|e| CleaveError::InvalidEntity(format!("surface stage: {e}")))
