@@ -78,14 +78,15 @@ pub fn update_surfaces(
                     let quads = source.quads(mesh, l);
                     if mesh.topology_version > 0 && quads > budget.quads {
                         let due = clock.frame + budget.frames.max(1);
-                        mesh.deferred = Some(source.spawn(l.clone(), seen, due));
+                        mesh.deferred = Some(source.spawn(mesh, l.clone(), seen, due));
                         tracing::warn!(
                             "the surface of {body} changes by about {quads} quads, more than a frame's budget of {}: it is rebuilt beside the frames and in place at frame {due}",
                             budget.quads
                         );
                         deferred.write(SurfaceDeferred { body, quads, due });
                     } else {
-                        install(mesh, l, source.rebuild(l), seen);
+                        let rebuilt = source.rebuild(l, &mesh.topology);
+                        install(mesh, l, rebuilt, seen);
                         installed = true;
                     }
                 }
@@ -170,13 +171,13 @@ fn install(
 }
 
 /// What a body's new surface is made from: the lattice's surface updated around the
-/// touched particles or extracted again (and smoothed, as the options say), or the
-/// render mesh with the lattice surface's cut faces.
+/// particles a cut touched, or extracted again (and smoothed, as the options say), or
+/// the render mesh with the lattice surface's cut faces.
 struct Source {
     render: Option<Arc<EmbeddedMesh>>,
     smooth: bool,
-    /// The last surface and the particles the cut touched, for a local update.
-    local: Option<(SurfaceTopology, Vec<u32>)>,
+    /// The particles the cut touched, when the last surface can be updated around them.
+    touched: Option<Vec<u32>>,
 }
 
 impl Source {
@@ -187,34 +188,31 @@ impl Source {
         Self {
             render: mesh.render_mesh.clone(),
             smooth: mesh.options.smooth,
-            local: touched
-                .filter(|_| lattice_surface)
-                .map(|t| (mesh.topology.clone(), t)),
+            touched: touched.filter(|_| lattice_surface),
         }
     }
 
     /// About how many quads the rebuild makes: those of the touched particles' faces
     /// for a local update (each touched particle gains about one face, drawn as
-    /// `resolution²` quads), the whole surface for an extraction.
-    /// A body's first split particle draws every cell as eight sub-cells: its surface
-    /// is extracted again, four quads per face.
+    /// `resolution²` quads), the whole surface for an extraction — four quads per face
+    /// once a particle of the body is split (so after its first split particle, whose
+    /// surface is extracted again).
     fn quads(&self, mesh: &SurfaceMesh, l: &Lattice) -> usize {
         let res = mesh.topology.resolution.max(1) as usize;
-        let split = |l: &Lattice| l.live_particles().any(|p| l.is_split_half(p));
         let whole = |quads_per_face: usize| face_count(l) as usize * quads_per_face;
-        match &self.local {
-            Some((_, touched)) if res == 1 && touched.iter().any(|&p| l.is_split_half(p)) => {
-                whole(4)
-            }
-            Some((_, touched)) => touched.len() * res * res,
-            None => whole(if split(l) { 4 } else { 1 }),
+        match &self.touched {
+            Some(touched) if res == 1 && touched.iter().any(|&p| l.is_split_half(p)) => whole(4),
+            Some(touched) => touched.len() * res * res,
+            None if l.live_particles().any(|p| l.is_split_half(p)) => whole(4),
+            None => whole(1),
         }
     }
 
-    /// The new surface of `l`, with its carriers' layout and the milliseconds it took.
-    fn rebuild(self, l: &Lattice) -> RebuiltSurface {
+    /// The new surface of `l` (updated from `old` where it can be), with its carriers'
+    /// layout and the milliseconds it took.
+    fn rebuild(&self, l: &Lattice, old: &SurfaceTopology) -> RebuiltSurface {
         let start = std::time::Instant::now();
-        let topology = match (&self.render, self.local) {
+        let topology = match (&self.render, &self.touched) {
             (Some(render), _) => {
                 let (surface, faces) = extract_with_faces(l);
                 render.drawn(l, &surface, &faces)
@@ -224,20 +222,30 @@ impl Source {
                 smooth(l, &mut surface);
                 surface
             }
-            (None, Some((old, touched))) => update(l, &old, &touched).unwrap_or_else(|| extract(l)),
+            (None, Some(touched)) => update(l, old, touched).unwrap_or_else(|| extract(l)),
             (None, None) => extract(l),
         };
         let layout = CarryLayout::new(l, &topology);
         (topology, layout, start.elapsed().as_secs_f64() * 1e3)
     }
 
-    /// Rebuilds the surface of `lattice` (a copy, the body's meanwhile goes on) on the
-    /// rayon pool, to be put in place at frame `due`.
-    fn spawn(self, lattice: Lattice, seen: (usize, usize, u64), due: u64) -> DeferredSurface {
+    /// Rebuilds the surface of `lattice` (a copy: the body goes on meanwhile) from
+    /// `mesh`'s on the rayon pool, to be put in place at frame `due`.
+    fn spawn(
+        self,
+        mesh: &SurfaceMesh,
+        lattice: Lattice,
+        seen: (usize, usize, u64),
+        due: u64,
+    ) -> DeferredSurface {
+        let old = match self.touched {
+            Some(_) => mesh.topology.clone(),
+            None => SurfaceTopology::default(),
+        };
         let result: Arc<(Mutex<Option<RebuiltSurface>>, Condvar)> = Arc::default();
         let slot = result.clone();
         rayon::spawn(move || {
-            let rebuilt = self.rebuild(&lattice);
+            let rebuilt = self.rebuild(&lattice, &old);
             let (slot, done) = &*slot;
             *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(rebuilt);
             done.notify_all();
