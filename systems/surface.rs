@@ -20,7 +20,7 @@ use crate::ecs::layout::SolverCache;
 use crate::ecs::resources::{
     BodyCutReport, CutReport, SimClock, SurfaceBudget, SurfaceChanged, SurfaceDeferred,
 };
-use crate::ecs::surface_mesh::{DeferredSurface, RebuiltSurface, SurfaceMesh};
+use crate::ecs::surface_mesh::{DeferredSurface, JobResult, JobSlot, RebuiltSurface, SurfaceMesh};
 use crate::surface::embed::EmbeddedMesh;
 use crate::surface::extract::{SurfaceTopology, extract_with_faces, face_count};
 use crate::surface::smooth::smooth;
@@ -29,7 +29,7 @@ use crate::surface::{CarryLayout, deform, extract};
 use bevy_ecs::prelude::*;
 use glam::Mat3A;
 use rayon::prelude::*;
-use std::sync::{Arc, Condvar, Mutex};
+use std::sync::Arc;
 
 /// Updates the surface of every body that has one; a surface already brought up to
 /// date in this frame, whose lattice has not changed since, is left as it is (so that
@@ -63,7 +63,10 @@ pub fn update_surfaces(
                 // a rebuild of this very lattice, running beside the frames
                 Some(job) if job.seen == seen => {
                     if clock.frame >= job.due {
-                        install(mesh, l, job.wait(), seen);
+                        let rebuilt = job
+                            .wait()
+                            .unwrap_or_else(|| Source::of(mesh, None).rebuild(l, &mesh.topology));
+                        install(mesh, l, rebuilt, seen);
                         installed = true;
                     } else {
                         mesh.deferred = Some(job);
@@ -242,12 +245,15 @@ impl Source {
             Some(_) => mesh.topology.clone(),
             None => SurfaceTopology::default(),
         };
-        let result: Arc<(Mutex<Option<RebuiltSurface>>, Condvar)> = Arc::default();
+        let result = JobSlot::default();
         let slot = result.clone();
         rayon::spawn(move || {
             let rebuilt = self.rebuild(&lattice, &old);
             let (slot, done) = &*slot;
-            *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(rebuilt);
+            *slot.lock().unwrap_or_else(|e| e.into_inner()) = JobResult {
+                done: true,
+                rebuilt: Some(rebuilt),
+            };
             done.notify_all();
         });
         DeferredSurface { seen, due, result }

@@ -57,41 +57,53 @@ pub struct SurfaceMesh {
 }
 
 /// A surface rebuilt beside the frames: the lattice state it is made for, the frame it
-/// is due, and the result once the job is done.
+/// is due, and where the job leaves its result.
 #[derive(Clone, Debug)]
 pub(crate) struct DeferredSurface {
     /// The lattice's particles, live particles and edits it is made for.
     pub(crate) seen: (usize, usize, u64),
     /// The frame at whose end it is put in place.
     pub(crate) due: u64,
-    /// The job's result: the topology, its carriers' layout and the milliseconds it took.
-    pub(crate) result: Arc<(Mutex<Option<RebuiltSurface>>, Condvar)>,
+    /// Where the job leaves its result, and the signal that it did.
+    pub(crate) result: JobSlot,
 }
 
 /// A rebuilt surface: its topology, its carriers' layout and the milliseconds it took.
 pub(crate) type RebuiltSurface = (SurfaceTopology, CarryLayout, f64);
 
+/// Where a rebuild job leaves its result (see [`JobResult`]), with the signal that it
+/// did.
+pub(crate) type JobSlot = Arc<(Mutex<JobResult>, Condvar)>;
+
+/// What a rebuild job hands back: `done` once it finished, and its result until a
+/// waiter takes it.
+#[derive(Debug, Default)]
+pub(crate) struct JobResult {
+    pub(crate) done: bool,
+    pub(crate) rebuilt: Option<RebuiltSurface>,
+}
+
 impl DeferredSurface {
-    /// The result, waited for. A thread of a rayon pool runs the pool's pending work
-    /// while it waits (the job itself, should it still be queued there).
-    pub(crate) fn wait(self) -> RebuiltSurface {
+    /// The result, waited for; `None` when a copy of the mesh (a clone shares its
+    /// pending rebuild) took it first. A thread of a rayon pool runs the pool's pending
+    /// work while it waits (the job itself, should it still be queued there).
+    pub(crate) fn wait(self) -> Option<RebuiltSurface> {
         let (slot, done) = &*self.result;
-        let mut result = slot.lock().unwrap_or_else(|e| e.into_inner());
+        let lock = || slot.lock().unwrap_or_else(|e| e.into_inner());
+        let mut result = lock();
         loop {
-            if let Some(rebuilt) = result.take() {
-                return rebuilt;
+            if result.done {
+                return result.rebuilt.take();
             }
             drop(result);
-            if rayon::yield_now() != Some(rayon::Yield::Executed) {
-                let guard = slot.lock().unwrap_or_else(|e| e.into_inner());
-                let timeout = std::time::Duration::from_millis(1);
-                result = done
-                    .wait_timeout(guard, timeout)
-                    .unwrap_or_else(|e| e.into_inner())
-                    .0;
+            result = if rayon::yield_now() == Some(rayon::Yield::Executed) {
+                lock()
             } else {
-                result = slot.lock().unwrap_or_else(|e| e.into_inner());
-            }
+                let timeout = std::time::Duration::from_millis(1);
+                (done.wait_timeout(lock(), timeout))
+                    .unwrap_or_else(|e| e.into_inner())
+                    .0
+            };
         }
     }
 }
