@@ -5,7 +5,7 @@
 //! test of a severing blade (`edges_separated`).
 
 use cleave::body::shape::Shape;
-use cleave::cut::detection::{edges_separated, particles_hit};
+use cleave::cut::detection::{Reported, edges_separated, particles_hit};
 use cleave::cut::tool::{CutMode, Pose, ToolShape};
 use cleave::cut::tool_sweep::ToolSweep;
 use cleave::ecs::components::Tool;
@@ -113,6 +113,7 @@ fn detect(c: &mut Criterion) {
             partners,
             &[&sweep],
             None,
+            Reported::FirstTool,
         )
     };
     eprintln!("detect/sever_slice: {} edges", sever_all().len());

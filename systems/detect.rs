@@ -11,9 +11,7 @@
 use crate::body::lattice::NO_PARTICLE;
 use crate::cut::crossings::rest_crossing;
 use crate::cut::culling::FollowedTool;
-use crate::cut::detection::{
-    edges_separated, edges_separated_by_each, particles_hit, particles_inside,
-};
+use crate::cut::detection::{Reported, edges_separated, particles_hit, particles_inside};
 use crate::cut::particle_split::plan_splits;
 use crate::cut::tear::find_tears;
 use crate::cut::tool::CutMode;
@@ -139,32 +137,27 @@ fn separate_edges(
                 n => b.slot(n).map_or(u32::MAX, |s| s as u32),
             })
         };
-        let live = cache.layout.live();
-        let separated = match kind {
-            // each split blade plans the edges it separates by its own plane, so all of
-            // them are listed for every blade (one pass over the particles for all)
-            Severed::Split => {
-                edges_separated_by_each(positions, live, range, partners, tools, near)
-            }
-            Severed::Edges | Severed::Grazed => {
-                edges_separated(positions, live, range, partners, tools, near)
-            }
+        // each split blade plans the edges it separates by its own plane, so every
+        // blade that separates an edge is listed (one pass over the particles for all)
+        let reported = match kind {
+            Severed::Split => Reported::EveryTool,
+            Severed::Edges | Severed::Grazed => Reported::FirstTool,
         };
+        let live = cache.layout.live();
+        let mut separated =
+            edges_separated(positions, live, range, partners, tools, near, reported);
         if separated.is_empty() {
             continue;
         }
         let position = |p: u32| b.position(positions, p);
-        // (the others' edges are one list; a split blade's its own, in the tools' order)
-        let lists = match kind {
-            Severed::Split => (0..tools.len())
-                .map(|t| separated.iter().filter(|s| s.tool == t).collect())
-                .collect(),
-            Severed::Edges | Severed::Grazed => vec![separated.iter().collect::<Vec<_>>()],
-        };
-        for (list, tool) in lists.into_iter().zip(tools) {
-            if list.is_empty() {
-                continue;
-            }
+        // (the others' edges are one list; a split blade's its own, in the tools' order:
+        // a stable sort keeps each blade's edges in their order)
+        if kind == Severed::Split {
+            separated.sort_by_key(|s| s.tool);
+        }
+        let lists = separated.chunk_by(|a, b| kind != Severed::Split || a.tool == b.tool);
+        for list in lists {
+            let tool = tools[list[0].tool];
             let mut edges = Vec::with_capacity(list.len());
             let mut crossings = Vec::with_capacity(list.len());
             let mut turn = Quat::IDENTITY;
@@ -272,7 +265,7 @@ fn near_blocks(
 }
 
 /// What a group of tools does with the edges it separates.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, PartialEq, Eq)]
 enum Severed {
     /// Severs them (`sever` blades).
     Edges,

@@ -233,7 +233,7 @@ fn own_ball(positions: &[Vec3A], live: &[bool]) -> Option<(Vec3A, f32)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cut::detection::{edges_separated, morton_cube, particles_hit};
+    use crate::cut::detection::{Reported, edges_separated, morton_cube, particles_hit};
     use crate::cut::tool::Tool;
     use crate::cut::tool::{CutMode, ToolShape};
     use glam::Quat;
@@ -311,10 +311,25 @@ mod tests {
                 "frame {frame}"
             );
             let range = 0..positions.len();
-            let full_edges =
-                edges_separated(&positions, &live, range.clone(), partners, &[all[1]], None);
-            let culled =
-                edges_separated(&positions, &live, range, partners, &[all[1]], Some(&near));
+            let first = Reported::FirstTool;
+            let full_edges = edges_separated(
+                &positions,
+                &live,
+                range.clone(),
+                partners,
+                &[all[1]],
+                None,
+                first,
+            );
+            let culled = edges_separated(
+                &positions,
+                &live,
+                range,
+                partners,
+                &[all[1]],
+                Some(&near),
+                first,
+            );
             assert_eq!(culled, full_edges, "frame {frame}");
             hits += full.len();
             severed += full_edges.len();

@@ -92,8 +92,7 @@ fn particles_where(
         .collect()
 }
 
-/// An edge a tool separates, found by [`edges_separated`] or
-/// [`edges_separated_by_each`].
+/// An edge a tool separates, found by [`edges_separated`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Separated {
     /// The edge's dense ends: a particle of the range tested, and its partner.
@@ -103,19 +102,29 @@ pub struct Separated {
     pub fraction: f32,
     /// See `fraction`.
     pub normal: Vec3,
-    /// The tool that separates it (an index into the tools tested; the first that does,
-    /// for [`edges_separated`]).
+    /// The tool that separates it (an index into the tools tested).
     pub tool: usize,
+}
+
+/// Which tools [`edges_separated`] reports for an edge.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reported {
+    /// The first of the tools (in their order) that separates it.
+    FirstTool,
+    /// Every tool that separates it, in their order: what each of several tools
+    /// separates, in one pass over the particles.
+    EveryTool,
 }
 
 /// The edges some tool separates ([`ToolSweep::separates`]), among the edges from the
 /// particles `range` of `positions` (dense indices) to their `partners` (the dense
 /// indices of the particles linked along +x, +y and +z, `u32::MAX` where none, so that
-/// each edge is tested once), each with the first tool that separates it and where it
-/// crossed it. In ascending order of their first end, then along +x, +y, +z. The range
-/// is taken in the dense blocks of [`BLOCK`] particles; blocks `near` marks far are
-/// skipped, the others are culled by a ball around their particles and partners, and
-/// run in parallel; the result does not depend on the thread count.
+/// each edge is tested once), each with the tool that separates it (as `reported` says)
+/// and where it crossed it. In ascending order of their first end, then along +x, +y,
+/// +z, then in the tools' order. The range is taken in the dense blocks of [`BLOCK`]
+/// particles; blocks `near` marks far are skipped, the others are culled by a ball
+/// around their particles and partners, and run in parallel; the result does not depend
+/// on the thread count.
 ///
 /// A blade that stays in its plane ([`ToolSweep::in_plane`]) is tested in closed form
 /// (a sign test per edge, then the crossing point against the blade's sweep); the other
@@ -127,34 +136,7 @@ pub fn edges_separated(
     partners: impl Fn(usize) -> [u32; 3] + Sync,
     tools: &[&ToolSweep],
     near_blocks: NearBlocks,
-) -> Vec<Separated> {
-    separations(positions, live, range, partners, tools, near_blocks, false)
-}
-
-/// [`edges_separated`], but each edge once for every tool that separates it (in the
-/// order of `tools`), not for the first only: what each of several tools separates, in
-/// one pass over the particles.
-pub fn edges_separated_by_each(
-    positions: &[Vec3A],
-    live: &[bool],
-    range: std::ops::Range<usize>,
-    partners: impl Fn(usize) -> [u32; 3] + Sync,
-    tools: &[&ToolSweep],
-    near_blocks: NearBlocks,
-) -> Vec<Separated> {
-    separations(positions, live, range, partners, tools, near_blocks, true)
-}
-
-/// The separations of [`edges_separated`] (`every` false: the first tool's of each
-/// edge) or of [`edges_separated_by_each`] (`every` true: every tool's).
-fn separations(
-    positions: &[Vec3A],
-    live: &[bool],
-    range: std::ops::Range<usize>,
-    partners: impl Fn(usize) -> [u32; 3] + Sync,
-    tools: &[&ToolSweep],
-    near_blocks: NearBlocks,
-    every: bool,
+    reported: Reported,
 ) -> Vec<Separated> {
     if tools.is_empty() || range.is_empty() {
         return Vec::new();
@@ -247,10 +229,9 @@ fn separations(
                             tool: index,
                         })
                     });
-                    let found: SmallVec<[Separated; 1]> = if every {
-                        by.collect()
-                    } else {
-                        by.next().into_iter().collect()
+                    let found: SmallVec<[Separated; 1]> = match reported {
+                        Reported::EveryTool => by.collect(),
+                        Reported::FirstTool => by.next().into_iter().collect(),
                     };
                     found
                 })
@@ -440,6 +421,7 @@ mod tests {
                 partners,
                 &[&sweep],
                 None,
+                Reported::FirstTool,
             )
             .into_iter()
             .map(|s| s.ends)
@@ -498,11 +480,21 @@ mod tests {
                 })
                 .collect();
             let tools: Vec<&ToolSweep> = sweeps.iter().collect();
-            let each =
-                edges_separated_by_each(&positions, &live, all.clone(), partners, &tools, None);
+            let separated = |tools: &[&ToolSweep], reported| {
+                edges_separated(
+                    &positions,
+                    &live,
+                    all.clone(),
+                    partners,
+                    tools,
+                    None,
+                    reported,
+                )
+            };
+            let each = separated(&tools, Reported::EveryTool);
             let mut alone: Vec<Separated> = (tools.iter().enumerate())
                 .flat_map(|(t, tool)| {
-                    edges_separated(&positions, &live, all.clone(), partners, &[*tool], None)
+                    separated(&[*tool], Reported::FirstTool)
                         .into_iter()
                         .map(move |s| Separated { tool: t, ..s })
                 })
@@ -510,7 +502,7 @@ mod tests {
             // (an edge's tools follow each other, in order)
             let mut first = each.clone();
             first.dedup_by_key(|s| s.ends);
-            let together = edges_separated(&positions, &live, all.clone(), partners, &tools, None);
+            let together = separated(&tools, Reported::FirstTool);
             assert!(together == first, "case {case}: the first tools differ");
             let mut each = each;
             each.sort_by_key(|s| (s.ends, s.tool));
