@@ -178,12 +178,22 @@ impl CheckedField for u32 {
 impl CheckedField for Vec3 {
     /// Every component checked.
     fn read<'de, D: Deserializer<'de>>(d: D, allowed: &Allowed) -> Result<Self, D::Error> {
-        let v = Vec3::deserialize(d)?;
-        if allowed.allows_each(v) {
-            Ok(v)
-        } else {
-            Err(refusal(v, allowed.text_each()))
-        }
+        read_vec_where(d, |v| allowed.allows_each(v), || allowed.text_each())
+    }
+}
+
+/// Reads a vector, refused (stating the bound `text` gives) unless `allows` takes it:
+/// the reader of a vector under any kind of bound.
+pub fn read_vec_where<'de, D: Deserializer<'de>>(
+    d: D,
+    allows: impl FnOnce(Vec3) -> bool,
+    text: impl FnOnce() -> String,
+) -> Result<Vec3, D::Error> {
+    let v = Vec3::deserialize(d)?;
+    if allows(v) {
+        Ok(v)
+    } else {
+        Err(refusal(v, text()))
     }
 }
 

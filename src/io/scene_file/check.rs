@@ -10,7 +10,7 @@ use crate::config::{GroundPlane, StaticBox, ranges};
 use crate::cut::tool::{Path, Pose, ToolShape};
 use crate::deform::keys::{HandleKey, HandlePath};
 use crate::ecs::desc::{PinRegion, Region};
-use crate::error::allowed::{CheckedField, refusal, whole_number};
+use crate::error::allowed::{CheckedField, read_vec_where, refusal, whole_number};
 use crate::error::{CleaveError, SIZE, SIZE_OR_ZERO, VecBound};
 use glam::{Quat, UVec3, Vec3};
 use serde::de::Error as _;
@@ -56,12 +56,7 @@ pub fn damping<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
 }
 /// A vector within `bound`.
 fn bounded<'de, D: Deserializer<'de>>(d: D, bound: &VecBound) -> Result<Vec3, D::Error> {
-    let v = Vec3::deserialize(d)?;
-    if bound.allows(v) {
-        Ok(v)
-    } else {
-        Err(refusal(v, bound.text()))
-    }
+    read_vec_where(d, |v| bound.allows(v), || bound.text())
 }
 pub fn coordinates<'de, D: Deserializer<'de>>(d: D) -> Result<Vec3, D::Error> {
     bounded(d, &crate::error::POSITION)
