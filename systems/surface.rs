@@ -50,7 +50,7 @@ pub fn update_surfaces(
     let budget = budget.as_deref().copied().unwrap_or_default();
     for (body, lattice, mut marked) in &mut bodies {
         let l = &lattice.lattice;
-        let seen = (l.len(), l.live_count(), l.edits());
+        let seen = lattice_state(l);
         let new_topology = marked.topology_version == 0 || marked.seen != seen;
         if !new_topology && marked.deformed_at == Some(clock.frame) {
             continue;
@@ -66,7 +66,7 @@ pub fn update_surfaces(
                         let rebuilt = job
                             .wait()
                             .unwrap_or_else(|| Source::of(mesh, None).rebuild(l, &mesh.topology));
-                        install(mesh, l, rebuilt, seen);
+                        install(mesh, l, rebuilt);
                         installed = true;
                     } else {
                         mesh.deferred = Some(job);
@@ -89,7 +89,7 @@ pub fn update_surfaces(
                         deferred.write(SurfaceDeferred { body, quads, due });
                     } else {
                         let rebuilt = source.rebuild(l, &mesh.topology);
-                        install(mesh, l, rebuilt, seen);
+                        install(mesh, l, rebuilt);
                         installed = true;
                     }
                 }
@@ -154,21 +154,22 @@ pub fn update_surfaces(
     }
 }
 
+/// What a surface records of the lattice it was made from: its particles, live
+/// particles and edits.
+fn lattice_state(l: &Lattice) -> (usize, usize, u64) {
+    (l.len(), l.live_count(), l.edits())
+}
+
 /// Puts a rebuilt surface in place: its topology and carriers' layout, the carriers'
 /// frames and positions carried over from the last layout.
-fn install(
-    mesh: &mut SurfaceMesh,
-    l: &Lattice,
-    rebuilt: RebuiltSurface,
-    seen: (usize, usize, u64),
-) {
+fn install(mesh: &mut SurfaceMesh, l: &Lattice, rebuilt: RebuiltSurface) {
     let (topology, layout, ms) = rebuilt;
     mesh.topology = topology;
     mesh.frames = layout.carry_frames(l, &mesh.layout, &mesh.frames);
     mesh.rotations = vec![Mat3A::IDENTITY; layout.carrier_count()];
     mesh.gathered = layout.carry_positions(&mesh.layout, &mesh.gathered);
     mesh.layout = layout;
-    mesh.seen = seen;
+    mesh.seen = lattice_state(l);
     mesh.topology_version += 1;
     mesh.topology_ms = ms;
 }
