@@ -33,7 +33,16 @@ fn bench_json_has_one_consistent_line_per_size() {
         .lines()
         .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
         .collect();
-    // the last line is the contact row
+    // the last line is the crowd's contact row: more bodies at the pile's spacing
+    let crowd = lines.pop().expect("a crowd row");
+    assert_eq!(crowd["row"], "crowd");
+    assert_eq!(crowd["bodies"], 18, "{crowd}");
+    let ns = crowd["ms_per_step"].as_f64().expect("a step time") * 1e6
+        / crowd["particles"].as_f64().expect("a particle count");
+    let reported = crowd["ns_per_particle_step"].as_f64().expect("a cost");
+    assert!(ns > 0.0 && (ns - reported).abs() < 1e-6 * ns, "{crowd}");
+    assert!(crowd["contact_pairs"].as_f64() > Some(0.0), "{crowd}");
+    // before it, the pile's
     let pile = lines.pop().expect("a pile row");
     assert_eq!(pile["row"], "pile");
     let number = |key: &str| {
@@ -45,6 +54,7 @@ fn bench_json_has_one_consistent_line_per_size() {
         number("particles") > 500.0 && number("bodies") == 7.0,
         "{pile}"
     );
+    assert!(crowd["particles"].as_f64() > Some(2.0 * number("particles")));
     assert!(number("contact_particles") < number("particles"), "{pile}");
     assert!(
         number("contact_pairs") > 0.0,

@@ -482,7 +482,7 @@ fn numbers_that_are_not_whole_or_out_of_range_name_the_field_and_its_range() {
         assert_eq!(code, Some(2), "{name}: {err}");
         assert!(err.contains(expected), "{name}: {err}");
     }
-    // flags: a negative, a fraction, a size beyond the memory budget
+    // flags: a negative, a fraction, a size beyond the memory budget, a crowd out of range
     for (args, expected) in [
         (
             &["run", "drop", "--frames", "-1"][..],
@@ -495,6 +495,14 @@ fn numbers_that_are_not_whole_or_out_of_range_name_the_field_and_its_range() {
         (
             &["bench", "--sizes", "256"][..],
             "--sizes: 256 is out of range (allowed 2 ≤ size ≤ 149",
+        ),
+        (
+            &["bench", "--crowd-bodies", "0"][..],
+            "--crowd-bodies: 0 is out of range (allowed 1 ≤ bodies ≤ 64)",
+        ),
+        (
+            &["bench", "--crowd-bodies", "65"][..],
+            "--crowd-bodies: 65 is out of range (allowed 1 ≤ bodies ≤ 64)",
         ),
     ] {
         let out = Command::new(env!("CARGO_BIN_EXE_cleave"))

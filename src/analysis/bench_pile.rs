@@ -1,23 +1,26 @@
-//! The contact row of `cleave bench`: the `pile` scene at a fine spacing, stepped with
-//! and without particle contacts in the same run, with a blade moving far from every
-//! body to time what detection costs when there is nothing to find.
+//! The contact rows of `cleave bench`: the `pile` scene at a fine spacing, and a crowd
+//! of more bodies in a wider bin, each stepped with and without particle contacts in the
+//! same run, with a blade moving far from every body to time what detection costs when
+//! there is nothing to find.
 
 use crate::analysis::bench::{kind_seconds, median, time_ms};
 use crate::config::SimConfig;
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
+use crate::ecs::desc::Scene;
 use crate::ecs::desc::ToolDesc;
 use crate::ecs::layout::SolverCache;
 use crate::ecs::resources::DetectCulling;
 use crate::error::Result;
+use crate::io::pile_scenes::{crowd_scene, pile_scene};
 use crate::sim::simulation::Simulation;
 use glam::{Quat, Vec3};
 use serde::Serialize;
 
-/// The contact row of the bench: the `pile` scene at a finer spacing, stepped with and
-/// without particle contacts in the same run.
+/// A contact row of the bench: the `pile` scene at a finer spacing, or a crowd, stepped
+/// with and without particle contacts in the same run.
 #[derive(Clone, Debug, Serialize)]
 pub struct PileRow {
-    /// Always `"pile"` (tells this row from the size rows in JSON lines).
+    /// `"pile"` or `"crowd"` (tells the row from the size rows in JSON lines).
     pub row: &'static str,
     /// Lattice spacing of the bodies.
     pub spacing: f32,
@@ -33,6 +36,8 @@ pub struct PileRow {
     pub contact_pairs: usize,
     /// Median step with contacts, ms.
     pub ms_per_step: f64,
+    /// `ms_per_step` per particle, ns: what a particle-step costs over the whole crowd.
+    pub ns_per_particle_step: f64,
     /// Median step of the same scene with contacts off, ms.
     pub ms_per_step_without_contacts: f64,
     /// `ms_per_step / ms_per_step_without_contacts`. The two runs differ in more than
@@ -53,7 +58,8 @@ pub struct PileRow {
 }
 
 /// A sever blade that sweeps back and forth along z, turning, 3 m beside the `pile`
-/// scene's bin: it never reaches a body, so detection has nothing to find.
+/// scene's bin (2 m beside the crowd's): it never reaches a body, so detection has
+/// nothing to find.
 fn far_blade() -> ToolDesc {
     let at = |z: f32, turn: f32| Pose {
         position: Vec3::new(4.0, 0.5, z),
@@ -81,17 +87,41 @@ fn far_blade() -> ToolDesc {
 }
 
 /// Runs the `pile` scene at `spacing` for `frames` frames twice, with and without
-/// contacts, alternating steps so both see the same machine noise; a blade far from
-/// every body moves in both, and the detect stage is timed in the first.
+/// contacts (see [`bench_bin`]).
 pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileRow> {
+    bench_bin("pile", spacing, frames, config, |config| {
+        pile_scene(config, spacing)
+    })
+}
+
+/// Runs a crowd of `bodies` bodies ([`crowd_scene`]) at `spacing` for `frames` frames
+/// twice, with and without contacts (see [`bench_bin`]).
+pub fn bench_crowd(
+    spacing: f32,
+    bodies: usize,
+    frames: u32,
+    config: &SimConfig,
+) -> Result<PileRow> {
+    bench_bin("crowd", spacing, frames, config, |config| {
+        crowd_scene(config, spacing, bodies)
+    })
+}
+
+/// Runs the scene `make` gives for `frames` frames twice, with and without contacts,
+/// alternating steps so both see the same machine noise; a blade far from every body
+/// moves in both, and the detect stage is timed in the first.
+fn bench_bin(
+    row: &'static str,
+    spacing: f32,
+    frames: u32,
+    config: &SimConfig,
+    make: impl Fn(SimConfig) -> Scene,
+) -> Result<PileRow> {
     let build = |contacts: bool| -> Result<Simulation> {
-        let scene = crate::io::scene::pile_scene(
-            SimConfig {
-                contacts,
-                ..config.clone()
-            },
-            spacing,
-        );
+        let scene = make(SimConfig {
+            contacts,
+            ..config.clone()
+        });
         let mut sim = Simulation::new(scene.config.clone())?;
         for b in &scene.bodies {
             sim.spawn_body(b)?;
@@ -123,7 +153,7 @@ pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileR
     let (ms_on, ms_off, ms_in) = (median(&mut on), median(&mut off), median(&mut inside));
     let iterations = (config.substeps * config.iterations) as f64;
     Ok(PileRow {
-        row: "pile",
+        row,
         spacing,
         bodies: cache.layout.bodies().len(),
         particles,
@@ -131,6 +161,7 @@ pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileR
         contact_particles: contacts.particles,
         contact_pairs: contacts.constraints,
         ms_per_step: ms_on,
+        ns_per_particle_step: ms_on * 1e6 / particles as f64,
         ms_per_step_without_contacts: ms_off,
         contacts_over_without: ms_on / ms_off,
         contact_ms_per_step: ms_in,

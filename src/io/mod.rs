@@ -7,6 +7,7 @@ pub mod dump;
 pub mod export;
 #[cfg(feature = "render")]
 pub mod gltf;
+pub mod pile_scenes;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod save;

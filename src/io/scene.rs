@@ -4,15 +4,12 @@
 //! or a parameter (random cuts, the cut block, the scooped cantilever, the pile, the
 //! truck) are code.
 
-use crate::body::shape::Shape;
 use crate::config::SimConfig;
-use crate::cut::tool::{Path, Pose};
-use crate::ecs::desc::{ColliderDesc, Scene};
-use crate::geometry::collider::ColliderShape;
-use crate::io::cut_scenes::{cut_block_scene, random_scene, rigid_body, scooped_cantilever_scene};
+use crate::ecs::desc::Scene;
+use crate::io::cut_scenes::{cut_block_scene, random_scene, scooped_cantilever_scene};
+use crate::io::pile_scenes::pile_scene;
 use crate::io::scene_file::SceneFile;
 use crate::io::truck_scene::truck_scene;
-use glam::{Quat, Vec3};
 
 /// How a built-in scene is made.
 #[derive(Clone, Copy)]
@@ -184,70 +181,6 @@ pub fn builtin(name: &str, seed: u64) -> Option<Scene> {
         }
         Source::Made(make) => make(seed),
     })
-}
-
-/// A walled bin (four static boxes, each tilted 10° outwards about its long axis) and
-/// seven bodies of four shapes dropped into it one above another, at spacing `h`; with a
-/// smaller `h` the same scene has more particles (the bench's contact row).
-pub fn pile_scene(config: SimConfig, h: f32) -> Scene {
-    let inner = 1.0; // half width of the bin's floor
-    let (height, thickness, tilt) = (1.2, 0.1, 10f32.to_radians());
-    let mut colliders = Vec::new();
-    for k in 0..4 {
-        // wall k faces the centre from the side at angle k·90° about Y
-        let yaw = Quat::from_rotation_y(k as f32 * std::f32::consts::FRAC_PI_2);
-        let outward = yaw * Vec3::X;
-        let lean = Quat::from_axis_angle(yaw * Vec3::Z, -tilt);
-        let centre =
-            outward * (inner + thickness + height * 0.5 * tilt.sin()) + Vec3::Y * (height * 0.5);
-        colliders.push(ColliderDesc {
-            shape: ColliderShape::Box {
-                half_extents: Vec3::new(thickness, height * 0.5, inner + 2.0 * thickness),
-            },
-            friction: 0.3,
-            pose: Pose {
-                position: centre,
-                rotation: lean * yaw,
-            },
-            path: Path::default(),
-        });
-    }
-    let shapes = [
-        Shape::Box {
-            half_extents: Vec3::new(0.35, 0.2, 0.25),
-        },
-        Shape::Sphere { radius: 0.3 },
-        Shape::Capsule {
-            radius: 0.18,
-            half_length: 0.35,
-        },
-        Shape::Box {
-            half_extents: Vec3::splat(0.22),
-        },
-        Shape::Sphere { radius: 0.22 },
-        Shape::Box {
-            half_extents: Vec3::new(0.5, 0.12, 0.15),
-        },
-        Shape::Sphere { radius: 0.25 },
-    ];
-    let bodies = shapes
-        .into_iter()
-        .enumerate()
-        .map(|(i, shape)| {
-            let mut body = rigid_body(shape, h);
-            let a = i as f32 * 2.4;
-            body.position = Vec3::new(0.35 * a.cos(), 0.6 + 0.75 * i as f32, 0.35 * a.sin());
-            body.rotation = Quat::from_rotation_y(0.7 * i as f32);
-            body
-        })
-        .collect();
-    Scene {
-        config,
-        bodies,
-        tools: vec![],
-        colliders,
-        frames: 400,
-    }
 }
 
 #[cfg(test)]

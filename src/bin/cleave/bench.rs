@@ -3,22 +3,28 @@
 use cleave::analysis::bench::{
     BenchRow, CONVERGED_RESIDUAL, ConvergenceOptions, EdgeRow, bench_edges, bench_size, convergence,
 };
-use cleave::analysis::bench_pile::{PileRow, bench_pile};
+use cleave::analysis::bench_pile::{PileRow, bench_crowd, bench_pile};
 use cleave::analysis::bench_surface::bench_surface;
 use cleave::config::SimConfig;
 
-/// The contact row: the `pile` scene at this spacing (or none).
+/// The contact rows: the `pile` scene at this spacing, then a crowd at the same spacing
+/// (or neither).
 #[derive(Clone, Copy, Debug)]
 pub struct PileOptions {
-    /// Lattice spacing of the pile's bodies; `None`: no pile row.
+    /// Lattice spacing of the pile's and the crowd's bodies; `None`: no contact row.
     pub spacing: Option<f32>,
+    /// Bodies in the crowd; `None`: no crowd row.
+    pub crowd: Option<usize>,
     /// Frames to step.
     pub frames: u32,
 }
 
+/// The most bodies the crowd row takes (sixteen layers of four).
+const MAX_CROWD: usize = 64;
+
 /// Benchmarks every size (ascending, so peak memory belongs to the current size), then
-/// edge constraints on the largest size (unless `no_edges`), then the pile with and
-/// without contacts.
+/// edge constraints on the largest size (unless `no_edges`), then the pile and the crowd
+/// with and without contacts.
 pub fn bench(
     sizes: &[u32],
     steps: usize,
@@ -48,18 +54,25 @@ pub fn bench(
         }
     }
     if let Some(spacing) = pile.spacing {
-        let row = bench_pile(spacing, pile.frames, &config).map_err(|e| e.to_string())?;
-        if json {
-            print_json(&row)?;
-        } else {
-            print_pile_row(&row);
+        let mut rows = vec![bench_pile(spacing, pile.frames, &config).map_err(|e| e.to_string())?];
+        if let Some(bodies) = pile.crowd {
+            rows.push(
+                bench_crowd(spacing, bodies, pile.frames, &config).map_err(|e| e.to_string())?,
+            );
+        }
+        for row in &rows {
+            if json {
+                print_json(row)?;
+            } else {
+                print_pile_row(row);
+            }
         }
     }
     Ok(())
 }
 
 /// The sizes asked for, ascending and each once; an error for a size past what the
-/// memory budget allows, a pile spacing out of range or no timed step.
+/// memory budget allows, a pile spacing or crowd out of range or no timed step.
 fn checked_sizes(
     sizes: &[u32],
     steps: usize,
@@ -71,6 +84,13 @@ fn checked_sizes(
     {
         return Err(format!(
             "--pile-spacing: {h} is out of range (allowed 0.02 ≤ spacing ≤ 0.5)"
+        ));
+    }
+    if let Some(bodies) = pile.crowd
+        && !(1..=MAX_CROWD).contains(&bodies)
+    {
+        return Err(format!(
+            "--crowd-bodies: {bodies} is out of range (allowed 1 ≤ bodies ≤ {MAX_CROWD})"
         ));
     }
     if steps == 0 {
@@ -169,18 +189,20 @@ fn print_edge_row(row: &EdgeRow) {
     );
 }
 
-/// The pile's row.
+/// A contact row (the pile's or the crowd's).
 fn print_pile_row(row: &PileRow) {
     println!(
-        "pile (contacts): {} bodies, {} particles at h = {}, {} taking part, {} pairs; \
-         {:.3} ms/step with contacts, {:.3} without: ×{:.2}; contacts {:.2} ns per particle-iteration; \
+        "{} (contacts): {} bodies, {} particles at h = {}, {} taking part, {} pairs; \
+         {:.3} ms/step with contacts ({:.1} ns per particle-step), {:.3} without: ×{:.2}; contacts {:.2} ns per particle-iteration; \
          in the step: contacts {:.3} ms, +{:.0} % on the rest; a far blade's detection {:.3} ms ({:.2} % of the step)",
+        row.row,
         row.bodies,
         row.particles,
         row.spacing,
         row.contact_particles,
         row.contact_pairs,
         row.ms_per_step,
+        row.ns_per_particle_step,
         row.ms_per_step_without_contacts,
         row.contacts_over_without,
         row.contact_ns_per_particle_iteration,
