@@ -64,6 +64,13 @@ fn bench_json_has_one_consistent_line_per_size() {
     assert!((ratio - number("contacts_over_without")).abs() < 1e-9 * ratio);
     let (inside, step) = (number("contact_ms_per_step"), number("ms_per_step"));
     assert!(inside > 0.0 && inside < step, "{pile}");
+    // the two phases of the contact kind, each timed on its own
+    for phase in ["contact_find_ms_per_step", "contact_projection_ms_per_step"] {
+        assert!(
+            number(phase) > 0.0 && number(phase) <= step,
+            "{phase}: {pile}"
+        );
+    }
     let share = inside / (step - inside);
     assert!((share - number("contact_share")).abs() < 1e-9 * share);
     // before it, the edge row: the largest size with edge constraints

@@ -3,7 +3,7 @@
 //! same run, with a blade moving far from every body to time what detection costs when
 //! there is nothing to find.
 
-use crate::analysis::bench::{kind_seconds, median, time_ms};
+use crate::analysis::bench::{median, time_ms};
 use crate::config::SimConfig;
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::ecs::desc::Scene;
@@ -13,6 +13,7 @@ use crate::ecs::resources::DetectCulling;
 use crate::error::Result;
 use crate::io::pile_scenes::{crowd_scene, pile_scene};
 use crate::sim::simulation::Simulation;
+use crate::solver::registry::TermSeconds;
 use glam::{Quat, Vec3};
 use serde::Serialize;
 
@@ -45,6 +46,11 @@ pub struct PileRow {
     pub contacts_over_without: f64,
     /// Median time the contact kind itself took in a step (pairs and projection), ms.
     pub contact_ms_per_step: f64,
+    /// Median time of the contact kind's substep set-up in a step: finding the pairs
+    /// (the candidate list's upkeep, its filter and the pairs' table), ms.
+    pub contact_find_ms_per_step: f64,
+    /// Median time of the contact kind's projections in a step (every iteration), ms.
+    pub contact_projection_ms_per_step: f64,
     /// What contacts add to the rest of the same step: `contact_ms_per_step /
     /// (ms_per_step − contact_ms_per_step)`.
     pub contact_share: f64,
@@ -55,6 +61,15 @@ pub struct PileRow {
     pub far_tool_detect_ms_per_step: f64,
     /// `far_tool_detect_ms_per_step / ms_per_step`.
     pub far_tool_detect_share: f64,
+}
+
+/// Seconds the contact kind of `sim`'s solver has taken so far, by phase.
+fn contact_seconds(sim: &Simulation) -> TermSeconds {
+    let cache = sim.world().resource::<SolverCache>();
+    let mut terms = cache.solver.terms.phase_seconds();
+    terms
+        .find(|(name, _)| *name == "contacts")
+        .map_or_else(TermSeconds::default, |(_, s)| s)
 }
 
 /// A sever blade that sweeps back and forth along z, turning, 3 m beside the `pile`
@@ -136,14 +151,17 @@ fn bench_bin(
     let (mut with, mut without) = (build(true)?, build(false)?);
     let (mut on, mut off, mut inside) = (Vec::new(), Vec::new(), Vec::new());
     let mut detect = Vec::new();
-    let contact_seconds = |sim: &Simulation| kind_seconds(sim, "contacts");
+    let (mut find, mut project) = (Vec::new(), Vec::new());
     for frame in 0..frames.max(2) {
         let before = contact_seconds(&with);
         let (a, b) = (time_ms(1, || with.step()), time_ms(1, || without.step()));
         if frame >= frames / 2 {
             on.push(a);
             off.push(b);
-            inside.push((contact_seconds(&with) - before) * 1e3);
+            let after = contact_seconds(&with);
+            inside.push((after.total() - before.total()) * 1e3);
+            find.push((after.setup - before.setup) * 1e3);
+            project.push((after.iterations - before.iterations) * 1e3);
             detect.push(with.world().resource::<DetectCulling>().last_ms);
         }
     }
@@ -165,6 +183,8 @@ fn bench_bin(
         ms_per_step_without_contacts: ms_off,
         contacts_over_without: ms_on / ms_off,
         contact_ms_per_step: ms_in,
+        contact_find_ms_per_step: median(&mut find),
+        contact_projection_ms_per_step: median(&mut project),
         contact_share: ms_in / (ms_on - ms_in),
         contact_ns_per_particle_iteration: (ms_on - ms_off) * 1e6 / (particles as f64 * iterations),
         far_tool_detect_ms_per_step: median(&mut detect),

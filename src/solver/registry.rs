@@ -15,7 +15,23 @@ use std::any::Any;
 pub struct Terms {
     kinds: Vec<Box<dyn Term>>,
     /// Wall-clock seconds each term has spent in solves (reports only).
-    seconds: Vec<f64>,
+    seconds: Vec<TermSeconds>,
+}
+
+/// Wall-clock seconds a term has spent in solves, by phase (reports only).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TermSeconds {
+    /// In its substep set-up ([`Term::begin_substep`]: for contacts, finding the pairs).
+    pub setup: f64,
+    /// In its iterations (projections, or projective dynamics' local step).
+    pub iterations: f64,
+}
+
+impl TermSeconds {
+    /// Both phases.
+    pub fn total(self) -> f64 {
+        self.setup + self.iterations
+    }
 }
 
 impl std::fmt::Debug for Terms {
@@ -53,7 +69,7 @@ impl Terms {
     pub fn insert(&mut self, index: usize, term: Box<dyn Term>) -> usize {
         let index = index.min(self.kinds.len());
         self.kinds.insert(index, term);
-        self.seconds.insert(index, 0.0);
+        self.seconds.insert(index, TermSeconds::default());
         index
     }
 
@@ -94,7 +110,7 @@ impl Terms {
     }
 
     /// The terms in order, each with its accumulated seconds.
-    pub(super) fn iter_timed(&mut self) -> impl Iterator<Item = (&mut dyn Term, &mut f64)> {
+    pub(super) fn iter_timed(&mut self) -> impl Iterator<Item = (&mut dyn Term, &mut TermSeconds)> {
         self.kinds
             .iter_mut()
             .map(|k| k.as_mut())
@@ -103,6 +119,11 @@ impl Terms {
 
     /// Each term's name and the seconds it has spent in solves, in order.
     pub fn seconds(&self) -> impl Iterator<Item = (&'static str, f64)> + '_ {
+        self.phase_seconds().map(|(name, s)| (name, s.total()))
+    }
+
+    /// Each term's name and the seconds it has spent in solves by phase, in order.
+    pub fn phase_seconds(&self) -> impl Iterator<Item = (&'static str, TermSeconds)> + '_ {
         self.kinds
             .iter()
             .map(|k| k.name())

@@ -109,7 +109,7 @@ impl Solver {
             if !term.is_empty() {
                 let start = Instant::now();
                 term.begin_substep(step, &mut state);
-                *seconds += start.elapsed().as_secs_f64();
+                seconds.setup += start.elapsed().as_secs_f64();
             }
         }
     }
@@ -155,7 +155,7 @@ impl Solver {
                 if !term.is_empty() && !in_matrix {
                     let start = Instant::now();
                     term.project(step, &mut state);
-                    *seconds += start.elapsed().as_secs_f64();
+                    seconds.iterations += start.elapsed().as_secs_f64();
                 }
             }
         }

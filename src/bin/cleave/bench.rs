@@ -194,7 +194,7 @@ fn print_pile_row(row: &PileRow) {
     println!(
         "{} (contacts): {} bodies, {} particles at h = {}, {} taking part, {} pairs; \
          {:.3} ms/step with contacts ({:.1} ns per particle-step), {:.3} without: ×{:.2}; contacts {:.2} ns per particle-iteration; \
-         in the step: contacts {:.3} ms, +{:.0} % on the rest; a far blade's detection {:.3} ms ({:.2} % of the step)",
+         in the step: contacts {:.3} ms (finding pairs {:.3}, projections {:.3}), +{:.0} % on the rest; a far blade's detection {:.3} ms ({:.2} % of the step)",
         row.row,
         row.bodies,
         row.particles,
@@ -207,6 +207,8 @@ fn print_pile_row(row: &PileRow) {
         row.contacts_over_without,
         row.contact_ns_per_particle_iteration,
         row.contact_ms_per_step,
+        row.contact_find_ms_per_step,
+        row.contact_projection_ms_per_step,
         100.0 * row.contact_share,
         row.far_tool_detect_ms_per_step,
         100.0 * row.far_tool_detect_share

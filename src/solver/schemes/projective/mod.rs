@@ -180,7 +180,7 @@ impl Projective {
                     &mut particles.orientations,
                     &mut self.forces,
                 );
-                *seconds += start.elapsed().as_secs_f64();
+                seconds.iterations += start.elapsed().as_secs_f64();
             }
         }
         let (pulls, forces) = (&jacobi.pulls, &self.forces);
