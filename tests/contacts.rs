@@ -556,3 +556,47 @@ fn a_piece_folding_onto_itself_collides_with_itself_unless_switched_off() {
         "without it the upper arm sinks into the lower: {off}"
     );
 }
+
+/// The contact kind's particles in `sim`'s solver.
+fn contact_particles(sim: &Simulation) -> usize {
+    let cache = sim.world().resource::<cleave::ecs::layout::SolverCache>();
+    cache
+        .solver
+        .terms
+        .extent("contacts")
+        .map_or(0, |e| e.particles)
+}
+
+#[test]
+fn a_lone_piece_without_self_contact_skips_contacts_and_ends_the_same() -> cleave::error::Result<()>
+{
+    // a rigid box dropped onto the ground, alone; then the same with self-contact on,
+    // which keeps its surface in the contact kind but can find no pair in it
+    let run = |self_contact: bool| -> cleave::error::Result<(Simulation, Entity)> {
+        let mut sim = Simulation::new(SimConfig::default())?;
+        let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(6)), H);
+        desc.material = Material::rigid();
+        desc.material.self_contact = self_contact;
+        desc.position = Vec3::new(0.0, 0.6, 0.0);
+        desc.angular_velocity = Vec3::new(0.0, 0.0, 2.0);
+        let body = sim.spawn_body(&desc)?;
+        for _ in 0..30 {
+            sim.step();
+        }
+        Ok((sim, body))
+    };
+    let (mut sim, body) = run(false)?;
+    let (searching, other_body) = run(true)?;
+    let (none, some) = (contact_particles(&sim), contact_particles(&searching));
+    let (skipped, searched) = (sim.positions(body)?, searching.positions(other_body)?);
+    assert_eq!(none, 0, "a lone rigid piece takes no part");
+    assert!(some > 0, "with self-contact on, its surface takes part");
+    assert_eq!(skipped, searched, "and the runs end bit for bit the same");
+    // a second body gives it something to meet
+    let mut other = BodyDesc::new(Shape::cuboid(UVec3::splat(3)), H);
+    other.position = Vec3::new(2.0, 0.3, 0.0);
+    sim.spawn_body(&other)?;
+    sim.step();
+    assert!(contact_particles(&sim) > 6 * 6 * 6 - 4 * 4 * 4);
+    Ok(())
+}

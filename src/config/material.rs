@@ -191,11 +191,15 @@ impl Material {
     }
 
     /// Rigid: every cluster keeps its rest shape (compliance 0), density 1000 kg/m³ —
-    /// pieces that move as stones do.
+    /// pieces that move as stones do. Without self-contact: a piece that keeps its shape
+    /// never folds onto itself (at rest, particles more than two cells apart are three
+    /// cells apart, more than twice as far as their balls reach), so it needs no pairs
+    /// of its own; its pieces still meet each other and every other body.
     pub fn rigid() -> Self {
         Self {
             compliance: 0.0,
             density: 1000.0,
+            self_contact: false,
             ..Self::default()
         }
     }

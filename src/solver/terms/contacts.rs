@@ -250,14 +250,20 @@ impl Term for Contacts {
         }
     }
 
-    /// Takes the surface particles of every body again, each labelled with its piece.
+    /// Takes the surface particles of every body again, each labelled with its piece —
+    /// none when no pair can form: a lone piece without self-contact meets nothing.
     fn topology(&mut self, change: &Topology) {
         let (particles, groups) = if self.enabled {
             Self::surface(change)
         } else {
             Default::default()
         };
-        self.set(particles, groups);
+        let lone = groups.len() == 1 && groups.iter().all(|g| !g.self_contact);
+        if lone {
+            self.set(ContactParticles::default(), Vec::new());
+        } else {
+            self.set(particles, groups);
+        }
     }
 
     fn begin_substep(&mut self, _step: &Substep, state: &mut ParticleState) {
