@@ -69,23 +69,24 @@ impl ClusterTerm {
     /// no cluster keep theirs. Memberships are summed in slot order: the same for any
     /// thread count.
     pub fn blend_orientations(&self, orientations: &mut [Quat]) {
-        let mut sums = vec![glam::Vec4::ZERO; self.rest.len()];
-        for (range, rotation) in self.cluster_range.iter().zip(&self.rotations) {
-            let r = glam::Vec4::from(*rotation);
-            for &m in &self.member_particle[range[0] as usize..range[1] as usize] {
-                let m = m as usize;
-                let side = glam::Vec4::from(orientations[m]).dot(r);
-                sums[m] += if side < 0.0 { -r } else { r };
-            }
-        }
+        // (each particle sums its own clusters, in slot order: the lists are as new as
+        // the coefficients, which every substep brings up to date before its solve)
+        debug_assert!(!self.coefficients_stale);
+        let (slots, rotations) = (&self.particle_slots, &self.rotations);
         orientations
             .par_iter_mut()
-            .zip(&sums)
+            .zip(self.slot_starts.par_windows(2))
             .with_min_len(PARTICLES_PER_TASK)
-            .for_each(|(q, sum)| {
+            .for_each(|(q, span)| {
+                let current = glam::Vec4::from(*q);
+                let mut sum = glam::Vec4::ZERO;
+                for &k in &slots[span[0] as usize..span[1] as usize] {
+                    let r = glam::Vec4::from(rotations[k as usize]);
+                    sum += if current.dot(r) < 0.0 { -r } else { r };
+                }
                 let length = sum.length();
                 if length > 1e-6 {
-                    *q = Quat::from_vec4(*sum / length);
+                    *q = Quat::from_vec4(sum / length);
                 }
             });
     }

@@ -191,6 +191,12 @@ pub struct ClusterTerm {
     pub(in crate::solver) inv_count: Vec<f32>,
     /// Number of clusters each particle is in.
     pub(in crate::solver) member_count: Vec<u32>,
+    /// The cluster slots of each particle, ascending: particle `i`'s are
+    /// `particle_slots[slot_starts[i]..slot_starts[i + 1]]`. Rebuilt with the
+    /// coefficients, so that a per-particle pass can visit its clusters in slot order
+    /// ([`ClusterTerm::blend_orientations`]).
+    pub(in crate::solver) slot_starts: Vec<u32>,
+    pub(in crate::solver) particle_slots: Vec<u32>,
     /// Per cluster slot: `[start, end)` of its memberships (empty for a free slot).
     pub(in crate::solver) cluster_range: Vec<[u32; 2]>,
     /// Per cluster slot: its colour ([`FREE_SLOT`] for a free slot).
@@ -514,8 +520,44 @@ impl ClusterTerm {
             .zip(&self.compliance)
             .any(|(range, c)| range[0] < range[1] && *c > 0.0);
         self.particle_stiffness = sum;
+        self.index_slots_by_particle();
         self.coefficients_stale = false;
         self.forget_carry();
+    }
+
+    /// Lists each particle's cluster slots, ascending (a counting sort of the
+    /// memberships, visited in slot order).
+    fn index_slots_by_particle(&mut self) {
+        let n = self.rest.len();
+        let mut starts = std::mem::take(&mut self.slot_starts);
+        starts.clear();
+        starts.resize(n + 1, 0);
+        let live = || {
+            self.cluster_range
+                .iter()
+                .enumerate()
+                .flat_map(|(k, range)| {
+                    self.member_particle[range[0] as usize..range[1] as usize]
+                        .iter()
+                        .map(move |&m| (k as u32, m as usize))
+                })
+        };
+        for (_, m) in live() {
+            starts[m + 1] += 1;
+        }
+        for i in 0..n {
+            starts[i + 1] += starts[i];
+        }
+        let mut slots = std::mem::take(&mut self.particle_slots);
+        slots.clear();
+        slots.resize(starts[n] as usize, 0);
+        let mut next = starts[..n].to_vec();
+        for (k, m) in live() {
+            slots[next[m] as usize] = k;
+            next[m] += 1;
+        }
+        self.slot_starts = starts;
+        self.particle_slots = slots;
     }
 
     /// The weight of cluster slot `k`'s pulls in the Jacobi step: its stiffness
