@@ -1,12 +1,15 @@
 //! Colour sweeps: the clusters (or edges) of one colour share no particle, so their tasks
-//! may write their particles' entries in parallel. [`Disjoint`] carries those writes.
+//! may write their particles' entries in parallel. [`Disjoint`] carries those writes, and
+//! those of any pass whose tasks each own distinct entries (the contact particles, each
+//! applying its own sum of its pairs' moves).
 
 /// A per-particle or per-cluster array written by the tasks of one colour.
 ///
 /// Soundness rests on the colouring: the clusters of one colour have pairwise disjoint
 /// member sets, and a task writes only the entries of its own clusters and of their
 /// members, so no entry is written by two tasks, nor read by one task while another
-/// writes it. No reference to the array is alive while a colour runs.
+/// writes it. No reference to the array is alive while a colour runs. (Likewise for a
+/// pass whose tasks own distinct entries.)
 #[derive(Clone, Copy)]
 pub(in crate::solver) struct Disjoint<T>(*mut T);
 

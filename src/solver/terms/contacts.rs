@@ -20,6 +20,7 @@ use super::contact_list::ContactList;
 use super::contact_pairs::{ContactBall, ContactGroup, ContactParticles};
 use crate::body::lattice::Lattice;
 use crate::config::Material;
+use crate::solver::disjoint::Disjoint;
 use crate::solver::term::{NO_DENSE, ParticleState, Substep, Term, TermExtent, Topology};
 use glam::Vec3A;
 use rayon::prelude::*;
@@ -331,13 +332,30 @@ impl Term for Contacts {
                 (sum, touching)
             })
             .collect_into_vec(&mut self.steps);
-        let p = &self.particles;
-        for (&a, &(step, touching)) in self.owners.iter().zip(&self.steps) {
-            self.load[a as usize] = touching;
-            if step != Vec3A::ZERO {
-                state.shift(p.dense[a as usize] as usize, step);
-            }
-        }
+        // then the sums are applied: owners are distinct contact particles of distinct
+        // dense indices, so no two tasks write one entry
+        let dense = &self.particles.dense;
+        let (positions, corrections) = (
+            Disjoint::new(state.positions),
+            Disjoint::new(state.corrections),
+        );
+        let load = Disjoint::new(&mut self.load);
+        self.owners
+            .par_iter()
+            .zip(&self.steps)
+            .with_min_len(OWNERS_PER_TASK)
+            .for_each(|(&a, &(step, touching))| {
+                // SAFETY: `a` is this task's own owner (see above), in bounds of the
+                // contact arrays, and its dense index is in bounds of the particles'.
+                unsafe {
+                    load.write(a as usize, touching);
+                    if step != Vec3A::ZERO {
+                        let d = dense[a as usize] as usize;
+                        positions.write(d, positions.read(d) + step);
+                        corrections.write(d, corrections.read(d) + step);
+                    }
+                }
+            });
     }
 }
 
