@@ -183,12 +183,9 @@ impl Solver {
     /// Ends a solve: the corrections are the terms' and the clusters' together; rounding
     /// noise is dropped; plastic clusters yield to the solved shape.
     fn finish_substep(&mut self, particles: &mut Particles, step: &Substep) {
-        particles
-            .corrections
-            .par_iter_mut()
-            .zip(&self.clusters.carry)
-            .with_min_len(PARTICLES_PER_TASK)
-            .for_each(|(c, carry)| *c += *carry);
+        for (c, carry) in particles.corrections.iter_mut().zip(&self.clusters.carry) {
+            *c += *carry;
+        }
         self.clusters
             .blend_orientations(&mut particles.orientations);
         self.drop_rounding_noise(particles);
