@@ -191,10 +191,12 @@ impl Material {
     }
 
     /// Rigid: every cluster keeps its rest shape (compliance 0), density 1000 kg/m³ —
-    /// pieces that move as stones do. Without self-contact: a piece that keeps its shape
-    /// never folds onto itself (at rest, particles more than two cells apart are three
-    /// cells apart, more than twice as far as their balls reach), so it needs no pairs
-    /// of its own; its pieces still meet each other and every other body.
+    /// pieces that move as stones do. Without self-contact: a stone does not fold onto
+    /// itself (at rest, particles more than two cells apart are three cells apart, more
+    /// than twice as far as their balls reach), so it needs no pairs of its own; its
+    /// pieces still meet each other and every other body. Only a solve too short to
+    /// hold a large piece's shape through a hard impact brings such particles close,
+    /// and self-contact would then hide that rather than cure it.
     pub fn rigid() -> Self {
         Self {
             compliance: 0.0,
