@@ -5,7 +5,7 @@
 use crate::body::shape::Shape;
 use crate::config::SimConfig;
 use crate::cut::tool::{Path, Pose};
-use crate::ecs::desc::{ColliderDesc, Scene};
+use crate::ecs::desc::{BodyDesc, ColliderDesc, Scene};
 use crate::geometry::collider::ColliderShape;
 use crate::io::cut_scenes::rigid_body;
 use glam::{Quat, Vec3};
@@ -59,6 +59,26 @@ fn bin_walls(inner: f32) -> Vec<ColliderDesc> {
         .collect()
 }
 
+/// Body `i` of a bin: a rigid `shape` at spacing `h`, at `position`, turned 0.7 rad
+/// about Y per place in the order.
+fn dropped(shape: Shape, h: f32, position: Vec3, i: usize) -> BodyDesc {
+    let mut body = rigid_body(shape, h);
+    body.position = position;
+    body.rotation = Quat::from_rotation_y(0.7 * i as f32);
+    body
+}
+
+/// `bodies` in a bin whose floor is `2·inner` wide.
+fn in_bin(config: SimConfig, bodies: Vec<BodyDesc>, inner: f32) -> Scene {
+    Scene {
+        config,
+        bodies,
+        tools: vec![],
+        colliders: bin_walls(inner),
+        frames: 400,
+    }
+}
+
 /// A walled bin (four static boxes, each tilted 10° outwards about its long axis) and
 /// seven bodies of four shapes dropped into it one above another, at spacing `h`; with a
 /// smaller `h` the same scene has more particles (the bench's contact row).
@@ -67,20 +87,12 @@ pub fn pile_scene(config: SimConfig, h: f32) -> Scene {
         .into_iter()
         .enumerate()
         .map(|(i, shape)| {
-            let mut body = rigid_body(shape, h);
             let a = i as f32 * 2.4;
-            body.position = Vec3::new(0.35 * a.cos(), 0.6 + 0.75 * i as f32, 0.35 * a.sin());
-            body.rotation = Quat::from_rotation_y(0.7 * i as f32);
-            body
+            let position = Vec3::new(0.35 * a.cos(), 0.6 + 0.75 * i as f32, 0.35 * a.sin());
+            dropped(shape, h, position, i)
         })
         .collect();
-    Scene {
-        config,
-        bodies,
-        tools: vec![],
-        colliders: bin_walls(1.0),
-        frames: 400,
-    }
+    in_bin(config, bodies, 1.0)
 }
 
 /// A crowd: `bodies` bodies (the pile's seven shapes in turn) dropped into a bin 3 m wide,
@@ -92,24 +104,13 @@ pub fn crowd_scene(config: SimConfig, h: f32, bodies: usize) -> Scene {
     let shapes = pile_shapes();
     let bodies = (0..bodies)
         .map(|i| {
-            let mut body = rigid_body(shapes[i % shapes.len()].clone(), h);
             let (layer, corner) = (i / 4, i % 4);
-            let (x, z) = (
-                if corner & 1 == 0 { -quarter } else { quarter },
-                if corner & 2 == 0 { -quarter } else { quarter },
-            );
-            body.position = Vec3::new(x, 0.6 + 0.75 * layer as f32, z);
-            body.rotation = Quat::from_rotation_y(0.7 * i as f32);
-            body
+            let side = |bit: usize| if corner & bit == 0 { -quarter } else { quarter };
+            let position = Vec3::new(side(1), 0.6 + 0.75 * layer as f32, side(2));
+            dropped(shapes[i % shapes.len()].clone(), h, position, i)
         })
         .collect();
-    Scene {
-        config,
-        bodies,
-        tools: vec![],
-        colliders: bin_walls(inner),
-        frames: 400,
-    }
+    in_bin(config, bodies, inner)
 }
 
 #[cfg(test)]
