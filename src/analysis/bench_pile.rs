@@ -102,7 +102,8 @@ fn far_blade() -> ToolDesc {
 }
 
 /// Runs the `pile` scene at `spacing` for `frames` frames twice, with and without
-/// contacts (see [`bench_bin`]).
+/// contacts, alternating steps so both see the same machine noise; a blade far from
+/// every body moves in both, and the detect stage is timed in the first.
 pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileRow> {
     bench_bin("pile", spacing, frames, config, |config| {
         pile_scene(config, spacing)
@@ -110,7 +111,7 @@ pub fn bench_pile(spacing: f32, frames: u32, config: &SimConfig) -> Result<PileR
 }
 
 /// Runs a crowd of `bodies` bodies ([`crowd_scene`]) at `spacing` for `frames` frames
-/// twice, with and without contacts (see [`bench_bin`]).
+/// twice, with and without contacts, as [`bench_pile`] runs the pile.
 pub fn bench_crowd(
     spacing: f32,
     bodies: usize,
@@ -122,9 +123,7 @@ pub fn bench_crowd(
     })
 }
 
-/// Runs the scene `make` gives for `frames` frames twice, with and without contacts,
-/// alternating steps so both see the same machine noise; a blade far from every body
-/// moves in both, and the detect stage is timed in the first.
+/// Runs the scene `make` gives as [`bench_pile`] runs the pile, and names the row `row`.
 fn bench_bin(
     row: &'static str,
     spacing: f32,
