@@ -92,35 +92,26 @@ impl ClusterTerm {
     }
 
     /// Lists each particle's cluster slots, ascending (a counting sort of the
-    /// memberships, visited in slot order).
+    /// memberships by the particles' cluster counts, visited in slot order).
     pub(super) fn index_slots_by_particle(&mut self) {
-        let n = self.rest.len();
         let mut starts = std::mem::take(&mut self.slot_starts);
         starts.clear();
-        starts.resize(n + 1, 0);
-        let live = || {
-            self.cluster_range
-                .iter()
-                .enumerate()
-                .flat_map(|(k, range)| {
-                    self.member_particle[range[0] as usize..range[1] as usize]
-                        .iter()
-                        .map(move |&m| (k as u32, m as usize))
-                })
-        };
-        for (_, m) in live() {
-            starts[m + 1] += 1;
-        }
-        for i in 0..n {
-            starts[i + 1] += starts[i];
-        }
+        starts.push(0);
+        let mut total = 0;
+        starts.extend(self.member_count.iter().map(|&count| {
+            total += count;
+            total
+        }));
         let mut slots = std::mem::take(&mut self.particle_slots);
         slots.clear();
-        slots.resize(starts[n] as usize, 0);
-        let mut next = starts[..n].to_vec();
-        for (k, m) in live() {
-            slots[next[m] as usize] = k;
-            next[m] += 1;
+        slots.resize(total as usize, 0);
+        let mut next = starts.clone();
+        for (k, range) in self.cluster_range.iter().enumerate() {
+            for &m in &self.member_particle[range[0] as usize..range[1] as usize] {
+                let at = &mut next[m as usize];
+                slots[*at as usize] = k as u32;
+                *at += 1;
+            }
         }
         self.slot_starts = starts;
         self.particle_slots = slots;

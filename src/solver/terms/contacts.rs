@@ -254,17 +254,16 @@ impl Term for Contacts {
     /// Takes the surface particles of every body again, each labelled with its piece —
     /// none when no pair can form: a lone piece without self-contact meets nothing.
     fn topology(&mut self, change: &Topology) {
-        let (particles, groups) = if self.enabled {
+        let lone = match change.bodies {
+            [body] => body.pieces <= 1 && !body.material.self_contact,
+            _ => false,
+        };
+        let (particles, groups) = if self.enabled && !lone {
             Self::surface(change)
         } else {
             Default::default()
         };
-        let lone = groups.len() == 1 && groups.iter().all(|g| !g.self_contact);
-        if lone {
-            self.set(ContactParticles::default(), Vec::new());
-        } else {
-            self.set(particles, groups);
-        }
+        self.set(particles, groups);
     }
 
     fn begin_substep(&mut self, _step: &Substep, state: &mut ParticleState) {
