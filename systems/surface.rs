@@ -20,7 +20,9 @@ use crate::ecs::layout::SolverCache;
 use crate::ecs::resources::{
     BodyCutReport, CutReport, SimClock, SurfaceBudget, SurfaceChanged, SurfaceDeferred,
 };
-use crate::ecs::surface_mesh::{DeferredSurface, JobResult, JobSlot, RebuiltSurface, SurfaceMesh};
+use crate::ecs::surface_mesh::{
+    DeferredSurface, JobResult, JobSlot, LatticeState, RebuiltSurface, SurfaceMesh,
+};
 use crate::surface::embed::EmbeddedMesh;
 use crate::surface::extract::{SurfaceTopology, extract_with_faces, face_count};
 use crate::surface::smooth::smooth;
@@ -154,9 +156,8 @@ pub fn update_surfaces(
     }
 }
 
-/// What a surface records of the lattice it was made from: its particles, live
-/// particles and edits.
-fn lattice_state(l: &Lattice) -> (usize, usize, u64) {
+/// What a surface records of the lattice it was made from.
+fn lattice_state(l: &Lattice) -> LatticeState {
     (l.len(), l.live_count(), l.edits())
 }
 
@@ -239,7 +240,7 @@ impl Source {
         self,
         mesh: &SurfaceMesh,
         lattice: Lattice,
-        seen: (usize, usize, u64),
+        seen: LatticeState,
         due: u64,
     ) -> DeferredSurface {
         let old = match self.touched {

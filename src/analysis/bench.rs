@@ -16,7 +16,7 @@ use crate::ecs::resources::{CutTimings, SimSettings};
 use crate::error::Result;
 use crate::sim::simulation::Simulation;
 use crate::solver::particles::Particles;
-use crate::solver::registry::Terms;
+use crate::solver::registry::{TermSeconds, Terms};
 use crate::solver::solve::Solver;
 use crate::solver::term::Substep;
 use crate::solver::terms::colliders::Colliders;
@@ -207,6 +207,16 @@ pub fn kind_seconds(sim: &Simulation, name: &str) -> f64 {
         .into_iter()
         .find(|(n, _)| *n == name)
         .map_or(0.0, |(_, s)| s)
+}
+
+/// Seconds the registered term `name` of `sim`'s solves has taken so far, by phase
+/// (zero when none is registered).
+pub fn term_seconds(sim: &Simulation, name: &str) -> TermSeconds {
+    let cache = sim.world().resource::<SolverCache>();
+    let mut terms = cache.solver.terms.phase_seconds();
+    terms
+        .find(|(n, _)| *n == name)
+        .map_or_else(TermSeconds::default, |(_, s)| s)
 }
 
 /// One step of the bare kernel: the engine's prediction and solve on dense arrays only.

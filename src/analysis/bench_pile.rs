@@ -3,7 +3,7 @@
 //! same run, with a blade moving far from every body to time what detection costs when
 //! there is nothing to find.
 
-use crate::analysis::bench::{median, time_ms};
+use crate::analysis::bench::{median, term_seconds, time_ms};
 use crate::config::SimConfig;
 use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
 use crate::ecs::desc::Scene;
@@ -13,7 +13,6 @@ use crate::ecs::resources::DetectCulling;
 use crate::error::Result;
 use crate::io::pile_scenes::{crowd_scene, pile_scene};
 use crate::sim::simulation::Simulation;
-use crate::solver::registry::TermSeconds;
 use glam::{Quat, Vec3};
 use serde::Serialize;
 
@@ -61,15 +60,6 @@ pub struct PileRow {
     pub far_tool_detect_ms_per_step: f64,
     /// `far_tool_detect_ms_per_step / ms_per_step`.
     pub far_tool_detect_share: f64,
-}
-
-/// Seconds the contact kind of `sim`'s solver has taken so far, by phase.
-fn contact_seconds(sim: &Simulation) -> TermSeconds {
-    let cache = sim.world().resource::<SolverCache>();
-    let mut terms = cache.solver.terms.phase_seconds();
-    terms
-        .find(|(name, _)| *name == "contacts")
-        .map_or_else(TermSeconds::default, |(_, s)| s)
 }
 
 /// A sever blade that sweeps back and forth along z, turning, 3 m beside the `pile`
@@ -152,12 +142,12 @@ fn bench_bin(
     let mut detect = Vec::new();
     let (mut find, mut project) = (Vec::new(), Vec::new());
     for frame in 0..frames.max(2) {
-        let before = contact_seconds(&with);
+        let before = term_seconds(&with, "contacts");
         let (a, b) = (time_ms(1, || with.step()), time_ms(1, || without.step()));
         if frame >= frames / 2 {
             on.push(a);
             off.push(b);
-            let after = contact_seconds(&with);
+            let after = term_seconds(&with, "contacts");
             inside.push((after.total() - before.total()) * 1e3);
             find.push((after.setup - before.setup) * 1e3);
             project.push((after.iterations - before.iterations) * 1e3);

@@ -16,6 +16,10 @@ use std::sync::{Arc, Condvar, Mutex};
 /// A piece and the range of its triangles in [`SurfaceMesh::triangles_by_piece`].
 pub type PieceRange = (u32, Range<usize>);
 
+/// What a surface records of the lattice it is made for: its particles, live particles
+/// and edits (any edit changes it).
+pub(crate) type LatticeState = (usize, usize, u64);
+
 /// A body's surface. Every spawned body gets one; remove it to skip the work (the
 /// `Surface` stage updates only bodies that have it).
 #[derive(Component, Clone, Debug, Default)]
@@ -44,9 +48,8 @@ pub struct SurfaceMesh {
     pub(crate) render_mesh: Option<Arc<EmbeddedMesh>>,
     /// How the lattice's surface is drawn.
     pub(crate) options: SurfaceOptions,
-    /// The lattice's particles, live particles and edits when the triangles were last
-    /// made.
-    pub(crate) seen: (usize, usize, u64),
+    /// The lattice's state when the triangles were last made.
+    pub(crate) seen: LatticeState,
     /// The frame whose end the vertices were last carried to (`None`: never).
     pub(crate) deformed_at: Option<u64>,
     /// Per slot of the layout, its particle's position when the mesh was last marked
@@ -60,8 +63,8 @@ pub struct SurfaceMesh {
 /// is due, and where the job leaves its result.
 #[derive(Clone, Debug)]
 pub(crate) struct DeferredSurface {
-    /// The lattice's particles, live particles and edits it is made for.
-    pub(crate) seen: (usize, usize, u64),
+    /// The lattice's state it is made for.
+    pub(crate) seen: LatticeState,
     /// The frame at whose end it is put in place.
     pub(crate) due: u64,
     /// Where the job leaves its result, and the signal that it did.
@@ -287,6 +290,6 @@ pub struct SavedSurface {
     frames: Vec<Quat>,
     render_mesh: Option<EmbeddedMesh>,
     options: SurfaceOptions,
-    seen: (usize, usize, u64),
+    seen: LatticeState,
     deformed_at: Option<u64>,
 }
