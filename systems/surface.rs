@@ -104,23 +104,34 @@ pub fn update_surfaces(
             });
         }
         // the solver's dense positions are the particles' since the substeps stored
-        // them; only the cut has moved some since (the halves of split particles)
+        // them; only the cut has moved some since (the halves of split particles),
+        // whose slots are looked up again next frame
         let report = cut.bodies.iter().find(|c| c.body == body);
         let mut moved: Vec<u32> = report.map_or(Vec::new(), |r| {
             r.splits.iter().flat_map(|&(a, b)| [a, b]).collect()
         });
         moved.sort_unstable();
-        let dense = cache.layout.body(body);
+        let key = (body, mesh.topology_version, cache.layout.stamp());
+        if mesh.dense_for != Some(key) || !moved.is_empty() {
+            let dense = cache.layout.body(body);
+            mesh.dense_slots.clear();
+            mesh.dense_slots
+                .par_extend(mesh.layout.read.par_iter().with_min_len(4096).map(|&p| {
+                    dense
+                        .and_then(|b| b.slot(p))
+                        .filter(|_| moved.binary_search(&p).is_err())
+                        .map_or(u32::MAX, |d| d as u32)
+                }));
+            mesh.dense_for = moved.is_empty().then_some(key);
+        }
         let solved = &cache.particles.positions;
         mesh.gathered
             .par_iter_mut()
             .with_min_len(4096)
             .zip(&mesh.layout.read)
-            .for_each(|(at, &p)| {
-                let slot = dense
-                    .and_then(|b| b.slot(p))
-                    .filter(|_| moved.binary_search(&p).is_err());
-                if let Some(x) = slot.and_then(|d| solved.get(d)) {
+            .zip(&mesh.dense_slots)
+            .for_each(|((at, &p), &d)| {
+                if let Some(x) = solved.get(d as usize) {
                     *at = *x;
                 } else if let Some(x) =
                     (lattice.particles.get(p as usize)).and_then(|e| positions.get(*e).ok())

@@ -8,6 +8,7 @@ use cleave::config::SimConfig;
 use cleave::cut::tool::CutMode;
 use cleave::ecs::components::BodyLattice;
 use cleave::ecs::desc::BodyDesc;
+use cleave::ecs::layout::SolverCache;
 use cleave::ecs::surface_mesh::SurfaceMesh;
 use cleave::io::scene::builtin;
 use cleave::prelude::*;
@@ -211,6 +212,84 @@ fn a_bent_cantilever_flips_no_triangle_and_keeps_its_volume() {
     };
     let ratio = volume(&mesh.positions) / volume(rest);
     assert!((ratio - 1.0).abs() < 0.02, "volume ratio {ratio}");
+}
+
+/// Each vertex of `body`'s surface lies within `reach` of every particle it is bound
+/// to, those particles read from their entities: the vertices follow the particles the
+/// topology names, not whatever sits where they used to be in the solver's arrays.
+fn vertices_follow_their_particles(
+    sim: &Simulation,
+    body: Entity,
+    reach: f32,
+) -> Result<(), String> {
+    let mesh = surface(sim, body);
+    let lattice = sim.world().get::<BodyLattice>(body).unwrap();
+    let topology = mesh.topology();
+    for (v, x) in mesh.positions.iter().enumerate() {
+        let range = topology.binding_start[v] as usize..topology.binding_start[v + 1] as usize;
+        for b in &topology.bindings[range] {
+            let entity = lattice.particles[b.particle as usize];
+            let Some(p) = sim.world().get::<Position>(entity) else {
+                continue;
+            };
+            if x.distance(p.0) > reach {
+                return Err(format!(
+                    "vertex {v} at {x} is {} from its particle {} at {}",
+                    x.distance(p.0),
+                    b.particle,
+                    p.0
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn surfaces_follow_their_particles_through_every_layout_change() {
+    // split cuts lay the solver out afresh (the dense indices of every body after the
+    // cut one move, though their surfaces do not change), sever cuts patch it
+    for mode in [CutMode::Split, CutMode::Sever] {
+        let mut scene = builtin("cuts", 0).unwrap();
+        for tool in &mut scene.tools {
+            tool.cut_mode = mode;
+        }
+        // a body no tool reaches, spawned first: laid out after the cut one
+        let h = scene.bodies[0].spacing;
+        let mut aside = BodyDesc::new(Shape::cuboid(UVec3::new(4, 3, 5)), h);
+        aside.position = Vec3::new(3.0, 0.5, 0.0);
+        scene.bodies.insert(0, aside);
+        let mut sim = Simulation::from_scene(&scene).unwrap();
+        let mut bodies = sim.bodies();
+        let world = sim.world();
+        bodies.sort_by_key(|b| {
+            std::cmp::Reverse(world.get::<BodyLattice>(*b).unwrap().lattice.len())
+        });
+        let (cut, aside) = (bodies[0], bodies[1]);
+        let mut relaid = 0;
+        let mut version = sim.world().resource::<SolverCache>().layout.version();
+        for frame in 0..scene.frames {
+            sim.step();
+            let layout = &sim.world().resource::<SolverCache>().layout;
+            let first = |b: Entity| layout.body(b).map(|d| d.first);
+            assert!(
+                first(aside) > first(cut),
+                "the untouched body laid out last"
+            );
+            let now = layout.version();
+            relaid += (now != version) as u32;
+            version = now;
+            // (a vertex rests within a cell of its corner, its particles within the
+            // cells around that corner)
+            for body in [cut, aside] {
+                vertices_follow_their_particles(&sim, body, 3.0 * h)
+                    .unwrap_or_else(|e| panic!("{mode:?} frame {frame}: {e}"));
+            }
+        }
+        if mode == CutMode::Split {
+            assert!(relaid > 5, "{relaid} layouts laid out afresh");
+        }
+    }
 }
 
 #[test]

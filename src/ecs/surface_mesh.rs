@@ -39,6 +39,11 @@ pub struct SurfaceMesh {
     pub(crate) layout: CarryLayout,
     /// Per slot of the layout, its particle's position this frame.
     pub(crate) gathered: Vec<Vec3A>,
+    /// Per slot of the layout, where the solver's dense positions hold its particle
+    /// (`u32::MAX`: read its entity), for the body, topology and solver layout
+    /// `dense_for` names (`None`: to be looked up again).
+    pub(crate) dense_slots: Vec<u32>,
+    pub(crate) dense_for: Option<(Entity, u64, u64)>,
     /// Per carrier, its frame (see [`crate::surface::deform`]) and its matrix.
     pub(crate) frames: Vec<Quat>,
     pub(crate) rotations: Vec<Mat3A>,
@@ -264,6 +269,8 @@ impl SurfaceMesh {
             rotations: vec![Mat3A::IDENTITY; layout.carrier_count()],
             layout,
             gathered: saved.gathered,
+            dense_slots: Vec::new(),
+            dense_for: None,
             frames: saved.frames,
             faces: Vec::new(),
             render_mesh: saved.render_mesh.map(Arc::new),

@@ -25,6 +25,7 @@ use crate::solver::particles::Particles;
 use crate::solver::registry::Terms;
 use crate::solver::solve::Solver;
 use bevy_ecs::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 use table_rows::{ParticleColumns, StoredColumns, TableRows};
 
@@ -84,6 +85,12 @@ impl SolverCache {
     }
 }
 
+/// A stamp no layout had before (see [`SolverLayout::stamp`]).
+fn fresh_stamp() -> u64 {
+    static STAMPS: AtomicU64 = AtomicU64::new(1);
+    STAMPS.fetch_add(1, Ordering::Relaxed)
+}
+
 /// The dense↔entity maps of the solver (see the module docs).
 #[derive(Clone, Debug, Default)]
 pub struct SolverLayout {
@@ -116,6 +123,8 @@ pub struct SolverLayout {
     /// Counts the rebuilds (a patch keeps every particle's dense index): tables derived
     /// from the dense indices are rebuilt when it changes.
     version: u64,
+    /// See [`SolverLayout::stamp`].
+    stamp: u64,
 }
 
 /// What changed in the layout since the terms last heard (they hear of it in
@@ -257,6 +266,14 @@ impl SolverLayout {
         self.version
     }
 
+    /// Drawn afresh each time the layout is laid out, patched or loaded, from one
+    /// counter for every layout (zero for a layout never laid out, which holds no
+    /// particle): a table of some particles' dense indices is current while this is
+    /// what it was when the table was made.
+    pub fn stamp(&self) -> u64 {
+        self.stamp
+    }
+
     /// How the layout was last brought up to date (`None` until it was, or since
     /// [`SolverLayout::forget_last_update`]).
     pub fn last_update(&self) -> Option<LayoutUpdate> {
@@ -324,6 +341,9 @@ impl SolverLayout {
         let pending = self.pending.get_or_insert_with(PendingTopology::default);
         pending.relaid |= !patched;
         pending.bodies.extend(changed_bodies);
+        if patched {
+            self.stamp = fresh_stamp();
+        }
         self.last_update = Some(LayoutUpdate {
             patched,
             ms: start.elapsed().as_secs_f64() * 1e3,

@@ -130,6 +130,7 @@ impl SolverLayout {
         self.slot_of = ClusterSlots::from_clusters(&self.clusters);
         self.valid = true;
         self.version += 1;
+        self.stamp = super::fresh_stamp();
     }
 }
 

@@ -75,6 +75,7 @@ impl SolverLayout {
             clusters,
             valid: true,
             adopt_changes: true,
+            stamp: super::fresh_stamp(),
             pending: Some(PendingTopology {
                 relaid: true,
                 bodies: Vec::new(),
