@@ -159,12 +159,13 @@ pub fn extract_with_faces(lattice: &Lattice) -> (SurfaceTopology, Vec<LatticeFac
             push_faces(&owners, s, p, &mut quads);
         }
     }
-    let (class_of, classes) = vertex_classes(&owners, &quads);
+    let classes = vertex_classes(&owners, &quads);
+    let class_of = &classes.class_of;
     let mut topology = SurfaceTopology {
         binding_start: vec![0],
         ..SurfaceTopology::default()
     };
-    let all: Vec<&[u32]> = classes.iter().map(|c| c.as_slice()).collect();
+    let all: Vec<&[u32]> = (0..classes.len()).map(|c| classes.slots(c)).collect();
     add_vertices(&owners, &quads, &all, &mut topology);
     for q in 0..quads.len() {
         let v: [u32; 4] = std::array::from_fn(|k| class_of[q * 4 + k]);

@@ -23,6 +23,7 @@ use super::cells::{CellOwners, corner_index, face_corners};
 use glam::IVec3;
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
+use smallvec::SmallVec;
 
 /// A face of a solid sub-cell on the surface.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -35,27 +36,42 @@ pub struct Quad {
     pub owner: u32,
 }
 
-/// The vertex class of every quad corner (corner `k` of quad `q` is slot `4q + k`), and
-/// the slots of each class, in order of their first slot.
-pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> (Vec<u32>, Vec<Vec<u32>>) {
+/// The vertex class of every quad corner of `quads` (see [`VertexClasses`]).
+pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
+    if quads.is_empty() {
+        return VertexClasses {
+            class_of: Vec::new(),
+            start: vec![0],
+            members: Vec::new(),
+        };
+    }
     let index: FxHashMap<(IVec3, u8), u32> = quads
         .iter()
         .enumerate()
         .map(|(q, quad)| ((quad.cell, quad.direction), q as u32))
         .collect();
-    // every grid edge a quad has, once: packed as (x, y, z, axis) keys (40 bits a
-    // coordinate, offset to non-negative), sorted
-    const BIAS: i64 = 1 << 39;
-    let key = |w: IVec3, axis: usize| -> u128 {
-        let c = |v: i32| (v as i64 + BIAS) as u128;
-        c(w.x) << 82 | c(w.y) << 42 | c(w.z) << 2 | axis as u128
+    // every grid edge a quad has, once: keyed by its lower corner's place in the box
+    // of the quads' corners (z slowest, then y, then x: the order quads are made in, so
+    // the keys come nearly sorted) and its axis; the box holds at most eight corners
+    // per cell of a lattice's bounded grid, so a key fits
+    let (lo, hi) = quads.iter().fold((IVec3::MAX, IVec3::MIN), |(lo, hi), q| {
+        (lo.min(q.cell), hi.max(q.cell))
+    });
+    let dims = (hi - lo + IVec3::splat(2)).as_u64vec3();
+    let key = |w: IVec3, axis: usize| -> u64 {
+        let d = (w - lo).as_u64vec3();
+        ((d.z * dims.y + d.y) * dims.x + d.x) * 3 + axis as u64
     };
-    let unkey = |k: u128| -> (IVec3, usize) {
-        let c = |shift: u32| ((k >> shift) as u64 & ((1 << 40) - 1)) as i64 - BIAS;
-        let w = IVec3::new(c(82) as i32, c(42) as i32, c(2) as i32);
-        (w, (k & 3) as usize)
+    let unkey = |k: u64| -> (IVec3, usize) {
+        let (corner, axis) = (k / 3, (k % 3) as usize);
+        let d = glam::U64Vec3::new(
+            corner % dims.x,
+            corner / dims.x % dims.y,
+            corner / dims.x / dims.y,
+        );
+        (lo + d.as_ivec3(), axis)
     };
-    let mut edges: Vec<u128> = quads
+    let mut edges: Vec<u64> = quads
         .par_iter()
         .with_min_len(1024)
         .flat_map_iter(|quad| {
@@ -122,25 +138,69 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> (Vec<u32>, Vec<Vec
         }
         first = end;
     }
+    // classes in order of their first slot, each listing its slots in order
     let mut class_of_root = vec![u32::MAX; slots];
     let mut class_of = Vec::with_capacity(slots);
-    let mut classes: Vec<Vec<u32>> = Vec::new();
+    let mut start = vec![0u32];
     for s in 0..slots as u32 {
         let root = kept.find(s) as usize;
         if class_of_root[root] == u32::MAX {
-            class_of_root[root] = classes.len() as u32;
-            classes.push(Vec::new());
+            class_of_root[root] = start.len() as u32 - 1;
+            start.push(0);
         }
         let class = class_of_root[root];
-        classes[class as usize].push(s);
+        start[class as usize + 1] += 1;
         class_of.push(class);
     }
-    (class_of, classes)
+    for c in 1..start.len() {
+        start[c] += start[c - 1];
+    }
+    let mut filled = start.clone();
+    let mut members = vec![0u32; slots];
+    for (s, &class) in class_of.iter().enumerate() {
+        members[filled[class as usize] as usize] = s as u32;
+        filled[class as usize] += 1;
+    }
+    VertexClasses {
+        class_of,
+        start,
+        members,
+    }
 }
 
-/// The runs of joined solid sub-cells around the grid edge from `w` along `axis`, each
-/// as its bounding quads `(first, last)`, keyed `(sub-cell, direction)`.
-fn runs_around(owners: &CellOwners, w: IVec3, axis: usize) -> Vec<((IVec3, u8), (IVec3, u8))> {
+/// The vertex classes of a surface's quad corners (corner `k` of quad `q` is slot
+/// `4q + k`): each slot's class, and each class's slots, in order of their first slot.
+pub struct VertexClasses {
+    /// The class of each slot.
+    pub class_of: Vec<u32>,
+    /// Class `c`'s slots are `members[start[c]..start[c + 1]]`, ascending.
+    start: Vec<u32>,
+    members: Vec<u32>,
+}
+
+impl VertexClasses {
+    /// Number of classes.
+    pub fn len(&self) -> usize {
+        self.start.len() - 1
+    }
+
+    /// Whether there is no class.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The slots of class `c`, ascending.
+    pub fn slots(&self, c: usize) -> &[u32] {
+        &self.members[self.start[c] as usize..self.start[c + 1] as usize]
+    }
+}
+
+/// A run's bounding quads `(first, last)`, keyed `(sub-cell, direction)`.
+type Run = ((IVec3, u8), (IVec3, u8));
+
+/// The runs of joined solid sub-cells around the grid edge from `w` along `axis` (at
+/// most two: four sub-cells, a gap after each run).
+fn runs_around(owners: &CellOwners, w: IVec3, axis: usize) -> SmallVec<[Run; 2]> {
     let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
     // round the edge: (0, 0) → (−1, 0) → (−1, −1) → (0, −1) in (b, c), each step one face
     let offsets = [(0, 0), (-1, 0), (-1, -1), (0, -1)];
@@ -160,9 +220,9 @@ fn runs_around(owners: &CellOwners, w: IVec3, axis: usize) -> Vec<((IVec3, u8), 
         }
     });
     let Some(start) = (0..4).find(|&i| !joined[(i + 3) % 4]) else {
-        return Vec::new();
+        return SmallVec::new();
     };
-    let mut runs = Vec::new();
+    let mut runs = SmallVec::new();
     let mut first = None;
     for k in 0..4 {
         let i = (start + k) % 4;

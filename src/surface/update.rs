@@ -58,7 +58,8 @@ pub fn update(
         }
     };
     let quads = region_quads(&owners, &region);
-    let (class_of, classes) = vertex_classes(&owners, &quads);
+    let classes = vertex_classes(&owners, &quads);
+    let class_of = &classes.class_of;
     // the old quads inside the region are replaced; the old vertices at rebuilt corners
     // go, the others are renumbered in order
     let old_quad: FxHashMap<(IVec3, u8), usize> = old
@@ -87,7 +88,7 @@ pub fn update(
             v[k] = if rebuilt(corners[k]) {
                 if vertex_of_class[class] == u32::MAX {
                     vertex_of_class[class] = first_new + made.len() as u32;
-                    made.push(&classes[class]);
+                    made.push(classes.slots(class));
                 }
                 if cut_face {
                     on_cut.push(vertex_of_class[class]);
