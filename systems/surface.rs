@@ -16,7 +16,7 @@
 
 use crate::body::lattice::Lattice;
 use crate::ecs::components::{BodyLattice, Position};
-use crate::ecs::layout::SolverCache;
+use crate::ecs::layout::{SolverCache, SolverLayout};
 use crate::ecs::resources::{
     BodyCutReport, CutReport, SimClock, SurfaceBudget, SurfaceChanged, SurfaceDeferred,
 };
@@ -29,7 +29,7 @@ use crate::surface::smooth::smooth;
 use crate::surface::update::update;
 use crate::surface::{CarryLayout, deform, extract};
 use bevy_ecs::prelude::*;
-use glam::Mat3A;
+use glam::{Mat3A, Vec3A};
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -103,43 +103,18 @@ pub fn update_surfaces(
                 topology_version: mesh.topology_version,
             });
         }
-        // the solver's dense positions are the particles' since the substeps stored
-        // them; only the cut has moved some since (the halves of split particles),
-        // whose slots are looked up again next frame
         let report = cut.bodies.iter().find(|c| c.body == body);
-        let mut moved: Vec<u32> = report.map_or(Vec::new(), |r| {
-            r.splits.iter().flat_map(|&(a, b)| [a, b]).collect()
-        });
-        moved.sort_unstable();
-        let key = (body, mesh.topology_version, cache.layout.stamp());
-        if mesh.dense_for != Some(key) || !moved.is_empty() {
-            let dense = cache.layout.body(body);
-            mesh.dense_slots.clear();
-            mesh.dense_slots
-                .par_extend(mesh.layout.read.par_iter().with_min_len(4096).map(|&p| {
-                    dense
-                        .and_then(|b| b.slot(p))
-                        .filter(|_| moved.binary_search(&p).is_err())
-                        .map_or(u32::MAX, |d| d as u32)
-                }));
-            mesh.dense_for = moved.is_empty().then_some(key);
-        }
-        let solved = &cache.particles.positions;
-        mesh.gathered
-            .par_iter_mut()
-            .with_min_len(4096)
-            .zip(&mesh.layout.read)
-            .zip(&mesh.dense_slots)
-            .for_each(|((at, &p), &d)| {
-                if let Some(x) = solved.get(d as usize) {
-                    *at = *x;
-                } else if let Some(x) =
-                    (lattice.particles.get(p as usize)).and_then(|e| positions.get(*e).ok())
-                {
-                    *at = x.0.into();
-                }
-                // (a particle whose entity is gone keeps its last place)
-            });
+        gather(
+            mesh,
+            body,
+            report,
+            &cache.layout,
+            &cache.particles.positions,
+            |p| {
+                let e = lattice.particles.get(p as usize)?;
+                positions.get(*e).ok().map(|x| x.0.into())
+            },
+        );
         deform::particle_frames(
             &mesh.layout,
             &mesh.gathered,
@@ -165,6 +140,54 @@ pub fn update_surfaces(
             marked.set_changed();
         }
     }
+}
+
+/// Gathers the positions of the particles `mesh`'s carriers read into its slots: the
+/// solver's dense positions, which are the particles' since the substeps stored them,
+/// except where only `entity_position` (the particle's entity) has it: a particle the
+/// solver does not hold, or a half of a particle the cut split this frame (moved since).
+/// Each slot's dense index is looked up once per body, topology and solver layout
+/// ([`SolverLayout::stamp`]), and again in the frame after a split.
+fn gather(
+    mesh: &mut SurfaceMesh,
+    body: Entity,
+    report: Option<&BodyCutReport>,
+    layout: &SolverLayout,
+    solved: &[Vec3A],
+    entity_position: impl Fn(u32) -> Option<Vec3A> + Sync,
+) {
+    let mut moved: Vec<u32> = report.map_or(Vec::new(), |r| {
+        r.splits.iter().flat_map(|&(a, b)| [a, b]).collect()
+    });
+    moved.sort_unstable();
+    let key = (body, mesh.topology_version, layout.stamp());
+    if mesh.dense_for != Some(key) || !moved.is_empty() {
+        let dense = layout.body(body);
+        mesh.dense_slots.clear();
+        mesh.dense_slots
+            .par_extend(mesh.layout.read.par_iter().with_min_len(4096).map(|&p| {
+                dense
+                    .and_then(|b| b.slot(p))
+                    .filter(|_| moved.binary_search(&p).is_err())
+                    .map_or(u32::MAX, |d| d as u32)
+            }));
+        mesh.dense_for = moved.is_empty().then_some(key);
+    }
+    mesh.gathered
+        .par_iter_mut()
+        .with_min_len(4096)
+        .zip(&mesh.layout.read)
+        .zip(&mesh.dense_slots)
+        .for_each(|((at, &p), &d)| {
+            if let Some(x) = solved
+                .get(d as usize)
+                .copied()
+                .or_else(|| entity_position(p))
+            {
+                *at = x;
+            }
+            // (a particle whose entity is gone keeps its last place)
+        });
 }
 
 /// What a surface records of the lattice it was made from.

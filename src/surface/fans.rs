@@ -138,34 +138,7 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
         }
         first = end;
     }
-    // classes in order of their first slot, each listing its slots in order
-    let mut class_of_root = vec![u32::MAX; slots];
-    let mut class_of = Vec::with_capacity(slots);
-    let mut start = vec![0u32];
-    for s in 0..slots as u32 {
-        let root = kept.find(s) as usize;
-        if class_of_root[root] == u32::MAX {
-            class_of_root[root] = start.len() as u32 - 1;
-            start.push(0);
-        }
-        let class = class_of_root[root];
-        start[class as usize + 1] += 1;
-        class_of.push(class);
-    }
-    for c in 1..start.len() {
-        start[c] += start[c - 1];
-    }
-    let mut filled = start.clone();
-    let mut members = vec![0u32; slots];
-    for (s, &class) in class_of.iter().enumerate() {
-        members[filled[class as usize] as usize] = s as u32;
-        filled[class as usize] += 1;
-    }
-    VertexClasses {
-        class_of,
-        start,
-        members,
-    }
+    VertexClasses::of(&mut kept, slots)
 }
 
 /// The vertex classes of a surface's quad corners (corner `k` of quad `q` is slot
@@ -179,6 +152,38 @@ pub struct VertexClasses {
 }
 
 impl VertexClasses {
+    /// The classes of `slots` slots joined as `kept` says: numbered in order of their
+    /// first slot, each listing its slots in order.
+    fn of(kept: &mut UnionFind, slots: usize) -> Self {
+        let mut class_of_root = vec![u32::MAX; slots];
+        let mut class_of = Vec::with_capacity(slots);
+        let mut start = vec![0u32];
+        for s in 0..slots as u32 {
+            let root = kept.find(s) as usize;
+            if class_of_root[root] == u32::MAX {
+                class_of_root[root] = start.len() as u32 - 1;
+                start.push(0);
+            }
+            let class = class_of_root[root];
+            start[class as usize + 1] += 1;
+            class_of.push(class);
+        }
+        for c in 1..start.len() {
+            start[c] += start[c - 1];
+        }
+        let mut filled = start.clone();
+        let mut members = vec![0u32; slots];
+        for (s, &class) in class_of.iter().enumerate() {
+            members[filled[class as usize] as usize] = s as u32;
+            filled[class as usize] += 1;
+        }
+        Self {
+            class_of,
+            start,
+            members,
+        }
+    }
+
     /// Number of classes.
     pub fn len(&self) -> usize {
         self.start.len() - 1
