@@ -35,7 +35,9 @@ const H: f32 = 0.1;
 pub struct KindTime {
     /// The part's name (a term's [`crate::solver::term::Term::name`]).
     pub name: String,
-    /// Mean milliseconds per step over the timed steps.
+    /// Median milliseconds per step over the timed steps (a median, as the step's own
+    /// time is: within every step a part takes no longer than the step, so its median
+    /// is no more than the step's, however long a step the machine stalls).
     pub ms_per_step: f64,
 }
 
@@ -271,13 +273,13 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
     let (mut solver, mut dense) = cache.bare(bare_terms);
     // Engine and bare steps alternate, so both see the same machine noise.
     let (mut engine, mut bare) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
-    let mut kinds: Vec<(String, f64)> = Vec::new();
+    let mut kinds: Vec<(String, Vec<f64>)> = Vec::new();
     for _ in 0..steps {
         let step_kinds = kind_ms(&mut sim, |sim| engine.push(time_ms(1, || sim.step())));
         for (name, ms) in step_kinds {
             match kinds.iter_mut().find(|(n, _)| *n == name) {
-                Some(k) => k.1 += ms / steps as f64,
-                None => kinds.push((name, ms / steps as f64)),
+                Some(k) => k.1.push(ms),
+                None => kinds.push((name, vec![ms])),
             }
         }
         bare.push(time_ms(1, || bare_step(&mut solver, &mut dense, config)));
@@ -340,7 +342,10 @@ pub fn bench_size(n: u32, steps: usize, config: &SimConfig) -> Result<BenchRow> 
         rebuild_ms,
         kinds: kinds
             .into_iter()
-            .map(|(name, ms_per_step)| KindTime { name, ms_per_step })
+            .map(|(name, mut ms)| KindTime {
+                name,
+                ms_per_step: median(&mut ms),
+            })
             .collect(),
     })
 }
