@@ -42,6 +42,7 @@
 use crate::body::groups::ParticleGroups;
 use crate::body::lattice::Lattice;
 use crate::config::Material;
+use crate::solver::disjoint::Disjoint;
 use glam::{DVec3, Quat, Vec3A};
 
 /// Stiffness a hard constraint (compliance 0) gets in projective dynamics' global
@@ -99,6 +100,37 @@ impl ParticleState<'_> {
     pub fn shift(&mut self, i: usize, step: Vec3A) {
         self.positions[i] += step;
         self.corrections[i] += step;
+    }
+
+    /// The positions and corrections for a parallel pass whose tasks each own distinct
+    /// particles, each shifting its own ([`DisjointShifts::shift`]).
+    pub(in crate::solver) fn disjoint_shifts(&mut self) -> DisjointShifts {
+        DisjointShifts {
+            positions: Disjoint::new(self.positions),
+            corrections: Disjoint::new(self.corrections),
+        }
+    }
+}
+
+/// [`ParticleState::shift`] for tasks that own distinct particles.
+#[derive(Clone, Copy)]
+pub(in crate::solver) struct DisjointShifts {
+    positions: Disjoint<Vec3A>,
+    corrections: Disjoint<Vec3A>,
+}
+
+impl DisjointShifts {
+    /// Moves particle `i` by `step` and records the move as a correction.
+    ///
+    /// # Safety
+    /// `i` is in bounds, and no other task reads or writes particle `i` meanwhile.
+    #[inline]
+    pub(in crate::solver) unsafe fn shift(self, i: usize, step: Vec3A) {
+        // SAFETY: the caller's contract
+        unsafe {
+            self.positions.write(i, self.positions.read(i) + step);
+            self.corrections.write(i, self.corrections.read(i) + step);
+        }
     }
 }
 

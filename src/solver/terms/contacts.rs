@@ -334,10 +334,7 @@ impl Term for Contacts {
         // then the sums are applied: owners are distinct contact particles of distinct
         // dense indices, so no two tasks write one entry
         let dense = &self.particles.dense;
-        let (positions, corrections) = (
-            Disjoint::new(state.positions),
-            Disjoint::new(state.corrections),
-        );
+        let shifts = state.disjoint_shifts();
         let load = Disjoint::new(&mut self.load);
         self.owners
             .par_iter()
@@ -349,9 +346,7 @@ impl Term for Contacts {
                 unsafe {
                     load.write(a as usize, touching);
                     if step != Vec3A::ZERO {
-                        let d = dense[a as usize] as usize;
-                        positions.write(d, positions.read(d) + step);
-                        corrections.write(d, corrections.read(d) + step);
+                        shifts.shift(dense[a as usize] as usize, step);
                     }
                 }
             });
