@@ -11,6 +11,7 @@ use super::extract::SurfaceTopology;
 use crate::body::lattice::Lattice;
 use crate::math::lanes::{LANES, Vec3x8};
 use glam::{Quat, Vec3A};
+use rayon::prelude::*;
 use wide::f32x8;
 
 /// The slots of a surface's carriers and of what they read (see the module docs).
@@ -68,9 +69,11 @@ impl CarryLayout {
             slot_of[q as usize] = s as u32;
         }
         let rest = |p: u32| Vec3A::from(lattice.rest_position(p));
-        let batches = (0..carriers.len())
-            .step_by(LANES)
-            .map(|start| {
+        let batches = (0..carriers.len().div_ceil(LANES))
+            .into_par_iter()
+            .with_min_len(256)
+            .map(|b| {
+                let start = b * LANES;
                 let last = (start + LANES).min(carriers.len()) - 1;
                 let own: [u32; LANES] = std::array::from_fn(|l| (start + l).min(last) as u32);
                 let mut links = [own; 6];
@@ -91,7 +94,8 @@ impl CarryLayout {
             .collect();
         let binding_slots = topology
             .bindings
-            .iter()
+            .par_iter()
+            .with_min_len(4096)
             .map(|b| slot_of[b.particle as usize])
             .collect();
         let mut triangle_start = vec![0u32; topology.vertex_count() + 1];
