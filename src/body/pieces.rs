@@ -209,6 +209,18 @@ mod tests {
             let pieces = labels.count;
             assert_eq!(l.piece_count(), pieces, "case {case}");
             counts.insert(pieces.min(4));
+            // and with edges severed at random: labelled over the links
+            for (a, b) in l.edges() {
+                if rng.random_bool(0.3) {
+                    l.sever(a, b);
+                }
+            }
+            let severed = label_pieces(&l);
+            assert_eq!(
+                severed.label,
+                searched_pieces(&l).label,
+                "case {case}, severed"
+            );
         }
         // empty, one, and several pieces all occurred
         assert_eq!(counts.into_iter().collect::<Vec<_>>(), [0, 1, 2, 3, 4]);
