@@ -2,6 +2,7 @@
 //! lattice's links, counted fast while the lattice is intact and labelled otherwise.
 
 use super::lattice::{Lattice, NO_PARTICLE, PieceLabels};
+use crate::util::union_find::UnionFind;
 
 /// Labels the pieces by a union–find over the links, the particles taken in index order:
 /// each live particle is joined to its linked neighbours of lower index, a set's root
@@ -12,27 +13,16 @@ use super::lattice::{Lattice, NO_PARTICLE, PieceLabels};
 /// passes walk the particles in memory order, where a search from each unlabelled
 /// particle would wander the body (a cache miss per step on a big one).
 fn label_pieces(lattice: &Lattice) -> PieceLabels {
-    let mut label: Vec<u32> = (0..lattice.len() as u32).collect();
-    /// The root of `i`, halving the path on the way.
-    fn root(parent: &mut [u32], mut i: u32) -> u32 {
-        while parent[i as usize] != i {
-            let grand = parent[parent[i as usize] as usize];
-            parent[i as usize] = grand;
-            i = grand;
-        }
-        i
-    }
+    let mut sets = UnionFind::new(lattice.len());
     // (a removed particle has no links, and a missing link is never lower)
     const { assert!(NO_PARTICLE == u32::MAX) };
     for (p, links) in lattice.links.iter().enumerate() {
         let p = p as u32;
         for &q in links.iter().filter(|&&q| q < p) {
-            let (a, b) = (root(&mut label, p), root(&mut label, q));
-            if a != b {
-                label[a.max(b) as usize] = a.min(b);
-            }
+            sets.union(p, q);
         }
     }
+    let mut label = sets.into_parents();
     let mut pieces = 0u32;
     for p in 0..label.len() as u32 {
         if !lattice.is_live(p) {
@@ -101,15 +91,7 @@ impl Lattice {
             }
         }
         row_start.push(runs.len() as u32);
-        let mut parent: Vec<u32> = (0..runs.len() as u32).collect();
-        let find = |parent: &mut [u32], mut i: u32| {
-            while parent[i as usize] != i {
-                let grand = parent[parent[i as usize] as usize];
-                parent[i as usize] = grand;
-                i = grand;
-            }
-            i
-        };
+        let mut sets = UnionFind::new(runs.len());
         let mut pieces = runs.len();
         let range = |r: usize| row_start[r] as usize..row_start[r + 1] as usize;
         for r in 0..row_start.len() - 1 {
@@ -125,9 +107,7 @@ impl Lattice {
                     } else if b.1 < a.0 {
                         j += 1;
                     } else {
-                        let (ra, rb) = (find(&mut parent, i as u32), find(&mut parent, j as u32));
-                        if ra != rb {
-                            parent[ra.max(rb) as usize] = ra.min(rb);
+                        if sets.union(i as u32, j as u32) {
                             pieces -= 1;
                         }
                         if a.1 < b.1 {

@@ -10,6 +10,7 @@
 use super::extract::SurfaceTopology;
 use crate::body::lattice::Lattice;
 use crate::math::lanes::{LANES, Vec3x8};
+use crate::util::grouping::group_by_key;
 use glam::{Quat, Vec3A};
 use rayon::prelude::*;
 use wide::f32x8;
@@ -98,23 +99,10 @@ impl CarryLayout {
             .with_min_len(4096)
             .map(|b| slot_of[b.particle as usize])
             .collect();
-        let mut triangle_start = vec![0u32; topology.vertex_count() + 1];
-        for t in &topology.triangles {
-            for &v in t {
-                triangle_start[v as usize + 1] += 1;
-            }
-        }
-        for v in 0..topology.vertex_count() {
-            triangle_start[v + 1] += triangle_start[v];
-        }
-        let mut filled = triangle_start.clone();
-        let mut vertex_triangles = vec![0u32; topology.triangles.len() * 3];
-        for (i, t) in topology.triangles.iter().enumerate() {
-            for &v in t {
-                vertex_triangles[filled[v as usize] as usize] = i as u32;
-                filled[v as usize] += 1;
-            }
-        }
+        let (triangle_start, vertex_triangles) = group_by_key(topology.vertex_count(), || {
+            (topology.triangles.iter().enumerate())
+                .flat_map(|(i, t)| t.iter().map(move |&v| (v, i as u32)))
+        });
         Self {
             read,
             batches,

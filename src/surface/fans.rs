@@ -20,6 +20,8 @@
 //! leave the edge open.
 
 use super::cells::{CellOwners, corner_index, face_corners};
+use crate::util::grouping::group_by_key;
+use crate::util::union_find::UnionFind;
 use glam::IVec3;
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
@@ -39,11 +41,7 @@ pub struct Quad {
 /// The vertex class of every quad corner of `quads` (see [`VertexClasses`]).
 pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
     if quads.is_empty() {
-        return VertexClasses {
-            class_of: Vec::new(),
-            start: vec![0],
-            members: Vec::new(),
-        };
+        return VertexClasses::of(&mut UnionFind::new(0), 0);
     }
     let index: FxHashMap<(IVec3, u8), u32> = quads
         .iter()
@@ -157,26 +155,18 @@ impl VertexClasses {
     fn of(kept: &mut UnionFind, slots: usize) -> Self {
         let mut class_of_root = vec![u32::MAX; slots];
         let mut class_of = Vec::with_capacity(slots);
-        let mut start = vec![0u32];
+        let mut classes = 0u32;
         for s in 0..slots as u32 {
             let root = kept.find(s) as usize;
             if class_of_root[root] == u32::MAX {
-                class_of_root[root] = start.len() as u32 - 1;
-                start.push(0);
+                class_of_root[root] = classes;
+                classes += 1;
             }
-            let class = class_of_root[root];
-            start[class as usize + 1] += 1;
-            class_of.push(class);
+            class_of.push(class_of_root[root]);
         }
-        for c in 1..start.len() {
-            start[c] += start[c - 1];
-        }
-        let mut filled = start.clone();
-        let mut members = vec![0u32; slots];
-        for (s, &class) in class_of.iter().enumerate() {
-            members[filled[class as usize] as usize] = s as u32;
-            filled[class as usize] += 1;
-        }
+        let (start, members) = group_by_key(classes as usize, || {
+            (class_of.iter().enumerate()).map(|(s, &class)| (class, s as u32))
+        });
         Self {
             class_of,
             start,
@@ -244,31 +234,6 @@ fn runs_around(owners: &CellOwners, w: IVec3, axis: usize) -> SmallVec<[Run; 2]>
         }
     }
     runs
-}
-
-/// Union–find over `0..n` with path halving.
-struct UnionFind(Vec<u32>);
-
-impl UnionFind {
-    fn new(n: usize) -> Self {
-        Self((0..n as u32).collect())
-    }
-
-    fn find(&mut self, mut x: u32) -> u32 {
-        while self.0[x as usize] != x {
-            let grand = self.0[self.0[x as usize] as usize];
-            self.0[x as usize] = grand;
-            x = grand;
-        }
-        x
-    }
-
-    fn union(&mut self, a: u32, b: u32) {
-        let (ra, rb) = (self.find(a), self.find(b));
-        if ra != rb {
-            self.0[ra.max(rb) as usize] = ra.min(rb);
-        }
-    }
 }
 
 #[cfg(test)]

@@ -1,6 +1,9 @@
 //! Small helpers with no domain of their own: enums spelled by name in files, memory
-//! prefetch hints, sampling keyframes.
+//! prefetch hints, sampling keyframes, disjoint sets,
+//! values grouped by key.
 
+pub mod grouping;
 pub mod keyframes;
 pub(crate) mod named_enum;
 pub mod prefetch;
+pub mod union_find;
