@@ -104,12 +104,13 @@ pub fn update_surfaces(
             });
         }
         let report = cut.bodies.iter().find(|c| c.body == body);
-        gather(
+        let moved = gather(
             mesh,
             body,
             report,
             &cache.layout,
             &cache.particles.positions,
+            l.spacing(),
             |p| {
                 let e = lattice.particles.get(p as usize)?;
                 positions.get(*e).ok().map(|x| x.0.into())
@@ -136,7 +137,10 @@ pub fn update_surfaces(
             &mut mesh.normals,
         );
         mesh.deformed_at = Some(clock.frame);
-        if mesh.moved_since_shown(l.spacing()) || installed {
+        if moved {
+            mesh.shown.clone_from(&mesh.gathered);
+        }
+        if moved || installed {
             marked.set_changed();
         }
     }
@@ -148,37 +152,47 @@ pub fn update_surfaces(
 /// solver does not hold, or a half of a particle the cut split this frame (moved since).
 /// Each slot's dense index is looked up once per body, topology and solver layout
 /// ([`SolverLayout::stamp`]), and again in the frame after a split.
+///
+/// Returns whether a slot now lies more than [`SurfaceMesh::STILL`] spacings (of a
+/// lattice spaced `spacing`) from where the mesh last showed it, or the slots changed
+/// (checked in the same pass, not in one of its own).
 fn gather(
     mesh: &mut SurfaceMesh,
     body: Entity,
     report: Option<&BodyCutReport>,
     layout: &SolverLayout,
     solved: &[Vec3A],
+    spacing: f32,
     entity_position: impl Fn(u32) -> Option<Vec3A> + Sync,
-) {
-    let mut moved: Vec<u32> = report.map_or(Vec::new(), |r| {
+) -> bool {
+    let mut split: Vec<u32> = report.map_or(Vec::new(), |r| {
         r.splits.iter().flat_map(|&(a, b)| [a, b]).collect()
     });
-    moved.sort_unstable();
+    split.sort_unstable();
     let key = (body, mesh.topology_version, layout.stamp());
-    if mesh.dense_for != Some(key) || !moved.is_empty() {
+    if mesh.dense_for != Some(key) || !split.is_empty() {
         let dense = layout.body(body);
         mesh.dense_slots.clear();
         mesh.dense_slots
             .par_extend(mesh.layout.read.par_iter().with_min_len(4096).map(|&p| {
                 dense
                     .and_then(|b| b.slot(p))
-                    .filter(|_| moved.binary_search(&p).is_err())
+                    .filter(|_| split.binary_search(&p).is_err())
                     .map_or(u32::MAX, |d| d as u32)
             }));
-        mesh.dense_for = moved.is_empty().then_some(key);
+        mesh.dense_for = split.is_empty().then_some(key);
     }
-    mesh.gathered
+    let limit = (SurfaceMesh::STILL * spacing).powi(2);
+    let shown = &mesh.shown;
+    let same_slots = shown.len() == mesh.gathered.len();
+    let moved = mesh
+        .gathered
         .par_iter_mut()
         .with_min_len(4096)
         .zip(&mesh.layout.read)
         .zip(&mesh.dense_slots)
-        .for_each(|((at, &p), &d)| {
+        .enumerate()
+        .map(|(slot, ((at, &p), &d))| {
             if let Some(x) = solved
                 .get(d as usize)
                 .copied()
@@ -187,7 +201,10 @@ fn gather(
                 *at = x;
             }
             // (a particle whose entity is gone keeps its last place)
-        });
+            same_slots && at.distance_squared(shown[slot]) > limit
+        })
+        .reduce(|| false, |a, b| a || b);
+    moved || !same_slots
 }
 
 /// What a surface records of the lattice it was made from.

@@ -198,18 +198,6 @@ impl SurfaceMesh {
         (sorted, ranges)
     }
 
-    /// Whether a particle the surface reads moved more than [`SurfaceMesh::STILL`]
-    /// spacings since the last `true` (which records where they are now).
-    pub(crate) fn moved_since_shown(&mut self, spacing: f32) -> bool {
-        let limit = (Self::STILL * spacing).powi(2);
-        let moved = self.shown.len() != self.gathered.len()
-            || (self.shown.iter().zip(&self.gathered)).any(|(a, b)| a.distance_squared(*b) > limit);
-        if moved {
-            self.shown.clone_from(&self.gathered);
-        }
-        moved
-    }
-
     /// The topology and its binding to the particles.
     pub fn topology(&self) -> &SurfaceTopology {
         &self.topology
