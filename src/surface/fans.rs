@@ -48,10 +48,9 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
         .enumerate()
         .map(|(q, quad)| ((quad.cell, quad.direction), q as u32))
         .collect();
-    // every grid edge a quad has, once: keyed by its lower corner's place in the box
-    // of the quads' corners (z slowest, then y, then x: the order quads are made in, so
-    // the keys come nearly sorted) and its axis; the box holds at most eight corners
-    // per cell of a lattice's bounded grid, so a key fits
+    // every grid edge a quad has, once, in order: keyed by its lower corner's place in
+    // the box of the quads' corners (z slowest, then y, then x) and its axis; the box
+    // holds at most eight corners per cell of a lattice's bounded grid, so a key fits
     let (lo, hi) = quads.iter().fold((IVec3::MAX, IVec3::MIN), |(lo, hi), q| {
         (lo.min(q.cell), hi.max(q.cell))
     });
@@ -69,19 +68,18 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
         );
         (lo + d.as_ivec3(), axis)
     };
-    let mut edges: Vec<u64> = quads
-        .par_iter()
-        .with_min_len(1024)
-        .flat_map_iter(|quad| {
-            let c = face_corners(quad.cell, quad.direction);
-            (0..4).map(move |k| {
-                let (a, b) = (c[k], c[(k + 1) % 4]);
-                key(a.min(b), (b - a).abs().max_position())
-            })
-        })
-        .collect();
-    edges.par_sort_unstable();
-    edges.dedup();
+    // (a bit per key, three per corner of the box: the keys come out ascending and
+    // each once, without a sort)
+    let mut marked = vec![0u64; (dims.element_product() * 3).div_ceil(64) as usize];
+    for quad in quads {
+        let c = face_corners(quad.cell, quad.direction);
+        for k in 0..4 {
+            let (a, b) = (c[k], c[(k + 1) % 4]);
+            let e = key(a.min(b), (b - a).abs().max_position());
+            marked[(e / 64) as usize] |= 1 << (e % 64);
+        }
+    }
+    let edges = set_bits(&marked);
     // per edge, its pairings: the slots of both quads at the lower end, then at the
     // upper (an edge's runs are consecutive)
     let pairings: Vec<(u32, [u32; 4])> = edges
@@ -137,6 +135,19 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
         first = end;
     }
     VertexClasses::of(&mut kept, slots)
+}
+
+/// The indices of the set bits of `words` (bit `i % 64` of word `i / 64`), ascending.
+fn set_bits(words: &[u64]) -> Vec<u64> {
+    let mut set = Vec::with_capacity(words.iter().map(|w| w.count_ones() as usize).sum());
+    for (i, &word) in words.iter().enumerate() {
+        let mut word = word;
+        while word != 0 {
+            set.push(i as u64 * 64 + word.trailing_zeros() as u64);
+            word &= word - 1;
+        }
+    }
+    set
 }
 
 /// The vertex classes of a surface's quad corners (corner `k` of quad `q` is slot
