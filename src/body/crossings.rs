@@ -65,6 +65,7 @@ impl<'de> Deserialize<'de> for Crossings {
 
 impl Crossings {
     /// The crossing of edge `key`.
+    #[inline]
     pub fn get(&self, key: u32) -> Option<Crossing> {
         self.0.get(&key).copied()
     }

@@ -165,6 +165,7 @@ impl Lattice {
     }
 
     /// Integer coordinate of particle `i`.
+    #[inline]
     pub fn coord(&self, i: u32) -> IVec3 {
         self.coords[i as usize]
     }
@@ -176,18 +177,21 @@ impl Lattice {
 
     /// Rest position of particle `i` in the body frame: `(coord + ½) × h`, shifted for
     /// the halves of a split particle (see [`Lattice::split`]).
+    #[inline]
     pub fn rest_position(&self, i: u32) -> Vec3 {
         (self.coords[i as usize].as_vec3() + Vec3::splat(0.5) + self.split_shift(i)) * self.spacing
     }
 
     /// Whether particle `i` is a half of a split particle (either half: each rests off
     /// its cell's centre, toward the edges it kept; see [`Lattice::split`]).
+    #[inline]
     pub fn is_split_half(&self, i: u32) -> bool {
         self.split_shift(i) != Vec3::ZERO
     }
 
     /// How far particle `i` rests from its cell's centre, in cells (zero unless it is a
     /// half of a split particle: then toward the edges it holds; see [`Lattice::split`]).
+    #[inline]
     pub fn split_shift(&self, i: u32) -> Vec3 {
         self.rest_shift
             .get(i as usize)
@@ -196,6 +200,7 @@ impl Lattice {
     }
 
     /// Whether particle `i` exists and has not been removed.
+    #[inline]
     pub fn is_live(&self, i: u32) -> bool {
         self.live
             .get(i as usize / 64)
@@ -216,16 +221,18 @@ impl Lattice {
         })
     }
 
+    #[inline]
     pub(super) fn cell(&self, c: IVec3) -> Option<usize> {
-        let d = c - self.min;
-        if d.cmplt(IVec3::ZERO).any() || d.as_uvec3().cmpge(self.dims).any() {
+        // (a coordinate below the grid wraps to one far beyond it)
+        let d = (c - self.min).as_uvec3();
+        if d.cmpge(self.dims).any() {
             return None;
         }
-        let d = d.as_uvec3();
         Some(((d.z * self.dims.y + d.y) * self.dims.x + d.x) as usize)
     }
 
     /// The live particle at coordinate `c`, if any.
+    #[inline]
     pub fn at(&self, c: IVec3) -> Option<u32> {
         let i = self.grid[self.cell(c)?];
         (i != NO_PARTICLE).then_some(i)
@@ -323,6 +330,7 @@ impl Lattice {
 
     /// Where a cut crossed the edge from cell `cell` to its neighbour along `axis` (0, 1
     /// or 2), measured from `cell`.
+    #[inline]
     pub fn crossing_at(&self, cell: IVec3, axis: usize) -> Option<Crossing> {
         let key = self.cell(cell)? as u32 * 3 + axis as u32;
         self.crossings.get(key)

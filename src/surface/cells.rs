@@ -156,9 +156,16 @@ impl<'a> CellOwners<'a> {
     /// The live particle that owns sub-cell `s`, if any.
     #[inline]
     pub fn owner(&self, s: IVec3) -> Option<u32> {
+        // (the common case, a cell per particle, inlined into every caller)
         if self.resolution == 1 {
-            return self.lattice.at(s);
+            self.lattice.at(s)
+        } else {
+            self.octant_owner(s)
         }
+    }
+
+    /// [`Self::owner`] with octants.
+    fn octant_owner(&self, s: IVec3) -> Option<u32> {
         if !self.dense.is_empty() {
             let d = s - self.dense_min;
             if d.cmplt(IVec3::ZERO).any() || d.cmpge(self.dense_dims).any() {
