@@ -83,14 +83,18 @@ pub fn cut_vertex_position(owners: &CellOwners, w: IVec3) -> Option<Vec3> {
             );
             let centre = lower.as_vec3() + Vec3::splat(0.5) - v;
             debug_assert!(centre[b].abs() <= 0.5 && centre[c].abs() <= 0.5);
-            let crossing = lattice.crossing_at(lower, axis);
+            let solid = (!from.is_empty(), !to.is_empty());
+            // (only an edge between two solid cells reads its crossing)
+            let crossing = match solid {
+                (true, true) => lattice.crossing_at(lower, axis),
+                _ => None,
+            };
             let linked = || {
-                from.iter().flatten().any(|&p| {
+                from.iter().any(|&p| {
                     let q = lattice.link(p, 2 * axis + 1);
-                    q != NO_PARTICLE && to.iter().flatten().any(|&r| r == q)
+                    q != NO_PARTICLE && to.contains(&q)
                 })
             };
-            let solid = (from[0].is_some(), to[0].is_some());
             let plane = match (solid, crossing) {
                 ((true, true), Some(crossing)) if crossing.is_valid() => {
                     let mut at = centre;
@@ -200,17 +204,19 @@ fn candidate_cells(v: Vec3, axis: usize) -> impl Iterator<Item = IVec3> {
 }
 
 /// The live particles owning sub-cells of cell `cell` (up to the eight octants'
-/// owners, each once, first found first): all `None` for an empty cell.
-fn particles_of(owners: &CellOwners, cell: IVec3) -> [Option<u32>; 8] {
+/// owners, each once, first found first): none for an empty cell.
+fn particles_of(owners: &CellOwners, cell: IVec3) -> SmallVec<[u32; 8]> {
     let res = owners.resolution();
-    let mut found = [None; 8];
-    let mut n = 0;
+    let mut found = SmallVec::new();
+    if res == 1 {
+        found.extend(owners.owner(cell));
+        return found;
+    }
     for k in 0..(res * res * res) as u32 {
         if let Some(p) = owners.owner(cell * res + octant(k) * (res - 1))
-            && !found[..n].contains(&Some(p))
+            && !found.contains(&p)
         {
-            found[n] = Some(p);
-            n += 1;
+            found.push(p);
         }
     }
     found
