@@ -69,7 +69,8 @@ pub fn update(
         .filter(|(_, q)| in_region(q.cell))
         .map(|(i, q)| ((q.cell, q.direction), i))
         .collect();
-    let (mut topology, renumbered) = kept_outside(old, &rebuilt, &in_region);
+    let (mut topology, renumbered) =
+        kept_outside(old, &rebuilt, &in_region, classes.len(), quads.len());
     let old_corners = |q: usize| quad_corners(old, q);
     // the fresh quads' corners: a new vertex for each class at a rebuilt corner (made
     // in parallel, numbered in order of first use), the kept one elsewhere
@@ -151,37 +152,82 @@ fn quad_corners(topology: &SurfaceTopology, q: usize) -> [u32; 4] {
 
 /// What stays of the `old` surface: its quads outside the region (`in_region` of a
 /// cell says), and its vertices except those at `rebuilt` corners, renumbered in order;
-/// with each old vertex's new number (`u32::MAX` for one that goes).
+/// with each old vertex's new number (`u32::MAX` for one that goes); with room for up
+/// to `new_vertices` vertices and `new_quads` quads more.
+///
+/// Most of the surface stays, in runs between the few vertices and quads that go: each
+/// run is copied whole.
 fn kept_outside(
     old: &SurfaceTopology,
     rebuilt: &impl Fn(IVec3) -> bool,
     in_region: &impl Fn(IVec3) -> bool,
+    new_vertices: usize,
+    new_quads: usize,
 ) -> (SurfaceTopology, Vec<u32>) {
+    let vertices = old.vertex_count() + new_vertices;
+    let quads = old.quads.len() + new_quads;
+    // (a vertex has about as many bindings as the old ones had on average)
+    let bindings = old.bindings.len() * vertices / old.vertex_count().max(1);
     let mut topology = SurfaceTopology {
-        binding_start: vec![0],
+        rest: Vec::with_capacity(vertices),
+        corners: Vec::with_capacity(vertices),
+        binding_start: Vec::with_capacity(vertices + 1),
+        bindings: Vec::with_capacity(bindings),
+        quads: Vec::with_capacity(quads),
+        triangles: Vec::with_capacity(2 * quads),
         resolution: old.resolution,
         ..SurfaceTopology::default()
     };
+    topology.binding_start.push(0);
     let mut renumbered = vec![u32::MAX; old.vertex_count()];
+    let mut kept = 0u32;
     for (v, &corner) in old.corners.iter().enumerate() {
         if !rebuilt(corner) {
-            renumbered[v] = topology.rest.len() as u32;
-            topology.rest.push(old.rest[v]);
-            topology.corners.push(corner);
-            topology.bindings.extend_from_slice(old.bindings_of(v));
-            topology.binding_start.push(topology.bindings.len() as u32);
+            renumbered[v] = kept;
+            kept += 1;
         }
     }
-    for (q, quad) in old.quads.iter().enumerate() {
-        if !in_region(quad.cell) {
-            topology.quads.push(*quad);
-            push_quad(
-                &mut topology,
-                quad_corners(old, q).map(|v| renumbered[v as usize]),
-            );
-        }
+    for run in runs(&renumbered, |n| n != u32::MAX) {
+        topology.rest.extend_from_slice(&old.rest[run.clone()]);
+        topology
+            .corners
+            .extend_from_slice(&old.corners[run.clone()]);
+        let (from, to) = (old.binding_start[run.start], old.binding_start[run.end]);
+        // (the run's bindings, shifted to where they now start)
+        let shift = topology.bindings.len() as u32 - from;
+        topology
+            .bindings
+            .extend_from_slice(&old.bindings[from as usize..to as usize]);
+        topology.binding_start.extend(
+            old.binding_start[run.start + 1..=run.end]
+                .iter()
+                .map(|s| s + shift),
+        );
+    }
+    let outside: Vec<bool> = old.quads.iter().map(|q| !in_region(q.cell)).collect();
+    for run in runs(&outside, |o| o) {
+        topology.quads.extend_from_slice(&old.quads[run.clone()]);
+        topology.triangles.extend(
+            old.triangles[2 * run.start..2 * run.end]
+                .iter()
+                .map(|t| t.map(|v| renumbered[v as usize])),
+        );
     }
     (topology, renumbered)
+}
+
+/// The maximal runs of consecutive indices of `items` that `keep` holds for.
+fn runs<'a, T: Copy>(
+    items: &'a [T],
+    keep: impl Fn(T) -> bool + 'a,
+) -> impl Iterator<Item = std::ops::Range<usize>> + 'a {
+    let mut at = 0;
+    std::iter::from_fn(move || {
+        let start = at + items[at..].iter().position(|&x| keep(x))?;
+        let len = items[start..].iter().position(|&x| !keep(x));
+        at = len.map_or(items.len(), |l| start + l);
+        Some(start..at)
+    })
 }
 
 /// A set of cells: a bit per cell of a box, rows along x packed in words (so that
