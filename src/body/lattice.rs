@@ -231,6 +231,12 @@ impl Lattice {
         Some(((d.z * self.dims.y + d.y) * self.dims.x + d.x) as usize)
     }
 
+    /// The lowest and highest cells of the lattice's grid (inclusive): every particle's
+    /// coordinate lies between them.
+    pub fn grid_cells(&self) -> (IVec3, IVec3) {
+        (self.min, self.min + self.dims.as_ivec3() - IVec3::ONE)
+    }
+
     /// The live particle at coordinate `c`, if any.
     #[inline]
     pub fn at(&self, c: IVec3) -> Option<u32> {

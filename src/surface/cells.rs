@@ -18,6 +18,7 @@
 use crate::body::lattice::{Lattice, NEIGHBOUR_OFFSETS, NO_PARTICLE};
 use glam::{IVec3, Vec3};
 use rustc_hash::FxHashMap;
+use smallvec::SmallVec;
 
 /// Weights of the axes that break ties between octants a half rests equally far
 /// toward: the one it leans furthest toward along x first, then along y, then z. Twins
@@ -45,6 +46,12 @@ const MAX_DENSE: i64 = 1 << 26;
 impl<'a> CellOwners<'a> {
     /// The owners of `lattice`'s live particles' cells.
     pub fn new(lattice: &'a Lattice) -> Self {
+        Self::looked_up_in(lattice, IVec3::MIN, IVec3::MAX)
+    }
+
+    /// The owners of `lattice`'s live particles' cells, looked up mostly in the cells
+    /// from `lo` to `hi` (inclusive): the same owners everywhere, found fastest there.
+    pub fn looked_up_in(lattice: &'a Lattice, lo: IVec3, hi: IVec3) -> Self {
         let mut members: FxHashMap<IVec3, Vec<u32>> = FxHashMap::default();
         for p in lattice
             .live_particles()
@@ -72,20 +79,17 @@ impl<'a> CellOwners<'a> {
             dense_dims: IVec3::ZERO,
         };
         if resolution == 2 {
-            owners.fill_dense();
+            owners.fill_dense(lo, hi);
         }
         owners
     }
 
-    /// Fills the dense owner box of the octants (unless it would pass [`MAX_DENSE`]).
-    fn fill_dense(&mut self) {
+    /// Fills the dense owner box of the octants of the lattice's cells from `lo` to `hi`
+    /// (unless it would pass [`MAX_DENSE`]).
+    fn fill_dense(&mut self, lo: IVec3, hi: IVec3) {
         let lattice = self.lattice;
-        let (lo, hi) = lattice
-            .live_particles()
-            .map(|p| lattice.coord(p))
-            .fold((IVec3::MAX, IVec3::MIN), |(lo, hi), c| {
-                (lo.min(c), hi.max(c))
-            });
+        let (grid_lo, grid_hi) = lattice.grid_cells();
+        let (lo, hi) = (lo.max(grid_lo), hi.min(grid_hi));
         if lo.cmpgt(hi).any() {
             return;
         }
@@ -95,13 +99,20 @@ impl<'a> CellOwners<'a> {
             return;
         }
         let mut dense = vec![NO_PARTICLE; count as usize];
-        for p in lattice.live_particles() {
-            let c = lattice.coord(p);
-            let dealt = self.shared.get(&c);
-            for k in 0..8u32 {
-                let d = (c - lo) * 2 + octant(k);
-                let i = ((d.z * dims.y + d.y) * dims.x + d.x) as usize;
-                dense[i] = dealt.map_or(p, |t| t[k as usize]);
+        for z in lo.z..=hi.z {
+            for y in lo.y..=hi.y {
+                for x in lo.x..=hi.x {
+                    let c = IVec3::new(x, y, z);
+                    let dealt = self.shared.get(&c);
+                    let Some(p) = dealt.map(|t| t[0]).or_else(|| lattice.at(c)) else {
+                        continue;
+                    };
+                    for k in 0..8u32 {
+                        let d = (c - lo) * 2 + octant(k);
+                        let i = ((d.z * dims.y + d.y) * dims.x + d.x) as usize;
+                        dense[i] = dealt.map_or(p, |t| t[k as usize]);
+                    }
+                }
             }
         }
         self.dense = dense;
@@ -166,11 +177,9 @@ impl<'a> CellOwners<'a> {
 
     /// [`Self::owner`] with octants.
     fn octant_owner(&self, s: IVec3) -> Option<u32> {
-        if !self.dense.is_empty() {
-            let d = s - self.dense_min;
-            if d.cmplt(IVec3::ZERO).any() || d.cmpge(self.dense_dims).any() {
-                return None;
-            }
+        // (a sub-cell outside the dense box is looked up as if there were none)
+        let d = s - self.dense_min;
+        if !self.dense.is_empty() && d.cmpge(IVec3::ZERO).all() && d.cmplt(self.dense_dims).all() {
             let dims = self.dense_dims;
             let p = self.dense[((d.z * dims.y + d.y) * dims.x + d.x) as usize];
             return (p != NO_PARTICLE).then_some(p);
@@ -181,6 +190,24 @@ impl<'a> CellOwners<'a> {
         };
         let k = (s - cell * self.resolution).dot(IVec3::new(1, 2, 4));
         Some(octants[k as usize])
+    }
+
+    /// The live particles owning sub-cells of lattice cell `cell`: the particle there,
+    /// or the halves a split dealt its octants to (each once, in the order of the
+    /// octants they own first); none for an empty cell.
+    pub fn particles_in(&self, cell: IVec3) -> SmallVec<[u32; 8]> {
+        let mut found = SmallVec::new();
+        match self.shared.get(&cell) {
+            Some(octants) => {
+                for &p in octants {
+                    if !found.contains(&p) {
+                        found.push(p);
+                    }
+                }
+            }
+            None => found.extend(self.lattice.at(cell)),
+        }
+        found
     }
 
     /// Whether sub-cell `a`, owned by `p`, and its neighbour in direction `d` (an index
@@ -312,6 +339,45 @@ mod tests {
         for d in 0..6u8 {
             for (k, w) in face_corners(s, d).into_iter().enumerate() {
                 assert_eq!(corner_index(s, d, w), k);
+            }
+        }
+    }
+
+    #[test]
+    fn owners_looked_up_in_a_box_are_the_owners_everywhere() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut l = Shape::cuboid(UVec3::new(6, 5, 4)).voxelise(1.0).unwrap();
+        let live: Vec<u32> = l.live_particles().collect();
+        for &p in live.iter().step_by(3) {
+            let moves: [bool; 6] = std::array::from_fn(|_| rng.random_bool(0.5));
+            l.split(p, moves);
+        }
+        l.remove(live[1]);
+        let everywhere = CellOwners::new(&l);
+        assert_eq!(everywhere.resolution(), 2);
+        let (lo, hi) = l.grid_cells();
+        for _ in 0..20 {
+            let mut corner = |_| {
+                IVec3::new(
+                    rng.random_range(-2..8),
+                    rng.random_range(-2..7),
+                    rng.random_range(-2..6),
+                )
+            };
+            let (a, b) = (corner(()), corner(()));
+            let near = CellOwners::looked_up_in(&l, a.min(b), a.max(b));
+            // every sub-cell of the grid and a cell around it, inside the box or not
+            for z in 2 * lo.z - 2..2 * hi.z + 4 {
+                for y in 2 * lo.y - 2..2 * hi.y + 4 {
+                    for x in 2 * lo.x - 2..2 * hi.x + 4 {
+                        let s = IVec3::new(x, y, z);
+                        assert_eq!(near.owner(s), everywhere.owner(s), "{s}");
+                    }
+                }
+            }
+            for c in [a, b, lo, hi] {
+                assert_eq!(near.particles_in(c), everywhere.particles_in(c));
             }
         }
     }

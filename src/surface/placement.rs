@@ -30,7 +30,7 @@
 //! All vertices at one corner fit the same planes, so the faces on the two sides of a
 //! cut rest on each other and the body's pieces still fill it exactly.
 
-use super::cells::{CellOwners, octant};
+use super::cells::CellOwners;
 use super::fans::Quad;
 use crate::body::lattice::{NEIGHBOUR_OFFSETS, NO_PARTICLE};
 use crate::math::eigen::symmetric_eigen;
@@ -78,8 +78,8 @@ pub fn cut_vertex_position(owners: &CellOwners, w: IVec3) -> Option<Vec3> {
         // edge along it overlaps the box by more than a point
         for lower in candidate_cells(v, axis) {
             let (from, to) = (
-                particles_of(owners, lower),
-                particles_of(owners, lower + NEIGHBOUR_OFFSETS[2 * axis + 1]),
+                owners.particles_in(lower),
+                owners.particles_in(lower + NEIGHBOUR_OFFSETS[2 * axis + 1]),
             );
             let centre = lower.as_vec3() + Vec3::splat(0.5) - v;
             debug_assert!(centre[b].abs() <= 0.5 && centre[c].abs() <= 0.5);
@@ -201,25 +201,6 @@ fn candidate_cells(v: Vec3, axis: usize) -> impl Iterator<Item = IVec3> {
             })
         })
     })
-}
-
-/// The live particles owning sub-cells of cell `cell` (up to the eight octants'
-/// owners, each once, first found first): none for an empty cell.
-fn particles_of(owners: &CellOwners, cell: IVec3) -> SmallVec<[u32; 8]> {
-    let res = owners.resolution();
-    let mut found = SmallVec::new();
-    if res == 1 {
-        found.extend(owners.owner(cell));
-        return found;
-    }
-    for k in 0..(res * res * res) as u32 {
-        if let Some(p) = owners.owner(cell * res + octant(k) * (res - 1))
-            && !found.contains(&p)
-        {
-            found.push(p);
-        }
-    }
-    found
 }
 
 /// Whether `quad` lies on a cut face: across it lies a sub-cell of a live particle it

@@ -34,12 +34,18 @@ pub fn update(
     old: &SurfaceTopology,
     touched: &[u32],
 ) -> Option<SurfaceTopology> {
-    let owners = CellOwners::new(lattice);
+    let changed = CellSet::around(touched.iter().map(|&p| lattice.coord(p)), 3);
+    // (the owners looked up around the region, fast; a cell beyond it and one more is
+    // never asked for, but would be answered right)
+    let owners = match &changed {
+        Some(c) => CellOwners::looked_up_in(lattice, c.min - IVec3::ONE, c.min + c.dims),
+        None => CellOwners::looked_up_in(lattice, IVec3::MAX, IVec3::MIN),
+    };
     let res = owners.resolution();
     if old.quads.is_empty() || res != old.resolution {
         return None;
     }
-    let Some(changed) = CellSet::around(touched.iter().map(|&p| lattice.coord(p)), 3) else {
+    let Some(changed) = changed else {
         return Some(old.clone());
     };
     let near = changed.dilated(1);
