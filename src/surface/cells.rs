@@ -103,14 +103,15 @@ impl<'a> CellOwners<'a> {
             for y in lo.y..=hi.y {
                 for x in lo.x..=hi.x {
                     let c = IVec3::new(x, y, z);
-                    let dealt = self.shared.get(&c);
-                    let Some(p) = dealt.map(|t| t[0]).or_else(|| lattice.at(c)) else {
-                        continue;
+                    let octants = match (self.shared.get(&c), lattice.at(c)) {
+                        (Some(dealt), _) => *dealt,
+                        (None, Some(p)) => [p; 8],
+                        (None, None) => continue,
                     };
-                    for k in 0..8u32 {
+                    for (k, p) in (0..8u32).zip(octants) {
                         let d = (c - lo) * 2 + octant(k);
                         let i = ((d.z * dims.y + d.y) * dims.x + d.x) as usize;
-                        dense[i] = dealt.map_or(p, |t| t[k as usize]);
+                        dense[i] = p;
                     }
                 }
             }
@@ -358,14 +359,14 @@ mod tests {
         assert_eq!(everywhere.resolution(), 2);
         let (lo, hi) = l.grid_cells();
         for _ in 0..20 {
-            let mut corner = |_| {
+            let mut corner = || {
                 IVec3::new(
                     rng.random_range(-2..8),
                     rng.random_range(-2..7),
                     rng.random_range(-2..6),
                 )
             };
-            let (a, b) = (corner(()), corner(()));
+            let (a, b) = (corner(), corner());
             let near = CellOwners::looked_up_in(&l, a.min(b), a.max(b));
             // every sub-cell of the grid and a cell around it, inside the box or not
             for z in 2 * lo.z - 2..2 * hi.z + 4 {

@@ -199,15 +199,16 @@ fn kept_outside(
             .corners
             .extend_from_slice(&old.corners[run.clone()]);
         let (from, to) = (old.binding_start[run.start], old.binding_start[run.end]);
-        // (the run's bindings, shifted to where they now start)
-        let shift = topology.bindings.len() as u32 - from;
+        // (the run's bindings, moved back to where they now start: by what went
+        // before them)
+        let back = from - topology.bindings.len() as u32;
         topology
             .bindings
             .extend_from_slice(&old.bindings[from as usize..to as usize]);
         topology.binding_start.extend(
             old.binding_start[run.start + 1..=run.end]
                 .iter()
-                .map(|s| s + shift),
+                .map(|s| s - back),
         );
     }
     let outside: Vec<bool> = old.quads.iter().map(|q| !in_region(q.cell)).collect();
