@@ -6,6 +6,7 @@
 use super::crossings::Crossing;
 use super::morton::{morton_code, sort_by_key_radix};
 use crate::error::{CleaveError, Result, check_positive};
+use crate::util::bits::set_bits;
 use glam::{IVec3, UVec3, Vec3};
 use wide::u32x8;
 
@@ -209,16 +210,7 @@ impl Lattice {
 
     /// Iterator over live particle indices, ascending.
     pub fn live_particles(&self) -> impl Iterator<Item = u32> + '_ {
-        self.live.iter().enumerate().flat_map(|(k, &word)| {
-            let mut w = word;
-            std::iter::from_fn(move || {
-                (w != 0).then(|| {
-                    let i = k as u32 * 64 + w.trailing_zeros();
-                    w &= w - 1;
-                    i
-                })
-            })
-        })
+        set_bits(&self.live).map(|i| i as u32)
     }
 
     #[inline]

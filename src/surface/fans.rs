@@ -20,6 +20,7 @@
 //! leave the edge open.
 
 use super::cells::{CellOwners, corner_index, face_corners};
+use crate::util::bits::set_bits;
 use crate::util::grouping::group_by_key;
 use crate::util::union_find::UnionFind;
 use glam::IVec3;
@@ -79,7 +80,7 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
             marked[(e / 64) as usize] |= 1 << (e % 64);
         }
     }
-    let edges = set_bits(&marked);
+    let edges: Vec<u64> = set_bits(&marked).map(|e| e as u64).collect();
     // per edge, its pairings: the slots of both quads at the lower end, then at the
     // upper (an edge's runs are consecutive)
     let pairings: Vec<(u32, [u32; 4])> = edges
@@ -135,19 +136,6 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
         first = end;
     }
     VertexClasses::of(&mut kept, slots)
-}
-
-/// The indices of the set bits of `words` (bit `i % 64` of word `i / 64`), ascending.
-fn set_bits(words: &[u64]) -> Vec<u64> {
-    let mut set = Vec::with_capacity(words.iter().map(|w| w.count_ones() as usize).sum());
-    for (i, &word) in words.iter().enumerate() {
-        let mut word = word;
-        while word != 0 {
-            set.push(i as u64 * 64 + word.trailing_zeros() as u64);
-            word &= word - 1;
-        }
-    }
-    set
 }
 
 /// The vertex classes of a surface's quad corners (corner `k` of quad `q` is slot

@@ -23,6 +23,7 @@ use super::extract::{SurfaceTopology, add_vertices, finish, place_on_cut, push_f
 use super::fans::{Quad, vertex_classes};
 use super::placement::is_cut_face;
 use crate::body::lattice::Lattice;
+use crate::util::bits::set_bits;
 use glam::IVec3;
 use rustc_hash::FxHashMap;
 
@@ -389,18 +390,11 @@ impl CellSet {
 
     /// The cells, in order of z, then y, then x.
     fn cells(&self) -> impl Iterator<Item = IVec3> + '_ {
-        let (n, ny) = (self.row, self.dims.y as usize);
-        self.bits.iter().enumerate().flat_map(move |(i, &word)| {
-            let (row, w) = (i / n, i % n);
-            let base = self.min + IVec3::new((w * 64) as i32, (row % ny) as i32, (row / ny) as i32);
-            let mut word = word;
-            std::iter::from_fn(move || {
-                (word != 0).then(|| {
-                    let x = word.trailing_zeros();
-                    word &= word - 1;
-                    base + IVec3::new(x as i32, 0, 0)
-                })
-            })
+        // (a row is `row` words: bit `b` is x = b mod 64·row of row b / 64·row)
+        let (bits_per_row, ny) = (64 * self.row, self.dims.y as usize);
+        set_bits(&self.bits).map(move |b| {
+            let (row, x) = (b / bits_per_row, b % bits_per_row);
+            self.min + IVec3::new(x as i32, (row % ny) as i32, (row / ny) as i32)
         })
     }
 }

@@ -1,7 +1,8 @@
 //! Small helpers with no domain of their own: enums spelled by name in files, memory
 //! prefetch hints, sampling keyframes, disjoint sets,
-//! values grouped by key.
+//! values grouped by key, the set bits of a bit array.
 
+pub mod bits;
 pub mod grouping;
 pub mod keyframes;
 pub(crate) mod named_enum;
