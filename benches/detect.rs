@@ -5,6 +5,7 @@
 //! test of a severing blade (`edges_separated`).
 
 use cleave::body::shape::Shape;
+use cleave::cut::blocks::{Blocks, DenseParticles};
 use cleave::cut::detection::{Reported, edges_separated, particles_hit};
 use cleave::cut::tool::{CutMode, Pose, ToolShape};
 use cleave::cut::tool_sweep::ToolSweep;
@@ -25,6 +26,12 @@ fn detect(c: &mut Criterion) {
         .map(|i| Vec3A::from(lattice.rest_position(i)))
         .collect();
     let live = vec![true; positions.len()];
+    let blocks = Blocks::uniform(positions.len());
+    let particles = DenseParticles {
+        positions: &positions,
+        live: &live,
+        blocks: &blocks,
+    };
     let half = n as f32 * H * 0.5;
     let blade_at = |y: f32| Pose {
         position: Vec3::new(0.0, y, 0.0),
@@ -68,14 +75,14 @@ fn detect(c: &mut Criterion) {
     group.sample_size(10);
     for (name, sweep) in cases {
         let tools = vec![sweep.unwrap()];
-        let hits = particles_hit(&positions, &live, &tools, None);
+        let hits = particles_hit(particles, &tools, None);
         eprintln!(
             "detect/{name}: {} of {} particles hit",
             hits.len(),
             positions.len()
         );
         group.bench_function(format!("{name}/{n}^3/blocks"), |b| {
-            b.iter(|| particles_hit(&positions, &live, &tools, None))
+            b.iter(|| particles_hit(particles, &tools, None))
         });
         group.bench_function(format!("{name}/{n}^3/every_particle"), |b| {
             b.iter(|| {
@@ -107,8 +114,7 @@ fn detect(c: &mut Criterion) {
     let sweep = ToolSweep::new(&sever, &blade_at(half + 1.0), &blade_at(-half - 1.0)).unwrap();
     let sever_all = || {
         edges_separated(
-            &positions,
-            &live,
+            particles,
             0..positions.len(),
             partners,
             &[&sweep],

@@ -9,6 +9,7 @@
 //! deterministic order).
 
 use crate::body::lattice::NO_PARTICLE;
+use crate::cut::blocks::{Blocks, DenseParticles};
 use crate::cut::crossings::rest_crossing;
 use crate::cut::culling::FollowedTool;
 use crate::cut::detection::{Reported, edges_separated, particles_hit, particles_inside};
@@ -38,6 +39,13 @@ pub fn detect(
         return;
     }
     detect_tears(&cache, &bodies, &mut out.cuts);
+    let culling = &mut *culling;
+    if culling.blocks_for != Some(cache.layout.version())
+        || culling.blocks.particles() != cache.particles.positions.len()
+    {
+        culling.blocks = dense_blocks(&cache, &bodies);
+        culling.blocks_for = Some(cache.layout.version());
+    }
     let mut followed: Vec<(FollowedTool, ToolSweep)> = tools
         .iter()
         .filter_map(|(entity, tool, pose)| {
@@ -51,10 +59,21 @@ pub fn detect(
         })
         .collect();
     followed.sort_unstable_by_key(|(t, _)| t.id);
-    let near = settings
-        .0
-        .culling
-        .then(|| near_blocks(&cache, &report, &bodies, &mut culling, &followed));
+    let dense = DenseParticles {
+        positions: &cache.particles.positions,
+        live: cache.layout.live(),
+        blocks: &culling.blocks,
+    };
+    let near = settings.0.culling.then(|| {
+        near_blocks(
+            &cache,
+            dense,
+            &report,
+            &bodies,
+            &mut culling.culling,
+            &followed,
+        )
+    });
     let near = near.as_deref();
     let sweeps: Vec<ToolSweep> = followed.into_iter().map(|(_, s)| s).collect();
     let (removers, severers): (Vec<ToolSweep>, Vec<ToolSweep>) = sweeps
@@ -64,13 +83,12 @@ pub fn detect(
     // inside and sever what they graze
     let (carving, slicing): (Vec<ToolSweep>, Vec<ToolSweep>) =
         severers.into_iter().partition(|t| t.carves());
-    let positions = &cache.particles.positions;
-    for i in particles_hit(positions, cache.layout.live(), &removers, near) {
+    for i in particles_hit(dense, &removers, near) {
         if let Some((body, local)) = cache.layout.owner(i) {
             BodyCut::entry(&mut out.cuts, body).particles.push(local);
         }
     }
-    for i in particles_inside(positions, cache.layout.live(), &carving, near) {
+    for i in particles_inside(dense, &carving, near) {
         if let Some((body, local)) = cache.layout.owner(i) {
             BodyCut::entry(&mut out.cuts, body).carved.push(local);
         }
@@ -88,7 +106,7 @@ pub fn detect(
     ];
     for (tools, kind) in groups {
         if !tools.is_empty() {
-            separate_edges(&cache, &bodies, &tools, kind, near, &mut out.cuts);
+            separate_edges(&cache, dense, &bodies, &tools, kind, near, &mut out.cuts);
         }
     }
     out.cuts.sort_by_key(|c| c.body);
@@ -111,6 +129,7 @@ pub fn detect(
 /// as `kind` says (severed, grazed, or planned as splits).
 fn separate_edges(
     cache: &SolverCache,
+    dense: DenseParticles,
     bodies: &Query<(&Body, &BodyLattice)>,
     tools: &[&ToolSweep],
     kind: Severed,
@@ -143,9 +162,7 @@ fn separate_edges(
             Severed::Split => Reported::EveryTool,
             Severed::Edges | Severed::Grazed => Reported::FirstTool,
         };
-        let live = cache.layout.live();
-        let mut separated =
-            edges_separated(positions, live, range, partners, tools, near, reported);
+        let mut separated = edges_separated(dense, range, partners, tools, near, reported);
         if separated.is_empty() {
             continue;
         }
@@ -223,17 +240,43 @@ fn carve_crossings(
     }
 }
 
+/// The blocks of the layout's dense particles: each body's particles (in Morton order)
+/// broken where their aligned cube of 4³ cells changes, so that every block is compact
+/// however many particles the body lost or gained since it was intact.
+fn dense_blocks(cache: &SolverCache, bodies: &Query<(&Body, &BodyLattice)>) -> Blocks {
+    let layout = &cache.layout;
+    let n = cache.particles.positions.len();
+    let mut cubes = vec![(usize::MAX, glam::IVec3::ZERO); n];
+    for (k, b) in layout.bodies().iter().enumerate() {
+        let Ok((_, lattice)) = bodies.get(b.body) else {
+            continue;
+        };
+        let end = layout
+            .bodies()
+            .get(k + 1)
+            .map_or(n, |next| next.first as usize);
+        for (d, cube) in cubes
+            .iter_mut()
+            .enumerate()
+            .take(end)
+            .skip(b.first as usize)
+        {
+            *cube = (k, lattice.lattice.morton_cube(layout.locals()[d]));
+        }
+    }
+    Blocks::by_key(n, |d| cubes[d])
+}
+
 /// Which blocks of the dense particles some tool may reach this frame (see
 /// [`crate::cut::culling`]).
 fn near_blocks(
     cache: &SolverCache,
+    dense: DenseParticles,
     report: &CutReport,
     bodies: &Query<(&Body, &BodyLattice)>,
-    culling: &mut DetectCulling,
+    culling: &mut crate::cut::culling::ToolCulling,
     tools: &[(FollowedTool, ToolSweep)],
 ) -> Vec<bool> {
-    let culling = &mut culling.culling;
-    let n = cache.particles.positions.len();
     // a cut severs edges (a block's partners only become fewer: its ball stays a bound)
     // and keeps every particle's dense index; only edges linked again can reach blocks
     // the table does not name
@@ -243,7 +286,7 @@ fn near_blocks(
     // each dense particle's +x, +y, +z partners, by the links of its body's lattice
     // (its body: the last whose dense range starts at or before it)
     let layout = &cache.layout;
-    culling.set_layout(layout.version(), n, |i| {
+    culling.set_layout(layout.version(), dense.blocks, |i| {
         let body = layout.bodies().partition_point(|b| b.first as usize <= i);
         let Some(b) = body.checked_sub(1).and_then(|b| layout.bodies().get(b)) else {
             return [u32::MAX; 3];
@@ -261,7 +304,7 @@ fn near_blocks(
         tools.iter().map(|(t, s)| (t.clone(), s)).collect();
     culling.follow(&pairs);
     let sweeps: Vec<&ToolSweep> = tools.iter().map(|(_, s)| s).collect();
-    culling.near_blocks(&cache.particles.positions, layout.live(), &sweeps)
+    culling.near_blocks(dense, &sweeps)
 }
 
 /// What a group of tools does with the edges it separates.

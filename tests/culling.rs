@@ -1,7 +1,8 @@
 //! Conservative culling is exact (SPEC §6.2): the scenes with contacts and cuts end in
 //! the same state bit for bit with culling on and off (`--no-culling`), on one thread and
-//! on two; and a world of one piece without self-contact, which skips contacts
-//! altogether, ends as it does with self-contact on.
+//! on two; a world of one piece without self-contact, which skips contacts
+//! altogether, ends as it does with self-contact on; and detect's blocks stay one
+//! aligned cube each in a body that split blades have added particles to.
 
 mod common;
 use bevy_ecs::prelude::*;
@@ -71,4 +72,45 @@ fn a_lone_piece_without_self_contact_skips_contacts_and_ends_the_same() -> cleav
     sim.step();
     assert!(contact_particles(&sim) > 6 * 6 * 6 - 4 * 4 * 4);
     Ok(())
+}
+
+#[test]
+fn detect_tests_a_body_with_split_particles_in_blocks_of_one_cube_each() {
+    // split blades add halves to the body: laid out again, the particles no longer come
+    // in runs of 64 per aligned cube of 4³ cells, and detect's blocks must follow the
+    // cubes (a run of 64 that straddled a jump of the Morton curve would span the body)
+    let mut scene = cleave::io::scene::builtin("cuts", 0).expect("a built-in scene");
+    for tool in &mut scene.tools {
+        tool.cut_mode = CutMode::Split;
+    }
+    let mut sim = Simulation::from_scene(&scene).expect("the scene loads");
+    let body = sim.bodies()[0];
+    let mut checked = 0;
+    for _ in 0..120 {
+        sim.step();
+        let world = sim.world();
+        let cache = world.resource::<cleave::ecs::layout::SolverCache>();
+        let blocks = &world
+            .resource::<cleave::ecs::resources::DetectCulling>()
+            .blocks;
+        let lattice = &world.get::<BodyLattice>(body).expect("a body").lattice;
+        if lattice.len() == 32 * 16 * 16 {
+            continue; // nothing split yet
+        }
+        assert_eq!(blocks.particles(), cache.particles.len());
+        for b in 0..blocks.len() {
+            let cubes: Vec<_> = blocks
+                .range(b)
+                .map(|d| cache.layout.owner(d).map(|(_, p)| lattice.morton_cube(p)))
+                .collect();
+            assert!(cubes.len() <= cleave::cut::blocks::BLOCK);
+            assert!(
+                cubes.windows(2).all(|w| w[0] == w[1]),
+                "block {b} spans cubes {:?}",
+                cubes.first()
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked > 50, "{checked} frames after a split");
 }

@@ -171,6 +171,15 @@ impl Lattice {
         self.coords[i as usize]
     }
 
+    /// The aligned cube of 4×4×4 cells that holds particle `i` (its coordinate over 4,
+    /// rounded down): the live particles of one such cube are consecutive in
+    /// [`Lattice::live_in_morton_order`], whatever the other cubes hold, because the
+    /// Morton code's bits above its lowest six are the cube's.
+    #[inline]
+    pub fn morton_cube(&self, i: u32) -> IVec3 {
+        self.coords[i as usize] >> 2
+    }
+
     /// All particle coordinates by index.
     pub fn coords(&self) -> &[IVec3] {
         &self.coords

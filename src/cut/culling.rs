@@ -1,5 +1,5 @@
 //! Conservative culling of the tool tests across frames (SPEC §6.2; Yuksel et al.
-//! 2012): per block of [`BLOCK`] particles, the distance the last test found between the
+//! 2012): per block of particles ([`crate::cut::blocks`]), the distance the last test found between the
 //! block and every tool, kept until the tools or the block may have moved that far.
 //!
 //! **What a block is tested in.** A ball around its live particles, grown to take in
@@ -21,7 +21,7 @@
 //! only severs keeps them (the particles keep their places and dense indices, and a
 //! block's partners only become fewer).
 
-use crate::cut::detection::BLOCK;
+use crate::cut::blocks::{Blocks, DenseParticles, bounding_ball};
 use crate::cut::tool::Pose;
 use crate::cut::tool_sweep::ToolSweep;
 use glam::{Vec3, Vec3A};
@@ -71,27 +71,27 @@ pub struct ToolCulling {
 }
 
 impl ToolCulling {
-    /// Takes the layout `version` of `n` dense particles, whose particle `i` has the edge
-    /// partners `partners(i)` (dense indices, `u32::MAX` for none); rebuilds the
-    /// neighbour table and forgets every gap when the version changed.
+    /// Takes the layout `version` of the dense particles in `blocks`, whose particle `i`
+    /// has the edge partners `partners(i)` (dense indices, `u32::MAX` for none); rebuilds
+    /// the neighbour table and forgets every gap when the version changed.
     pub fn set_layout(
         &mut self,
         version: u64,
-        n: usize,
+        blocks: &Blocks,
         partners: impl Fn(usize) -> [u32; 3] + Sync,
     ) {
-        if self.layout == Some(version) && self.tested.len() == n.div_ceil(BLOCK) {
+        if self.layout == Some(version) && self.tested.len() == blocks.len() {
             return;
         }
         self.layout = Some(version);
-        let blocks = n.div_ceil(BLOCK);
-        let lists: Vec<Vec<u32>> = (0..blocks)
+        let lists: Vec<Vec<u32>> = (0..blocks.len())
             .into_par_iter()
             .map(|b| {
-                let mut list: Vec<u32> = (b * BLOCK..((b + 1) * BLOCK).min(n))
+                let mut list: Vec<u32> = (blocks.range(b))
                     .flat_map(&partners)
-                    .filter(|&j| j != u32::MAX && j as usize / BLOCK != b)
-                    .map(|j| j / BLOCK as u32)
+                    .filter(|&j| j != u32::MAX)
+                    .map(|j| blocks.of(j as usize) as u32)
+                    .filter(|&n| n as usize != b)
                     .collect();
                 list.sort_unstable();
                 list.dedup();
@@ -105,7 +105,7 @@ impl ToolCulling {
             self.neighbours.extend(list);
             self.starts.push(self.neighbours.len() as u32);
         }
-        self.tested = vec![None; blocks];
+        self.tested = vec![None; blocks.len()];
     }
 
     /// Forgets the layout: the next [`ToolCulling::set_layout`] builds the neighbour
@@ -150,24 +150,22 @@ impl ToolCulling {
         self.tested.iter_mut().for_each(|t| *t = None);
     }
 
-    /// Per block of `positions`: whether some tool may reach its particles or edges
-    /// this frame (`false` only where none can). Blocks whose gap has not run out are
-    /// not measured against the tools at all; the others are, and keep what they found.
-    pub fn near_blocks(
-        &mut self,
-        positions: &[Vec3A],
-        live: &[bool],
-        tools: &[&ToolSweep],
-    ) -> Vec<bool> {
+    /// Per block of `dense` (the blocks of the last [`Self::set_layout`]): whether some
+    /// tool may reach its particles or edges this frame (`false` only where none can).
+    /// Blocks whose gap has not run out are not measured against the tools at all; the
+    /// others are, and keep what they found.
+    pub fn near_blocks(&mut self, dense: DenseParticles, tools: &[&ToolSweep]) -> Vec<bool> {
         self.measured = 0;
         if tools.is_empty() {
             return vec![false; self.tested.len()];
         }
-        let own: Vec<Option<(Vec3A, f32)>> = positions
-            .par_chunks(BLOCK)
-            .zip(live.par_chunks(BLOCK))
+        let own: Vec<Option<(Vec3A, f32)>> = (0..dense.blocks.len())
+            .into_par_iter()
             .with_min_len(64)
-            .map(|(x, l)| own_ball(x, l))
+            .map(|b| {
+                let (x, l) = dense.block(b);
+                bounding_ball(x, l).map(|(c, r)| (Vec3A::from(c), r))
+            })
             .collect();
         let slack = tools.iter().map(|t| t.slack()).fold(0.0f32, f32::max);
         let odometer = self.odometer;
@@ -213,23 +211,6 @@ impl ToolCulling {
     }
 }
 
-/// The ball around a block's live, finite positions (its box's centre and half
-/// diagonal), or `None` when there is none.
-fn own_ball(positions: &[Vec3A], live: &[bool]) -> Option<(Vec3A, f32)> {
-    let (lo, hi) = positions
-        .iter()
-        .zip(live)
-        .filter(|(x, l)| **l && x.is_finite())
-        .fold(
-            (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)),
-            |(lo, hi), (x, _)| (lo.min(*x), hi.max(*x)),
-        );
-    lo.cmple(hi).all().then(|| {
-        let centre = (lo + hi) * 0.5;
-        (centre, (hi - centre).length())
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -264,8 +245,8 @@ mod tests {
         ];
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         let mut culling = ToolCulling::default();
-        culling.set_layout(1, positions.len(), partners);
-        let blocks = positions.len().div_ceil(BLOCK);
+        let blocks = Blocks::uniform(positions.len());
+        culling.set_layout(1, &blocks, partners);
         let (mut hits, mut severed, mut skipped_frames) = (0, 0, 0);
         let pose = |t: f32, k: usize| Pose {
             // from 6 m away, through the block around t = 0.5, and out again
@@ -299,37 +280,27 @@ mod tests {
                 sweeps.iter().map(|(t, s)| (t.clone(), s)).collect();
             culling.follow(&pairs);
             let all: Vec<&ToolSweep> = sweeps.iter().map(|(_, s)| s).collect();
-            let near = culling.near_blocks(&positions, &live, &all);
-            if culling.measured() < blocks / 2 {
+            let dense = DenseParticles {
+                positions: &positions,
+                live: &live,
+                blocks: &blocks,
+            };
+            let near = culling.near_blocks(dense, &all);
+            if culling.measured() < blocks.len() / 2 {
                 skipped_frames += 1;
             }
             let removers = [sweeps[0].1.clone()];
-            let full = particles_hit(&positions, &live, &removers, None);
+            let full = particles_hit(dense, &removers, None);
             assert_eq!(
-                particles_hit(&positions, &live, &removers, Some(&near)),
+                particles_hit(dense, &removers, Some(&near)),
                 full,
                 "frame {frame}"
             );
             let range = 0..positions.len();
             let first = Reported::FirstTool;
-            let full_edges = edges_separated(
-                &positions,
-                &live,
-                range.clone(),
-                partners,
-                &[all[1]],
-                None,
-                first,
-            );
-            let culled = edges_separated(
-                &positions,
-                &live,
-                range,
-                partners,
-                &[all[1]],
-                Some(&near),
-                first,
-            );
+            let full_edges =
+                edges_separated(dense, range.clone(), partners, &[all[1]], None, first);
+            let culled = edges_separated(dense, range, partners, &[all[1]], Some(&near), first);
             assert_eq!(culled, full_edges, "frame {frame}");
             hits += full.len();
             severed += full_edges.len();

@@ -3,26 +3,25 @@
 //! ([`particles_hit`]), and which edges a tool separates ([`edges_separated`]). Both are
 //! exact for a translating tool (see [`crate::cut::tool::Sweep`]), whatever its speed.
 //!
-//! Particles are tested in blocks of [`BLOCK`] consecutive ones (the solver layout's
-//! Morton order keeps a block compact): a block whose bounding ball cannot come within
-//! reach of the tool during the motion is skipped whole, so a tool costs one test per
-//! block away from its path and the full per-particle test only near it. The skip is
-//! exact: the distance to what a tool sweeps is 1-Lipschitz, so no particle of a ball of
-//! radius `r` around `c` is nearer to it than `d(c) − r`. Across frames, the blocks no
-//! tool can have reached since they were last measured are skipped without a test
-//! ([`NearBlocks`], kept by [`crate::cut::culling`]).
+//! Particles are tested in blocks of consecutive ones that lie close together
+//! ([`crate::cut::blocks`]): a block whose bounding ball cannot come within reach of the
+//! tool during the motion is skipped whole, so a tool costs one test per block away
+//! from its path and the full per-particle test only near it. The skip is exact: the
+//! distance to what a tool sweeps is 1-Lipschitz, so no particle of a ball of radius `r`
+//! around `c` is nearer to it than `d(c) − r`. Across frames, the blocks no tool can
+//! have reached since they were last measured are skipped without a test
+//! ([`NearBlocks`], kept by [`crate::cut::culling`]). Which blocks the particles fall
+//! in changes how much is tested, never what is found.
 
+use crate::cut::blocks::{BLOCK, DenseParticles, bounding_ball};
 use crate::cut::tool_sweep::ToolSweep;
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 use smallvec::SmallVec;
 use std::ops::Not;
 
-/// Particles culled together by one bounding ball.
-pub const BLOCK: usize = 64;
-
-/// Which blocks of [`BLOCK`] dense particles (`block = index / BLOCK`) a tool may
-/// reach; `None`: all may (see [`crate::cut::culling`]).
+/// Which blocks of the dense particles a tool may reach; `None`: all may (see
+/// [`crate::cut::culling`]).
 pub type NearBlocks<'a> = Option<&'a [bool]>;
 
 /// Whether block `b` may be reached.
@@ -30,34 +29,27 @@ fn may_reach(near: NearBlocks, b: usize) -> bool {
     near.is_none_or(|n| n.get(b).copied().unwrap_or(true))
 }
 
-/// The live particles (indices into `positions`, ascending) that some tool hits. Blocks
-/// of [`BLOCK`] particles run in parallel, those `near` marks far are skipped; the
-/// result does not depend on the thread count. `live` has one flag per position.
-pub fn particles_hit(
-    positions: &[Vec3A],
-    live: &[bool],
-    tools: &[ToolSweep],
-    near: NearBlocks,
-) -> Vec<usize> {
-    particles_where(positions, live, tools, near, ToolSweep::hits)
+/// The live particles (indices into the positions, ascending) that some tool hits.
+/// Blocks run in parallel, those `near` marks far are skipped; the result does not
+/// depend on the thread count.
+pub fn particles_hit(dense: DenseParticles, tools: &[ToolSweep], near: NearBlocks) -> Vec<usize> {
+    particles_where(dense, tools, near, ToolSweep::hits)
 }
 
 /// The live particles (ascending) inside some tool at some time of its motion
 /// ([`ToolSweep::contains`]): what a carving tool carves.
 pub fn particles_inside(
-    positions: &[Vec3A],
-    live: &[bool],
+    dense: DenseParticles,
     tools: &[ToolSweep],
     near: NearBlocks,
 ) -> Vec<usize> {
-    particles_where(positions, live, tools, near, ToolSweep::contains)
+    particles_where(dense, tools, near, ToolSweep::contains)
 }
 
 /// The live particles for which `test` holds with some tool, culled by blocks (`test`
 /// must hold only within reach of the tool).
 fn particles_where(
-    positions: &[Vec3A],
-    live: &[bool],
+    dense: DenseParticles,
     tools: &[ToolSweep],
     near_blocks: NearBlocks,
     test: impl Fn(&ToolSweep, Vec3) -> bool + Sync,
@@ -65,27 +57,26 @@ fn particles_where(
     if tools.is_empty() {
         return Vec::new();
     }
-    positions
-        .par_chunks(BLOCK)
-        .zip(live.par_chunks(BLOCK))
-        .enumerate()
+    (0..dense.blocks.len())
+        .into_par_iter()
         .with_min_len(64)
-        .flat_map_iter(|(block, (positions, live))| {
-            let (centre, radius) = bounding_ball(positions, live);
-            let near: SmallVec<[&ToolSweep; 4]> = match radius {
-                Some(r) if may_reach(near_blocks, block) => {
+        .flat_map_iter(|block| {
+            let (positions, live) = dense.block(block);
+            let near: SmallVec<[&ToolSweep; 4]> = match bounding_ball(positions, live) {
+                Some((centre, r)) if may_reach(near_blocks, block) => {
                     tools.iter().filter(|t| t.may_hit_ball(centre, r)).collect()
                 }
                 _ => SmallVec::new(),
             };
             // a culled block's particles are not visited at all
             let tested = if near.is_empty() { 0 } else { positions.len() };
+            let first = dense.blocks.range(block).start;
             let found: Vec<usize> = positions[..tested]
                 .iter()
                 .zip(live)
                 .enumerate()
                 .filter(|(_, (x, live))| **live && near.iter().any(|t| test(t, Vec3::from(**x))))
-                .map(|(i, _)| block * BLOCK + i)
+                .map(|(i, _)| first + i)
                 .collect();
             found
         })
@@ -117,12 +108,12 @@ pub enum Reported {
 }
 
 /// The edges some tool separates ([`ToolSweep::separates`]), among the edges from the
-/// particles `range` of `positions` (dense indices) to their `partners` (the dense
+/// particles `range` of `dense` (dense indices) to their `partners` (the dense
 /// indices of the particles linked along +x, +y and +z, `u32::MAX` where none, so that
 /// each edge is tested once), each with the tool that separates it (as `reported` says)
 /// and where it crossed it. In ascending order of their first end, then along +x, +y,
-/// +z, then in the tools' order. The range is taken in the dense blocks of [`BLOCK`]
-/// particles; blocks `near` marks far are skipped, the others are culled by a ball
+/// +z, then in the tools' order. The range is taken in `dense`'s blocks; blocks
+/// `near` marks far are skipped, the others are culled by a ball
 /// around their particles and partners, and run in parallel; the result does not depend
 /// on the thread count.
 ///
@@ -130,8 +121,7 @@ pub enum Reported {
 /// (a sign test per edge, then the crossing point against the blade's sweep); the other
 /// tools by their distances to the edges' ends, then to the edges.
 pub fn edges_separated(
-    positions: &[Vec3A],
-    live: &[bool],
+    dense: DenseParticles,
     range: std::ops::Range<usize>,
     partners: impl Fn(usize) -> [u32; 3] + Sync,
     tools: &[&ToolSweep],
@@ -141,13 +131,17 @@ pub fn edges_separated(
     if tools.is_empty() || range.is_empty() {
         return Vec::new();
     }
-    (range.start / BLOCK..(range.end - 1) / BLOCK + 1)
+    let (positions, live) = (dense.positions, dense.live);
+    dense
+        .blocks
+        .overlapping(range.clone())
         .into_par_iter()
         .with_min_len(16)
         .filter(|&block| may_reach(near_blocks, block))
         .flat_map_iter(|block| {
-            let start = (block * BLOCK).max(range.start);
-            let end = ((block + 1) * BLOCK).min(range.end);
+            let particles = dense.blocks.range(block);
+            let start = particles.start.max(range.start);
+            let end = particles.end.min(range.end);
             // every edge of the block: its particles' and their partners' positions
             let mut edges: SmallVec<[(usize, usize); 3 * BLOCK]> = SmallVec::new();
             for i in (start..end).filter(|&i| live[i]) {
@@ -241,23 +235,6 @@ pub fn edges_separated(
         .collect()
 }
 
-/// Centre and radius of a ball around the live, finite positions of a block (the box's
-/// centre and half diagonal); `None` radius when there is none. (A non-finite position
-/// fails the box test of [`ToolSweep::hits`], so leaving it out culls nothing a full test
-/// would find.)
-fn bounding_ball(positions: &[Vec3A], live: &[bool]) -> (Vec3, Option<f32>) {
-    let usable = |(x, l): &(&Vec3A, &bool)| **l && x.is_finite();
-    let (lo, hi) = positions.iter().zip(live).filter(usable).fold(
-        (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)),
-        |(lo, hi), (x, _)| (lo.min(*x), hi.max(*x)),
-    );
-    if !lo.cmple(hi).all() {
-        return (Vec3::ZERO, None);
-    }
-    let centre = (lo + hi) * 0.5;
-    (Vec3::from(centre), Some((hi - centre).length()))
-}
-
 /// An n³ cube of spacing 0.1 in the layout's Morton order: its rest positions and
 /// each particle's +x, +y, +z partners (dense indices, `u32::MAX` for none).
 #[cfg(test)]
@@ -290,6 +267,7 @@ pub(crate) fn morton_cube(n: u32) -> (Vec<Vec3A>, Vec<[u32; 3]>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cut::blocks::Blocks;
     use crate::cut::tool::Tool;
     use crate::cut::tool::{CutMode, Pose, ToolShape};
     use glam::Quat;
@@ -310,6 +288,22 @@ mod tests {
                 rng.random_range(-0.6..0.6),
             ),
         }
+    }
+
+    /// Blocks of `n` particles: fixed runs for an even `case`, else runs of random
+    /// lengths (1 to [`BLOCK`]), as a layout that straddles cubes has them.
+    fn blocks(n: usize, case: usize, rng: &mut ChaCha8Rng) -> Blocks {
+        if case.is_multiple_of(2) {
+            return Blocks::uniform(n);
+        }
+        let mut run = 0;
+        let runs: Vec<usize> = (0..n)
+            .map(|_| {
+                run += usize::from(rng.random_bool(0.05));
+                run
+            })
+            .collect();
+        Blocks::by_key(n, |i| runs[i])
     }
 
     #[test]
@@ -365,11 +359,13 @@ mod tests {
             let full: Vec<usize> = (0..positions.len())
                 .filter(|&i| live[i] && tools[0].hits(Vec3::from(positions[i])))
                 .collect();
-            assert_eq!(
-                particles_hit(&positions, &live, &tools, None),
-                full,
-                "case {case}"
-            );
+            let blocks = blocks(positions.len(), case / 3, &mut rng);
+            let dense = DenseParticles {
+                positions: &positions,
+                live: &live,
+                blocks: &blocks,
+            };
+            assert_eq!(particles_hit(dense, &tools, None), full, "case {case}");
             hits += full.len();
             tested += positions.len();
         }
@@ -414,9 +410,14 @@ mod tests {
                 mode: CutMode::Sever,
             };
             let sweep = ToolSweep::new(&tool, &pose(2.0), &pose(-2.0)).unwrap();
+            let blocks = blocks(positions.len(), case / 2, &mut rng);
+            let dense = DenseParticles {
+                positions: &positions,
+                live: &live,
+                blocks: &blocks,
+            };
             let found: Vec<(usize, usize)> = edges_separated(
-                &positions,
-                &live,
+                dense,
                 0..positions.len(),
                 partners,
                 &[&sweep],
@@ -450,6 +451,12 @@ mod tests {
         let live = vec![true; positions.len()];
         let partners = |i: usize| partner_table[i];
         let all = 0..positions.len();
+        let blocks = Blocks::uniform(positions.len());
+        let dense = DenseParticles {
+            positions: &positions,
+            live: &live,
+            blocks: &blocks,
+        };
         let mut rng = ChaCha8Rng::seed_from_u64(17);
         let (mut found, mut shared) = (0, 0);
         for case in 0..20 {
@@ -481,15 +488,7 @@ mod tests {
                 .collect();
             let tools: Vec<&ToolSweep> = sweeps.iter().collect();
             let separated = |tools: &[&ToolSweep], reported| {
-                edges_separated(
-                    &positions,
-                    &live,
-                    all.clone(),
-                    partners,
-                    tools,
-                    None,
-                    reported,
-                )
+                edges_separated(dense, all.clone(), partners, tools, None, reported)
             };
             let each = separated(&tools, Reported::EveryTool);
             let mut alone: Vec<Separated> = (tools.iter().enumerate())

@@ -102,10 +102,15 @@ impl BodyCut {
     }
 }
 
-/// What detect keeps from frame to frame: its conservative culling (see
+/// What detect keeps from frame to frame: the blocks it tests the dense particles in
+/// (see [`crate::cut::blocks`]), its conservative culling (see
 /// [`crate::cut::culling`]) and how long it took. Written by detect only.
 #[derive(Resource, Clone, Debug, Default)]
 pub struct DetectCulling {
+    /// The blocks of the solver layout's dense particles.
+    pub blocks: crate::cut::blocks::Blocks,
+    /// The layout version the blocks were made for (`None`: none yet).
+    pub blocks_for: Option<u64>,
     /// The culling memory.
     pub culling: crate::cut::culling::ToolCulling,
     /// Wall-clock milliseconds of the last frame's detection (for reports).
