@@ -245,26 +245,19 @@ fn carve_crossings(
 /// however many particles the body lost or gained since it was intact.
 fn dense_blocks(cache: &SolverCache, bodies: &Query<(&Body, &BodyLattice)>) -> Blocks {
     let layout = &cache.layout;
-    let n = cache.particles.positions.len();
-    let mut cubes = vec![(usize::MAX, glam::IVec3::ZERO); n];
-    for (k, b) in layout.bodies().iter().enumerate() {
-        let Ok((_, lattice)) = bodies.get(b.body) else {
-            continue;
-        };
-        let end = layout
-            .bodies()
-            .get(k + 1)
-            .map_or(n, |next| next.first as usize);
-        for (d, cube) in cubes
-            .iter_mut()
-            .enumerate()
-            .take(end)
-            .skip(b.first as usize)
-        {
-            *cube = (k, lattice.lattice.morton_cube(layout.locals()[d]));
+    let dense = layout.bodies();
+    let lattices: Vec<Option<&crate::body::lattice::Lattice>> = (dense.iter())
+        .map(|b| bodies.get(b.body).ok().map(|(_, l)| &l.lattice))
+        .collect();
+    // (the dense indices come in order: `started` counts the bodies begun so far)
+    let mut started = 0;
+    Blocks::by_key(cache.particles.positions.len(), |d| {
+        while started < dense.len() && dense[started].first as usize <= d {
+            started += 1;
         }
-    }
-    Blocks::by_key(n, |d| cubes[d])
+        let lattice = started.checked_sub(1).and_then(|b| lattices[b]);
+        (started, lattice.map(|l| l.morton_cube(layout.locals()[d])))
+    })
 }
 
 /// Which blocks of the dense particles some tool may reach this frame (see

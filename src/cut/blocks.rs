@@ -32,8 +32,8 @@ impl Blocks {
     }
 
     /// A new block wherever `key(i)` differs from `key(i − 1)`, and after every
-    /// [`BLOCK`] particles of one key.
-    pub fn by_key<K: PartialEq>(n: usize, key: impl Fn(usize) -> K) -> Self {
+    /// [`BLOCK`] particles of one key (`key` is called once per particle, in order).
+    pub fn by_key<K: PartialEq>(n: usize, mut key: impl FnMut(usize) -> K) -> Self {
         let mut starts = vec![0];
         let mut last = None;
         for i in 0..n {
