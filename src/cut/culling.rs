@@ -1,6 +1,7 @@
 //! Conservative culling of the tool tests across frames (SPEC §6.2; Yuksel et al.
-//! 2012): per block of particles ([`crate::cut::blocks`]), the distance the last test found between the
-//! block and every tool, kept until the tools or the block may have moved that far.
+//! 2012): per block of particles ([`crate::cut::blocks`]), the distance the last test
+//! found between the block and every tool, kept until the tools or the block may have
+//! moved that far.
 //!
 //! **What a block is tested in.** A ball around its live particles, grown to take in
 //! the balls of the blocks that hold its particles' edge partners (an edge is tested
