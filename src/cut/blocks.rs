@@ -108,18 +108,25 @@ impl DenseParticles<'_> {
     }
 }
 
-/// The ball around the live, finite `positions` (its box's centre and half diagonal),
-/// or `None` when there is none. (A non-finite position fails every tool's box test,
-/// so leaving it out culls nothing a full test would find.)
+/// The ball around the live, finite `positions` (see [`ball_around`]).
 pub fn bounding_ball(positions: &[Vec3A], live: &[bool]) -> Option<(Vec3, f32)> {
-    let (lo, hi) = positions
-        .iter()
-        .zip(live)
-        .filter(|(x, l)| **l && x.is_finite())
-        .fold(
-            (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)),
-            |(lo, hi), (x, _)| (lo.min(*x), hi.max(*x)),
-        );
+    ball_around(
+        positions
+            .iter()
+            .zip(live)
+            .filter(|(_, l)| **l)
+            .map(|(x, _)| *x),
+    )
+}
+
+/// The ball around the finite `points` (their box's centre and half diagonal), or
+/// `None` when there is none. (A non-finite position fails every tool's box test, so
+/// leaving it out culls nothing a full test would find.)
+pub fn ball_around(points: impl Iterator<Item = Vec3A>) -> Option<(Vec3, f32)> {
+    let (lo, hi) = points.filter(|x| x.is_finite()).fold(
+        (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)),
+        |(lo, hi), x| (lo.min(x), hi.max(x)),
+    );
     lo.cmple(hi).all().then(|| {
         let centre = (lo + hi) * 0.5;
         (Vec3::from(centre), (hi - centre).length())

@@ -13,9 +13,9 @@
 //! ([`NearBlocks`], kept by [`crate::cut::culling`]). Which blocks the particles fall
 //! in changes how much is tested, never what is found.
 
-use crate::cut::blocks::{BLOCK, DenseParticles, bounding_ball};
+use crate::cut::blocks::{BLOCK, DenseParticles, ball_around, bounding_ball};
 use crate::cut::tool_sweep::ToolSweep;
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 use rayon::prelude::*;
 use smallvec::SmallVec;
 use std::ops::Not;
@@ -151,26 +151,15 @@ pub fn edges_separated(
                     }
                 }
             }
-            let (lo, hi) = edges.iter().flat_map(|&(i, j)| [i, j]).fold(
-                (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)),
-                |(lo, hi), k| {
-                    let x = positions[k];
-                    if x.is_finite() {
-                        (lo.min(x), hi.max(x))
-                    } else {
-                        (lo, hi)
-                    }
-                },
-            );
+            let ends = edges
+                .iter()
+                .flat_map(|&(i, j)| [positions[i], positions[j]]);
             // the tools that may reach the block, with their indices in `tools`
-            let near: SmallVec<[(usize, &ToolSweep); 4]> = if lo.cmple(hi).all() {
-                let centre = (lo + hi) * 0.5;
-                let radius = (hi - centre).length();
-                (tools.iter().copied().enumerate())
-                    .filter(|(_, t)| t.may_hit_ball(Vec3::from(centre), radius))
-                    .collect()
-            } else {
-                SmallVec::new()
+            let near: SmallVec<[(usize, &ToolSweep); 4]> = match ball_around(ends) {
+                Some((centre, radius)) => (tools.iter().copied().enumerate())
+                    .filter(|(_, t)| t.may_hit_ball(centre, radius))
+                    .collect(),
+                None => SmallVec::new(),
             };
             if near.is_empty() {
                 edges.clear();
@@ -238,7 +227,7 @@ pub fn edges_separated(
 /// An n³ cube of spacing 0.1 in the layout's Morton order: its rest positions and
 /// each particle's +x, +y, +z partners (dense indices, `u32::MAX` for none).
 #[cfg(test)]
-pub(crate) fn morton_cube(n: u32) -> (Vec<Vec3A>, Vec<[u32; 3]>) {
+pub(crate) fn morton_cube(n: u32) -> (Vec<glam::Vec3A>, Vec<[u32; 3]>) {
     use crate::body::shape::Shape;
     let lattice = Shape::cuboid(glam::UVec3::splat(n))
         .voxelise(0.1)
@@ -250,7 +239,7 @@ pub(crate) fn morton_cube(n: u32) -> (Vec<Vec3A>, Vec<[u32; 3]>) {
     }
     let positions = order
         .iter()
-        .map(|&p| Vec3A::from(lattice.rest_position(p)))
+        .map(|&p| glam::Vec3A::from(lattice.rest_position(p)))
         .collect();
     let partners = order
         .iter()
@@ -270,7 +259,7 @@ mod tests {
     use crate::cut::blocks::Blocks;
     use crate::cut::tool::Tool;
     use crate::cut::tool::{CutMode, Pose, ToolShape};
-    use glam::Quat;
+    use glam::{Quat, Vec3A};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 

@@ -2,11 +2,12 @@
 //! (§4.1), geometric partition grown from a random vertex with the normal flip (§4.2),
 //! and topological repair so both halves are connected (§4.3).
 
-use super::local::{Bits, LocalGraph};
+use super::local::LocalGraph;
 use super::pca::split_normal;
 use crate::body::lattice::Lattice;
 use crate::clusters::edits::ClusterEdits;
 use crate::clusters::store::ClusterStore;
+use crate::util::bits::Bits;
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

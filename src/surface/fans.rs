@@ -20,7 +20,7 @@
 //! leave the edge open.
 
 use super::cells::{CellOwners, corner_index, face_corners};
-use crate::util::bits::set_bits;
+use crate::util::bits::Bits;
 use crate::util::grouping::group_by_key;
 use crate::util::union_find::UnionFind;
 use glam::IVec3;
@@ -71,16 +71,16 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
     };
     // (a bit per key, three per corner of the box: the keys come out ascending and
     // each once, without a sort)
-    let mut marked = vec![0u64; (dims.element_product() * 3).div_ceil(64) as usize];
+    let mut marked = Bits::default();
+    marked.reset((dims.element_product() * 3) as usize);
     for quad in quads {
         let c = face_corners(quad.cell, quad.direction);
         for k in 0..4 {
             let (a, b) = (c[k], c[(k + 1) % 4]);
-            let e = key(a.min(b), (b - a).abs().max_position());
-            marked[(e / 64) as usize] |= 1 << (e % 64);
+            marked.insert(key(a.min(b), (b - a).abs().max_position()) as usize);
         }
     }
-    let edges: Vec<u64> = set_bits(&marked).map(|e| e as u64).collect();
+    let edges: Vec<u64> = marked.ones().map(|e| e as u64).collect();
     // per edge, its pairings: the slots of both quads at the lower end, then at the
     // upper (an edge's runs are consecutive)
     let pairings: Vec<(u32, [u32; 4])> = edges
