@@ -250,7 +250,12 @@ fn the_cutting_bench_times_whole_frames_and_each_cut_by_stage() {
         block: false,
         slice: false,
     };
-    bench_cutting(options, &mut |row| rows.push(row.clone())).unwrap();
+    // under a default subscriber of its own, as the command line runs it: the runs'
+    // systems' spans must still close under the dispatchers they were made under
+    tracing::subscriber::with_default(tracing_subscriber::registry(), || {
+        bench_cutting(options, &mut |row| rows.push(row.clone()))
+    })
+    .unwrap();
     assert_eq!(rows.len(), 3, "cuts in each mode");
     for row in &rows {
         let v = serde_json::to_value(row).unwrap();
@@ -283,5 +288,27 @@ fn the_cutting_bench_times_whole_frames_and_each_cut_by_stage() {
             v["all"]["p95_ms"].as_f64().unwrap() / v["plain"]["median_ms"].as_f64().unwrap();
         assert!((ratio - expected).abs() < 1e-9);
         assert!(v["cut_work_over_substeps"].as_f64().unwrap() > 0.0);
+        // the frames less their cut work are no slower than the frames, and not empty
+        for k in [
+            "p95_over_plain",
+            "slowest_over_plain",
+            "cut_median_over_plain",
+            "cut_slowest_over_plain",
+        ] {
+            let (floor, as_run) = (
+                v["without_cut_work"][k].as_f64().unwrap(),
+                v[k].as_f64().unwrap(),
+            );
+            assert!(0.0 < floor && floor <= as_run, "{k}: {v}");
+        }
+        // every cut frame pays some cut work (its detection at least), so the slowest
+        // of them less it is faster
+        assert!(
+            v["without_cut_work"]["cut_slowest_over_plain"]
+                .as_f64()
+                .unwrap()
+                < v["cut_slowest_over_plain"].as_f64().unwrap(),
+            "{v}"
+        );
     }
 }

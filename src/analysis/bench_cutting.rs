@@ -1,10 +1,13 @@
 //! `cleave bench --cutting`: what cutting costs a game, frame by frame. Each workload
 //! steps a simulation once per frame with its surfaces on, as a game does, and times
 //! every frame; the same bodies without their tools give the plain frames every ratio
-//! is against. Per frame that cuts, the time of each stage of the cut is read from the
-//! systems' spans ([`crate::analysis::profile::StageProfile`]): detection, the cut,
+//! is against (the two runs alternate frames, so a load that drifts weighs on both).
+//! Per frame that cuts, the time of each stage of the cut is read from the systems'
+//! spans ([`crate::analysis::profile::StageProfile`]): detection, the cut,
 //! regroup/split/expand, the layout and terms brought up to date (at the start of the
-//! next frame) and the surface's topology update.
+//! next frame) and the surface's topology update. The ratios are given again for the
+//! frames less that cut work: the floor the pieces' own physics sets, which no speed of
+//! the cut work goes below.
 //!
 //! The workloads: the `cuts` scene in each cut mode; a 32³ block (h = 0.05) crossed by a
 //! blade stroke every 10 frames for 300 frames in each mode; a 64³ box sliced once
@@ -105,6 +108,25 @@ pub struct CuttingRow {
     /// The cut frames' median over the plain median frame.
     pub cut_median_over_plain: f64,
     /// The slowest cut frame over the plain median frame.
+    pub cut_slowest_over_plain: f64,
+    /// The same four ratios for the cutting run's frames less their cut work (detection
+    /// in every frame; on a cut frame the cut, regroup/split/expand and the surface's
+    /// topology; the layout and terms in the frame after): what is left were the cut work
+    /// free — the pieces' own physics and the surfaces' per-frame update —, the floor
+    /// under the ratios above that no speed of the cut work goes below.
+    pub without_cut_work: Ratios,
+}
+
+/// Frame ratios against the plain median frame (see [`CuttingRow::without_cut_work`]).
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct Ratios {
+    /// The 95th-percentile frame.
+    pub p95_over_plain: f64,
+    /// The slowest frame after the first.
+    pub slowest_over_plain: f64,
+    /// The cut frames' median.
+    pub cut_median_over_plain: f64,
+    /// The slowest cut frame.
     pub cut_slowest_over_plain: f64,
 }
 
@@ -289,6 +311,7 @@ pub fn sliced_box(mode: CutMode) -> Workload {
 
 /// What one run of a scene measured: every frame's time, whether it cut, and the
 /// stages' milliseconds per frame.
+#[derive(Default)]
 struct Run {
     particles: usize,
     frames: Vec<f64>,
@@ -297,83 +320,141 @@ struct Run {
     surface_topology: Vec<f64>,
 }
 
-/// Steps `workload` (with its tools and strokes, or without) and records every frame.
-fn run(workload: &Workload, with_tools: bool) -> Result<Run> {
-    let mut scene = workload.scene.clone();
-    let mut strokes: Vec<&(u32, ToolDesc)> = workload.strokes.iter().collect();
-    if !with_tools {
-        scene.tools.clear();
-        strokes.clear();
+/// One run of a workload, a frame at a time (so that the plain and the cutting run can
+/// take their frames in turn).
+struct Runner<'w> {
+    /// The simulation (taken only to be dropped under its own dispatcher).
+    sim: Option<Simulation>,
+    strokes: Vec<&'w (u32, ToolDesc)>,
+    /// The strokes' tools under way, with the time of their last key.
+    under_way: Vec<(Entity, f32)>,
+    profile: StageProfile,
+    /// The profile as the tracing dispatcher of this run's frames.
+    dispatch: tracing::Dispatch,
+    /// The profile's totals after the last frame.
+    before: BTreeMap<String, f64>,
+    /// Each surface's topology version and rebuild time after the last frame.
+    seen: Vec<(u64, f64)>,
+    dt: f32,
+    run: Run,
+}
+
+impl<'w> Runner<'w> {
+    /// `workload` ready to step, with its tools and strokes or without.
+    fn new(workload: &'w Workload, with_tools: bool) -> Result<Self> {
+        let mut scene = workload.scene.clone();
+        let mut strokes: Vec<&(u32, ToolDesc)> = workload.strokes.iter().collect();
+        if !with_tools {
+            scene.tools.clear();
+            strokes.clear();
+        }
+        let profile = StageProfile::default();
+        let dispatch = profile.dispatch();
+        let mut sim = tracing::dispatcher::with_default(&dispatch, || -> Result<Simulation> {
+            let mut sim = Simulation::from_scene(&scene)?;
+            sim.update_surfaces()?;
+            Ok(sim)
+        })?;
+        let particles = sim
+            .world_mut()
+            .query::<&BodyLattice>()
+            .iter(sim.world())
+            .map(|b| b.lattice.live_count())
+            .sum();
+        let seen = Self::versions(&mut sim);
+        Ok(Self {
+            sim: Some(sim),
+            strokes,
+            under_way: Vec::new(),
+            before: profile.totals_ms(),
+            profile,
+            dispatch,
+            seen,
+            dt: scene.config.dt,
+            run: Run {
+                particles,
+                ..Run::default()
+            },
+        })
     }
-    let mut under_way: Vec<(Entity, f32)> = Vec::new();
-    let profile = StageProfile::default();
-    let _installed = profile.install();
-    let mut sim = Simulation::from_scene(&scene)?;
-    sim.update_surfaces()?;
-    let particles = sim
-        .world_mut()
-        .query::<&BodyLattice>()
-        .iter(sim.world())
-        .map(|b| b.lattice.live_count())
-        .sum();
-    let mut run = Run {
-        particles,
-        frames: Vec::new(),
-        cut: Vec::new(),
-        stages: Vec::new(),
-        surface_topology: Vec::new(),
-    };
-    let mut before = profile.totals_ms();
-    let versions = |sim: &mut Simulation| -> Vec<(u64, f64)> {
+
+    /// Each surface's topology version and the milliseconds of its last rebuild.
+    fn versions(sim: &mut Simulation) -> Vec<(u64, f64)> {
         sim.world_mut()
             .query::<&SurfaceMesh>()
             .iter(sim.world())
             .map(|m| (m.topology_version, m.topology_ms))
             .collect()
-    };
-    let mut seen = versions(&mut sim);
-    for frame in 1..=scene.frames {
-        for (_, tool) in strokes.iter().filter(|(first, _)| *first == frame) {
+    }
+
+    /// Steps frame `frame` (counted from 1) and records it.
+    fn frame(&mut self, frame: u32) -> Result<()> {
+        let _profiled = tracing::dispatcher::set_default(&self.dispatch);
+        let Some(sim) = self.sim.as_mut() else {
+            return Ok(());
+        };
+        for (_, tool) in self.strokes.iter().filter(|(first, _)| *first == frame) {
             let end = tool.path.keys.last().map_or(0.0, |k| k.0);
-            under_way.push((sim.spawn_tool(tool)?, end));
+            self.under_way.push((sim.spawn_tool(tool)?, end));
         }
         let start = Instant::now();
         sim.step();
+        let run = &mut self.run;
         run.frames.push(start.elapsed().as_secs_f64() * 1e3);
-        let report = sim.world().resource::<CutReport>();
-        run.cut.push(!report.bodies.is_empty());
-        let after = profile.totals_ms();
-        let stages: BTreeMap<String, f64> = after
-            .iter()
-            .map(|(k, v)| (k.clone(), v - before.get(k).copied().unwrap_or(0.0)))
-            .collect();
-        run.stages.push(stages);
-        before = after;
-        let now = versions(&mut sim);
-        let topology: f64 = now
-            .iter()
-            .enumerate()
+        run.cut
+            .push(!sim.world().resource::<CutReport>().bodies.is_empty());
+        let after = self.profile.totals_ms();
+        let before = &self.before;
+        run.stages.push(
+            (after.iter())
+                .map(|(k, v)| (k.clone(), v - before.get(k).copied().unwrap_or(0.0)))
+                .collect(),
+        );
+        self.before = after;
+        let now = Self::versions(sim);
+        let seen = &self.seen;
+        let topology: f64 = (now.iter().enumerate())
             .filter(|(i, (v, _))| seen.get(*i).is_none_or(|s| s.0 != *v))
             .map(|(_, (_, ms))| ms)
             .sum();
         run.surface_topology.push(topology);
-        seen = now;
-        let time = frame as f32 * scene.config.dt;
-        under_way.retain(|&(tool, end)| {
+        self.seen = now;
+        let time = frame as f32 * self.dt;
+        self.under_way.retain(|&(tool, end)| {
             let done = end <= time + 1e-6;
             if done {
                 sim.world_mut().despawn(tool);
             }
             !done
         });
+        Ok(())
     }
-    Ok(run)
+}
+
+impl Drop for Runner<'_> {
+    /// Drops the simulation, and with it its systems' spans, under the dispatcher they
+    /// were made under: the registry closes a span's parent through the default
+    /// dispatcher, which must be theirs.
+    fn drop(&mut self) {
+        let _profiled = tracing::dispatcher::set_default(&self.dispatch);
+        self.sim.take();
+    }
 }
 
 /// Runs `scene` with and without its tools and makes its row.
+///
+/// The two runs take their frames in turn, a plain frame then a cutting one, so that
+/// the machine's load drifting over the runs weighs on both alike.
 fn workload(name: &str, mode: CutMode, scene: &Workload) -> Result<CuttingRow> {
-    let plain = run(scene, false)?;
-    let cutting = run(scene, true)?;
+    let (mut plain, mut cutting) = (Runner::new(scene, false)?, Runner::new(scene, true)?);
+    for frame in 1..=scene.scene.frames {
+        plain.frame(frame)?;
+        cutting.frame(frame)?;
+    }
+    let (plain, cutting) = (
+        std::mem::take(&mut plain.run),
+        std::mem::take(&mut cutting.run),
+    );
     let stage = |f: usize, names: &[&str]| -> f64 {
         names
             .iter()
@@ -384,10 +465,13 @@ fn workload(name: &str, mode: CutMode, scene: &Workload) -> Result<CuttingRow> {
     let mut whole_run = CutStages::default();
     let mut cut_frames = 0;
     let mut substeps = 0.0;
+    // each frame less its cut work (the layout's in the frame that pays it)
+    let mut without = cutting.frames.clone();
     for f in 0..cutting.frames.len() {
         substeps += stage(f, &["run_substeps"]);
         let detect = stage(f, &["detect"]);
         whole_run.detect_ms += detect;
+        without[f] -= detect;
         if !cutting.cut[f] {
             continue;
         }
@@ -405,6 +489,10 @@ fn workload(name: &str, mode: CutMode, scene: &Workload) -> Result<CuttingRow> {
             surface_ms: cutting.surface_topology[f],
         };
         per_cut.add(&stages);
+        without[f] -= stages.cut_ms + stages.rebuild_ms + stages.surface_ms;
+        if let Some(next) = without.get_mut(f + 1) {
+            *next -= stages.layout_ms;
+        }
         whole_run.add(&CutStages {
             detect_ms: 0.0,
             ..stages
@@ -423,6 +511,10 @@ fn workload(name: &str, mode: CutMode, scene: &Workload) -> Result<CuttingRow> {
         .collect();
     let over = |ms: f64| ms / plain_stats.median_ms;
     let frames = cutting.frames.len().max(1) as f64;
+    let (all_without, cut_without) = (
+        FrameStats::of(&without),
+        FrameStats::of_where(&without, |f| cutting.cut[f]),
+    );
     Ok(CuttingRow {
         row: "cutting",
         workload: name.into(),
@@ -440,5 +532,11 @@ fn workload(name: &str, mode: CutMode, scene: &Workload) -> Result<CuttingRow> {
         slowest_over_plain: over(all.max_after_first_ms),
         cut_median_over_plain: over(cut.median_ms),
         cut_slowest_over_plain: over(cut.max_ms),
+        without_cut_work: Ratios {
+            p95_over_plain: over(all_without.p95_ms),
+            slowest_over_plain: over(all_without.max_after_first_ms),
+            cut_median_over_plain: over(cut_without.median_ms),
+            cut_slowest_over_plain: over(cut_without.max_ms),
+        },
     })
 }

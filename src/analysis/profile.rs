@@ -80,7 +80,13 @@ impl StageProfile {
     /// Installs the profile as this thread's tracing subscriber for as long as the
     /// returned guard lives.
     pub fn install(&self) -> tracing::subscriber::DefaultGuard {
-        tracing::subscriber::set_default(tracing_subscriber::registry().with(self.clone()))
+        tracing::dispatcher::set_default(&self.dispatch())
+    }
+
+    /// The profile as a tracing dispatcher, to be made the default where its stages
+    /// should be timed (a span reports to the dispatcher it was made under).
+    pub fn dispatch(&self) -> tracing::Dispatch {
+        tracing::Dispatch::new(tracing_subscriber::registry().with(self.clone()))
     }
 
     /// `(system, total ms, runs)`, slowest first; names shortened to the last path
