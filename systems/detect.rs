@@ -8,7 +8,7 @@
 //! [`crate::cut::detection::edges_separated`] and [`crate::cut::tear::find_tears`] (parallel,
 //! deterministic order).
 
-use crate::body::lattice::NO_PARTICLE;
+use crate::body::lattice::{Lattice, NO_PARTICLE};
 use crate::cut::blocks::{Blocks, DenseParticles};
 use crate::cut::crossings::rest_crossing;
 use crate::cut::culling::FollowedTool;
@@ -245,19 +245,23 @@ fn carve_crossings(
 /// however many particles the body lost or gained since it was intact.
 fn dense_blocks(cache: &SolverCache, bodies: &Query<(&Body, &BodyLattice)>) -> Blocks {
     let layout = &cache.layout;
-    let dense = layout.bodies();
-    let lattices: Vec<Option<&crate::body::lattice::Lattice>> = (dense.iter())
-        .map(|b| bodies.get(b.body).ok().map(|(_, l)| &l.lattice))
-        .collect();
-    // (the dense indices come in order: `started` counts the bodies begun so far)
-    let mut started = 0;
+    let lattices = layout_lattices(cache, bodies);
     Blocks::by_key(cache.particles.positions.len(), |d| {
-        while started < dense.len() && dense[started].first as usize <= d {
-            started += 1;
-        }
-        let lattice = started.checked_sub(1).and_then(|b| lattices[b]);
-        (started, lattice.map(|l| l.morton_cube(layout.locals()[d])))
+        let body = layout.body_index_of(d);
+        let lattice = body.and_then(|b| lattices[b]);
+        (body, lattice.map(|l| l.morton_cube(layout.locals()[d])))
     })
+}
+
+/// The lattice of each body of the layout (by its index in the layout's bodies), looked
+/// up once rather than per dense particle.
+fn layout_lattices<'a>(
+    cache: &SolverCache,
+    bodies: &'a Query<(&Body, &BodyLattice)>,
+) -> Vec<Option<&'a Lattice>> {
+    (cache.layout.bodies().iter())
+        .map(|b| bodies.get(b.body).ok().map(|(_, l)| &l.lattice))
+        .collect()
 }
 
 /// Which blocks of the dense particles some tool may reach this frame (see
@@ -277,20 +281,19 @@ fn near_blocks(
         culling.forget_layout();
     }
     // each dense particle's +x, +y, +z partners, by the links of its body's lattice
-    // (its body: the last whose dense range starts at or before it)
     let layout = &cache.layout;
+    let lattices = layout_lattices(cache, bodies);
     culling.set_layout(layout.version(), dense.blocks, |i| {
-        let body = layout.bodies().partition_point(|b| b.first as usize <= i);
-        let Some(b) = body.checked_sub(1).and_then(|b| layout.bodies().get(b)) else {
+        let Some(b) = layout.body_index_of(i) else {
             return [u32::MAX; 3];
         };
-        let Ok((_, lattice)) = bodies.get(b.body) else {
+        let (body, Some(lattice)) = (&layout.bodies()[b], lattices[b]) else {
             return [u32::MAX; 3];
         };
         let local = layout.locals()[i];
-        [1, 3, 5].map(|d| match lattice.lattice.link(local, d) {
+        [1, 3, 5].map(|d| match lattice.link(local, d) {
             NO_PARTICLE => u32::MAX,
-            p => b.slot(p).map_or(u32::MAX, |s| s as u32),
+            p => body.slot(p).map_or(u32::MAX, |s| s as u32),
         })
     });
     let pairs: Vec<(FollowedTool, &ToolSweep)> =

@@ -260,6 +260,12 @@ impl SolverLayout {
         dense_owner(&self.locals, &self.bodies, d)
     }
 
+    /// The index in [`Self::bodies`] of the body dense particle `d` belongs to (the
+    /// last whose range starts at or before it).
+    pub fn body_index_of(&self, d: usize) -> Option<usize> {
+        dense_body(&self.bodies, d)
+    }
+
     /// Counts the full rebuilds: a table derived from dense indices is stale when it
     /// changes.
     pub fn version(&self) -> u64 {
@@ -368,8 +374,15 @@ impl SolverLayout {
 /// dense index and the bodies' ranges (see [`SolverLayout::owner`]).
 fn dense_owner(locals: &[u32], bodies: &[BodyDense], d: usize) -> Option<(Entity, u32)> {
     let local = *locals.get(d)?;
-    let b = bodies.partition_point(|b| b.first as usize <= d);
-    Some((bodies.get(b.checked_sub(1)?)?.body, local))
+    Some((bodies[dense_body(bodies, d)?].body, local))
+}
+
+/// The index of the body of `bodies` whose dense range holds `d` (see
+/// [`SolverLayout::body_index_of`]).
+fn dense_body(bodies: &[BodyDense], d: usize) -> Option<usize> {
+    bodies
+        .partition_point(|b| b.first as usize <= d)
+        .checked_sub(1)
 }
 
 #[cfg(test)]
