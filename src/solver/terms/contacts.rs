@@ -90,8 +90,6 @@ pub struct Contacts {
     refs: Vec<u32>,
     /// Each pair's moves of `a` and of `b` in the current iteration (zero when apart).
     moves: Vec<[Vec3A; 2]>,
-    /// Each owner's step in the current iteration, and how many of its pairs touched.
-    steps: Vec<(Vec3A, u32)>,
     /// Per contact particle, how many of its pairs touched in the last iteration (its
     /// pair count before the first): a pair's correction is divided by the larger load
     /// of its two particles, so that both sides move by equal and opposite amounts
@@ -312,13 +310,18 @@ impl Term for Contacts {
                 [step * (wa * scale), step * (-wb * scale)]
             })
             .collect_into_vec(&mut self.moves);
-        // then each particle sums its pairs' moves
+        // then each particle sums its pairs' moves and takes the sum: a task reads only
+        // the moves, and owners are distinct contact particles of distinct dense
+        // indices, so no two tasks write one entry
         let (refs, starts, moves) = (&self.refs, &self.starts, &self.moves);
+        let dense = &self.particles.dense;
+        let shifts = state.disjoint_shifts();
+        let load = Disjoint::new(&mut self.load);
         self.owners
             .par_iter()
             .enumerate()
             .with_min_len(OWNERS_PER_TASK)
-            .map(|(o, _)| {
+            .for_each(|(o, &a)| {
                 let (mut sum, mut touching) = (Vec3A::ZERO, 0u32);
                 for r in &refs[starts[o] as usize..starts[o + 1] as usize] {
                     let side = (r & SECOND != 0) as usize;
@@ -328,25 +331,12 @@ impl Term for Contacts {
                     }
                     sum += [to_a, to_b][side];
                 }
-                (sum, touching)
-            })
-            .collect_into_vec(&mut self.steps);
-        // then the sums are applied: owners are distinct contact particles of distinct
-        // dense indices, so no two tasks write one entry
-        let dense = &self.particles.dense;
-        let shifts = state.disjoint_shifts();
-        let load = Disjoint::new(&mut self.load);
-        self.owners
-            .par_iter()
-            .zip(&self.steps)
-            .with_min_len(OWNERS_PER_TASK)
-            .for_each(|(&a, &(step, touching))| {
                 // SAFETY: `a` is this task's own owner (see above), in bounds of the
                 // contact arrays, and its dense index is in bounds of the particles'.
                 unsafe {
                     load.write(a as usize, touching);
-                    if step != Vec3A::ZERO {
-                        shifts.shift(dense[a as usize] as usize, step);
+                    if sum != Vec3A::ZERO {
+                        shifts.shift(dense[a as usize] as usize, sum);
                     }
                 }
             });
