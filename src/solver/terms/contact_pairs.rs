@@ -46,6 +46,16 @@ pub(super) fn within(a: Vec3A, b: Vec3A, reach: f32) -> bool {
     (a - b).length_squared() < reach * reach
 }
 
+/// Whether two distinct particles tagged `a` and `b` (group, lattice coordinate) may
+/// form a pair, ignoring distance: of different groups, or of one group with
+/// self-contact and more than [`SELF_CONTACT_EXCLUSION`] cells apart along some axis.
+#[inline]
+fn pairable(groups: &[ContactGroup], a: (u32, IVec3), b: (u32, IVec3)) -> bool {
+    a.0 != b.0
+        || groups[a.0 as usize].self_contact
+            && (a.1 - b.1).abs().max_element() > SELF_CONTACT_EXCLUSION
+}
+
 /// Contact properties of one group (a piece of a body).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ContactGroup {
@@ -124,16 +134,14 @@ impl ContactParticles {
     /// Whether contact particles `a` and `b` may form a pair (ignoring distance).
     #[inline]
     pub(super) fn may_pair(&self, groups: &[ContactGroup], a: usize, b: usize) -> bool {
-        let p = self;
-        if a == b {
-            return false;
-        }
-        let group = p.group[a];
-        if group != p.group[b] {
-            return true;
-        }
-        groups[group as usize].self_contact
-            && (p.coord[a] - p.coord[b]).abs().max_element() > SELF_CONTACT_EXCLUSION
+        a != b && pairable(groups, self.tag(a), self.tag(b))
+    }
+
+    /// What decides whether particle `k` may pair with another: its group and lattice
+    /// coordinate (see [`pairable`]).
+    #[inline]
+    fn tag(&self, k: usize) -> (u32, IVec3) {
+        (self.group[k], self.coord[k])
     }
 
     /// Every pair of particles that may touch and whose balls at `points` (one per
@@ -162,10 +170,13 @@ impl ContactParticles {
             task_starts.push(next);
         }
         task_starts.push(sorted.len());
-        // each particle's position and radius in sorted order, read in sequence below
-        let ball: Vec<Vec4> = sorted
+        // each particle's ball and tag in sorted order, read in sequence below
+        let ball: Vec<(Vec4, (u32, IVec3))> = sorted
             .par_iter()
-            .map(|(_, k)| points[*k as usize].extend(p.radius[*k as usize]))
+            .map(|(_, k)| {
+                let k = *k as usize;
+                (points[k].extend(p.radius[k]), p.tag(k))
+            })
             .collect();
         // the forward half of the 26 neighbour cells, so that each pair is met once:
         // x + 1 in the cell's own row, and x − 1 … x + 1 in the four rows after it
@@ -176,22 +187,21 @@ impl ContactParticles {
             ((1 << 42) - 1, 3),
             ((1 << 42) + (1 << 21) - 1, 3),
         ];
-        let this = self;
         task_starts
             .par_windows(2)
             .map(|w| {
                 let mut pairs = Vec::new();
                 let mut cursors: Vec<usize> = Vec::new();
                 let mut i = w[0];
-                // sorted entries i and j
+                // sorted entries i and j; the tags first: most neighbours of a surface
+                // particle are its own piece's, and most of those too near in the
+                // lattice to pair
                 let check = |i: usize, j: usize, pairs: &mut Vec<(u32, u32)>| {
-                    let (x, y) = (ball[i], ball[j]);
-                    let reach = x.w + y.w + margin;
-                    let (a, b) = (sorted[i].1, sorted[j].1);
-                    if within(Vec3A::from_vec4(x), Vec3A::from_vec4(y), reach)
-                        && this.may_pair(groups, a as usize, b as usize)
+                    let ((x, tx), (y, ty)) = (ball[i], ball[j]);
+                    if pairable(groups, tx, ty)
+                        && within(Vec3A::from_vec4(x), Vec3A::from_vec4(y), x.w + y.w + margin)
                     {
-                        pairs.push((a, b));
+                        pairs.push((sorted[i].1, sorted[j].1));
                     }
                 };
                 while i < w[1] {
