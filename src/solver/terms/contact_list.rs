@@ -28,12 +28,13 @@ use glam::Vec3A;
 use rayon::prelude::*;
 
 /// The skin, in units of the largest radius: how much farther apart than the pair
-/// distance a candidate may be. A wider skin lets particles move farther before the
-/// list is rebuilt and makes each substep filter more candidates. Bodies settling in a
-/// pile drift slowly and long: at one radius about a fifth of the particles left their
-/// skin every substep, and searching their pairs again cost more than filtering the
-/// wider list of two radii.
-pub const SKIN: f32 = 2.0;
+/// distance a candidate may be. A wider skin lets particles move farther before their
+/// pairs are searched again and makes each substep filter more candidates. Bodies
+/// settling in a pile drift slowly and long (at one radius a fifth of their particles
+/// left the skin every substep), and want it wide; the faces of a cut that rest against
+/// each other want it narrow (at two radii a face particle's candidates take in the
+/// particles two cells along the other face: twice as many as at one and a half).
+pub const SKIN: f32 = 1.5;
 
 /// Candidates per parallel task of the filter.
 const PER_TASK: usize = 4096;
