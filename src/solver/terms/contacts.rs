@@ -22,7 +22,7 @@ use crate::body::lattice::Lattice;
 use crate::config::Material;
 use crate::solver::disjoint::Disjoint;
 use crate::solver::term::{NO_DENSE, ParticleState, Substep, Term, TermExtent, Topology};
-use glam::Vec3A;
+use glam::{Vec3A, Vec4};
 use rayon::prelude::*;
 
 /// Particles with pairs per parallel task of the projection.
@@ -65,10 +65,9 @@ struct Pair {
     /// Mean static and dynamic friction of the two groups.
     static_friction: f32,
     dynamic_friction: f32,
+    /// Where its moves of `a` and of `b` go in [`Contacts::moves`].
+    slots: [u32; 2],
 }
-
-/// Marks a reference to a pair from its second particle (`b`).
-const SECOND: u32 = 1 << 31;
 
 /// The contact kind: its particles, its groups, and this substep's pairs.
 #[derive(Clone, Debug, Default)]
@@ -83,13 +82,15 @@ pub struct Contacts {
     list: ContactList,
     /// This substep's pairs, each once, ascending by their contact indices.
     pairs: Vec<Pair>,
-    /// The pairs by particle: `owners[o]` (a contact index) is in the pairs
-    /// `refs[starts[o]..starts[o + 1]]` (a pair index, [`SECOND`] set where it is `b`).
+    /// The particles in pairs (contact indices, ascending): `owners[o]`'s pairs' moves
+    /// of it are `moves[starts[o]..starts[o + 1]]`, in the order of the pairs.
     owners: Vec<u32>,
     starts: Vec<u32>,
-    refs: Vec<u32>,
-    /// Each pair's moves of `a` and of `b` in the current iteration (zero when apart).
-    moves: Vec<[Vec3A; 2]>,
+    /// The current iteration's move of each pair's two particles, grouped by particle
+    /// (each pair's [`Pair::slots`]): `xyz` the move (zero when apart), `w` 1 where the
+    /// pair touched (moved either particle), else 0. So each particle sums its moves in
+    /// sequence.
+    moves: Vec<Vec4>,
     /// Per contact particle, how many of its pairs touched in the last iteration (its
     /// pair count before the first): a pair's correction is divided by the larger load
     /// of its two particles, so that both sides move by equal and opposite amounts
@@ -108,7 +109,7 @@ impl Contacts {
         self.pairs.clear();
         self.owners.clear();
         self.starts.clear();
-        self.refs.clear();
+        self.moves.clear();
     }
 
     /// Turns conservative culling of the pairs on or off (the simulation's `culling`
@@ -166,7 +167,7 @@ impl Contacts {
 
     /// Number of pairs found in the current substep (each pair counted from both sides).
     pub fn pair_count(&self) -> usize {
-        self.refs.len()
+        2 * self.pairs.len()
     }
 
     /// Number of taking-part particles.
@@ -197,6 +198,7 @@ impl Contacts {
                 reach: p.reach(a as usize, b as usize),
                 static_friction: 0.5 * (ga.static_friction + gb.static_friction),
                 dynamic_friction: 0.5 * (ga.dynamic_friction + gb.dynamic_friction),
+                slots: [0; 2],
             }
         }));
         let mut count = vec![0u32; n];
@@ -219,15 +221,14 @@ impl Contacts {
                 self.starts.push(total);
             }
         }
-        self.refs.clear();
-        self.refs.resize(total as usize, 0);
-        for (i, pair) in self.pairs.iter().enumerate() {
-            for (owner, mark) in [(pair.a, 0), (pair.b, SECOND)] {
+        for pair in &mut self.pairs {
+            for (side, owner) in [pair.a, pair.b].into_iter().enumerate() {
                 let at = &mut slot[owner as usize];
-                self.refs[*at as usize] = i as u32 | mark;
+                pair.slots[side] = *at;
                 *at += 1;
             }
         }
+        self.moves.resize(total as usize, Vec4::ZERO);
     }
 }
 
@@ -274,46 +275,25 @@ impl Term for Contacts {
         }
         let (positions, previous, inv_mass) = (&*state.positions, state.previous, state.inv_mass);
         let load = &self.load;
-        // each pair once: its moves of a and of b, equal and opposite up to the shares
+        // each pair once: its moves of a and of b, equal and opposite up to the shares,
+        // each into its particle's slot (a pair's two slots are its own)
+        let slots = Disjoint::new(&mut self.moves);
         self.pairs
             .par_iter()
             .with_min_len(PAIRS_PER_TASK)
-            .map(|pair| {
-                let (da, db) = (pair.dense_a as usize, pair.dense_b as usize);
-                let apart = positions[da] - positions[db];
-                let distance_squared = apart.length_squared();
-                let (wa, wb) = (inv_mass[da], inv_mass[db]);
-                if distance_squared >= pair.reach * pair.reach || wa + wb == 0.0 {
-                    return [Vec3A::ZERO; 2];
+            .for_each(|pair| {
+                let moves = pair_moves(pair, positions, previous, inv_mass, load);
+                let touched = if moves == [Vec3A::ZERO; 2] { 0.0 } else { 1.0 };
+                for (slot, step) in pair.slots.into_iter().zip(moves) {
+                    // SAFETY: each slot is one pair's for one particle (a counting sort
+                    // in `find_pairs`), in bounds of the moves.
+                    unsafe { slots.write(slot as usize, step.extend(touched)) };
                 }
-                let distance = distance_squared.sqrt();
-                // coincident centres: a (the lower contact index) goes up, b down
-                let normal = if distance > 0.0 {
-                    apart / distance
-                } else {
-                    Vec3A::Y
-                };
-                let depth = pair.reach - distance;
-                let mut step = normal * depth;
-                // friction against the slip of a relative to b in this substep
-                let slip = (positions[da] - previous[da]) - (positions[db] - previous[db]);
-                let tangential = slip - normal * slip.dot(normal);
-                let length = tangential.length();
-                if length <= pair.static_friction * depth {
-                    step -= tangential;
-                } else {
-                    step -= tangential * (pair.dynamic_friction * depth / length).min(1.0);
-                }
-                let divide =
-                    (load[pair.a as usize].max(load[pair.b as usize]) as f32 / RELAXATION).max(1.0);
-                let scale = 1.0 / ((wa + wb) * divide);
-                [step * (wa * scale), step * (-wb * scale)]
-            })
-            .collect_into_vec(&mut self.moves);
-        // then each particle sums its pairs' moves and takes the sum: a task reads only
-        // the moves, and owners are distinct contact particles of distinct dense
-        // indices, so no two tasks write one entry
-        let (refs, starts, moves) = (&self.refs, &self.starts, &self.moves);
+            });
+        // then each particle sums its moves and takes the sum: a task reads only the
+        // moves, and owners are distinct contact particles of distinct dense indices,
+        // so no two tasks write one entry
+        let (starts, moves) = (&self.starts, &self.moves);
         let dense = &self.particles.dense;
         let shifts = state.disjoint_shifts();
         let load = Disjoint::new(&mut self.load);
@@ -322,25 +302,62 @@ impl Term for Contacts {
             .enumerate()
             .with_min_len(OWNERS_PER_TASK)
             .for_each(|(o, &a)| {
-                let (mut sum, mut touching) = (Vec3A::ZERO, 0u32);
-                for r in &refs[starts[o] as usize..starts[o + 1] as usize] {
-                    let side = (r & SECOND != 0) as usize;
-                    let [to_a, to_b] = moves[(r & !SECOND) as usize];
-                    if to_a != Vec3A::ZERO || to_b != Vec3A::ZERO {
-                        touching += 1;
-                    }
-                    sum += [to_a, to_b][side];
-                }
+                let sum = moves[starts[o] as usize..starts[o + 1] as usize]
+                    .iter()
+                    .fold(Vec4::ZERO, |sum, m| sum + *m);
+                let step = Vec3A::from_vec4(sum);
                 // SAFETY: `a` is this task's own owner (see above), in bounds of the
                 // contact arrays, and its dense index is in bounds of the particles'.
                 unsafe {
-                    load.write(a as usize, touching);
-                    if sum != Vec3A::ZERO {
-                        shifts.shift(dense[a as usize] as usize, sum);
+                    load.write(a as usize, sum.w as u32);
+                    if step != Vec3A::ZERO {
+                        shifts.shift(dense[a as usize] as usize, step);
                     }
                 }
             });
     }
+}
+
+/// A pair's moves of its particles `a` and `b` in one iteration: its overlap at
+/// `positions` undone along its normal and its slip since `previous` against friction,
+/// shared by inverse mass and divided by the larger `load` of the two (over
+/// [`RELAXATION`]); zero when apart or both pinned.
+#[inline]
+fn pair_moves(
+    pair: &Pair,
+    positions: &[Vec3A],
+    previous: &[Vec3A],
+    inv_mass: &[f32],
+    load: &[u32],
+) -> [Vec3A; 2] {
+    let (da, db) = (pair.dense_a as usize, pair.dense_b as usize);
+    let apart = positions[da] - positions[db];
+    let distance_squared = apart.length_squared();
+    let (wa, wb) = (inv_mass[da], inv_mass[db]);
+    if distance_squared >= pair.reach * pair.reach || wa + wb == 0.0 {
+        return [Vec3A::ZERO; 2];
+    }
+    let distance = distance_squared.sqrt();
+    // coincident centres: a (the lower contact index) goes up, b down
+    let normal = if distance > 0.0 {
+        apart / distance
+    } else {
+        Vec3A::Y
+    };
+    let depth = pair.reach - distance;
+    let mut step = normal * depth;
+    // friction against the slip of a relative to b in this substep
+    let slip = (positions[da] - previous[da]) - (positions[db] - previous[db]);
+    let tangential = slip - normal * slip.dot(normal);
+    let length = tangential.length();
+    if length <= pair.static_friction * depth {
+        step -= tangential;
+    } else {
+        step -= tangential * (pair.dynamic_friction * depth / length).min(1.0);
+    }
+    let divide = (load[pair.a as usize].max(load[pair.b as usize]) as f32 / RELAXATION).max(1.0);
+    let scale = 1.0 / ((wa + wb) * divide);
+    [step * (wa * scale), step * (-wb * scale)]
 }
 
 #[cfg(test)]
