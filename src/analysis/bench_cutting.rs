@@ -101,14 +101,10 @@ pub struct CuttingRow {
     pub cut_work_over_substeps: f64,
     /// The surface stage's median time in a plain frame (the per-frame update).
     pub surface_frame_ms: f64,
-    /// The cutting run's 95th-percentile frame over the plain median frame.
-    pub p95_over_plain: f64,
-    /// The cutting run's slowest frame after the first over the plain median frame.
-    pub slowest_over_plain: f64,
-    /// The cut frames' median over the plain median frame.
-    pub cut_median_over_plain: f64,
-    /// The slowest cut frame over the plain median frame.
-    pub cut_slowest_over_plain: f64,
+    /// The cutting run's frames against the plain median frame (in JSON, its four keys
+    /// at the row's top level).
+    #[serde(flatten)]
+    pub as_run: Ratios,
     /// The same four ratios for the cutting run's frames less their cut work (detection
     /// in every frame; on a cut frame the cut, regroup/split/expand and the surface's
     /// topology; the layout and terms in the frame after): what is left were the cut work
@@ -117,7 +113,7 @@ pub struct CuttingRow {
     pub without_cut_work: Ratios,
 }
 
-/// Frame ratios against the plain median frame (see [`CuttingRow::without_cut_work`]).
+/// A run's frames against the plain median frame.
 #[derive(Clone, Copy, Debug, Default, Serialize)]
 pub struct Ratios {
     /// The 95th-percentile frame.
@@ -128,6 +124,19 @@ pub struct Ratios {
     pub cut_median_over_plain: f64,
     /// The slowest cut frame.
     pub cut_slowest_over_plain: f64,
+}
+
+impl Ratios {
+    /// The ratios of a run's frames `all`, of which `cut` are the cut frames, to
+    /// `plain_median` ms.
+    fn of(all: &FrameStats, cut: &FrameStats, plain_median: f64) -> Self {
+        Self {
+            p95_over_plain: all.p95_ms / plain_median,
+            slowest_over_plain: all.max_after_first_ms / plain_median,
+            cut_median_over_plain: cut.median_ms / plain_median,
+            cut_slowest_over_plain: cut.max_ms / plain_median,
+        }
+    }
 }
 
 /// Which workloads to run.
@@ -509,11 +518,15 @@ fn workload(name: &str, mode: CutMode, scene: &Workload) -> Result<CuttingRow> {
                 .unwrap_or(0.0)
         })
         .collect();
-    let over = |ms: f64| ms / plain_stats.median_ms;
     let frames = cutting.frames.len().max(1) as f64;
+    let plain_median = plain_stats.median_ms;
     let (all_without, cut_without) = (
         FrameStats::of(&without),
         FrameStats::of_where(&without, |f| cutting.cut[f]),
+    );
+    let (as_run, without_cut_work) = (
+        Ratios::of(&all, &cut, plain_median),
+        Ratios::of(&all_without, &cut_without, plain_median),
     );
     Ok(CuttingRow {
         row: "cutting",
@@ -528,15 +541,7 @@ fn workload(name: &str, mode: CutMode, scene: &Workload) -> Result<CuttingRow> {
         substeps_ms: substeps / frames,
         cut_work_over_substeps: whole_run.total() / substeps,
         surface_frame_ms: crate::analysis::bench::median(&mut surface),
-        p95_over_plain: over(all.p95_ms),
-        slowest_over_plain: over(all.max_after_first_ms),
-        cut_median_over_plain: over(cut.median_ms),
-        cut_slowest_over_plain: over(cut.max_ms),
-        without_cut_work: Ratios {
-            p95_over_plain: over(all_without.p95_ms),
-            slowest_over_plain: over(all_without.max_after_first_ms),
-            cut_median_over_plain: over(cut_without.median_ms),
-            cut_slowest_over_plain: over(cut_without.max_ms),
-        },
+        as_run,
+        without_cut_work,
     })
 }
