@@ -25,8 +25,8 @@ pub struct ModelRow {
     pub memberships: usize,
     /// Median wall time of one engine step, ms.
     pub ms_per_step: f64,
-    /// Mean time the model's elastic part (the clusters' passes, or the groups' sweeps)
-    /// took per step, ms.
+    /// Median time the model's elastic part (the clusters' passes, or the groups'
+    /// sweeps) took in a step, ms.
     pub elastic_ms_per_step: f64,
     /// `elastic_ms_per_step / (memberships × iterations)`, ns.
     pub ns_per_membership_iteration: f64,
@@ -71,26 +71,23 @@ pub fn bench_models(n: u32, steps: usize, config: &SimConfig) -> Result<Oriented
     };
     let mut sims = [spawn(Model::Clusters)?, spawn(Model::Oriented)?];
     let parts = ["clusters", "oriented"];
-    let before: Vec<f64> = sims
-        .iter()
-        .zip(parts)
-        .map(|(s, p)| kind_seconds(s, p))
-        .collect();
-    let mut samples = [Vec::new(), Vec::new()];
+    // per step: the whole step and its elastic part, both as medians (a mean lets one
+    // step disturbed by the machine outweigh the rest)
+    let (mut steps_ms, mut elastic_ms) = ([Vec::new(), Vec::new()], [Vec::new(), Vec::new()]);
     for _ in 0..steps.max(1) {
-        for (sim, samples) in sims.iter_mut().zip(&mut samples) {
-            samples.push(time_ms(1, || sim.step()));
+        for (k, sim) in sims.iter_mut().enumerate() {
+            let before = kind_seconds(sim, parts[k]);
+            steps_ms[k].push(time_ms(1, || sim.step()));
+            elastic_ms[k].push((kind_seconds(sim, parts[k]) - before) * 1e3);
         }
     }
     let iterations = config.substeps * config.iterations;
-    let steps = steps.max(1) as f64;
     let mut rows = sims
         .iter()
-        .zip(parts)
-        .zip(before)
-        .zip(&mut samples)
+        .zip(&mut steps_ms)
+        .zip(&mut elastic_ms)
         .zip([Model::Clusters, Model::Oriented])
-        .map(|((((sim, part), before), samples), model)| {
+        .map(|(((sim, steps_ms), elastic_ms), model)| {
             let cache = sim.world().resource::<SolverCache>();
             let memberships = match model {
                 Model::Clusters => cache.solver.clusters.membership_count(),
@@ -100,11 +97,11 @@ pub fn bench_models(n: u32, steps: usize, config: &SimConfig) -> Result<Oriented
                     .extent("oriented")
                     .map_or(0, |e| e.constraints),
             };
-            let elastic_ms_per_step = (kind_seconds(sim, part) - before) * 1e3 / steps;
+            let elastic_ms_per_step = median(elastic_ms);
             ModelRow {
                 model,
                 memberships,
-                ms_per_step: median(samples),
+                ms_per_step: median(steps_ms),
                 elastic_ms_per_step,
                 ns_per_membership_iteration: elastic_ms_per_step * 1e6
                     / (memberships.max(1) as f64 * iterations as f64),
