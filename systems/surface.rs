@@ -3,7 +3,8 @@
 //! ([`crate::surface::update`]), or extracted again when the lattice changed otherwise
 //! or the body has none yet (the lattice's surface, or the body's render mesh with the
 //! cut faces the lattice's surface adds to it), then its vertices carried to where the
-//! particles are ([`crate::surface::deform`]). Writes surface data only.
+//! particles are ([`crate::surface::deform`]) when they moved ([`SurfaceMesh::STILL`]).
+//! Writes surface data only.
 //!
 //! The cut's report says what changed; a lattice edited from outside in a frame that
 //! also cuts it is updated around the cut's changes only.
@@ -116,34 +117,41 @@ pub fn update_surfaces(
                 positions.get(*e).ok().map(|x| x.0.into())
             },
         );
-        deform::particle_frames(
-            &mesh.layout,
-            &mesh.gathered,
-            &mut mesh.frames,
-            &mut mesh.rotations,
-        );
-        deform::vertex_positions(
-            &mesh.topology,
-            &mesh.layout,
-            &mesh.gathered,
-            &mesh.rotations,
-            &mut mesh.positions,
-        );
-        deform::vertex_normals(
-            &mesh.topology,
-            &mesh.layout,
-            &mesh.positions,
-            &mut mesh.faces,
-            &mut mesh.normals,
-        );
         mesh.deformed_at = Some(clock.frame);
-        if moved {
-            mesh.shown.clone_from(&mesh.gathered);
-        }
+        // A surface at rest keeps the vertices it shows: they are within `STILL` of
+        // where its particles are, as an unmarked mesh is, and a body at rest costs
+        // only the gather.
         if moved || installed {
+            carry_vertices(mesh);
+            mesh.shown.clone_from(&mesh.gathered);
             marked.set_changed();
         }
     }
+}
+
+/// Carries `mesh`'s vertices to its gathered particles: the carriers' frames, then the
+/// vertices' positions and normals.
+fn carry_vertices(mesh: &mut SurfaceMesh) {
+    deform::particle_frames(
+        &mesh.layout,
+        &mesh.gathered,
+        &mut mesh.frames,
+        &mut mesh.rotations,
+    );
+    deform::vertex_positions(
+        &mesh.topology,
+        &mesh.layout,
+        &mesh.gathered,
+        &mesh.rotations,
+        &mut mesh.positions,
+    );
+    deform::vertex_normals(
+        &mesh.topology,
+        &mesh.layout,
+        &mesh.positions,
+        &mut mesh.faces,
+        &mut mesh.normals,
+    );
 }
 
 /// Gathers the positions of the particles `mesh`'s carriers read into its slots: the

@@ -468,3 +468,48 @@ fn bringing_surfaces_up_to_date_puts_a_deferred_rebuild_in_place() {
     let faces = cleave::surface::extract::face_count(lattice) as usize;
     assert_eq!(mesh.triangles().len(), 2 * faces);
 }
+
+#[test]
+fn a_surface_is_carried_again_only_once_a_particle_moved_past_still() {
+    // a box drifting without gravity, a tenth of `STILL` spacings a frame
+    let (h, frames_past_still) = (0.1, 10);
+    let config = SimConfig {
+        gravity: Vec3::ZERO,
+        ground: None,
+        damping: 0.0,
+        ..SimConfig::default()
+    };
+    let drift = SurfaceMesh::STILL * h / frames_past_still as f32;
+    let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(5)), h);
+    desc.velocity = Vec3::X * drift / config.dt;
+    let mut sim = Simulation::new(config).unwrap();
+    let body = sim.spawn_body(&desc).unwrap();
+    sim.step();
+    let shown = sim.surface(body).unwrap().positions.clone();
+    let lowest_x = |sim: &Simulation| {
+        let particles = sim.positions(body).unwrap();
+        particles.iter().map(|(_, x)| x.x).fold(f32::MAX, f32::min)
+    };
+    let start = lowest_x(&sim);
+    let mut kept = 0;
+    while sim.surface(body).unwrap().positions == shown {
+        sim.step();
+        kept += 1;
+        assert!(kept <= 2 * frames_past_still, "never carried again");
+    }
+    // kept while every particle stayed within STILL of where the surface shows it
+    assert!(
+        kept >= frames_past_still / 2,
+        "carried again after {kept} frames"
+    );
+    // then carried with the box: every vertex moved as its particles did
+    let moved = lowest_x(&sim) - start;
+    assert!(moved > SurfaceMesh::STILL * h, "moved {moved}");
+    for (now, then) in sim.surface(body).unwrap().positions.iter().zip(&shown) {
+        let d = *now - *then;
+        assert!(
+            (d - Vec3::X * moved).abs().max_element() < 1e-5 * h,
+            "a vertex moved {d}, the box {moved}"
+        );
+    }
+}

@@ -1,5 +1,6 @@
 //! `cleave bench --surface`: what a body's drawable surface costs on an n³ box — the
-//! surface stage's per-frame update (particles' frames, vertex positions and normals),
+//! surface stage's per-frame update (particles' frames, vertex positions and normals;
+//! and, at rest, the test that keeps the surface),
 //! the extraction of the whole surface, intact and after a slice through its middle,
 //! and the local update that brings the intact surface up to date after that slice.
 
@@ -7,13 +8,14 @@ use crate::analysis::bench::median;
 use crate::body::shape::Shape;
 use crate::ecs::components::BodyLattice;
 use crate::ecs::desc::BodyDesc;
+use crate::ecs::layout::SolverCache;
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::{CleaveError, Result};
 use crate::sim::simulation::Simulation;
 use crate::surface::extract;
 use crate::surface::update::update;
 use crate::systems::surface::update_surfaces;
-use glam::{UVec3, Vec3};
+use glam::{UVec3, Vec3, Vec3A};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -31,8 +33,12 @@ pub struct SurfaceRow {
     /// Surface triangles of the intact box.
     pub triangles: usize,
     /// Median wall time of the surface stage's update in a frame without a topology
-    /// change, ms.
+    /// change, the body moving (every particle a hundredth of a spacing further each
+    /// frame, so that the whole surface is carried), ms.
     pub frame_ms: f64,
+    /// The same with the body at rest (the stage tests that nothing moved and keeps
+    /// the surface), ms.
+    pub resting_frame_ms: f64,
     /// Median wall time of extracting the intact box's surface, ms.
     pub extract_ms: f64,
     /// Median wall time of extracting the surface after a slice severed every edge
@@ -45,8 +51,12 @@ pub struct SurfaceRow {
     pub local_update_ms: f64,
 }
 
-/// Times the surface of an n³ box falling under gravity: `steps` frames' updates, and
-/// `steps` extractions intact and after the slice (medians).
+/// How far every particle moves between the moving body's frames, in spacings (ten
+/// times [`SurfaceMesh::STILL`]).
+const MOVE: f32 = 1e-2;
+
+/// Times the surface of an n³ box: `steps` frames' updates at rest and as many moving,
+/// and `steps` extractions intact and after the slice (medians).
 pub fn bench_surface(
     n: u32,
     steps: usize,
@@ -72,8 +82,20 @@ pub fn bench_surface(
         Ok(start.elapsed().as_secs_f64() * 1e3)
     };
     run(&mut sim)?;
-    let mut frames = (0..steps.max(1))
+    let mut resting = (0..steps.max(1))
         .map(|_| run(&mut sim))
+        .collect::<Result<Vec<f64>>>()?;
+    let step = Vec3A::splat(MOVE * h);
+    let mut frames = (0..steps.max(1))
+        .map(|_| {
+            let mut cache = sim.world_mut().resource_mut::<SolverCache>();
+            cache
+                .particles
+                .positions
+                .iter_mut()
+                .for_each(|x| *x += step);
+            run(&mut sim)
+        })
         .collect::<Result<Vec<f64>>>()?;
     let mesh = sim
         .world()
@@ -132,6 +154,7 @@ pub fn bench_surface(
         vertices,
         triangles,
         frame_ms: median(&mut frames),
+        resting_frame_ms: median(&mut resting),
         extract_ms,
         sliced_extract_ms,
         sliced_triangles,

@@ -24,12 +24,13 @@ pub(crate) type LatticeState = (usize, usize, u64);
 /// `Surface` stage updates only bodies that have it).
 #[derive(Component, Clone, Debug, Default)]
 pub struct SurfaceMesh {
-    /// Vertex positions (world frame), this frame.
+    /// Vertex positions (world frame), as the particles last placed them (carried again
+    /// whenever one moved more than [`SurfaceMesh::STILL`]).
     pub positions: Vec<Vec3>,
-    /// Unit vertex normals, this frame.
+    /// Unit vertex normals, carried with the positions.
     pub normals: Vec<Vec3>,
     /// Grows by one each time the triangles change (the first surface is version 1):
-    /// positions and normals change every frame, triangles only with this.
+    /// positions and normals change as the particles move, triangles only with this.
     pub topology_version: u64,
     /// Milliseconds the last change of the triangles took (extraction, or the local
     /// update after a cut, with the carriers' layout), for reports.
@@ -121,9 +122,10 @@ impl SurfaceMesh {
     /// moved since the mesh was last marked changed for the stage to leave it unmarked:
     /// bevy's `Changed<SurfaceMesh>` then fires on a frame only when the triangles
     /// changed or the surface moved, so a body at rest (whose particles settle to a
-    /// millionth of a spacing, never to the bit) stops re-uploading. The positions and
-    /// normals are written every frame all the same; an unmarked mesh is within this
-    /// distance of what the last marked one showed.
+    /// millionth of a spacing, never to the bit) stops re-uploading. Nor are an unmarked
+    /// mesh's vertices carried again: it keeps the positions and normals it last showed,
+    /// made from particles each within this distance of where they are now, so a
+    /// surface at rest costs only that test.
     pub const STILL: f32 = 1e-3;
 
     /// A surface still to be extracted: the lattice's, drawn as `options` say, or
@@ -211,6 +213,7 @@ impl SurfaceMesh {
             topology_version: self.topology_version,
             topology: self.topology.clone(),
             gathered: self.gathered.clone(),
+            shown: self.shown.clone(),
             frames: self.frames.clone(),
             render_mesh: self.render_mesh.as_deref().cloned(),
             options: self.options,
@@ -233,7 +236,11 @@ impl SurfaceMesh {
         let layout = CarryLayout::new(lattice, &saved.topology);
         let vertices = saved.topology.vertex_count();
         let finite = saved.frames.iter().all(|q| q.is_finite())
-            && saved.gathered.iter().all(|x| x.is_finite())
+            && saved
+                .gathered
+                .iter()
+                .chain(&saved.shown)
+                .all(|x| x.is_finite())
             && saved
                 .positions
                 .iter()
@@ -241,13 +248,13 @@ impl SurfaceMesh {
                 .all(|x| x.is_finite());
         if saved.frames.len() != layout.carrier_count()
             || saved.gathered.len() != layout.read.len()
+            || saved.shown.len() != layout.read.len()
             || saved.positions.len() != vertices
             || saved.normals.len() != vertices
             || !finite
         {
             return Err("its carriers' state does not fit its vertices".into());
         }
-        let shown = saved.gathered.clone();
         Ok(Self {
             positions: saved.positions,
             normals: saved.normals,
@@ -265,16 +272,16 @@ impl SurfaceMesh {
             options: saved.options,
             seen: saved.seen,
             deformed_at: saved.deformed_at,
-            shown,
+            shown: saved.shown,
             deferred: None,
         })
     }
 }
 
-/// A surface as a save keeps it: the topology, the carriers'
-/// frames and last positions, the render mesh and options, and what the stage last saw
-/// — so that a loaded simulation draws, and goes on drawing, exactly what the saved one
-/// would have. The carriers' layout is derived again on loading.
+/// A surface as a save keeps it: the topology, the carriers' frames, last positions and
+/// positions last shown, the render mesh and options, and what the stage last saw — so
+/// that a loaded simulation draws, and goes on drawing, exactly what the saved one would
+/// have. The carriers' layout is derived again on loading.
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct SavedSurface {
     positions: Vec<Vec3>,
@@ -282,6 +289,7 @@ pub struct SavedSurface {
     topology_version: u64,
     topology: SurfaceTopology,
     gathered: Vec<Vec3A>,
+    shown: Vec<Vec3A>,
     frames: Vec<Quat>,
     render_mesh: Option<EmbeddedMesh>,
     options: SurfaceOptions,

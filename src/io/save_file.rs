@@ -16,7 +16,7 @@ use std::io::{Read, Write};
 pub const MAGIC: [u8; 8] = *b"cleave\0s";
 
 /// The format version this build writes and reads.
-pub const VERSION: u32 = 14;
+pub const VERSION: u32 = 15;
 
 /// Largest saved simulation a reader reads, in bytes.
 pub const MAX_SAVE_BYTES: u64 = 4 << 30;

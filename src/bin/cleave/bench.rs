@@ -235,12 +235,13 @@ pub fn bench_surfaces(
             rayon::current_num_threads()
         );
         println!(
-            "{:>5} {:>9} {:>9} {:>9} {:>10} {:>11} {:>11} {:>11} {:>9}",
+            "{:>5} {:>9} {:>9} {:>9} {:>10} {:>10} {:>11} {:>11} {:>11} {:>9}",
             "size",
             "particles",
             "vertices",
             "triangles",
             "frame ms",
+            "resting ms",
             "extract ms",
             "sliced ms",
             "sliced tris",
@@ -253,12 +254,13 @@ pub fn bench_surfaces(
             print_json(&row)?;
         } else {
             println!(
-                "{:>5} {:>9} {:>9} {:>9} {:>10.3} {:>11.3} {:>11.3} {:>11} {:>9.3}",
+                "{:>5} {:>9} {:>9} {:>9} {:>10.3} {:>10.3} {:>11.3} {:>11.3} {:>11} {:>9.3}",
                 row.size,
                 row.particles,
                 row.vertices,
                 row.triangles,
                 row.frame_ms,
+                row.resting_frame_ms,
                 row.extract_ms,
                 row.sliced_extract_ms,
                 row.sliced_triangles,
