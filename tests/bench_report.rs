@@ -312,3 +312,54 @@ fn the_cutting_bench_times_whole_frames_and_each_cut_by_stage() {
         );
     }
 }
+
+#[test]
+fn the_surface_bench_gives_a_row_per_size_moving_and_at_rest() {
+    let out = Command::new(env!("CARGO_BIN_EXE_cleave"))
+        .args([
+            "bench",
+            "--surface",
+            "--json",
+            "--sizes",
+            "6,4",
+            "--steps",
+            "3",
+            "--threads",
+            "1",
+        ])
+        .output()
+        .expect("run cleave bench --surface");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: Vec<Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON row"))
+        .collect();
+    assert_eq!(rows.len(), 2);
+    for (row, n) in rows.iter().zip([6u64, 4]) {
+        assert_eq!(row["row"], "surface");
+        assert_eq!(row["size"], n);
+        assert_eq!(row["particles"], n * n * n);
+        for key in [
+            "frame_ms",
+            "resting_frame_ms",
+            "extract_ms",
+            "sliced_extract_ms",
+            "local_update_ms",
+        ] {
+            let ms = row[key].as_f64().unwrap_or(f64::NAN);
+            assert!(ms.is_finite() && ms > 0.0, "{key}: {}", row[key]);
+        }
+        // a box's surface: two triangles per face of each boundary cell; the slice
+        // through the middle adds two faces of n² cells each
+        let triangles = row["triangles"].as_u64().unwrap();
+        assert_eq!(triangles, 12 * n * n);
+        assert_eq!(
+            row["sliced_triangles"].as_u64().unwrap(),
+            triangles + 4 * n * n
+        );
+    }
+}
