@@ -56,7 +56,8 @@ pub struct SurfaceMesh {
     pub(crate) options: SurfaceOptions,
     /// The lattice's state when the triangles were last made.
     pub(crate) seen: LatticeState,
-    /// The frame whose end the vertices were last carried to (`None`: never).
+    /// The frame at whose end the stage last brought the vertices up to date, carrying
+    /// them or finding them at rest (`None`: never).
     pub(crate) deformed_at: Option<u64>,
     /// Per slot of the layout, its particle's position when the mesh was last marked
     /// changed (see [`SurfaceMesh::STILL`]).
