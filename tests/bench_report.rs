@@ -4,35 +4,40 @@
 use serde_json::Value;
 use std::process::Command;
 
-#[test]
-fn bench_json_has_one_consistent_line_per_size() {
+/// The JSON rows `cleave ARGS` prints, one per line; panics with its errors if it fails.
+fn json_rows(args: &[&str]) -> Vec<Value> {
     let out = Command::new(env!("CARGO_BIN_EXE_cleave"))
-        .args([
-            "bench",
-            "--json",
-            "--sizes",
-            "8,6",
-            "--steps",
-            "3",
-            "--threads",
-            "1",
-            "--pile-spacing",
-            "0.1",
-            "--pile-frames",
-            "60",
-        ])
+        .args(args)
         .output()
-        .expect("run cleave bench");
+        .expect("run cleave");
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let mut lines: Vec<Value> = String::from_utf8(out.stdout)
+    String::from_utf8(out.stdout)
         .unwrap()
         .lines()
         .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
-        .collect();
+        .collect()
+}
+
+#[test]
+fn bench_json_has_one_consistent_line_per_size() {
+    let mut lines = json_rows(&[
+        "bench",
+        "--json",
+        "--sizes",
+        "8,6",
+        "--steps",
+        "3",
+        "--threads",
+        "1",
+        "--pile-spacing",
+        "0.1",
+        "--pile-frames",
+        "60",
+    ]);
     // the last line is the crowd's contact row: more bodies at the pile's spacing
     let crowd = lines.pop().expect("a crowd row");
     assert_eq!(crowd["row"], "crowd");
@@ -178,28 +183,15 @@ fn bench_json_has_one_consistent_line_per_size() {
 
 #[test]
 fn bench_convergence_gives_one_row_per_solver_and_projective_needs_fewest_iterations() {
-    let out = Command::new(env!("CARGO_BIN_EXE_cleave"))
-        .args([
-            "bench",
-            "--convergence",
-            "--json",
-            "--convergence-size",
-            "6",
-            "--budget",
-            "3",
-        ])
-        .output()
-        .expect("run cleave bench --convergence");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let rows: Vec<Value> = String::from_utf8(out.stdout)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
-        .collect();
+    let rows = json_rows(&[
+        "bench",
+        "--convergence",
+        "--json",
+        "--convergence-size",
+        "6",
+        "--budget",
+        "3",
+    ]);
     let solvers: Vec<&str> = rows.iter().map(|r| r["solver"].as_str().unwrap()).collect();
     assert_eq!(solvers, ["jacobi", "gauss-seidel", "projective"]);
     let (jacobi, projective) = (&rows[0], &rows[2]);
@@ -315,29 +307,17 @@ fn the_cutting_bench_times_whole_frames_and_each_cut_by_stage() {
 
 #[test]
 fn the_surface_bench_gives_a_row_per_size_moving_and_at_rest() {
-    let out = Command::new(env!("CARGO_BIN_EXE_cleave"))
-        .args([
-            "bench",
-            "--surface",
-            "--json",
-            "--sizes",
-            "6,4",
-            "--steps",
-            "3",
-            "--threads",
-            "1",
-        ])
-        .output()
-        .expect("run cleave bench --surface");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let rows: Vec<Value> = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("a JSON row"))
-        .collect();
+    let rows = json_rows(&[
+        "bench",
+        "--surface",
+        "--json",
+        "--sizes",
+        "6,4",
+        "--steps",
+        "3",
+        "--threads",
+        "1",
+    ]);
     assert_eq!(rows.len(), 2);
     for (row, n) in rows.iter().zip([6u64, 4]) {
         assert_eq!(row["row"], "surface");
