@@ -201,19 +201,19 @@ impl Contacts {
                 slots: [0; 2],
             }
         }));
-        let mut count = vec![0u32; n];
-        for pair in &self.pairs {
-            count[pair.a as usize] += 1;
-            count[pair.b as usize] += 1;
-        }
+        // each particle's pair count is also its load before the first iteration
         self.load.clear();
-        self.load.extend_from_slice(&count);
+        self.load.resize(n, 0);
+        for pair in &self.pairs {
+            self.load[pair.a as usize] += 1;
+            self.load[pair.b as usize] += 1;
+        }
         self.owners.clear();
         self.starts.clear();
         self.starts.push(0);
         let mut slot = vec![0u32; n];
         let mut total = 0u32;
-        for (k, c) in count.iter().enumerate() {
+        for (k, c) in self.load.iter().enumerate() {
             if *c > 0 {
                 slot[k] = total;
                 total += c;
