@@ -19,7 +19,6 @@ use super::placement::{cut_vertex_position, is_cut_face};
 use crate::body::lattice::{Lattice, NEIGHBOUR_OFFSETS};
 use glam::{IVec3, Vec3};
 use rayon::prelude::*;
-use smallvec::SmallVec;
 
 /// The surface's topology and its binding to the particles: what changes only when the
 /// lattice does.
@@ -223,29 +222,51 @@ pub(super) fn add_vertices(
     topology: &mut SurfaceTopology,
 ) {
     let scale = owners.lattice().spacing() / owners.resolution() as f32;
-    let made: Vec<(IVec3, Vec3, SmallVec<[Binding; 8]>)> = classes
-        .par_iter()
-        .with_min_len(512)
-        .map(|members| {
-            let (q, k) = (members[0] / 4, members[0] % 4);
-            let quad = &quads[q as usize];
-            let corner = face_corners(quad.cell, quad.direction)[k as usize];
-            let rest = corner.as_vec3() * scale;
-            // the sub-cells of the quads, as octants around the corner
-            let mut cells = 0u8;
-            for s in members.iter() {
-                let o = quads[(s / 4) as usize].cell - (corner - IVec3::ONE);
-                cells |= 1 << (o.x + 2 * o.y + 4 * o.z);
+    // (each task fills flat lists of its own, appended in order: no vertex's bindings
+    // are moved about on their own)
+    let made: Vec<MadeVertices> = classes
+        .par_chunks(VERTICES_PER_TASK)
+        .map(|classes| {
+            let mut made = MadeVertices::default();
+            for members in classes {
+                let (q, k) = (members[0] / 4, members[0] % 4);
+                let quad = &quads[q as usize];
+                let corner = face_corners(quad.cell, quad.direction)[k as usize];
+                let rest = corner.as_vec3() * scale;
+                // the sub-cells of the quads, as octants around the corner
+                let mut cells = 0u8;
+                for s in members.iter() {
+                    let o = quads[(s / 4) as usize].cell - (corner - IVec3::ONE);
+                    cells |= 1 << (o.x + 2 * o.y + 4 * o.z);
+                }
+                bind(owners, corner, rest, cells, &mut made.bindings);
+                made.corners.push(corner);
+                made.rest.push(rest);
+                made.ends.push(made.bindings.len() as u32);
             }
-            (corner, rest, bind(owners, corner, rest, cells))
+            made
         })
         .collect();
-    for (corner, rest, bindings) in made {
-        topology.rest.push(rest);
-        topology.corners.push(corner);
-        topology.bindings.extend_from_slice(&bindings);
-        topology.binding_start.push(topology.bindings.len() as u32);
+    for made in made {
+        let base = topology.bindings.len() as u32;
+        topology.rest.extend_from_slice(&made.rest);
+        topology.corners.extend_from_slice(&made.corners);
+        topology.bindings.extend_from_slice(&made.bindings);
+        (topology.binding_start).extend(made.ends.iter().map(|end| base + end));
     }
+}
+
+/// Vertices per parallel task of [`add_vertices`].
+const VERTICES_PER_TASK: usize = 512;
+
+/// One task's vertices: their grid corners, rest places and bindings (vertex `i`'s end
+/// at `ends[i]`).
+#[derive(Default)]
+struct MadeVertices {
+    corners: Vec<IVec3>,
+    rest: Vec<Vec3>,
+    bindings: Vec<Binding>,
+    ends: Vec<u32>,
 }
 
 /// Appends the two triangles of a quad with corner vertices `v` (counter-clockwise).
@@ -335,14 +356,18 @@ fn keep_pieces_whole(lattice: &Lattice, topology: &mut SurfaceTopology) {
     }
 }
 
-/// The bindings of the vertex at grid corner `w` (resting at `rest`) whose quads belong
+/// Appends to `out` the bindings of the vertex at grid corner `w` (resting at `rest`) whose quads belong
 /// to the solid sub-cells `cells` (a bit per octant around `w`, numbered like
 /// [`octant`]): the owners of those sub-cells and of every solid sub-cell around `w`
 /// joined to them through faces at `w`, one share per sub-cell.
-fn bind(owners: &CellOwners, w: IVec3, rest: Vec3, cells: u8) -> SmallVec<[Binding; 8]> {
+fn bind(owners: &CellOwners, w: IVec3, rest: Vec3, cells: u8, out: &mut Vec<Binding>) {
     // the eight sub-cells around `w`, numbered like `octant`
-    let around: [IVec3; 8] = std::array::from_fn(|k| w - IVec3::ONE + octant(k as u32));
-    let own: [Option<u32>; 8] = around.map(|c| owners.owner(c));
+    let mut around = [w; 8];
+    let mut own = [None; 8];
+    for k in 0..8 {
+        around[k] += octant(k as u32) - IVec3::ONE;
+        own[k] = owners.owner(around[k]);
+    }
     // the twelve faces at `w`, as the pairs of octants they join (when they do)
     let mut faces = [(0u8, 0u8); 12];
     let mut n = 0;
@@ -377,21 +402,20 @@ fn bind(owners: &CellOwners, w: IVec3, rest: Vec3, cells: u8) -> SmallVec<[Bindi
         .filter(|&k| reached >> k & 1 != 0 && own[k].is_some())
         .count();
     let weight = 1.0 / count as f32;
-    let mut bindings: SmallVec<[Binding; 8]> = SmallVec::new();
+    let first = out.len();
     for p in (0..8)
         .filter(|&k| reached >> k & 1 != 0)
         .filter_map(|k| own[k])
     {
-        match bindings.iter_mut().find(|b| b.particle == p) {
+        match out[first..].iter_mut().find(|b| b.particle == p) {
             Some(b) => b.weight += weight,
-            None => bindings.push(Binding {
+            None => out.push(Binding {
                 particle: p,
                 weight,
                 offset: rest - owners.lattice().rest_position(p),
             }),
         }
     }
-    bindings
 }
 
 /// Places the vertices `vertices` (ascending) of `topology` on the cut

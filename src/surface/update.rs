@@ -84,6 +84,7 @@ pub fn update(
     let mut vertex_of_class = vec![u32::MAX; classes.len()];
     let mut made: Vec<&[u32]> = Vec::new();
     let first_new = topology.rest.len() as u32;
+    // (a mark per new vertex, numbered from `first_new`)
     let mut on_cut = Vec::new();
     let mut fresh = Vec::with_capacity(quads.len());
     for (q, quad) in quads.iter().enumerate() {
@@ -99,7 +100,11 @@ pub fn update(
                     made.push(classes.slots(class));
                 }
                 if cut_face {
-                    on_cut.push(vertex_of_class[class]);
+                    let new = (vertex_of_class[class] - first_new) as usize;
+                    if on_cut.len() <= new {
+                        on_cut.resize(new + 1, false);
+                    }
+                    on_cut[new] = true;
                 }
                 vertex_of_class[class]
             } else {
@@ -123,8 +128,10 @@ pub fn update(
         push_quad(&mut topology, v);
     }
     // the rebuilt vertices of cut faces rest on the cut
-    on_cut.sort_unstable();
-    on_cut.dedup();
+    let on_cut: Vec<u32> = (on_cut.iter().enumerate())
+        .filter(|(_, on)| **on)
+        .map(|(v, _)| first_new + v as u32)
+        .collect();
     place_on_cut(&owners, &mut topology, &on_cut);
     finish(lattice, &mut topology);
     Some(topology)
