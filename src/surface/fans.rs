@@ -26,7 +26,6 @@ use crate::util::union_find::UnionFind;
 use glam::IVec3;
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
-use smallvec::SmallVec;
 
 /// A face of a solid sub-cell on the surface.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -44,11 +43,6 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
     if quads.is_empty() {
         return VertexClasses::of(&mut UnionFind::new(0), 0);
     }
-    let index: FxHashMap<(IVec3, u8), u32> = quads
-        .iter()
-        .enumerate()
-        .map(|(q, quad)| ((quad.cell, quad.direction), q as u32))
-        .collect();
     // every grid edge a quad has, once, in order: keyed by its lower corner's place in
     // the box of the quads' corners (z slowest, then y, then x) and its axis; the box
     // holds at most eight corners per cell of a lattice's bounded grid, so a key fits
@@ -69,6 +63,12 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
         );
         (lo + d.as_ivec3(), axis)
     };
+    // each quad by its sub-cell and direction, packed in one word over the box of the
+    // sub-cells around the quads' corners (a run's quads lie there)
+    let faces = QuadKeys::around(lo, hi);
+    let index: FxHashMap<u64, u32> = (quads.iter().enumerate())
+        .map(|(q, quad)| (faces.key(quad.cell, quad.direction), q as u32))
+        .collect();
     // (a bit per key, three per corner of the box: the keys come out ascending and
     // each once, without a sort)
     let mut marked = Bits::default();
@@ -96,15 +96,15 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
                 4 * q + corner_index(quad.cell, quad.direction, w) as u32
             };
             let index = &index;
-            runs_around(owners, low, axis)
-                .into_iter()
-                .filter_map(move |(first, last)| {
-                    let (&qa, &qb) = (index.get(&first)?, index.get(&last)?);
-                    Some((
-                        e as u32,
-                        [slot(qa, low), slot(qb, low), slot(qa, high), slot(qb, high)],
-                    ))
-                })
+            let (runs, count) = runs_around(owners, low, axis);
+            (runs.into_iter().take(count)).filter_map(move |((cell_a, dir_a), (cell_b, dir_b))| {
+                let qa = *index.get(&faces.key(cell_a, dir_a))?;
+                let qb = *index.get(&faces.key(cell_b, dir_b))?;
+                Some((
+                    e as u32,
+                    [slot(qa, low), slot(qb, low), slot(qa, high), slot(qb, high)],
+                ))
+            })
         })
         .collect();
     let slots = quads.len() * 4;
@@ -189,34 +189,62 @@ impl VertexClasses {
     }
 }
 
+/// Packs a quad's sub-cell and direction into one word: the sub-cell's place in a box
+/// one sub-cell wider on every side than the quads' sub-cells from `lo` to `hi`, times
+/// six, plus the direction.
+#[derive(Clone, Copy)]
+struct QuadKeys {
+    min: IVec3,
+    dims: glam::U64Vec3,
+}
+
+impl QuadKeys {
+    fn around(lo: IVec3, hi: IVec3) -> Self {
+        Self {
+            min: lo - IVec3::ONE,
+            dims: (hi - lo + IVec3::splat(3)).as_u64vec3(),
+        }
+    }
+
+    /// The key of the quad of sub-cell `cell` facing `direction` (the cell must lie in
+    /// the box).
+    #[inline]
+    fn key(&self, cell: IVec3, direction: u8) -> u64 {
+        let d = (cell - self.min).as_u64vec3();
+        ((d.z * self.dims.y + d.y) * self.dims.x + d.x) * 6 + direction as u64
+    }
+}
+
 /// A run's bounding quads `(first, last)`, keyed `(sub-cell, direction)`.
 type Run = ((IVec3, u8), (IVec3, u8));
 
-/// The runs of joined solid sub-cells around the grid edge from `w` along `axis` (at
-/// most two: four sub-cells, a gap after each run).
-fn runs_around(owners: &CellOwners, w: IVec3, axis: usize) -> SmallVec<[Run; 2]> {
+/// The runs of joined solid sub-cells around the grid edge from `w` along `axis` — at
+/// most four, one per sub-cell, each ended by a face that is not joined — and how many
+/// there are.
+#[inline]
+fn runs_around(owners: &CellOwners, w: IVec3, axis: usize) -> ([Run; 4], usize) {
     let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
     // round the edge: (0, 0) → (−1, 0) → (−1, −1) → (0, −1) in (b, c), each step one face
-    let offsets = [(0, 0), (-1, 0), (-1, -1), (0, -1)];
+    const ROUND: [(i32, i32); 4] = [(0, 0), (-1, 0), (-1, -1), (0, -1)];
     let steps = [2 * b, 2 * c, 2 * b + 1, 2 * c + 1];
-    let cells: [IVec3; 4] = offsets.map(|(i, j)| {
-        let mut u = w;
-        u[b] += i;
-        u[c] += j;
-        u
-    });
-    let own = cells.map(|u| owners.owner(u));
-    let joined: [bool; 4] = std::array::from_fn(|i| {
-        let next = (i + 1) % 4;
-        match (own[i], own[next]) {
-            (Some(p), Some(q)) => owners.joined(cells[i], p, steps[i], q),
-            _ => false,
+    let mut cells = [w; 4];
+    let mut own = [None; 4];
+    for i in 0..4 {
+        cells[i][b] += ROUND[i].0;
+        cells[i][c] += ROUND[i].1;
+        own[i] = owners.owner(cells[i]);
+    }
+    let mut joined = [false; 4];
+    for i in 0..4 {
+        if let (Some(p), Some(q)) = (own[i], own[(i + 1) % 4]) {
+            joined[i] = owners.joined(cells[i], p, steps[i], q);
         }
-    });
+    }
+    let mut runs = [((IVec3::ZERO, 0), (IVec3::ZERO, 0)); 4];
+    let mut count = 0;
     let Some(start) = (0..4).find(|&i| !joined[(i + 3) % 4]) else {
-        return SmallVec::new();
+        return (runs, count);
     };
-    let mut runs = SmallVec::new();
     let mut first = None;
     for k in 0..4 {
         let i = (start + k) % 4;
@@ -229,10 +257,11 @@ fn runs_around(owners: &CellOwners, w: IVec3, axis: usize) -> SmallVec<[Run; 2]>
         if !joined[i]
             && let Some(f) = first.take()
         {
-            runs.push((f, (cells[i], steps[i] as u8)));
+            runs[count] = (f, (cells[i], steps[i] as u8));
+            count += 1;
         }
     }
-    runs
+    (runs, count)
 }
 
 #[cfg(test)]
