@@ -99,9 +99,10 @@ impl CarryLayout {
             .with_min_len(4096)
             .map(|b| slot_of[b.particle as usize])
             .collect();
+        // (the triangles' corners as one flat list: corner `i` is of triangle `i / 3`)
+        let corners = topology.triangles.as_flattened();
         let (triangle_start, vertex_triangles) = group_by_key(topology.vertex_count(), || {
-            (topology.triangles.iter().enumerate())
-                .flat_map(|(i, t)| t.iter().map(move |&v| (v, i as u32)))
+            (corners.iter().enumerate()).map(|(i, &v)| (v, (i / 3) as u32))
         });
         Self {
             read,
