@@ -123,10 +123,22 @@ pub fn update_surfaces(
         // only the gather.
         if moved || installed {
             carry_vertices(mesh);
-            mesh.shown.clone_from(&mesh.gathered);
+            show_gathered(mesh);
             marked.set_changed();
         }
     }
+}
+
+/// Records the gathered positions as those `mesh` shows (copied in parallel: they are
+/// every slot's).
+fn show_gathered(mesh: &mut SurfaceMesh) {
+    if mesh.shown.len() != mesh.gathered.len() {
+        mesh.shown.clone_from(&mesh.gathered);
+        return;
+    }
+    (mesh.shown.par_chunks_mut(GATHER_PER_TASK))
+        .zip(mesh.gathered.par_chunks(GATHER_PER_TASK))
+        .for_each(|(shown, gathered)| shown.copy_from_slice(gathered));
 }
 
 /// Carries `mesh`'s vertices to its gathered particles: the carriers' frames, then the
@@ -153,6 +165,9 @@ fn carry_vertices(mesh: &mut SurfaceMesh) {
         &mut mesh.normals,
     );
 }
+
+/// Slots per parallel task of [`gather`].
+const GATHER_PER_TASK: usize = 4096;
 
 /// Gathers the positions of the particles `mesh`'s carriers read into its slots: the
 /// solver's dense positions, which are the particles' since the substeps stored them,
@@ -191,25 +206,26 @@ fn gather(
         mesh.dense_for = split.is_empty().then_some(key);
     }
     let limit = (SurfaceMesh::STILL * spacing).powi(2);
-    let shown = &mesh.shown;
+    let (read, dense, shown) = (&mesh.layout.read, &mesh.dense_slots, &mesh.shown);
     let same_slots = shown.len() == mesh.gathered.len();
-    let moved = mesh
-        .gathered
-        .par_iter_mut()
-        .with_min_len(4096)
-        .zip(&mesh.layout.read)
-        .zip(&mesh.dense_slots)
-        .enumerate()
-        .map(|(slot, ((at, &p), &d))| {
-            if let Some(x) = solved
-                .get(d as usize)
-                .copied()
-                .or_else(|| entity_position(p))
-            {
-                *at = x;
+    // (a plain loop per task: the slots are many and each is a few instructions)
+    let moved = (mesh.gathered.par_chunks_mut(GATHER_PER_TASK).enumerate())
+        .map(|(task, gathered)| {
+            let first = task * GATHER_PER_TASK;
+            let mut moved = false;
+            for (slot, at) in (first..).zip(gathered) {
+                if let Some(x) = solved
+                    .get(dense[slot] as usize)
+                    .copied()
+                    .or_else(|| entity_position(read[slot]))
+                {
+                    *at = x;
+                }
+                // (a particle whose entity is gone keeps its last place; one slot
+                // that moved is enough to tell)
+                moved = moved || same_slots && at.distance_squared(shown[slot]) > limit;
             }
-            // (a particle whose entity is gone keeps its last place)
-            same_slots && at.distance_squared(shown[slot]) > limit
+            moved
         })
         .reduce(|| false, |a, b| a || b);
     moved || !same_slots

@@ -120,21 +120,22 @@ pub fn vertex_positions(
     out: &mut Vec<Vec3>,
 ) {
     out.resize(topology.vertex_count(), Vec3::ZERO);
-    out.par_iter_mut()
-        .with_min_len(PER_TASK)
-        .enumerate()
-        .for_each(|(v, at)| {
-            let range = topology.binding_start[v] as usize..topology.binding_start[v + 1] as usize;
-            let sum: Vec3A = topology.bindings[range.clone()]
+    let (start, bindings) = (&topology.binding_start, &topology.bindings);
+    // (a plain loop per task: the vertices are many and each is a few instructions)
+    (out.par_chunks_mut(PER_TASK).enumerate()).for_each(|(task, out)| {
+        for (v, at) in (task * PER_TASK..).zip(out) {
+            let range = start[v] as usize..start[v + 1] as usize;
+            let mut sum = Vec3A::ZERO;
+            for (b, &s) in bindings[range.clone()]
                 .iter()
                 .zip(&layout.binding_slots[range])
-                .map(|(b, &s)| {
-                    let s = s as usize;
-                    b.weight * (positions[s] + rotations[s] * Vec3A::from(b.offset))
-                })
-                .sum();
+            {
+                let s = s as usize;
+                sum += b.weight * (positions[s] + rotations[s] * Vec3A::from(b.offset));
+            }
             *at = sum.into();
-        });
+        }
+    });
 }
 
 /// Unit vertex normals of the topology's triangles over `positions` (area-weighted),
@@ -148,29 +149,28 @@ pub fn vertex_normals(
     out: &mut Vec<Vec3>,
 ) {
     faces.resize(topology.triangles.len(), Vec3A::ZERO);
-    faces
-        .par_iter_mut()
-        .with_min_len(PER_TASK)
-        .zip(&topology.triangles)
-        .for_each(|(n, t)| {
-            let a = Vec3A::from(positions[t[0] as usize]);
-            let b = Vec3A::from(positions[t[1] as usize]);
-            let c = Vec3A::from(positions[t[2] as usize]);
-            // twice the area times the unit normal
-            *n = (b - a).cross(c - a);
+    (faces.par_chunks_mut(PER_TASK))
+        .zip(topology.triangles.par_chunks(PER_TASK))
+        .for_each(|(faces, triangles)| {
+            for (n, t) in faces.iter_mut().zip(triangles) {
+                let a = Vec3A::from(positions[t[0] as usize]);
+                let b = Vec3A::from(positions[t[1] as usize]);
+                let c = Vec3A::from(positions[t[2] as usize]);
+                // twice the area times the unit normal
+                *n = (b - a).cross(c - a);
+            }
         });
     out.resize(positions.len(), Vec3::ZERO);
-    out.par_iter_mut()
-        .with_min_len(PER_TASK)
-        .enumerate()
-        .for_each(|(v, n)| {
-            let around = layout.triangle_start[v] as usize..layout.triangle_start[v + 1] as usize;
-            let sum: Vec3A = layout.vertex_triangles[around]
-                .iter()
-                .map(|&t| faces[t as usize])
-                .sum();
+    let (start, around) = (&layout.triangle_start, &layout.vertex_triangles);
+    (out.par_chunks_mut(PER_TASK).enumerate()).for_each(|(task, out)| {
+        for (v, n) in (task * PER_TASK..).zip(out) {
+            let mut sum = Vec3A::ZERO;
+            for &t in &around[start[v] as usize..start[v + 1] as usize] {
+                sum += faces[t as usize];
+            }
             *n = sum.normalize_or_zero().into();
-        });
+        }
+    });
 }
 
 #[cfg(test)]
