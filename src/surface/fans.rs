@@ -323,6 +323,21 @@ mod tests {
     }
 
     #[test]
+    fn four_cells_severed_from_each_other_around_an_edge_are_four_closed_cubes() {
+        // a 2×2×1 block whose four cells keep no link: around its middle vertical edge
+        // each cell is a run of its own, the most an edge can have
+        let coords: Vec<IVec3> = (0..4).map(|k| IVec3::new(k % 2, k / 2, 0)).collect();
+        let mut lattice = Lattice::from_coords(1.0, coords).unwrap();
+        let at = |x, y| lattice.at(IVec3::new(x, y, 0)).unwrap();
+        let (a, b, c, d) = (at(0, 0), at(1, 0), at(0, 1), at(1, 1));
+        for (p, q) in [(a, b), (a, c), (b, d), (c, d)] {
+            assert!(lattice.sever(p, q));
+        }
+        assert_eq!(extract(&lattice).triangles.len(), 4 * 12);
+        assert!((closed_volume(&lattice) - 4.0).abs() < 1e-5);
+    }
+
+    #[test]
     fn a_severed_edge_inside_a_block_leaves_a_closed_slit() {
         let coords: Vec<IVec3> = (0..27)
             .map(|k| IVec3::new(k % 3, k / 3 % 3, k / 9))
