@@ -356,10 +356,10 @@ fn keep_pieces_whole(lattice: &Lattice, topology: &mut SurfaceTopology) {
     }
 }
 
-/// Appends to `out` the bindings of the vertex at grid corner `w` (resting at `rest`) whose quads belong
-/// to the solid sub-cells `cells` (a bit per octant around `w`, numbered like
-/// [`octant`]): the owners of those sub-cells and of every solid sub-cell around `w`
-/// joined to them through faces at `w`, one share per sub-cell.
+/// Appends to `out` the bindings of the vertex at grid corner `w` (resting at `rest`)
+/// whose quads belong to the solid sub-cells `cells` (a bit per octant around `w`,
+/// numbered like [`octant`]): the owners of those sub-cells and of every solid sub-cell
+/// around `w` joined to them through faces at `w`, one share per sub-cell.
 fn bind(owners: &CellOwners, w: IVec3, rest: Vec3, cells: u8, out: &mut Vec<Binding>) {
     // the eight sub-cells around `w`, numbered like `octant`
     let mut around = [w; 8];
