@@ -132,10 +132,7 @@ pub fn update_surfaces(
 /// Records the gathered positions as those `mesh` shows (copied in parallel: they are
 /// every slot's).
 fn show_gathered(mesh: &mut SurfaceMesh) {
-    if mesh.shown.len() != mesh.gathered.len() {
-        mesh.shown.clone_from(&mesh.gathered);
-        return;
-    }
+    mesh.shown.resize(mesh.gathered.len(), Vec3A::ZERO);
     (mesh.shown.par_chunks_mut(GATHER_PER_TASK))
         .zip(mesh.gathered.par_chunks(GATHER_PER_TASK))
         .for_each(|(shown, gathered)| shown.copy_from_slice(gathered));

@@ -65,9 +65,9 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
     };
     // each quad by its sub-cell and direction, packed in one word over the box of the
     // sub-cells around the quads' corners (a run's quads lie there)
-    let faces = QuadKeys::around(lo, hi);
+    let quad_keys = QuadKeys::around(lo, hi);
     let index: FxHashMap<u64, u32> = (quads.iter().enumerate())
-        .map(|(q, quad)| (faces.key(quad.cell, quad.direction), q as u32))
+        .map(|(q, quad)| (quad_keys.key(quad.cell, quad.direction), q as u32))
         .collect();
     // (a bit per key, three per corner of the box: the keys come out ascending and
     // each once, without a sort)
@@ -98,8 +98,8 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
             let index = &index;
             let (runs, count) = runs_around(owners, low, axis);
             (runs.into_iter().take(count)).filter_map(move |((cell_a, dir_a), (cell_b, dir_b))| {
-                let qa = *index.get(&faces.key(cell_a, dir_a))?;
-                let qb = *index.get(&faces.key(cell_b, dir_b))?;
+                let qa = *index.get(&quad_keys.key(cell_a, dir_a))?;
+                let qb = *index.get(&quad_keys.key(cell_b, dir_b))?;
                 Some((
                     e as u32,
                     [slot(qa, low), slot(qb, low), slot(qa, high), slot(qb, high)],

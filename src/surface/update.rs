@@ -84,8 +84,8 @@ pub fn update(
     let mut vertex_of_class = vec![u32::MAX; classes.len()];
     let mut made: Vec<&[u32]> = Vec::new();
     let first_new = topology.rest.len() as u32;
-    // (a mark per new vertex, numbered from `first_new`)
-    let mut on_cut = Vec::new();
+    // (a mark per new vertex, numbered from `first_new`: at most one per class)
+    let mut on_cut = vec![false; classes.len()];
     let mut fresh = Vec::with_capacity(quads.len());
     for (q, quad) in quads.iter().enumerate() {
         let corners = face_corners(quad.cell, quad.direction);
@@ -100,11 +100,7 @@ pub fn update(
                     made.push(classes.slots(class));
                 }
                 if cut_face {
-                    let new = (vertex_of_class[class] - first_new) as usize;
-                    if on_cut.len() <= new {
-                        on_cut.resize(new + 1, false);
-                    }
-                    on_cut[new] = true;
+                    on_cut[(vertex_of_class[class] - first_new) as usize] = true;
                 }
                 vertex_of_class[class]
             } else {
