@@ -113,7 +113,11 @@ impl ToolShape {
             } => &[("half_width", *half_width), ("half_height", *half_height)],
         };
         for (name, value) in sizes {
-            SIZE.check(&format!("{field}.{name}"), *value)?;
+            // (the field's name is spelt out only for an error: every tool's sweep
+            // checks its shape again each frame)
+            if !SIZE.allows(f64::from(*value)) {
+                SIZE.check(&format!("{field}.{name}"), *value)?;
+            }
         }
         Ok(())
     }
@@ -395,6 +399,23 @@ impl Sweep {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_shape_with_a_size_out_of_range_is_refused_naming_that_size() {
+        let blade = |half_width, half_height| ToolShape::Blade {
+            half_width,
+            half_height,
+        };
+        assert!(blade(0.5, 0.3).validate("tool").is_ok());
+        for (shape, field) in [
+            (blade(0.5, 0.0), "tool.half_height"),
+            (blade(f32::NAN, 0.3), "tool.half_width"),
+            (ToolShape::Sphere { radius: -1.0 }, "tool.radius"),
+        ] {
+            let error = shape.validate("tool").unwrap_err().to_string();
+            assert!(error.contains(field), "{error}");
+        }
+    }
 
     /// `n + 1` poses evenly spaced along the motion, as (position, inverse rotation):
     /// a brute-force reference for the swept test.
