@@ -6,6 +6,7 @@
 use super::local::LocalGraph;
 use crate::body::lattice::{Lattice, NO_PARTICLE};
 use crate::clusters::index::ClusterIndex;
+use rustc_hash::FxHashMap;
 
 /// "None" among piece numbers, particles and labels.
 pub(super) const NONE: u32 = u32::MAX;
@@ -48,17 +49,31 @@ impl Pieces {
 }
 
 /// What the search for pieces reads: the lattice, the particle → clusters index and the
-/// cut clusters (ascending).
+/// cut clusters' positions (in ascending key order) by key.
 pub(super) struct CutView<'a> {
     pub(super) lattice: &'a Lattice,
     pub(super) index: &'a ClusterIndex,
-    pub(super) cut: &'a [u32],
+    /// (hashed, not searched for in the sorted keys: the test for redundant pieces looks
+    /// up every cluster of every member of every piece, and a big cut has thousands)
+    position: FxHashMap<u32, u32>,
 }
 
-impl CutView<'_> {
+impl<'a> CutView<'a> {
+    /// The view of the cut clusters `cut` (ascending, without duplicates).
+    pub(super) fn new(lattice: &'a Lattice, index: &'a ClusterIndex, cut: &[u32]) -> Self {
+        let position = (cut.iter().enumerate())
+            .map(|(c, k)| (*k, c as u32))
+            .collect();
+        Self {
+            lattice,
+            index,
+            position,
+        }
+    }
+
     /// Position of `k` among the cut clusters, if it is one.
     pub(super) fn cut_position(&self, k: u32) -> Option<usize> {
-        self.cut.binary_search(&k).ok()
+        self.position.get(&k).map(|c| *c as usize)
     }
 
     /// Whether particle `a` belongs to a cluster the cut left intact.

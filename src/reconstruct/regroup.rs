@@ -65,11 +65,7 @@ pub fn regroup<S: ClusterStore>(
     let mut cut: Vec<u32> = cut_clusters.to_vec();
     cut.sort_unstable();
     cut.dedup();
-    let view = CutView {
-        lattice,
-        index: store.index(),
-        cut: &cut,
-    };
+    let view = CutView::new(lattice, store.index(), &cut);
     // 3.1: the pieces of every cut cluster, and their intact neighbours.
     let lists: Vec<&[u32]> = cut.iter().map(|k| store.members(*k)).collect();
     let pieces = find_pieces(&lists, &view);
