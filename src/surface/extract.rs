@@ -44,6 +44,13 @@ pub struct SurfaceTopology {
     pub(crate) quads: Vec<Quad>,
     pub(crate) corners: Vec<IVec3>,
     pub(crate) resolution: i32,
+    /// Per triangle, what placing its vertices on the cut changed of the volume it
+    /// spans with the origin (at rest less at its grid corners; 0 at its corners):
+    /// [`keep_pieces_whole`]'s terms, kept with the triangles so that a local update
+    /// works out only its fresh triangles'. Derived from `rest` and `corners`; shorter
+    /// than `triangles` where not yet worked out.
+    #[serde(skip)]
+    pub(crate) volume_change: Vec<f64>,
 }
 
 /// One particle carrying a vertex.
@@ -306,28 +313,18 @@ pub(super) fn finish(lattice: &Lattice, topology: &mut SurfaceTopology) {
 /// faces enclose is its particles' cells (a split half, half a cell).
 fn keep_pieces_whole(lattice: &Lattice, topology: &mut SurfaceTopology) {
     let scale = lattice.spacing() / topology.resolution.max(1) as f32;
-    let grid = |t: &SurfaceTopology, v: u32| t.corners[v as usize].as_vec3() * scale;
-    let placed: Vec<bool> = (0..topology.vertex_count() as u32)
-        .map(|v| topology.rest[v as usize] != grid(topology, v))
-        .collect();
-    if !placed.contains(&true) {
-        return;
-    }
+    work_out_volume_changes(topology, scale);
     let pieces = lattice.pieces();
     // what placing took from (or gave to) each piece
     let mut change = vec![0.0f64; pieces.count];
-    let volume = |x: [Vec3; 3]| x[0].as_dvec3().dot(x[1].as_dvec3().cross(x[2].as_dvec3())) / 6.0;
-    let mut any = false;
-    for (tri, &piece) in topology.triangles.iter().zip(&topology.triangle_piece) {
-        if tri.iter().any(|&v| placed[v as usize]) {
-            any = true;
-            change[piece as usize] += volume(tri.map(|i| topology.rest[i as usize]))
-                - volume(tri.map(|i| grid(topology, i)));
+    for (&c, &piece) in topology.volume_change.iter().zip(&topology.triangle_piece) {
+        if c != 0.0 {
+            change[piece as usize] += c;
         }
     }
     // (no piece can lose half of even one sub-cell: none is crushed)
     let sub_cell = (scale as f64).powi(3);
-    if !any || change.iter().all(|c| *c > -0.5 * sub_cell) {
+    if change.iter().all(|c| *c > -0.5 * sub_cell) {
         return;
     }
     let mut cells = vec![0.0f64; pieces.count];
@@ -348,12 +345,39 @@ fn keep_pieces_whole(lattice: &Lattice, topology: &mut SurfaceTopology) {
             corners.extend(tri.iter().map(|&v| topology.corners[v as usize]));
         }
     }
-    for (v, _) in placed.iter().enumerate().filter(|(_, placed)| **placed) {
-        if corners.contains(&topology.corners[v]) {
-            let x = grid(topology, v as u32);
+    let grid = |t: &SurfaceTopology, v: usize| t.corners[v].as_vec3() * scale;
+    for v in 0..topology.vertex_count() {
+        let x = grid(topology, v);
+        if topology.rest[v] != x && corners.contains(&topology.corners[v]) {
             rest_vertex_at(lattice, topology, v, x);
         }
     }
+    // (vertices moved: every triangle's term again)
+    topology.volume_change.clear();
+    work_out_volume_changes(topology, scale);
+}
+
+/// Works out [`SurfaceTopology::volume_change`] for the triangles past those it holds,
+/// the grid's corners `scale` apart.
+pub(super) fn work_out_volume_changes(topology: &mut SurfaceTopology, scale: f32) {
+    let SurfaceTopology {
+        rest,
+        corners,
+        triangles,
+        volume_change,
+        ..
+    } = topology;
+    let known = volume_change.len().min(triangles.len());
+    volume_change.truncate(known);
+    let grid = |v: u32| corners[v as usize].as_vec3() * scale;
+    let volume = |x: [Vec3; 3]| x[0].as_dvec3().dot(x[1].as_dvec3().cross(x[2].as_dvec3())) / 6.0;
+    volume_change.par_extend(triangles[known..].par_iter().with_min_len(4096).map(|tri| {
+        if tri.iter().any(|&v| rest[v as usize] != grid(v)) {
+            volume(tri.map(|v| rest[v as usize])) - volume(tri.map(grid))
+        } else {
+            0.0
+        }
+    }));
 }
 
 /// Appends to `out` the bindings of the vertex at grid corner `w` (resting at `rest`)

@@ -185,6 +185,7 @@ fn kept_outside(
         bindings: Vec::with_capacity(bindings),
         quads: Vec::with_capacity(quads),
         triangles: Vec::with_capacity(2 * quads),
+        volume_change: Vec::with_capacity(2 * quads),
         resolution: old.resolution,
         ..SurfaceTopology::default()
     };
@@ -216,7 +217,13 @@ fn kept_outside(
         );
     }
     let outside: Vec<bool> = old.quads.iter().map(|q| !in_region(q.cell)).collect();
+    // (a kept triangle's vertices keep their places, and so its volume term)
+    let terms_known = old.volume_change.len() == old.triangles.len();
     for run in runs(&outside, |o| o) {
+        if terms_known {
+            (topology.volume_change)
+                .extend_from_slice(&old.volume_change[2 * run.start..2 * run.end]);
+        }
         topology.quads.extend_from_slice(&old.quads[run.clone()]);
         topology.triangles.extend(
             old.triangles[2 * run.start..2 * run.end]
@@ -405,8 +412,9 @@ impl CellSet {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::body::crossings::Crossing;
     use crate::body::lattice::NEIGHBOUR_OFFSETS;
-    use crate::surface::extract::extract;
+    use crate::surface::extract::{extract, work_out_volume_changes};
     use rand::{Rng, SeedableRng};
 
     /// The surface as what does not depend on numbering: per vertex, its rest place,
@@ -535,5 +543,56 @@ mod tests {
             }
         }
         assert!(updates > 150, "{updates} local updates checked");
+    }
+
+    #[test]
+    fn the_volume_terms_a_local_update_carries_over_are_those_of_its_places() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(52);
+        let mut placed = 0;
+        for case in 0..20 {
+            let n = rng.random_range(4..9);
+            let coords: Vec<IVec3> = (0..n * n * n)
+                .map(|k| IVec3::new(k % n, k / n % n, k / n / n))
+                .collect();
+            let Ok(mut lattice) = Lattice::from_coords(0.1, coords) else {
+                continue;
+            };
+            if case % 2 == 0 {
+                lattice.split(0, [true, false, false, false, false, false]);
+            }
+            let mut surface = extract(&lattice);
+            for step in 0..6 {
+                // severed links with a blade's crossings: the cut faces rest on them
+                let mut touched = Vec::new();
+                let live: Vec<u32> = lattice.live_particles().collect();
+                for _ in 0..rng.random_range(1..6) {
+                    let p = live[rng.random_range(0..live.len())];
+                    let Some(q) = lattice.neighbours(p).next() else {
+                        continue;
+                    };
+                    lattice.sever(p, q);
+                    let normal = glam::Vec3::from_array(std::array::from_fn(|_| {
+                        rng.random_range(-1.0..1.0)
+                    }));
+                    let (fraction, normal) = (rng.random_range(0.1..0.9), normal.normalize());
+                    let crossing = Crossing { fraction, normal };
+                    assert!(lattice.set_crossing(p, q, crossing));
+                    touched.extend([p, q]);
+                }
+                let local = update(&lattice, &surface, &touched).expect("a local update");
+                let mut afresh = local.clone();
+                afresh.volume_change.clear();
+                let scale = lattice.spacing() / local.resolution as f32;
+                work_out_volume_changes(&mut afresh, scale);
+                assert_eq!(
+                    local.volume_change, afresh.volume_change,
+                    "case {case} step {step}"
+                );
+                placed += local.volume_change.iter().filter(|c| **c != 0.0).count();
+                // (the next update carries over this one's terms)
+                surface = local;
+            }
+        }
+        assert!(placed > 1000, "{placed} triangles placed on cuts");
     }
 }
