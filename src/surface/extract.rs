@@ -44,11 +44,16 @@ pub struct SurfaceTopology {
     pub(crate) quads: Vec<Quad>,
     pub(crate) corners: Vec<IVec3>,
     pub(crate) resolution: i32,
+    /// Per vertex, where placing it on the cut put it: its rest, but for a vertex
+    /// [`keep_pieces_whole`] put back at its corner. Empty, or one per vertex.
+    #[serde(skip)]
+    pub(crate) placed: Vec<Vec3>,
     /// Per triangle, what placing its vertices on the cut changed of the volume it
-    /// spans with the origin (at rest less at its grid corners; 0 at its corners):
+    /// spans with the origin (at `placed` less at its grid corners; 0 at its corners):
     /// [`keep_pieces_whole`]'s terms, kept with the triangles so that a local update
-    /// works out only its fresh triangles'. Derived from `rest` and `corners`; shorter
-    /// than `triangles` where not yet worked out.
+    /// works out only its fresh triangles', and judges a piece as a full extraction
+    /// does (one put back is still crushed, and fresh vertices at its corners go back
+    /// too). Shorter than `triangles` where not yet worked out.
     #[serde(skip)]
     pub(crate) volume_change: Vec<f64>,
 }
@@ -257,6 +262,7 @@ pub(super) fn add_vertices(
     for made in made {
         let base = topology.bindings.len() as u32;
         topology.rest.extend_from_slice(&made.rest);
+        topology.placed.extend_from_slice(&made.rest);
         topology.corners.extend_from_slice(&made.corners);
         topology.bindings.extend_from_slice(&made.bindings);
         (topology.binding_start).extend(made.ends.iter().map(|end| base + end));
@@ -352,9 +358,6 @@ fn keep_pieces_whole(lattice: &Lattice, topology: &mut SurfaceTopology) {
             rest_vertex_at(lattice, topology, v, x);
         }
     }
-    // (vertices moved: every triangle's term again)
-    topology.volume_change.clear();
-    work_out_volume_changes(topology, scale);
 }
 
 /// Works out [`SurfaceTopology::volume_change`] for the triangles past those it holds,
@@ -362,18 +365,24 @@ fn keep_pieces_whole(lattice: &Lattice, topology: &mut SurfaceTopology) {
 pub(super) fn work_out_volume_changes(topology: &mut SurfaceTopology, scale: f32) {
     let SurfaceTopology {
         rest,
+        placed,
         corners,
         triangles,
         volume_change,
         ..
     } = topology;
+    let at = if placed.len() == rest.len() {
+        placed
+    } else {
+        rest
+    };
     let known = volume_change.len().min(triangles.len());
     volume_change.truncate(known);
     let grid = |v: u32| corners[v as usize].as_vec3() * scale;
     let volume = |x: [Vec3; 3]| x[0].as_dvec3().dot(x[1].as_dvec3().cross(x[2].as_dvec3())) / 6.0;
     volume_change.par_extend(triangles[known..].par_iter().with_min_len(4096).map(|tri| {
-        if tri.iter().any(|&v| rest[v as usize] != grid(v)) {
-            volume(tri.map(|v| rest[v as usize])) - volume(tri.map(grid))
+        if tri.iter().any(|&v| at[v as usize] != grid(v)) {
+            volume(tri.map(|v| at[v as usize])) - volume(tri.map(grid))
         } else {
             0.0
         }
@@ -465,6 +474,7 @@ pub(super) fn place_on_cut(owners: &CellOwners, topology: &mut SurfaceTopology, 
             .expect("its corner was solved");
         if let Some(x) = placed[k] {
             rest_vertex_at(owners.lattice(), topology, v as usize, x);
+            topology.placed[v as usize] = x;
         }
     }
 }

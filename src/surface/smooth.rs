@@ -56,7 +56,8 @@ pub fn smooth(lattice: &Lattice, topology: &mut SurfaceTopology) {
             std::mem::swap(&mut at, &mut next);
         }
     }
-    // (the places move: the volume terms worked out for them go)
+    // (the places move: the placements and volume terms worked out for them go)
+    topology.placed.clear();
     topology.volume_change.clear();
     for (v, (x, corner)) in at.iter().zip(&corners).enumerate() {
         let rest = *corner + (*x - *corner).clamp_length_max(reach);

@@ -180,6 +180,7 @@ fn kept_outside(
     let bindings = old.bindings.len() * vertices / old.vertex_count().max(1);
     let mut topology = SurfaceTopology {
         rest: Vec::with_capacity(vertices),
+        placed: Vec::with_capacity(vertices),
         corners: Vec::with_capacity(vertices),
         binding_start: Vec::with_capacity(vertices + 1),
         bindings: Vec::with_capacity(bindings),
@@ -198,8 +199,15 @@ fn kept_outside(
             kept += 1;
         }
     }
+    // (a surface that kept no placements places its vertices at rest)
+    let placed = if old.placed.len() == old.rest.len() {
+        &old.placed
+    } else {
+        &old.rest
+    };
     for run in runs(&renumbered, |n| n != u32::MAX) {
         topology.rest.extend_from_slice(&old.rest[run.clone()]);
+        topology.placed.extend_from_slice(&placed[run.clone()]);
         topology
             .corners
             .extend_from_slice(&old.corners[run.clone()]);
@@ -410,189 +418,4 @@ impl CellSet {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::body::crossings::Crossing;
-    use crate::body::lattice::NEIGHBOUR_OFFSETS;
-    use crate::surface::extract::{extract, work_out_volume_changes};
-    use rand::{Rng, SeedableRng};
-
-    /// The surface as what does not depend on numbering: per vertex, its rest place,
-    /// its bindings and the quad corners (quad face, corner) it joins; per quad face,
-    /// its piece.
-    fn canonical(t: &SurfaceTopology) -> (Vec<String>, Vec<String>) {
-        let mut slots: Vec<Vec<(IVec3, u8, usize)>> = vec![Vec::new(); t.vertex_count()];
-        let mut pieces = Vec::new();
-        for (q, quad) in t.quads.iter().enumerate() {
-            let [a, b, c] = t.triangles[2 * q];
-            let d = t.triangles[2 * q + 1][2];
-            for (k, v) in [a, b, c, d].into_iter().enumerate() {
-                slots[v as usize].push((quad.cell, quad.direction, k));
-            }
-            assert_eq!(t.triangle_piece[2 * q], t.triangle_piece[2 * q + 1]);
-            pieces.push(format!(
-                "{:?} {} {}",
-                quad.cell,
-                quad.direction,
-                t.triangle_piece[2 * q]
-            ));
-        }
-        let mut vertices: Vec<String> = (0..t.vertex_count())
-            .map(|v| {
-                let mut s = slots[v].clone();
-                s.sort_by_key(|(c, d, k)| (c.x, c.y, c.z, *d, *k));
-                let mut b: Vec<(u32, i32)> = t
-                    .bindings_of(v)
-                    .iter()
-                    .map(|b| (b.particle, (b.weight * 1e4).round() as i32))
-                    .collect();
-                b.sort_unstable();
-                format!("{:?} {:?} {:?}", (t.rest[v] * 1e4).round(), b, s)
-            })
-            .collect();
-        vertices.sort();
-        pieces.sort();
-        (vertices, pieces)
-    }
-
-    #[test]
-    fn a_local_update_is_the_full_extraction_after_every_kind_of_cut() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(51);
-        let mut updates = 0;
-        for case in 0..40 {
-            let dims = IVec3::new(
-                rng.random_range(3..10),
-                rng.random_range(3..10),
-                rng.random_range(3..10),
-            );
-            let coords: Vec<IVec3> = (0..dims.x * dims.y * dims.z)
-                .map(|k| IVec3::new(k % dims.x, k / dims.x % dims.y, k / dims.x / dims.y))
-                .filter(|_| rng.random_bool(0.9))
-                .collect();
-            let Ok(mut lattice) = Lattice::from_coords(0.1, coords) else {
-                continue;
-            };
-            // split bodies from the start in half the cases: they draw octants
-            let split_first = case % 2 == 0;
-            if split_first {
-                let p = lattice.live_particles().next().unwrap();
-                lattice.split(p, [true, false, false, false, false, false]);
-            }
-            let mut surface = extract(&lattice);
-            for step in 0..6 {
-                let live: Vec<u32> = lattice.live_particles().collect();
-                let mut touched = Vec::new();
-                for _ in 0..rng.random_range(1..6) {
-                    let p = live[rng.random_range(0..live.len())];
-                    if !lattice.is_live(p) {
-                        continue;
-                    }
-                    match rng.random_range(0..3) {
-                        0 => {
-                            lattice.remove(p);
-                            touched.push(p);
-                        }
-                        1 => {
-                            if let Some(q) = lattice.neighbours(p).next() {
-                                lattice.sever(p, q);
-                                touched.extend([p, q]);
-                            }
-                        }
-                        _ if split_first => {
-                            // the edges on one side of a blade, as the cut plans them
-                            let n = glam::Vec3::new(
-                                rng.random_range(-1.0..1.0),
-                                rng.random_range(-1.0..1.0),
-                                rng.random_range(-1.0..1.0),
-                            );
-                            let moves: [bool; 6] = std::array::from_fn(|d| {
-                                NEIGHBOUR_OFFSETS[d].as_vec3().dot(n) > 0.0
-                            });
-                            if let Some(q) = lattice.split(p, moves) {
-                                touched.extend([p, q]);
-                            }
-                        }
-                        _ => {}
-                    }
-                }
-                let full = extract(&lattice);
-                match update(&lattice, &surface, &touched) {
-                    Some(local) => {
-                        let (a, b) = (canonical(&local), canonical(&full));
-                        let only = |x: &[String], y: &[String]| -> Vec<String> {
-                            x.iter()
-                                .filter(|s| !y.contains(s))
-                                .take(3)
-                                .cloned()
-                                .collect()
-                        };
-                        assert!(
-                            a == b,
-                            "case {case} step {step} res {}: local only {:?} / full only {:?}; pieces local only {:?} / full only {:?}",
-                            full.resolution,
-                            only(&a.0, &b.0),
-                            only(&b.0, &a.0),
-                            only(&a.1, &b.1),
-                            only(&b.1, &a.1)
-                        );
-                        updates += 1;
-                    }
-                    None => assert_ne!(full.resolution, surface.resolution),
-                }
-                surface = full;
-            }
-        }
-        assert!(updates > 150, "{updates} local updates checked");
-    }
-
-    #[test]
-    fn the_volume_terms_a_local_update_carries_over_are_those_of_its_places() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(52);
-        let mut placed = 0;
-        for case in 0..20 {
-            let n = rng.random_range(4..9);
-            let coords: Vec<IVec3> = (0..n * n * n)
-                .map(|k| IVec3::new(k % n, k / n % n, k / n / n))
-                .collect();
-            let Ok(mut lattice) = Lattice::from_coords(0.1, coords) else {
-                continue;
-            };
-            if case % 2 == 0 {
-                lattice.split(0, [true, false, false, false, false, false]);
-            }
-            let mut surface = extract(&lattice);
-            for step in 0..6 {
-                // severed links with a blade's crossings: the cut faces rest on them
-                let mut touched = Vec::new();
-                let live: Vec<u32> = lattice.live_particles().collect();
-                for _ in 0..rng.random_range(1..6) {
-                    let p = live[rng.random_range(0..live.len())];
-                    let Some(q) = lattice.neighbours(p).next() else {
-                        continue;
-                    };
-                    lattice.sever(p, q);
-                    let normal = glam::Vec3::from_array(std::array::from_fn(|_| {
-                        rng.random_range(-1.0..1.0)
-                    }));
-                    let (fraction, normal) = (rng.random_range(0.1..0.9), normal.normalize());
-                    let crossing = Crossing { fraction, normal };
-                    assert!(lattice.set_crossing(p, q, crossing));
-                    touched.extend([p, q]);
-                }
-                let local = update(&lattice, &surface, &touched).expect("a local update");
-                let mut afresh = local.clone();
-                afresh.volume_change.clear();
-                let scale = lattice.spacing() / local.resolution as f32;
-                work_out_volume_changes(&mut afresh, scale);
-                assert_eq!(
-                    local.volume_change, afresh.volume_change,
-                    "case {case} step {step}"
-                );
-                placed += local.volume_change.iter().filter(|c| **c != 0.0).count();
-                // (the next update carries over this one's terms)
-                surface = local;
-            }
-        }
-        assert!(placed > 1000, "{placed} triangles placed on cuts");
-    }
-}
+mod tests;
