@@ -45,8 +45,10 @@ pub struct SurfaceTopology {
     pub(crate) corners: Vec<IVec3>,
     pub(crate) resolution: i32,
     /// Per vertex, where placing it on the cut put it: its rest, but for a vertex
-    /// [`keep_pieces_whole`] put back at its corner. Empty, or one per vertex.
-    #[serde(skip)]
+    /// [`keep_pieces_whole`] put back at its corner. Empty (read as `rest`: a save
+    /// from before it was kept), or one per vertex. Saved, so that a resumed run judges
+    /// crushed pieces as the run it continues does.
+    #[serde(default)]
     pub(crate) placed: Vec<Vec3>,
     /// Per triangle, what placing its vertices on the cut changed of the volume it
     /// spans with the origin (at `placed` less at its grid corners; 0 at its corners):
@@ -121,8 +123,11 @@ impl SurfaceTopology {
         {
             return Some("a binding names a particle the body does not have");
         }
-        if !self.rest.iter().all(|x| x.is_finite()) {
+        if !self.rest.iter().chain(&self.placed).all(|x| x.is_finite()) {
             return Some("a vertex rests at a non-finite place");
+        }
+        if !self.placed.is_empty() && self.placed.len() != vertices {
+            return Some("its vertices' placements do not match its vertices");
         }
         None
     }

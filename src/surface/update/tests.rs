@@ -1,5 +1,5 @@
 //! The local update's tests: against a full extraction after every kind of cut, and
-//! the crush check's volume terms it carries over.
+//! the crush check's volume terms it carries over, and what a save may hold of them.
 
 use super::*;
 use crate::body::crossings::Crossing;
@@ -189,4 +189,18 @@ fn the_volume_terms_a_local_update_carries_over_are_those_of_its_places() {
         }
     }
     assert!(placed > 1000, "{placed} triangles placed on cuts");
+}
+
+#[test]
+fn a_saved_surface_whose_placements_do_not_match_its_vertices_is_refused() {
+    let lattice = Lattice::from_coords(0.1, vec![IVec3::ZERO, IVec3::X]).unwrap();
+    let mut surface = extract(&lattice);
+    assert_eq!(surface.fault(lattice.len()), None);
+    // (an old save kept none: read as the rest places)
+    surface.placed.clear();
+    assert_eq!(surface.fault(lattice.len()), None);
+    surface.placed = vec![glam::Vec3::ZERO; surface.rest.len() - 1];
+    assert!(surface.fault(lattice.len()).is_some());
+    surface.placed = vec![glam::Vec3::NAN; surface.rest.len()];
+    assert!(surface.fault(lattice.len()).is_some());
 }
