@@ -365,6 +365,16 @@ fn keep_pieces_whole(lattice: &Lattice, topology: &mut SurfaceTopology) {
     }
 }
 
+/// Where placement put each vertex: `placed`, or `rest` for a topology that kept no
+/// placements (a save from before they were kept, or a smoothed surface).
+pub(super) fn placements<'a>(placed: &'a [Vec3], rest: &'a [Vec3]) -> &'a [Vec3] {
+    if placed.len() == rest.len() {
+        placed
+    } else {
+        rest
+    }
+}
+
 /// Works out [`SurfaceTopology::volume_change`] for the triangles past those it holds,
 /// the grid's corners `scale` apart.
 pub(super) fn work_out_volume_changes(topology: &mut SurfaceTopology, scale: f32) {
@@ -376,11 +386,7 @@ pub(super) fn work_out_volume_changes(topology: &mut SurfaceTopology, scale: f32
         volume_change,
         ..
     } = topology;
-    let at = if placed.len() == rest.len() {
-        placed
-    } else {
-        rest
-    };
+    let at = placements(placed, rest);
     let known = volume_change.len().min(triangles.len());
     volume_change.truncate(known);
     let grid = |v: u32| corners[v as usize].as_vec3() * scale;

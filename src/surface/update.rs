@@ -19,7 +19,9 @@
 //! extraction; so does a surface that is not a lattice's.
 
 use super::cells::{CellOwners, face_corners, octant};
-use super::extract::{SurfaceTopology, add_vertices, finish, place_on_cut, push_faces, push_quad};
+use super::extract::{
+    SurfaceTopology, add_vertices, finish, place_on_cut, placements, push_faces, push_quad,
+};
 use super::fans::{Quad, vertex_classes};
 use super::placement::is_cut_face;
 use crate::body::lattice::Lattice;
@@ -199,12 +201,7 @@ fn kept_outside(
             kept += 1;
         }
     }
-    // (a surface that kept no placements places its vertices at rest)
-    let placed = if old.placed.len() == old.rest.len() {
-        &old.placed
-    } else {
-        &old.rest
-    };
+    let placed = placements(&old.placed, &old.rest);
     for run in runs(&renumbered, |n| n != u32::MAX) {
         topology.rest.extend_from_slice(&old.rest[run.clone()]);
         topology.placed.extend_from_slice(&placed[run.clone()]);
