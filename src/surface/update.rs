@@ -2,17 +2,22 @@
 //! the quads and vertices near the particles the cut touched are rebuilt, and spliced
 //! into the rest, which keeps its vertices and triangles (renumbered).
 //!
-//! What a cut can change is local. A quad depends on its sub-cell, the one across its
-//! face and their owners' link; a vertex's class and bindings on the sub-cells around
-//! its corner and, through the pinch rule of [`super::fans`], around the six corners
-//! next to it. So with `C` the cells of the touched particles:
-//! - quads change only on faces of `C`'s sub-cells, and vertices only at corners of
-//!   sub-cells of `C ⊕ 1` (the cells within one of `C`, counting diagonals): those
-//!   corners are rebuilt;
+//! What a cut can change is local, and local in sub-cells. The owners of a cell's
+//! sub-cells are dealt among its own particles, and a face is joined by its two owners'
+//! link, so with `C` the sub-cells of the touched particles' cells:
+//! - quads change only on faces of `C`'s sub-cells;
+//! - a vertex's class and bindings depend on the sub-cells around its corner and,
+//!   through the pinch rule of [`super::fans`], around the six corners next to it; its
+//!   place on a cut on the cells within half a cell of it. So vertices change only at
+//!   corners of the sub-cells of `C ⊕ 1` (the sub-cells within one of `C`, counting
+//!   diagonals): those corners are rebuilt;
 //! - the quads of `C ⊕ 3` are extracted afresh: every quad around a rebuilt corner and
 //!   around its neighbours lies in it, so its classes there are exactly those a full
 //!   extraction finds; a fresh quad's corners that are not rebuilt keep the vertex the
 //!   same quad had before (such a quad is unchanged).
+//!
+//! Counted in sub-cells, not cells, the region of a body drawn in octants is half as
+//! wide around the cut, and holds a third of the quads along a cut's line.
 //!
 //! The pieces are numbered again over the whole body, as a full extraction numbers
 //! them. A change of resolution (a body's first split particle) needs a full
@@ -29,6 +34,9 @@ use crate::util::bits::set_bits;
 use glam::IVec3;
 use rustc_hash::FxHashMap;
 
+/// The margin of the region extracted afresh around the touched sub-cells (`C ⊕ 3`).
+const REGION_MARGIN: i32 = 3;
+
 /// The surface of `lattice` after a change that touched only the particles `touched`
 /// (removed, split — both halves —, or with links severed or made), from `old`, its
 /// surface before; `None` when only a full extraction will do (see the module docs).
@@ -37,35 +45,32 @@ pub fn update(
     old: &SurfaceTopology,
     touched: &[u32],
 ) -> Option<SurfaceTopology> {
-    let changed = CellSet::around(touched.iter().map(|&p| lattice.coord(p)), 3);
+    let cells = touched.iter().map(|&p| lattice.coord(p));
+    let (lo, hi) = cells.clone().fold((IVec3::MAX, IVec3::MIN), |(lo, hi), c| {
+        (lo.min(c), hi.max(c))
+    });
     // (the owners looked up around the region, fast; a cell beyond it and one more is
     // never asked for, but would be answered right)
-    let owners = match &changed {
-        Some(c) => CellOwners::looked_up_in(lattice, c.min - IVec3::ONE, c.min + c.dims),
-        None => CellOwners::looked_up_in(lattice, IVec3::MAX, IVec3::MIN),
-    };
+    let margin = IVec3::splat(REGION_MARGIN + 1);
+    let owners = CellOwners::looked_up_in(lattice, lo - margin, hi + margin);
     let res = owners.resolution();
     if old.quads.is_empty() || res != old.resolution {
         return None;
     }
-    let Some(changed) = changed else {
+    // the touched cells' sub-cells: every one of a cell whose particles were touched
+    let sub_cells = cells
+        .flat_map(|c| (0..(res * res * res) as u32).map(move |k| c * res + octant(k) * (res - 1)));
+    let Some(changed) = CellSet::around(sub_cells, REGION_MARGIN) else {
         return Some(old.clone());
     };
     let near = changed.dilated(1);
     // C ⊕ 3
-    let region = near.dilated(2);
-    let in_region = |s: IVec3| region.contains(owners.cell_of(s));
-    // (one sub-cell per cell: the corners of those cells are the cells of a set grown by
-    // one forward)
-    let corners_near = (res == 1).then(|| near.forward());
-    let rebuilt = |w: IVec3| match &corners_near {
-        Some(corners) => corners.contains(w),
-        // (most corners lie far from the cut: one box test before the eight cells)
-        None => {
-            near.meets(owners.cell_of(w - IVec3::ONE), owners.cell_of(w))
-                && (0..8).any(|k| near.contains(owners.cell_of(w - octant(k))))
-        }
-    };
+    let region = near.dilated(REGION_MARGIN - 1);
+    let in_region = |s: IVec3| region.contains(s);
+    // (the corners of the sub-cells of `near` are the sub-cells of a set grown by one
+    // forward)
+    let corners_near = near.forward();
+    let rebuilt = |w: IVec3| corners_near.contains(w);
     let quads = region_quads(&owners, &region);
     let classes = vertex_classes(&owners, &quads);
     let class_of = &classes.class_of;
@@ -135,21 +140,13 @@ pub fn update(
     Some(topology)
 }
 
-/// The fresh quads of the cells of `region`, in a fixed order.
+/// The fresh quads of the sub-cells of `region`, in a fixed order.
 fn region_quads(owners: &CellOwners, region: &CellSet) -> Vec<Quad> {
-    let res = owners.resolution();
-    let lattice = owners.lattice();
     let mut quads = Vec::new();
-    for c in region.cells() {
+    for s in region.cells() {
         // (an enclosed particle's sub-cells have no face)
-        if lattice.at(c).is_some_and(|p| owners.is_enclosed(p)) {
-            continue;
-        }
-        for k in 0..(res * res * res) as u32 {
-            let s = c * res + octant(k) * (res - 1);
-            if let Some(p) = owners.owner(s) {
-                push_faces(owners, s, p, &mut quads);
-            }
+        if let Some(p) = owners.owner(s).filter(|&p| !owners.is_enclosed(p)) {
+            push_faces(owners, s, p, &mut quads);
         }
     }
     quads
@@ -253,7 +250,7 @@ fn runs<'a, T: Copy>(
     })
 }
 
-/// A set of cells: a bit per cell of a box, rows along x packed in words (so that
+/// A set of sub-cells: a bit per sub-cell of a box, rows along x packed in words (so that
 /// dilating the set is a few word operations per row).
 struct CellSet {
     min: IVec3,
@@ -296,11 +293,6 @@ impl CellSet {
         }
         let row = (d.z * self.dims.y + d.y) as usize;
         Some((row * self.row + d.x as usize / 64, 1 << (d.x % 64)))
-    }
-
-    /// Whether the box of cells from `lo` to `hi` (inclusive) meets this set's box.
-    fn meets(&self, lo: IVec3, hi: IVec3) -> bool {
-        hi.cmpge(self.min).all() && lo.cmplt(self.min + self.dims).all()
     }
 
     fn contains(&self, c: IVec3) -> bool {
