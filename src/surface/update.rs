@@ -17,7 +17,9 @@
 //!   same quad had before (such a quad is unchanged).
 //!
 //! Counted in sub-cells, not cells, the region of a body drawn in octants is half as
-//! wide around the cut, and holds a third of the quads along a cut's line.
+//! wide around the cut: about a third of the sub-cells along a cut's line (8² of them
+//! across it per sub-cell along it, against 7² cells of 8), a fifth around one touched
+//! cell (8³ against 7³ cells of 8).
 //!
 //! The pieces are numbered again over the whole body, as a full extraction numbers
 //! them. A change of resolution (a body's first split particle) needs a full
