@@ -59,12 +59,14 @@ pub fn update(
     if old.quads.is_empty() || res != old.resolution {
         return None;
     }
+    if lo.cmpgt(hi).any() {
+        return Some(old.clone());
+    }
     // the touched cells' sub-cells: every one of a cell whose particles were touched
     let sub_cells = cells
         .flat_map(|c| (0..(res * res * res) as u32).map(move |k| c * res + octant(k) * (res - 1)));
-    let Some(changed) = CellSet::around(sub_cells, REGION_MARGIN) else {
-        return Some(old.clone());
-    };
+    let (sub_lo, sub_hi) = (lo * res, hi * res + IVec3::splat(res - 1));
+    let changed = CellSet::around(sub_cells, sub_lo, sub_hi, REGION_MARGIN);
     let near = changed.dilated(1);
     // C ⊕ 3
     let region = near.dilated(REGION_MARGIN - 1);
@@ -263,14 +265,9 @@ struct CellSet {
 }
 
 impl CellSet {
-    /// `cells`, in a box with room for `margin` cells around them; `None` for no cells.
-    fn around(cells: impl Iterator<Item = IVec3> + Clone, margin: i32) -> Option<Self> {
-        let (lo, hi) = cells.clone().fold((IVec3::MAX, IVec3::MIN), |(lo, hi), c| {
-            (lo.min(c), hi.max(c))
-        });
-        if lo.cmpgt(hi).any() {
-            return None;
-        }
+    /// `cells`, which lie from `lo` to `hi` (inclusive), in a box with room for
+    /// `margin` cells around them.
+    fn around(cells: impl Iterator<Item = IVec3>, lo: IVec3, hi: IVec3, margin: i32) -> Self {
         let min = lo - IVec3::splat(margin);
         let dims = hi - lo + IVec3::splat(2 * margin + 1);
         let row = (dims.x as usize).div_ceil(64);
@@ -284,7 +281,7 @@ impl CellSet {
             let (w, bit) = set.index(c).expect("inside its own box");
             set.bits[w] |= bit;
         }
-        Some(set)
+        set
     }
 
     /// The word and bit of cell `c`.
