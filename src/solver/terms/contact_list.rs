@@ -23,7 +23,8 @@
 //! the list is rebuilt (off: every substep): so a run is bit for bit the same with
 //! culling on and off, and for any thread count.
 
-use super::contact_pairs::{CellGrid, ContactGroup, ContactParticles, PAIR_MARGIN, within};
+use super::contact_grid::CellGrid;
+use super::contact_pairs::{ContactGroup, ContactParticles, PAIR_MARGIN, within};
 use glam::Vec3A;
 use rayon::prelude::*;
 
@@ -159,7 +160,7 @@ impl ContactList {
         self.reference.clear();
         self.reference
             .extend(particles.dense.iter().map(|d| positions[*d as usize]));
-        self.grid = CellGrid::new(&self.reference, cell);
+        self.grid = CellGrid::new(&self.reference, particles.kin(groups), cell);
         let found = particles.close_pairs(groups, &self.grid, &self.reference, extra);
         self.candidates.clear();
         self.candidates
@@ -183,11 +184,10 @@ impl ContactList {
             flagged[k as usize] = true;
             self.reference[k as usize] = positions[particles.dense[k as usize] as usize];
         }
-        self.grid.update(moved, &flagged, &self.reference);
+        let entries = self.grid.update(moved, &flagged, &self.reference);
         self.candidates
             .retain(|key| !flagged[(key >> 32) as usize] && !flagged[*key as u32 as usize]);
         let (reference, grid, radius) = (&self.reference, &self.grid, &particles.radius);
-        let entries = grid.flagged(&flagged);
         let mut found: Vec<u64> = entries
             .par_chunks(256)
             .flat_map_iter(|chunk| {
@@ -324,5 +324,76 @@ mod tests {
         // the pairs come out sorted, each once, lower index first
         assert!(!first.is_empty() && first.windows(2).all(|w| w[0] < w[1]));
         assert!(first.iter().all(|(a, b)| a < b));
+    }
+
+    /// Every pair of `p` that may pair and is within reach at `positions`, by brute
+    /// force, ascending.
+    fn brute_pairs(
+        p: &ContactParticles,
+        groups: &[ContactGroup],
+        positions: &[Vec3A],
+    ) -> Vec<(u32, u32)> {
+        let margin = PAIR_MARGIN * 0.05;
+        let mut out = Vec::new();
+        for a in 0..p.len() {
+            for b in a + 1..p.len() {
+                let reach = p.radius[a] + p.radius[b] + margin;
+                if p.may_pair(groups, a, b) && within(positions[a], positions[b], reach) {
+                    out.push((a as u32, b as u32));
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn bodies_in_blobs_give_exactly_the_pairs_of_a_brute_force_search() {
+        // eight groups, each a blob of particles around its own centre, the blobs
+        // overlapping their neighbours'; groups 0 and 5 with self-contact. Inside a
+        // blob most cells hold one group, which the search passes over unless the group
+        // may pair with itself
+        let mut rng = ChaCha8Rng::seed_from_u64(23);
+        let (mut p, mut groups, mut positions) = particles(2400, &mut rng);
+        for (k, x) in positions.iter_mut().enumerate() {
+            let g = k % 8;
+            p.group[k] = g as u32;
+            let centre = Vec3A::new((g % 4) as f32 * 0.3, (g / 4) as f32 * 0.3, 0.0);
+            *x = centre + (*x - 0.5) * 0.4;
+        }
+        groups = (0..8)
+            .map(|g| ContactGroup {
+                self_contact: g == 0 || g == 5,
+                ..groups[1]
+            })
+            .collect();
+        let mut list = ContactList::default();
+        list.set_culling(true);
+        let (mut total, mut within_groups) = (0, 0);
+        for substep in 0..30 {
+            for x in positions.iter_mut() {
+                *x += Vec3A::new(rng.random(), rng.random(), rng.random()) * 0.01 - 0.005;
+            }
+            let expected = brute_pairs(&p, &groups, &positions);
+            assert_eq!(
+                list.pairs(&p, &groups, 0.05, &positions),
+                expected,
+                "substep {substep}"
+            );
+            total += expected.len();
+            within_groups += expected
+                .iter()
+                .filter(|(a, b)| p.group[*a as usize] == p.group[*b as usize])
+                .count();
+        }
+        let (built, updated) = list.updates();
+        assert!(
+            built >= 1 && updated > 10,
+            "built {built}, updated {updated}"
+        );
+        assert!(within_groups > 1000, "{within_groups} pairs within a group");
+        assert!(
+            total > 2 * within_groups,
+            "{total} pairs, {within_groups} within a group"
+        );
     }
 }

@@ -6,28 +6,22 @@
 //! closed wall of balls and nothing reaches an inner particle without first meeting the
 //! surface. This skips most particles of a large body.
 //!
-//! **Pairs (when the list is built).** Sorted cells: each taking-part particle gets the
-//! key of its cell (cells of side `2.5 r_max` plus the list's skin, the key linear in the
-//! cell coordinates, x fastest), the particles are sorted by key, and each cell meets the
-//! particles of its forward half of neighbour cells (x + 1 in its row, three cells in
-//! each of the four rows after it: each pair once) as five runs of consecutive keys.
-//! Because the key of each run is the cell's key plus a constant, the cells are visited
-//! in key order with one cursor per run that only moves forward: no hashing, no search,
-//! cost linear in particles. Each substep's pairs are then listed under both their
-//! particles by a counting sort ([`super::contacts`]).
+//! **Pairs (when the list is built).** The particles are sorted into cells of side
+//! `2.5 r_max` plus the list's skin ([`super::contact_grid`]), and each cell meets
+//! itself and its forward half of neighbour cells, each pair of cells once, passing
+//! over cells whose particles cannot pair with its own. Each substep's pairs are then
+//! listed under both their particles by a counting sort ([`super::contacts`]).
 //! A pair is kept when its balls are closer than the sum of their radii plus a margin of
 //! `r_max / 2` (the iterations move particles), and when the particles are in different
 //! groups (pieces), or in one group with self-contact on and more than two lattice cells
 //! apart along some axis (closer ones are the material's own neighbours).
 
+use super::contact_grid::{CellGrid, NO_KIN};
 use glam::{IVec3, Vec3A, Vec4};
 use rayon::prelude::*;
 
 /// Contact particles per parallel task.
 const PER_TASK: usize = 1024;
-
-/// Offset that makes cell coordinates non-negative in a key (21 bits per axis).
-const CELL_BIAS: i64 = 1 << 20;
 
 /// Margin, in units of the largest radius, by which a pair may be apart when the pairs
 /// are found and still be kept for the substep's iterations (which move particles). A
@@ -144,6 +138,21 @@ impl ContactParticles {
         (self.group[k], self.coord[k])
     }
 
+    /// Each particle's kin (see [`super::contact_grid`]): its group, when the group
+    /// has no self-contact, else [`NO_KIN`].
+    pub(super) fn kin(&self, groups: &[ContactGroup]) -> Vec<u32> {
+        self.group
+            .iter()
+            .map(|&g| {
+                if groups[g as usize].self_contact {
+                    NO_KIN
+                } else {
+                    g
+                }
+            })
+            .collect()
+    }
+
     /// Every pair of particles that may touch and whose balls at `points` (one per
     /// particle, by contact index) are closer than their radii plus `margin`, each once,
     /// in an order fixed for any thread count (per task, in the order the task met
@@ -156,20 +165,7 @@ impl ContactParticles {
         margin: f32,
     ) -> Vec<Vec<(u32, u32)>> {
         let p = self;
-        let sorted = &grid.sorted[..];
-        // tasks start on a cell boundary, so each cell is handled by one task
-        let mut task_starts = vec![0usize];
-        while let Some(&last) = task_starts.last() {
-            let mut next = (last + PER_TASK).min(sorted.len());
-            while next < sorted.len() && sorted[next].0 == sorted[next - 1].0 {
-                next += 1;
-            }
-            if next >= sorted.len() {
-                break;
-            }
-            task_starts.push(next);
-        }
-        task_starts.push(sorted.len());
+        let sorted = grid.sorted();
         // each particle's ball and tag in sorted order, read in sequence below
         let ball: Vec<(Vec4, (u32, IVec3))> = sorted
             .par_iter()
@@ -178,167 +174,34 @@ impl ContactParticles {
                 (points[k].extend(p.radius[k]), p.tag(k))
             })
             .collect();
-        // the forward half of the 26 neighbour cells, so that each pair is met once:
-        // x + 1 in the cell's own row, and x − 1 … x + 1 in the four rows after it
-        let forward: [(i64, i64); 5] = [
-            (1, 1),
-            ((1 << 21) - 1, 3),
-            ((1 << 42) - (1 << 21) - 1, 3),
-            ((1 << 42) - 1, 3),
-            ((1 << 42) + (1 << 21) - 1, 3),
-        ];
-        task_starts
+        grid.tasks(PER_TASK)
             .par_windows(2)
             .map(|w| {
                 let mut pairs = Vec::new();
-                let mut cursors: Vec<usize> = Vec::new();
-                let mut i = w[0];
-                // sorted entries i and j; the tags first: most neighbours of a surface
-                // particle are its own piece's, and most of those too near in the
+                // the tags first: most neighbours of a surface particle in a cell that
+                // may pair are still its own piece's, and most of those too near in the
                 // lattice to pair
-                let check = |i: usize, j: usize, pairs: &mut Vec<(u32, u32)>| {
-                    let ((x, tx), (y, ty)) = (ball[i], ball[j]);
-                    if pairable(groups, tx, ty)
-                        && within(Vec3A::from_vec4(x), Vec3A::from_vec4(y), x.w + y.w + margin)
-                    {
-                        pairs.push((sorted[i].1, sorted[j].1));
-                    }
-                };
-                while i < w[1] {
-                    let key = sorted[i].0;
-                    let mut end = i + 1;
-                    while end < w[1] && sorted[end].0 == key {
-                        end += 1;
-                    }
-                    if cursors.is_empty() {
-                        cursors = forward
-                            .iter()
-                            .map(|(o, _)| sorted.partition_point(|e| e.0 < key + *o as u64))
-                            .collect();
-                    }
-                    // pairs inside the cell
-                    for a in i..end {
-                        for b in a + 1..end {
-                            check(a, b, &mut pairs);
-                        }
-                    }
-                    // pairs with the forward cells, as runs of consecutive keys
-                    for (cursor, &(offset, span)) in cursors.iter_mut().zip(&forward) {
-                        let lo = key + offset as u64;
-                        while *cursor < sorted.len() && sorted[*cursor].0 < lo {
-                            *cursor += 1;
-                        }
-                        let mut stop = *cursor;
-                        while stop < sorted.len() && sorted[stop].0 < lo + span as u64 {
-                            stop += 1;
-                        }
-                        for a in i..end {
-                            for b in *cursor..stop {
-                                check(a, b, &mut pairs);
+                grid.forward_blocks(w[0]..w[1], |mine, theirs| {
+                    let same = mine == theirs;
+                    for a in mine {
+                        let (x, tx) = ball[a];
+                        let from = if same { a + 1 } else { theirs.start };
+                        for b in from..theirs.end {
+                            let (y, ty) = ball[b];
+                            if pairable(groups, tx, ty)
+                                && within(
+                                    Vec3A::from_vec4(x),
+                                    Vec3A::from_vec4(y),
+                                    x.w + y.w + margin,
+                                )
+                            {
+                                pairs.push((sorted[a].1, sorted[b].1));
                             }
                         }
                     }
-                    i = end;
-                }
+                });
                 pairs
             })
             .collect()
-    }
-}
-
-/// Particles sorted by the cell their point lies in (cubes of one side, the key linear
-/// in the cell coordinates, x fastest), so that a cell's neighbours are found as runs of
-/// consecutive keys.
-#[derive(Clone, Debug, Default)]
-pub(super) struct CellGrid {
-    inv_cell: f32,
-    /// `(cell key, particle)`, ascending; particles at non-finite points are left out.
-    sorted: Vec<(u64, u32)>,
-}
-
-impl CellGrid {
-    /// The particles at `points` (by index) in cells of side `cell`.
-    pub(super) fn new(points: &[Vec3A], cell: f32) -> Self {
-        let mut grid = Self {
-            inv_cell: 1.0 / cell,
-            sorted: Vec::new(),
-        };
-        grid.sorted = points
-            .par_iter()
-            .enumerate()
-            .map(|(k, x)| (grid.key(*x), k as u32))
-            .filter(|(key, _)| *key != u64::MAX)
-            .collect();
-        grid.sorted.par_sort_unstable();
-        grid
-    }
-
-    /// The key of the cell `x` lies in (`u64::MAX` for a non-finite `x`).
-    fn key(&self, x: Vec3A) -> u64 {
-        if !x.is_finite() {
-            return u64::MAX;
-        }
-        let c = (x * self.inv_cell).floor();
-        let axis = |v: f32| (v as i64 + CELL_BIAS).clamp(1, 2 * CELL_BIAS - 2) as u64;
-        axis(c.x) | axis(c.y) << 21 | axis(c.z) << 42
-    }
-
-    /// Moves the particles flagged in `moved` to the cells of their `points` now.
-    pub(super) fn update(&mut self, moved: &[u32], flagged: &[bool], points: &[Vec3A]) {
-        let mut fresh: Vec<(u64, u32)> = moved
-            .iter()
-            .map(|&k| (self.key(points[k as usize]), k))
-            .filter(|(key, _)| *key != u64::MAX)
-            .collect();
-        fresh.sort_unstable();
-        let kept = self.sorted.iter().filter(|(_, k)| !flagged[*k as usize]);
-        let mut merged = Vec::with_capacity(self.sorted.len());
-        let mut fresh = fresh.into_iter().peekable();
-        for entry in kept {
-            while let Some(f) = fresh.next_if(|f| f < entry) {
-                merged.push(f);
-            }
-            merged.push(*entry);
-        }
-        merged.extend(fresh);
-        self.sorted = merged;
-    }
-
-    /// The entries of the particles `flagged`, in cell order.
-    pub(super) fn flagged(&self, flagged: &[bool]) -> Vec<(u64, u32)> {
-        self.sorted
-            .iter()
-            .filter(|(_, k)| flagged[*k as usize])
-            .copied()
-            .collect()
-    }
-
-    /// Calls `f(k, j)` for each entry `(key, k)` of `entries` (in cell order, as
-    /// [`Self::flagged`] gives them) and every particle `j` in the cell `key` and its 26
-    /// neighbours. The nine rows of three cells around consecutive entries start at
-    /// keys that only grow, so each row is followed by one cursor that only moves
-    /// forward: no search per entry.
-    pub(super) fn around_each(&self, entries: &[(u64, u32)], mut f: impl FnMut(u32, u32)) {
-        let Some(&(first, _)) = entries.first() else {
-            return;
-        };
-        let rows: [i64; 9] = std::array::from_fn(|r| {
-            let (dy, dz) = (r as i64 % 3 - 1, r as i64 / 3 - 1);
-            (dy << 21) + (dz << 42) - 1
-        });
-        let sorted = &self.sorted;
-        let mut cursors =
-            rows.map(|row| sorted.partition_point(|e| e.0 < (first as i64 + row) as u64));
-        for &(key, k) in entries {
-            for (cursor, row) in cursors.iter_mut().zip(rows) {
-                let lo = (key as i64 + row) as u64;
-                while *cursor < sorted.len() && sorted[*cursor].0 < lo {
-                    *cursor += 1;
-                }
-                for &(_, j) in sorted[*cursor..].iter().take_while(|e| e.0 <= lo + 2) {
-                    f(k, j);
-                }
-            }
-        }
     }
 }

@@ -4,6 +4,7 @@
 pub mod attachments;
 pub mod centroids;
 pub mod colliders;
+mod contact_grid;
 pub mod contact_list;
 pub mod contact_pairs;
 pub mod contacts;
