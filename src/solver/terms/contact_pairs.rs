@@ -7,7 +7,7 @@
 //! surface. This skips most particles of a large body.
 //!
 //! **Pairs (when the list is built).** The particles are sorted into cells of side
-//! `2.5 r_max` plus the list's skin ([`super::contact_grid`]), and each cell meets
+//! `2.5 r_max` plus the list's skin (in the grid of `contact_grid.rs`), and each cell meets
 //! itself and its forward half of neighbour cells, each pair of cells once, passing
 //! over cells whose particles cannot pair with its own. Each substep's pairs are then
 //! listed under both their particles by a counting sort ([`super::contacts`]).
