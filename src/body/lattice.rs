@@ -4,9 +4,10 @@
 //! into it in [`super::shape`].
 
 use super::crossings::Crossing;
-use super::morton::{morton_code, sort_by_key_radix};
+use super::morton::morton_code;
 use crate::error::{CleaveError, Result, check_positive};
 use crate::util::bits::set_bits;
+use crate::util::radix::sort_by_key_radix;
 use glam::{IVec3, UVec3, Vec3};
 use wide::u32x8;
 

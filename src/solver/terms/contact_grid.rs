@@ -19,6 +19,7 @@
 //! without reading a particle: inside a body the search costs per cell, not per pair of
 //! particles. Which pairs are found does not change, only which are never looked at.
 
+use crate::util::radix::sort_by_key_radix;
 use glam::Vec3A;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -67,7 +68,9 @@ impl CellGrid {
             .map(|(k, x)| (grid.key(*x), k as u32))
             .filter(|(key, _)| *key != u64::MAX)
             .collect();
-        grid.sorted.par_sort_unstable();
+        // in particle order, so a stable sort by cell leaves each cell's particles
+        // ascending
+        sort_by_key_radix(&mut grid.sorted);
         grid.index_cells();
         grid
     }
@@ -146,8 +149,8 @@ impl CellGrid {
     }
 
     /// Calls `f(k, j)` for each entry `(key, k)` of `entries` (in cell order, as
-    /// [`Self::flagged`] gives them) and every particle `j` in the cell `key` and its 26
-    /// neighbours, except those of `k`'s own kin. The nine rows of three cells
+    /// [`Self::update`] returns them) and every particle `j` in the cell `key` and its
+    /// 26 neighbours, except those of `k`'s own kin. The nine rows of three cells
     /// around consecutive entries start at keys that only grow, so each row is followed
     /// by one cursor that only moves forward: no search per entry.
     pub(super) fn around_each(&self, entries: &[(u64, u32)], mut f: impl FnMut(u32, u32)) {
