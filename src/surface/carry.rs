@@ -50,24 +50,27 @@ impl CarryLayout {
     pub fn new(lattice: &Lattice, topology: &SurfaceTopology) -> Self {
         let carriers = &topology.particles;
         // every particle's slot, by a table over the lattice (its particles' count, not
-        // the surface's, but one pass instead of a search per binding and per spoke)
+        // the surface's, but one pass instead of a search per binding and per spoke):
+        // the carriers' marked first, then their other linked neighbours', which a
+        // pass in particle order numbers ascending after the carriers
         let mut slot_of = vec![u32::MAX; lattice.len()];
         for (s, &p) in carriers.iter().enumerate() {
             slot_of[p as usize] = s as u32;
         }
-        let mut read = carriers.clone();
+        const LINKED: u32 = u32::MAX - 1;
         for &p in carriers {
             for q in lattice.neighbours(p) {
                 if slot_of[q as usize] == u32::MAX {
-                    slot_of[q as usize] = u32::MAX - 1;
-                    read.push(q);
+                    slot_of[q as usize] = LINKED;
                 }
             }
         }
-        // the other linked neighbours in ascending order, after the carriers
-        read[carriers.len()..].sort_unstable();
-        for (s, &q) in read.iter().enumerate().skip(carriers.len()) {
-            slot_of[q as usize] = s as u32;
+        let mut read = carriers.clone();
+        for (q, slot) in (0u32..).zip(slot_of.iter_mut()) {
+            if *slot == LINKED {
+                *slot = read.len() as u32;
+                read.push(q);
+            }
         }
         let rest = |p: u32| Vec3A::from(lattice.rest_position(p));
         let batches = (0..carriers.len().div_ceil(LANES))
