@@ -467,23 +467,34 @@ fn bind(owners: &CellOwners, w: IVec3, rest: Vec3, cells: u8, out: &mut Vec<Bind
 /// following: each corner solved once (the vertices of a cut's two sides share it), the
 /// corners in parallel.
 pub(super) fn place_on_cut(owners: &CellOwners, topology: &mut SurfaceTopology, vertices: &[u32]) {
-    let mut corners: Vec<IVec3> = vertices
-        .iter()
-        .map(|&v| topology.corners[v as usize])
+    if vertices.is_empty() {
+        return;
+    }
+    let corner = |v: u32| topology.corners[v as usize];
+    let (lo, hi) = (vertices.iter()).fold((IVec3::MAX, IVec3::MIN), |(lo, hi), &v| {
+        (lo.min(corner(v)), hi.max(corner(v)))
+    });
+    // the vertices by corner (a corner's place in the box of them, which fits a word)
+    let dims = (hi - lo + IVec3::ONE).as_u64vec3();
+    let mut by_corner: Vec<(u64, u32)> = (vertices.iter())
+        .map(|&v| {
+            let d = (corner(v) - lo).as_u64vec3();
+            ((d.z * dims.y + d.y) * dims.x + d.x, v)
+        })
         .collect();
-    corners.sort_unstable_by_key(|c| (c.z, c.y, c.x));
-    corners.dedup();
-    let placed: Vec<Option<Vec3>> = corners
+    crate::util::radix::sort_by_key_radix(&mut by_corner);
+    let firsts: Vec<usize> = (0..by_corner.len())
+        .filter(|&i| i == 0 || by_corner[i - 1].0 != by_corner[i].0)
+        .collect();
+    let placed: Vec<Option<Vec3>> = firsts
         .par_iter()
         .with_min_len(256)
-        .map(|&w| cut_vertex_position(owners, w))
+        .map(|&i| cut_vertex_position(owners, corner(by_corner[i].1)))
         .collect();
-    for &v in vertices {
-        let w = topology.corners[v as usize];
-        let k = corners
-            .binary_search_by_key(&(w.z, w.y, w.x), |c| (c.z, c.y, c.x))
-            .expect("its corner was solved");
-        if let Some(x) = placed[k] {
+    for (k, &first) in firsts.iter().enumerate() {
+        let Some(x) = placed[k] else { continue };
+        let end = firsts.get(k + 1).copied().unwrap_or(by_corner.len());
+        for &(_, v) in &by_corner[first..end] {
             rest_vertex_at(owners.lattice(), topology, v as usize, x);
             topology.placed[v as usize] = x;
         }
