@@ -45,33 +45,51 @@ pub(super) struct FrameBatch {
     pub(super) spokes: [Vec3x8; 6],
 }
 
+/// Every particle's slot (`u32::MAX` for one not read), by a table over the lattice
+/// (its particles' count, not the surface's, but one pass instead of a search per
+/// binding and per spoke), and the particle of each slot: the `carriers`' marked first,
+/// then their other linked neighbours', which a pass in particle order numbers
+/// ascending after the carriers.
+fn slots(lattice: &Lattice, carriers: &[u32]) -> (Vec<u32>, Vec<u32>) {
+    let mut slot_of = vec![u32::MAX; lattice.len()];
+    for (s, &p) in carriers.iter().enumerate() {
+        slot_of[p as usize] = s as u32;
+    }
+    const LINKED: u32 = u32::MAX - 1;
+    for &p in carriers {
+        for q in lattice.neighbours(p) {
+            if slot_of[q as usize] == u32::MAX {
+                slot_of[q as usize] = LINKED;
+            }
+        }
+    }
+    let mut read = carriers.to_vec();
+    for (q, slot) in (0u32..).zip(slot_of.iter_mut()) {
+        if *slot == LINKED {
+            *slot = read.len() as u32;
+            read.push(q);
+        }
+    }
+    (slot_of, read)
+}
+
 impl CarryLayout {
     /// The layout of `topology`, extracted from `lattice`.
     pub fn new(lattice: &Lattice, topology: &SurfaceTopology) -> Self {
         let carriers = &topology.particles;
-        // every particle's slot, by a table over the lattice (its particles' count, not
-        // the surface's, but one pass instead of a search per binding and per spoke):
-        // the carriers' marked first, then their other linked neighbours', which a
-        // pass in particle order numbers ascending after the carriers
-        let mut slot_of = vec![u32::MAX; lattice.len()];
-        for (s, &p) in carriers.iter().enumerate() {
-            slot_of[p as usize] = s as u32;
-        }
-        const LINKED: u32 = u32::MAX - 1;
-        for &p in carriers {
-            for q in lattice.neighbours(p) {
-                if slot_of[q as usize] == u32::MAX {
-                    slot_of[q as usize] = LINKED;
-                }
-            }
-        }
-        let mut read = carriers.clone();
-        for (q, slot) in (0u32..).zip(slot_of.iter_mut()) {
-            if *slot == LINKED {
-                *slot = read.len() as u32;
-                read.push(q);
-            }
-        }
+        // (the triangles around each vertex need only the triangles: grouped beside
+        // the slots' passes over the lattice, which are serial)
+        let ((slot_of, read), (triangle_start, vertex_triangles)) = rayon::join(
+            || slots(lattice, carriers),
+            || {
+                // (the triangles' corners as one flat list: corner `i` is of triangle
+                // `i / 3`)
+                let corners = topology.triangles.as_flattened();
+                group_by_key(topology.vertex_count(), || {
+                    (corners.iter().enumerate()).map(|(i, &v)| (v, (i / 3) as u32))
+                })
+            },
+        );
         let rest = |p: u32| Vec3A::from(lattice.rest_position(p));
         let batches = (0..carriers.len().div_ceil(LANES))
             .into_par_iter()
@@ -102,11 +120,6 @@ impl CarryLayout {
             .with_min_len(4096)
             .map(|b| slot_of[b.particle as usize])
             .collect();
-        // (the triangles' corners as one flat list: corner `i` is of triangle `i / 3`)
-        let corners = topology.triangles.as_flattened();
-        let (triangle_start, vertex_triangles) = group_by_key(topology.vertex_count(), || {
-            (corners.iter().enumerate()).map(|(i, &v)| (v, (i / 3) as u32))
-        });
         Self {
             read,
             batches,
