@@ -75,20 +75,28 @@ pub fn update(
     // forward)
     let corners_near = near.forward();
     let rebuilt = |w: IVec3| corners_near.contains(w);
-    let quads = region_quads(&owners, &region);
-    let classes = vertex_classes(&owners, &quads);
-    let class_of = &classes.class_of;
-    // the old quads inside the region are replaced; the old vertices at rebuilt corners
+    // the fresh quads and their classes; beside them, what stays of the old surface:
+    // the old quads inside the region are replaced, the old vertices at rebuilt corners
     // go, the others are renumbered in order
-    let old_quad: FxHashMap<(IVec3, u8), usize> = old
-        .quads
-        .iter()
-        .enumerate()
-        .filter(|(_, q)| in_region(q.cell))
-        .map(|(i, q)| ((q.cell, q.direction), i))
-        .collect();
-    let (mut topology, renumbered) =
-        kept_outside(old, &rebuilt, &in_region, classes.len(), quads.len());
+    let ((quads, classes), (old_quad, (mut topology, renumbered))) = rayon::join(
+        || {
+            let quads = region_quads(&owners, &region);
+            let classes = vertex_classes(&owners, &quads);
+            (quads, classes)
+        },
+        || {
+            let old_quad: FxHashMap<(IVec3, u8), usize> = (old.quads.iter().enumerate())
+                .filter(|(_, q)| in_region(q.cell))
+                .map(|(i, q)| ((q.cell, q.direction), i))
+                .collect();
+            // (room for about a face per touched particle, as many vertices, besides
+            // what the region held)
+            let fresh = old_quad.len() + touched.len() * (res * res) as usize;
+            let kept = kept_outside(old, &rebuilt, &in_region, fresh, fresh);
+            (old_quad, kept)
+        },
+    );
+    let class_of = &classes.class_of;
     let old_corners = |q: usize| quad_corners(old, q);
     // the fresh quads' corners: a new vertex for each class at a rebuilt corner (made
     // in parallel, numbered in order of first use), the kept one elsewhere
@@ -165,8 +173,8 @@ fn quad_corners(topology: &SurfaceTopology, q: usize) -> [u32; 4] {
 
 /// What stays of the `old` surface: its quads outside the region (`in_region` of a
 /// cell says), and its vertices except those at `rebuilt` corners, renumbered in order;
-/// with each old vertex's new number (`u32::MAX` for one that goes); with room for up
-/// to `new_vertices` vertices and `new_quads` quads more.
+/// with each old vertex's new number (`u32::MAX` for one that goes); with room for
+/// `new_vertices` vertices and `new_quads` quads more.
 ///
 /// Most of the surface stays, in runs between the few vertices and quads that go: each
 /// run is copied whole.
