@@ -4,38 +4,84 @@
 use super::lattice::{Lattice, NO_PARTICLE, PieceLabels};
 use crate::util::union_find::UnionFind;
 
-/// Labels the pieces by a union–find over the links, the particles taken in index order:
-/// each live particle is joined to its linked neighbours of lower index, a set's root
-/// being its lowest particle. One more pass in index order turns the parents into labels
-/// in place: a particle's parent is lower than itself unless it is a root, and every
-/// lower entry already holds its label, so a root takes the next number and any other
-/// particle its parent's label; the pieces are numbered by their lowest particle. Both
-/// passes walk the particles in memory order, where a search from each unlabelled
-/// particle would wander the body (a cache miss per step on a big one).
+/// Labels the pieces by a union–find over *runs*: the particles of consecutive cells
+/// along a row of the grid, each linked to the next along +x (a particle its cell does
+/// not name, a split's other half, is a run of its own). A grid's rows are long and
+/// mostly whole, so the sets are few and stay in cache, and the particles are walked in
+/// the grid's memory order. Each run is joined to the runs its particles link to below
+/// (−y, −z), consecutive particles of a row mostly naming the same pair (joined once);
+/// the other halves, to every run they link to. The pieces are then numbered in order
+/// of their lowest particle, as a search from each unlabelled particle in index order
+/// numbers them.
 fn label_pieces(lattice: &Lattice) -> PieceLabels {
-    let mut sets = UnionFind::new(lattice.len());
-    // (a removed particle has no links, and a missing link is never lower)
-    const { assert!(NO_PARTICLE == u32::MAX) };
-    for (p, links) in lattice.links.iter().enumerate() {
-        let p = p as u32;
-        for &q in links.iter().filter(|&&q| q < p) {
-            sets.union(p, q);
+    let n = lattice.len();
+    let nx = (lattice.dims.x as usize).max(1);
+    let mut run_of = vec![u32::MAX; n];
+    let mut runs = 0u32;
+    for row in lattice.grid.chunks_exact(nx) {
+        let mut last = NO_PARTICLE;
+        for &p in row {
+            if p != NO_PARTICLE {
+                run_of[p as usize] = if last != NO_PARTICLE && lattice.links[last as usize][1] == p
+                {
+                    run_of[last as usize]
+                } else {
+                    runs += 1;
+                    runs - 1
+                };
+            }
+            last = p;
         }
     }
-    let mut label = sets.into_parents();
+    // (the grid names live particles only: a removed one leaves its cell)
+    let others: Vec<u32> = (lattice.live_particles())
+        .filter(|&p| run_of[p as usize] == u32::MAX)
+        .collect();
+    for &p in &others {
+        run_of[p as usize] = runs;
+        runs += 1;
+    }
+    let mut sets = UnionFind::new(runs as usize);
+    // (per direction, the last pair of runs joined: the next particle of a row mostly
+    // names it again)
+    let mut joined = [(u32::MAX, u32::MAX); 2];
+    for &p in lattice.grid.iter().filter(|&&p| p != NO_PARTICLE) {
+        let links = &lattice.links[p as usize];
+        // (−y and −z: from the particle above or behind, the same link)
+        for (last, q) in joined.iter_mut().zip([links[2], links[4]]) {
+            if q != NO_PARTICLE {
+                let pair = (run_of[p as usize], run_of[q as usize]);
+                if pair != *last {
+                    sets.union(pair.0, pair.1);
+                    *last = pair;
+                }
+            }
+        }
+    }
+    for &p in &others {
+        for &q in lattice.links[p as usize]
+            .iter()
+            .filter(|&&q| q != NO_PARTICLE)
+        {
+            sets.union(run_of[p as usize], run_of[q as usize]);
+        }
+    }
+    // each run's piece, numbered when its first particle in index order is met
+    let root: Vec<u32> = (0..runs).map(|r| sets.find(r)).collect();
+    let mut piece_of_root = vec![u32::MAX; runs as usize];
     let mut pieces = 0u32;
-    for p in 0..label.len() as u32 {
-        if !lattice.is_live(p) {
-            label[p as usize] = u32::MAX;
+    let mut label = run_of;
+    for (p, run) in label.iter_mut().enumerate() {
+        if !lattice.is_live(p as u32) {
+            *run = u32::MAX;
             continue;
         }
-        let parent = label[p as usize];
-        label[p as usize] = if parent == p {
+        let piece = &mut piece_of_root[root[*run as usize] as usize];
+        if *piece == u32::MAX {
+            *piece = pieces;
             pieces += 1;
-            pieces - 1
-        } else {
-            label[parent as usize]
-        };
+        }
+        *run = *piece;
     }
     PieceLabels {
         label,
