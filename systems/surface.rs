@@ -68,7 +68,7 @@ pub fn update_surfaces(
                     if clock.frame >= job.due {
                         let rebuilt = job
                             .wait()
-                            .unwrap_or_else(|| Source::of(mesh, None).rebuild(l, &mesh.topology));
+                            .unwrap_or_else(|| Source::of(mesh, None).rebuild(l, None));
                         install(mesh, l, rebuilt);
                         installed = true;
                     } else {
@@ -91,7 +91,12 @@ pub fn update_surfaces(
                         );
                         deferred.write(SurfaceDeferred { body, quads, due });
                     } else {
-                        let rebuilt = source.rebuild(l, &mesh.topology);
+                        // (the surface is replaced: the update edits it where it lies)
+                        let old = source
+                            .touched
+                            .is_some()
+                            .then(|| std::mem::take(&mut mesh.topology));
+                        let rebuilt = source.rebuild(l, old);
                         install(mesh, l, rebuilt);
                         installed = true;
                     }
@@ -285,9 +290,9 @@ impl Source {
         }
     }
 
-    /// The new surface of `l` (updated from `old` where it can be), with its carriers'
-    /// layout and the milliseconds it took.
-    fn rebuild(&self, l: &Lattice, old: &SurfaceTopology) -> RebuiltSurface {
+    /// The new surface of `l` (updated from `old`, the last surface, where it can be),
+    /// with its carriers' layout and the milliseconds it took.
+    fn rebuild(&self, l: &Lattice, old: Option<SurfaceTopology>) -> RebuiltSurface {
         let start = std::time::Instant::now();
         let topology = match (&self.render, &self.touched) {
             (Some(render), _) => {
@@ -299,7 +304,9 @@ impl Source {
                 smooth(l, &mut surface);
                 surface
             }
-            (None, Some(touched)) => update(l, old, touched).unwrap_or_else(|| extract(l)),
+            (None, Some(touched)) => {
+                (old.and_then(|old| update(l, old, touched))).unwrap_or_else(|| extract(l))
+            }
             (None, None) => extract(l),
         };
         let layout = CarryLayout::new(l, &topology);
@@ -315,14 +322,11 @@ impl Source {
         seen: LatticeState,
         due: u64,
     ) -> DeferredSurface {
-        let old = match self.touched {
-            Some(_) => mesh.topology.clone(),
-            None => SurfaceTopology::default(),
-        };
+        let old = self.touched.as_ref().map(|_| mesh.topology.clone());
         let result = JobSlot::default();
         let slot = result.clone();
         rayon::spawn(move || {
-            let rebuilt = self.rebuild(&lattice, &old);
+            let rebuilt = self.rebuild(&lattice, old);
             let (slot, done) = &*slot;
             *slot.lock().unwrap_or_else(|e| e.into_inner()) = JobResult {
                 done: true,

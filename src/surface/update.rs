@@ -26,27 +26,23 @@
 //! extraction; so does a surface that is not a lattice's.
 
 use super::cells::{CellOwners, face_corners, octant};
-use super::extract::{
-    SurfaceTopology, add_vertices, finish, place_on_cut, placements, push_faces, push_quad,
-};
+use super::extract::{SurfaceTopology, add_vertices, finish, place_on_cut, push_faces, push_quad};
 use super::fans::{Quad, vertex_classes};
 use super::placement::is_cut_face;
 use crate::body::lattice::Lattice;
 use crate::util::bits::set_bits;
 use glam::IVec3;
 use rustc_hash::FxHashMap;
+use std::ops::Range;
 
 /// The margin of the region extracted afresh around the touched sub-cells (`C ⊕ 3`).
 const REGION_MARGIN: i32 = 3;
 
 /// The surface of `lattice` after a change that touched only the particles `touched`
 /// (removed, split — both halves —, or with links severed or made), from `old`, its
-/// surface before; `None` when only a full extraction will do (see the module docs).
-pub fn update(
-    lattice: &Lattice,
-    old: &SurfaceTopology,
-    touched: &[u32],
-) -> Option<SurfaceTopology> {
+/// surface before, which it edits where it lies; `None` when only a full extraction
+/// will do (see the module docs).
+pub fn update(lattice: &Lattice, old: SurfaceTopology, touched: &[u32]) -> Option<SurfaceTopology> {
     let cells = touched.iter().map(|&p| lattice.coord(p));
     let (lo, hi) = cells.clone().fold((IVec3::MAX, IVec3::MIN), |(lo, hi), c| {
         (lo.min(c), hi.max(c))
@@ -60,7 +56,7 @@ pub fn update(
         return None;
     }
     if lo.cmpgt(hi).any() {
-        return Some(old.clone());
+        return Some(old);
     }
     // the touched cells' sub-cells: every one of a cell whose particles were touched
     let sub_cells = cells
@@ -85,9 +81,10 @@ pub fn update(
             (quads, classes)
         },
         || {
-            let old_quad: FxHashMap<(IVec3, u8), usize> = (old.quads.iter().enumerate())
+            // (the replaced quads' corners, read before the kept part moves over them)
+            let old_quad: FxHashMap<(IVec3, u8), [u32; 4]> = (old.quads.iter().enumerate())
                 .filter(|(_, q)| in_region(q.cell))
-                .map(|(i, q)| ((q.cell, q.direction), i))
+                .map(|(i, q)| ((q.cell, q.direction), quad_corners(&old, i)))
                 .collect();
             // (room for about a face per touched particle, as many vertices, besides
             // what the region held)
@@ -97,7 +94,6 @@ pub fn update(
         },
     );
     let class_of = &classes.class_of;
-    let old_corners = |q: usize| quad_corners(old, q);
     // the fresh quads' corners: a new vertex for each class at a rebuilt corner (made
     // in parallel, numbered in order of first use), the kept one elsewhere
     let mut vertex_of_class = vec![u32::MAX; classes.len()];
@@ -126,7 +122,7 @@ pub fn update(
                 // an unchanged quad at a corner nothing changed around
                 let was = match was {
                     Some(was) => was,
-                    None => *was.insert(old_corners(*old_quad.get(&(quad.cell, quad.direction))?)),
+                    None => *was.insert(*old_quad.get(&(quad.cell, quad.direction))?),
                 };
                 let kept = renumbered[was[k] as usize];
                 if kept == u32::MAX {
@@ -177,82 +173,95 @@ fn quad_corners(topology: &SurfaceTopology, q: usize) -> [u32; 4] {
 /// `new_vertices` vertices and `new_quads` quads more.
 ///
 /// Most of the surface stays, in runs between the few vertices and quads that go: each
-/// run is copied whole.
+/// run is moved back whole where its list has that room (a surface a local update made,
+/// after a cut about as big as this one), else copied into a list that has it.
 fn kept_outside(
-    old: &SurfaceTopology,
+    mut topology: SurfaceTopology,
     rebuilt: &impl Fn(IVec3) -> bool,
     in_region: &impl Fn(IVec3) -> bool,
     new_vertices: usize,
     new_quads: usize,
 ) -> (SurfaceTopology, Vec<u32>) {
-    let vertices = old.vertex_count() + new_vertices;
-    let quads = old.quads.len() + new_quads;
-    // (a vertex has about as many bindings as the old ones had on average)
-    let bindings = old.bindings.len() * vertices / old.vertex_count().max(1);
-    let mut topology = SurfaceTopology {
-        rest: Vec::with_capacity(vertices),
-        placed: Vec::with_capacity(vertices),
-        corners: Vec::with_capacity(vertices),
-        binding_start: Vec::with_capacity(vertices + 1),
-        bindings: Vec::with_capacity(bindings),
-        quads: Vec::with_capacity(quads),
-        triangles: Vec::with_capacity(2 * quads),
-        volume_change: Vec::with_capacity(2 * quads),
-        resolution: old.resolution,
-        ..SurfaceTopology::default()
-    };
-    topology.binding_start.push(0);
-    let mut renumbered = vec![u32::MAX; old.vertex_count()];
+    let mut renumbered = vec![u32::MAX; topology.vertex_count()];
     let mut kept = 0u32;
-    for (v, &corner) in old.corners.iter().enumerate() {
+    for (v, &corner) in topology.corners.iter().enumerate() {
         if !rebuilt(corner) {
             renumbered[v] = kept;
             kept += 1;
         }
     }
-    let placed = placements(&old.placed, &old.rest);
-    for run in runs(&renumbered, |n| n != u32::MAX) {
-        topology.rest.extend_from_slice(&old.rest[run.clone()]);
-        topology.placed.extend_from_slice(&placed[run.clone()]);
-        topology
-            .corners
-            .extend_from_slice(&old.corners[run.clone()]);
-        let (from, to) = (old.binding_start[run.start], old.binding_start[run.end]);
-        // (the run's bindings, moved back to where they now start: by what went
-        // before them)
-        let back = from - topology.bindings.len() as u32;
-        topology
-            .bindings
-            .extend_from_slice(&old.bindings[from as usize..to as usize]);
-        topology.binding_start.extend(
-            old.binding_start[run.start + 1..=run.end]
+    if topology.placed.len() != topology.rest.len() {
+        topology.placed = topology.rest.clone();
+    }
+    let t = &mut topology;
+    let vertices: Vec<Range<usize>> = runs(&renumbered, |n| n != u32::MAX).collect();
+    let binding_runs: Vec<Range<usize>> = (vertices.iter())
+        .map(|run| t.binding_start[run.start] as usize..t.binding_start[run.end] as usize)
+        .collect();
+    // each kept vertex's bindings start where they did, less what went before them
+    let mut starts = Vec::with_capacity(kept as usize + 1 + new_vertices);
+    starts.push(0);
+    let mut bindings_at = 0;
+    for (run, bindings) in vertices.iter().zip(&binding_runs) {
+        let back = bindings.start as u32 - bindings_at;
+        starts.extend(
+            t.binding_start[run.start + 1..=run.end]
                 .iter()
                 .map(|s| s - back),
         );
+        bindings_at += bindings.len() as u32;
     }
-    let outside: Vec<bool> = old.quads.iter().map(|q| !in_region(q.cell)).collect();
+    t.binding_start = starts;
+    keep_runs(&mut t.rest, &vertices, new_vertices);
+    keep_runs(&mut t.placed, &vertices, new_vertices);
+    keep_runs(&mut t.corners, &vertices, new_vertices);
+    // (a vertex has about as many bindings as the old ones had on average)
+    let new_bindings = t.bindings.len() * new_vertices / renumbered.len().max(1);
+    keep_runs(&mut t.bindings, &binding_runs, new_bindings);
+    let outside: Vec<bool> = t.quads.iter().map(|q| !in_region(q.cell)).collect();
+    let quads: Vec<Range<usize>> = runs(&outside, |o| o).collect();
+    let triangles: Vec<Range<usize>> = quads.iter().map(|q| 2 * q.start..2 * q.end).collect();
     // (a kept triangle's vertices keep their places, and so its volume term)
-    let terms_known = old.volume_change.len() == old.triangles.len();
-    for run in runs(&outside, |o| o) {
-        if terms_known {
-            (topology.volume_change)
-                .extend_from_slice(&old.volume_change[2 * run.start..2 * run.end]);
-        }
-        topology.quads.extend_from_slice(&old.quads[run.clone()]);
-        topology.triangles.extend(
-            old.triangles[2 * run.start..2 * run.end]
-                .iter()
-                .map(|t| t.map(|v| renumbered[v as usize])),
-        );
+    if t.volume_change.len() == t.triangles.len() {
+        keep_runs(&mut t.volume_change, &triangles, 2 * new_quads);
+    } else {
+        t.volume_change.clear();
+    }
+    keep_runs(&mut t.quads, &quads, new_quads);
+    keep_runs(&mut t.triangles, &triangles, 2 * new_quads);
+    for triangle in &mut t.triangles {
+        *triangle = triangle.map(|v| renumbered[v as usize]);
     }
     (topology, renumbered)
+}
+
+/// Keeps the `runs` of `list` (ascending and apart), in order, with room for `extra`
+/// more: moved back over what went before them when the list has that room, else copied
+/// into a list with room for `extra` past its old length. One copy of what stays either
+/// way.
+fn keep_runs<T: Copy>(list: &mut Vec<T>, runs: &[Range<usize>], extra: usize) {
+    let kept: usize = runs.iter().map(|r| r.len()).sum();
+    if list.capacity() >= kept + extra {
+        let mut at = 0;
+        for run in runs {
+            list.copy_within(run.clone(), at);
+            at += run.len();
+        }
+        list.truncate(at);
+    } else {
+        let mut copy = Vec::with_capacity(list.len() + extra);
+        for run in runs {
+            copy.extend_from_slice(&list[run.clone()]);
+        }
+        *list = copy;
+    }
 }
 
 /// The maximal runs of consecutive indices of `items` that `keep` holds for.
 fn runs<'a, T: Copy>(
     items: &'a [T],
     keep: impl Fn(T) -> bool + 'a,
-) -> impl Iterator<Item = std::ops::Range<usize>> + 'a {
+) -> impl Iterator<Item = Range<usize>> + 'a {
     let mut at = 0;
     std::iter::from_fn(move || {
         let start = at + items[at..].iter().position(|&x| keep(x))?;

@@ -106,7 +106,7 @@ fn a_local_update_is_the_full_extraction_after_every_kind_of_cut() {
                 }
             }
             let full = extract(&lattice);
-            match update(&lattice, &surface, &touched) {
+            match update(&lattice, surface.clone(), &touched) {
                 Some(local) => {
                     let (a, b) = (canonical(&local), canonical(&full));
                     let only = |x: &[String], y: &[String]| -> Vec<String> {
@@ -174,7 +174,7 @@ fn the_volume_terms_a_local_update_carries_over_are_those_of_its_places() {
                 assert!(lattice.set_crossing(p, q, random_crossing(&mut rng)));
                 touched.extend([p, q]);
             }
-            let local = update(&lattice, &surface, &touched).expect("a local update");
+            let local = update(&lattice, surface, &touched).expect("a local update");
             let mut afresh = local.clone();
             afresh.volume_change.clear();
             let scale = lattice.spacing() / local.resolution as f32;
