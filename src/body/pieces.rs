@@ -8,27 +8,44 @@ use crate::util::union_find::UnionFind;
 /// along a row of the grid, each linked to the next along +x (a particle its cell does
 /// not name, a split's other half, is a run of its own). A grid's rows are long and
 /// mostly whole, so the sets are few and stay in cache, and the particles are walked in
-/// the grid's memory order. Each run is joined to the runs its particles link to below
-/// (−y, −z), consecutive particles of a row mostly naming the same pair (joined once);
-/// the other halves, to every run they link to. The pieces are then numbered in order
+/// the grid's memory order, in one pass that makes the runs and joins each to the runs
+/// its particles link to below (−y, −z), consecutive particles of a row mostly naming
+/// the same pair (joined once); the other halves are then joined to every run they link
+/// to. The pieces are then numbered in order
 /// of their lowest particle, as a search from each unlabelled particle in index order
 /// numbers them.
 fn label_pieces(lattice: &Lattice) -> PieceLabels {
     let n = lattice.len();
     let nx = (lattice.dims.x as usize).max(1);
     let mut run_of = vec![u32::MAX; n];
-    let mut runs = 0u32;
+    // (a set per run, added as the runs are met)
+    let mut sets = UnionFind::new(0);
+    // (per direction, the last pair of runs joined: the next particle of a row mostly
+    // names it again)
+    let mut joined = [(u32::MAX, u32::MAX); 2];
     for row in lattice.grid.chunks_exact(nx) {
         let mut last = NO_PARTICLE;
         for &p in row {
             if p != NO_PARTICLE {
-                run_of[p as usize] = if last != NO_PARTICLE && lattice.links[last as usize][1] == p
-                {
+                let links = &lattice.links[p as usize];
+                let run = if last != NO_PARTICLE && links[0] == last {
                     run_of[last as usize]
                 } else {
-                    runs += 1;
-                    runs - 1
+                    sets.add()
                 };
+                run_of[p as usize] = run;
+                // −y and −z lead to cells earlier in the grid, whose runs are known; an
+                // other half there joins its runs below
+                for (joined, q) in joined.iter_mut().zip([links[2], links[4]]) {
+                    if q == NO_PARTICLE {
+                        continue;
+                    }
+                    let other = run_of[q as usize];
+                    if other != u32::MAX && (run, other) != *joined {
+                        sets.union(run, other);
+                        *joined = (run, other);
+                    }
+                }
             }
             last = p;
         }
@@ -38,26 +55,9 @@ fn label_pieces(lattice: &Lattice) -> PieceLabels {
         .filter(|&p| run_of[p as usize] == u32::MAX)
         .collect();
     for &p in &others {
-        run_of[p as usize] = runs;
-        runs += 1;
+        run_of[p as usize] = sets.add();
     }
-    let mut sets = UnionFind::new(runs as usize);
-    // (per direction, the last pair of runs joined: the next particle of a row mostly
-    // names it again)
-    let mut joined = [(u32::MAX, u32::MAX); 2];
-    for &p in lattice.grid.iter().filter(|&&p| p != NO_PARTICLE) {
-        let links = &lattice.links[p as usize];
-        // (−y and −z: from the particle above or behind, the same link)
-        for (last, q) in joined.iter_mut().zip([links[2], links[4]]) {
-            if q != NO_PARTICLE {
-                let pair = (run_of[p as usize], run_of[q as usize]);
-                if pair != *last {
-                    sets.union(pair.0, pair.1);
-                    *last = pair;
-                }
-            }
-        }
-    }
+    let runs = sets.len() as u32;
     for &p in &others {
         for &q in lattice.links[p as usize]
             .iter()

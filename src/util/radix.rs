@@ -1,5 +1,6 @@
 //! A stable radix sort of `(key, value)` pairs by their 64-bit key: the lattice orders
-//! its particles with it, and the contact grid its particles by cell.
+//! its particles with it, the contact grid its particles by cell, and the surface its
+//! cut vertices by corner.
 
 /// Sorts `(key, value)` pairs by key; pairs with equal keys keep their order (so a list
 /// ordered by value comes out ordered by key, then value, as `sort_unstable` orders it).

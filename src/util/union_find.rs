@@ -12,6 +12,23 @@ impl UnionFind {
         Self((0..n as u32).collect())
     }
 
+    /// Number of elements.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// A new singleton, numbered after the others (its own root).
+    pub fn add(&mut self) -> u32 {
+        let x = self.0.len() as u32;
+        self.0.push(x);
+        x
+    }
+
     /// The root (lowest element) of `x`'s set.
     #[inline]
     pub fn find(&mut self, mut x: u32) -> u32 {
@@ -55,6 +72,9 @@ mod tests {
             assert_eq!(sets.find(x), 2);
         }
         assert_eq!(sets.find(4), 4);
+        assert_eq!(sets.add(), 8);
+        assert!(sets.union(8, 6));
+        assert_eq!((sets.find(8), sets.len()), (2, 9));
         let parents = sets.into_parents();
         for (x, &p) in parents.iter().enumerate() {
             assert!(p as usize <= x, "{x} → {p}");
