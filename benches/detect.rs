@@ -74,7 +74,8 @@ fn detect(c: &mut Criterion) {
     let mut group = c.benchmark_group("detect");
     group.sample_size(10);
     for (name, sweep) in cases {
-        let tools = vec![sweep.unwrap()];
+        let sweep = sweep.unwrap();
+        let tools = [&sweep];
         let hits = particles_hit(particles, &tools, None);
         eprintln!(
             "detect/{name}: {} of {} particles hit",

@@ -3,16 +3,18 @@
 //! of, and the edges a `sever` or `split` tool separates; and, in bodies whose material
 //! tears, the edges of voxels stretched past the limit. Its output is the `CutList`;
 //! besides, it keeps its culling memory ([`crate::cut::culling`], with the `culling`
-//! setting): the blocks of particles no tool can have reached since they were last
-//! measured are not tested. The tests themselves are [`crate::cut::detection::particles_hit`],
+//! setting): a block of particles is not tested against a tool that cannot have
+//! reached it since the two were last measured. The tests themselves are [`crate::cut::detection::particles_hit`],
 //! [`crate::cut::detection::edges_separated`] and [`crate::cut::tear::find_tears`] (parallel,
 //! deterministic order).
 
 use crate::body::lattice::{Lattice, NO_PARTICLE};
 use crate::cut::blocks::{Blocks, DenseParticles};
 use crate::cut::crossings::rest_crossing;
-use crate::cut::culling::FollowedTool;
-use crate::cut::detection::{Reported, edges_separated, particles_hit, particles_inside};
+use crate::cut::culling::{FollowedTool, NearTools};
+use crate::cut::detection::{
+    NearBlocks, Reported, edges_separated, particles_hit, particles_inside,
+};
 use crate::cut::particle_split::plan_splits;
 use crate::cut::tear::find_tears;
 use crate::cut::tool::CutMode;
@@ -74,39 +76,44 @@ pub fn detect(
             &followed,
         )
     });
-    let near = near.as_deref();
-    let sweeps: Vec<ToolSweep> = followed.into_iter().map(|(_, s)| s).collect();
-    let (removers, severers): (Vec<ToolSweep>, Vec<ToolSweep>) = sweeps
-        .into_iter()
-        .partition(|t| t.mode() == CutMode::Remove);
-    // blades sever what they cross; spheres and capsules carve what they have ever been
-    // inside and sever what they graze
-    let (carving, slicing): (Vec<ToolSweep>, Vec<ToolSweep>) =
-        severers.into_iter().partition(|t| t.carves());
-    for i in particles_hit(dense, &removers, near) {
+    // the tools in groups by what they do, each in the order followed (which names an
+    // edge's first tool), with its column in the culling's table
+    let group = |wanted: &dyn Fn(&ToolSweep) -> bool| -> (Vec<&ToolSweep>, Vec<usize>) {
+        (followed.iter().enumerate())
+            .filter(|(_, (_, s))| wanted(s))
+            .map(|(k, (_, s))| (s, k))
+            .unzip()
+    };
+    let near = near.as_ref();
+    // removers remove what they hit; blades sever what they cross; spheres and capsules
+    // carve what they have ever been inside and sever what they graze; a split blade's
+    // separated edges go to its plan (each body's, each tool's plane)
+    let removes = |t: &ToolSweep| t.mode() == CutMode::Remove;
+    let splits = |t: &ToolSweep| t.mode() == CutMode::Split && t.blade_plane().is_some();
+    let (removers, removing) = group(&removes);
+    let (carving, carves) = group(&|t| !removes(t) && t.carves());
+    let (splitting, split_columns) = group(&|t| !removes(t) && !t.carves() && splits(t));
+    let (severing, sever_columns) = group(&|t| !removes(t) && !t.carves() && !splits(t));
+    for i in particles_hit(dense, &removers, near.map(|n| (n, &removing[..]))) {
         if let Some((body, local)) = cache.layout.owner(i) {
             BodyCut::entry(&mut out.cuts, body).particles.push(local);
         }
     }
-    for i in particles_inside(dense, &carving, near) {
+    for i in particles_inside(dense, &carving, near.map(|n| (n, &carves[..]))) {
         if let Some((body, local)) = cache.layout.owner(i) {
             BodyCut::entry(&mut out.cuts, body).carved.push(local);
         }
     }
     carve_crossings(&cache, &bodies, &carving, &mut out.cuts);
-    // a split blade's separated edges go to its plan (each body's, each tool's plane),
-    // the others' to the lists they sever from
-    let (splitting, severing): (Vec<ToolSweep>, Vec<ToolSweep>) = slicing
-        .into_iter()
-        .partition(|t| t.mode() == CutMode::Split && t.blade_plane().is_some());
     let groups = [
-        (severing.iter().collect::<Vec<_>>(), Severed::Edges),
-        (splitting.iter().collect(), Severed::Split),
-        (carving.iter().collect(), Severed::Grazed),
+        (&severing, &sever_columns, Severed::Edges),
+        (&splitting, &split_columns, Severed::Split),
+        (&carving, &carves, Severed::Grazed),
     ];
-    for (tools, kind) in groups {
+    for (tools, columns, kind) in groups {
         if !tools.is_empty() {
-            separate_edges(&cache, dense, &bodies, &tools, kind, near, &mut out.cuts);
+            let near = near.map(|n| (n, &columns[..]));
+            separate_edges(&cache, dense, &bodies, tools, kind, near, &mut out.cuts);
         }
     }
     out.cuts.sort_by_key(|c| c.body);
@@ -133,7 +140,7 @@ fn separate_edges(
     bodies: &Query<(&Body, &BodyLattice)>,
     tools: &[&ToolSweep],
     kind: Severed,
-    near: Option<&[bool]>,
+    near: NearBlocks,
     cuts: &mut Vec<BodyCut>,
 ) {
     let positions = &cache.particles.positions;
@@ -209,7 +216,7 @@ fn separate_edges(
 fn carve_crossings(
     cache: &SolverCache,
     bodies: &Query<(&Body, &BodyLattice)>,
-    carving: &[ToolSweep],
+    carving: &[&ToolSweep],
     cuts: &mut [BodyCut],
 ) {
     let positions = &cache.particles.positions;
@@ -273,7 +280,7 @@ fn near_blocks(
     bodies: &Query<(&Body, &BodyLattice)>,
     culling: &mut crate::cut::culling::ToolCulling,
     tools: &[(FollowedTool, ToolSweep)],
-) -> Vec<bool> {
+) -> NearTools {
     // a cut severs edges (a block's partners only become fewer: its ball stays a bound)
     // and keeps every particle's dense index; only edges linked again can reach blocks
     // the table does not name

@@ -14,7 +14,7 @@ const H: f32 = 0.1;
 
 #[test]
 fn culling_changes_no_result_for_any_thread_count() {
-    for scene in ["pile", "stack", "press", "random", "slice"] {
+    for scene in ["pile", "stack", "press", "random", "slice", "cuts"] {
         let (_, reference) = run_with(scene, None, &["--threads", "1", "--no-culling"]);
         for extra in [
             &["--threads", "1"][..],

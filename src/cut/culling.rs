@@ -1,42 +1,101 @@
 //! Conservative culling of the tool tests across frames (SPEC §6.2; Yuksel et al.
-//! 2012): per block of particles ([`crate::cut::blocks`]), the distance the last test
-//! found between the block and every tool, kept until the tools or the block may have
-//! moved that far.
+//! 2012): per block of particles ([`crate::cut::blocks`]) and per tool, how far apart
+//! the last test found them, kept until the tool or the block may have moved that far.
 //!
-//! **What a block is tested in.** A ball around its live particles, grown to take in
-//! the balls of the blocks that hold its particles' edge partners (an edge is tested
-//! from its lower end's block, so the ball must cover the whole edge). The own balls
-//! are one pass over the positions in memory order; the neighbour blocks are a table
-//! rebuilt once per layout change.
+//! **What a block is tested in.** A box around its live particles, grown over the boxes
+//! of the blocks that hold its particles' edge partners (an edge is tested from its lower
+//! end's block, so the box must hold the whole edge). The own boxes are one pass over the
+//! positions in memory order; the neighbour blocks are a table rebuilt once per layout
+//! change. The tools are measured against the block's *frame*: that box, padded a
+//! little, as it was when the block last left its frame. A block whose particles only
+//! jiggle keeps its frame and every measurement against it; one that leaves it gets a
+//! new frame, and each measurement shrinks by how far the new frame sticks out of the
+//! old one (every point of the new frame lies that close to the old).
 //!
-//! **Why a skip is exact.** When a block is tested, its *gap* is the least over the
-//! tools of the swept distance from its ball's centre to what the tool reaches
-//! ([`ToolSweep::gap`]). Later, every pose of a tool's sweep lies within the tool's
-//! travel since then (the sum of its frames' moves, a translation plus the turn times
-//! the tool's lever, [`ToolSweep::travel_from`]) of a pose it was tested at, and the
-//! sweeps stand for their poses within their slack; the distance to a tool is
-//! 1-Lipschitz. So no particle or edge of the block can be reached while
-//! `gap − |centre moved| − radius − travel − 2 × slack` stays positive, and the block's
-//! full tests are skipped until then. A tool that appears, vanishes or changes its
-//! shape, and a layout rebuild (or edges linked again), forget every gap; a cut that
-//! only severs keeps them (the particles keep their places and dense indices, and a
-//! block's partners only become fewer).
+//! **Why a skip is exact.** A block and a tool are measured by a lower bound on the
+//! distance from any point of the frame to what the tool reaches over its motion
+//! ([`ToolSweep::clearance_to_box`]). Later, every pose of the tool's sweep lies within
+//! the tool's travel since then (its own odometer: the sum of its frames' moves, a
+//! translation plus the turn times the tool's lever, [`ToolSweep::travel_from`]) of a
+//! pose it was measured at, and the sweeps stand for their poses within their slack;
+//! the distance to a tool is 1-Lipschitz. So no particle or edge of the block can be
+//! reached by the tool while `clearance − travel − 2 × slack` stays positive, and the
+//! pair's full tests are skipped until then.
+//!
+//! **Why per tool.** Each tool has its own odometer and its own column of measurements:
+//! a tool parked beside a body costs nothing while another moves through it, and a tool
+//! that appears, vanishes or changes its shape forgets its own column only. A layout
+//! rebuild (or edges linked again) forgets every measurement; a cut that only severs
+//! keeps them (the particles keep their places and dense indices, and a block's partners
+//! only become fewer).
 
-use crate::cut::blocks::{Blocks, DenseParticles, bounding_ball};
+use crate::cut::blocks::{Blocks, DenseParticles};
 use crate::cut::tool::Pose;
 use crate::cut::tool_sweep::ToolSweep;
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
-/// What the last full test of a block found.
+/// What the last full test of a block against a tool found.
 #[derive(Clone, Copy, Debug)]
-struct Tested {
-    /// The centre of the block's ball then.
-    centre: Vec3A,
-    /// The least distance from that centre to what any tool could reach then.
-    gap: f32,
-    /// The tools' odometer then.
+struct Measured {
+    /// The lower bound on the distance from the block's frame to the tool then, less
+    /// how far the frame has moved out since (`−∞`: test it).
+    clearance: f32,
+    /// The tool's odometer then.
     odometer: f64,
+}
+
+/// A pair not measured yet.
+const UNMEASURED: Measured = Measured {
+    clearance: f32::NEG_INFINITY,
+    odometer: 0.0,
+};
+
+/// An axis-aligned box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Frame {
+    lo: Vec3A,
+    hi: Vec3A,
+}
+
+impl Frame {
+    /// The box around the finite `points`, if there is one. (A non-finite position fails
+    /// every tool's test, so leaving it out culls nothing a full test would find.)
+    fn around(points: impl Iterator<Item = Vec3A>) -> Option<Self> {
+        let (lo, hi) = points.filter(|x| x.is_finite()).fold(
+            (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)),
+            |(lo, hi), x| (lo.min(x), hi.max(x)),
+        );
+        lo.cmple(hi).all().then_some(Self { lo, hi })
+    }
+
+    fn union(self, other: Self) -> Self {
+        Self {
+            lo: self.lo.min(other.lo),
+            hi: self.hi.max(other.hi),
+        }
+    }
+
+    fn contains(&self, other: &Self) -> bool {
+        self.lo.cmple(other.lo).all() && other.hi.cmple(self.hi).all()
+    }
+
+    /// Grown on every side by a 32nd of its longest side: room to jiggle in.
+    fn padded(self) -> Self {
+        let pad = Vec3A::splat((self.hi - self.lo).max_element() / 32.0);
+        Self {
+            lo: self.lo - pad,
+            hi: self.hi + pad,
+        }
+    }
+
+    /// How far the farthest point of `self` lies from `old`.
+    fn sticks_out_of(&self, old: &Self) -> f32 {
+        (self.hi - old.hi)
+            .max(old.lo - self.lo)
+            .max(Vec3A::ZERO)
+            .length()
+    }
 }
 
 /// A tool as the culling follows it from frame to frame.
@@ -50,8 +109,40 @@ pub struct FollowedTool {
     pub current: Pose,
 }
 
-/// The culling state of the detect stage: gaps per block, the blocks' neighbours, the
-/// tools' odometer.
+/// A followed tool's odometer.
+#[derive(Clone, Debug)]
+struct Odometer {
+    /// The tool's id.
+    id: u64,
+    /// Where its last frame's motion ended.
+    pose: Pose,
+    /// Its total travel so far (in f64, so that a long run does not round small moves
+    /// away).
+    travel: f64,
+}
+
+/// Which tools may reach which blocks this frame ([`ToolCulling::near_blocks`]): one
+/// bit per block and tool, the tools in the order followed.
+#[derive(Clone, Debug, Default)]
+pub struct NearTools {
+    tools: usize,
+    words: usize,
+    bits: Vec<u64>,
+}
+
+impl NearTools {
+    /// Whether `tool` may reach `block` (`false` only where it cannot; a block or tool
+    /// the table does not know may).
+    pub fn reaches(&self, block: usize, tool: usize) -> bool {
+        if tool >= self.tools {
+            return true;
+        }
+        (self.bits.get(block * self.words + tool / 64)).is_none_or(|w| (w >> (tool % 64)) & 1 == 1)
+    }
+}
+
+/// The culling state of the detect stage: per block its frame and, per tool, what its
+/// last test found; the blocks' neighbours; the tools' odometers.
 #[derive(Clone, Debug, Default)]
 pub struct ToolCulling {
     /// The layout the neighbour table was built for (`None`: none yet).
@@ -60,28 +151,27 @@ pub struct ToolCulling {
     /// `neighbours[starts[b]..starts[b + 1]]`.
     neighbours: Vec<u32>,
     starts: Vec<u32>,
-    /// Per block, the last full test (`None`: test it).
-    tested: Vec<Option<Tested>>,
-    /// Total travel of the tools so far (the largest tool's move each frame, summed; in
-    /// f64 so that a long run does not round small moves away).
-    odometer: f64,
-    /// Each tool and where it ended the last frame, by id.
-    tools: Vec<(u64, Pose)>,
-    /// Blocks measured against the tools in the last frame.
-    measured: usize,
+    /// Per block, its frame (`None`: none yet).
+    frames: Vec<Option<Frame>>,
+    /// Per block a row, per tool followed a column: the last full test of the pair.
+    measured: Vec<Measured>,
+    /// The tools followed, in their order.
+    tools: Vec<Odometer>,
+    /// Pairs of a block and a tool measured in the last frame.
+    pairs_measured: usize,
 }
 
 impl ToolCulling {
     /// Takes the layout `version` of the dense particles in `blocks`, whose particle `i`
     /// has the edge partners `partners(i)` (dense indices, `u32::MAX` for none); rebuilds
-    /// the neighbour table and forgets every gap when the version changed.
+    /// the neighbour table and forgets every measurement when the version changed.
     pub fn set_layout(
         &mut self,
         version: u64,
         blocks: &Blocks,
         partners: impl Fn(usize) -> [u32; 3] + Sync,
     ) {
-        if self.layout == Some(version) && self.tested.len() == blocks.len() {
+        if self.layout == Some(version) && self.frames.len() == blocks.len() {
             return;
         }
         self.layout = Some(version);
@@ -106,7 +196,8 @@ impl ToolCulling {
             self.neighbours.extend(list);
             self.starts.push(self.neighbours.len() as u32);
         }
-        self.tested = vec![None; blocks.len()];
+        self.frames = vec![None; blocks.len()];
+        self.measured = vec![UNMEASURED; blocks.len() * self.tools.len()];
     }
 
     /// Forgets the layout: the next [`ToolCulling::set_layout`] builds the neighbour
@@ -115,100 +206,143 @@ impl ToolCulling {
         self.layout = None;
     }
 
-    /// Follows the tools into this frame: adds their travel to the odometer, and
-    /// forgets every gap when a tool appeared, vanished or changed.
+    /// Follows the tools into this frame, in this order: adds each one's travel to its
+    /// odometer, and gives a tool that appeared, changed or moved by a non-finite amount
+    /// a fresh column (the others keep theirs).
     pub fn follow(&mut self, tools: &[(FollowedTool, &ToolSweep)]) {
-        let same = tools.len() == self.tools.len()
-            && tools
+        let old = std::mem::take(&mut self.tools);
+        // per tool, its old column and its travel since, when it keeps that column
+        let kept: Vec<Option<(usize, f64)>> = tools
+            .iter()
+            .map(|(t, sweep)| {
+                let c = old
+                    .iter()
+                    .position(|o| o.id == t.id)
+                    .filter(|_| !t.changed)?;
+                let travel = sweep.travel_from(&old[c].pose);
+                travel
+                    .is_finite()
+                    .then_some((c, old[c].travel + travel as f64))
+            })
+            .collect();
+        self.tools = (tools.iter().zip(&kept))
+            .map(|((t, _), kept)| Odometer {
+                id: t.id,
+                pose: t.current,
+                travel: kept.map_or(0.0, |(_, travel)| travel),
+            })
+            .collect();
+        let unchanged = old.len() == tools.len()
+            && kept
                 .iter()
-                .zip(&self.tools)
-                .all(|((t, _), (id, _))| t.id == *id && !t.changed);
-        if same {
-            let travel = tools
-                .iter()
-                .zip(&self.tools)
-                .map(|((_, sweep), (_, before))| sweep.travel_from(before))
-                .fold(0.0f32, f32::max);
-            if travel.is_finite() {
-                self.odometer += travel as f64;
-            } else {
-                self.forget();
-            }
-        } else {
-            self.forget();
+                .enumerate()
+                .all(|(k, c)| c.is_some_and(|(c, _)| c == k));
+        if unchanged {
+            return;
         }
-        self.tools = tools.iter().map(|(t, _)| (t.id, t.current)).collect();
+        let rows = self.frames.len();
+        let before = std::mem::take(&mut self.measured);
+        self.measured = (0..rows)
+            .flat_map(|b| {
+                let row = &before[b * old.len()..(b + 1) * old.len()];
+                kept.iter()
+                    .map(move |c| c.map_or(UNMEASURED, |(c, _)| row[c]))
+            })
+            .collect();
     }
 
-    /// How many blocks were measured against the tools in the last frame (the others
-    /// were skipped on their gaps, or had no particle).
+    /// How many pairs of a block and a tool were measured in the last frame (the
+    /// others were skipped on what their last tests found, or had no particle).
     pub fn measured(&self) -> usize {
-        self.measured
+        self.pairs_measured
     }
 
-    /// Forgets every gap: each block is measured again.
-    fn forget(&mut self) {
-        self.tested.iter_mut().for_each(|t| *t = None);
-    }
-
-    /// Per block of `dense` (the blocks of the last [`Self::set_layout`]): whether some
-    /// tool may reach its particles or edges this frame (`false` only where none can).
-    /// Blocks whose gap has not run out are not measured against the tools at all; the
-    /// others are, and keep what they found.
-    pub fn near_blocks(&mut self, dense: DenseParticles, tools: &[&ToolSweep]) -> Vec<bool> {
-        self.measured = 0;
-        if tools.is_empty() {
-            return vec![false; self.tested.len()];
+    /// Per block of `dense` (the blocks of the last [`Self::set_layout`]) and tool (those
+    /// of the last [`Self::follow`], in its order): whether the tool may reach the block's
+    /// particles or edges this frame (`false` only where it cannot). Pairs whose last
+    /// measurement still holds are not measured at all; the others are, and keep what
+    /// they found.
+    pub fn near_blocks(&mut self, dense: DenseParticles, tools: &[&ToolSweep]) -> NearTools {
+        self.pairs_measured = 0;
+        let count = tools.len();
+        if count != self.tools.len() || self.measured.len() != self.frames.len() * count {
+            // not the tools followed: every tool may reach every block (a table of no
+            // tools knows none)
+            return NearTools::default();
         }
-        let own: Vec<Option<(Vec3A, f32)>> = (0..dense.blocks.len())
+        let words = count.div_ceil(64);
+        let mut near = NearTools {
+            tools: count,
+            words,
+            bits: vec![0; self.frames.len() * words],
+        };
+        if count == 0 {
+            return near;
+        }
+        let own: Vec<Option<Frame>> = (0..dense.blocks.len())
             .into_par_iter()
             .with_min_len(64)
             .map(|b| {
-                let (x, l) = dense.block(b);
-                bounding_ball(x, l).map(|(c, r)| (Vec3A::from(c), r))
+                let (x, live) = dense.block(b);
+                Frame::around(x.iter().zip(live).filter(|(_, l)| **l).map(|(x, _)| *x))
             })
             .collect();
-        let slack = tools.iter().map(|t| t.slack()).fold(0.0f32, f32::max);
-        let odometer = self.odometer;
+        let slack: Vec<f32> = tools.iter().map(|t| t.slack()).collect();
+        let odometers: Vec<f64> = self.tools.iter().map(|t| t.travel).collect();
         let (neighbours, starts) = (&self.neighbours, &self.starts);
-        let near: Vec<(bool, bool)> = self
-            .tested
-            .par_iter_mut()
+        self.pairs_measured = (self.frames.par_iter_mut())
+            .zip(self.measured.par_chunks_mut(count))
+            .zip(near.bits.par_chunks_mut(words))
             .enumerate()
-            .with_min_len(64)
-            .map(|(b, tested)| {
-                let Some((centre, own_radius)) = own[b] else {
+            .with_min_len(16)
+            .map(|(b, ((frame, row), bits))| {
+                let Some(Some(mut grown)) = own.get(b).copied() else {
                     // no live, finite particle: nothing to reach from this block
-                    return (false, false);
+                    return 0;
                 };
-                // the ball grown over the neighbour blocks' balls (partners lie in them)
-                let radius = neighbours[starts[b] as usize..starts[b + 1] as usize]
-                    .iter()
-                    .filter_map(|&n| own.get(n as usize).copied().flatten())
-                    .fold(own_radius, |r, (c, rn)| r.max(c.distance(centre) + rn));
-                if let Some(t) = tested {
-                    // (the factor covers the margins' share of the moves, see
-                    // `ToolSweep::gap`)
-                    let moved = t.centre.distance(centre) + radius + (odometer - t.odometer) as f32;
-                    let left = t.gap - moved * (1.0 + 1e-4) - 2.0 * slack;
-                    if left > 0.0 {
-                        return (false, false);
+                // the box grown over the neighbour blocks' (partners lie in them)
+                for &n in &neighbours[starts[b] as usize..starts[b + 1] as usize] {
+                    if let Some(Some(other)) = own.get(n as usize) {
+                        grown = grown.union(*other);
                     }
                 }
-                let gap = tools
-                    .iter()
-                    .map(|t| t.gap(Vec3::from(centre), radius))
-                    .fold(f32::INFINITY, f32::min);
-                *tested = Some(Tested {
-                    centre,
-                    gap,
-                    odometer,
-                });
-                (gap <= radius, true)
+                let framed = match *frame {
+                    Some(f) if f.contains(&grown) => f,
+                    Some(f) => {
+                        let new = grown.padded();
+                        let out = new.sticks_out_of(&f) * (1.0 + 1e-4);
+                        row.iter_mut().for_each(|m| m.clearance -= out);
+                        new
+                    }
+                    None => {
+                        row.fill(UNMEASURED);
+                        grown.padded()
+                    }
+                };
+                *frame = Some(framed);
+                let mut measured = 0;
+                for (k, m) in row.iter_mut().enumerate() {
+                    // (the factor covers the margins' share of the moves)
+                    let travel = (odometers[k] - m.odometer) as f32;
+                    if m.clearance - travel * (1.0 + 1e-4) - 2.0 * slack[k] > 0.0 {
+                        continue;
+                    }
+                    let clearance =
+                        tools[k].clearance_to_box(Vec3::from(framed.lo), Vec3::from(framed.hi));
+                    *m = Measured {
+                        clearance,
+                        odometer: odometers[k],
+                    };
+                    measured += 1;
+                    // (a NaN clearance is near)
+                    if clearance <= 0.0 || clearance.is_nan() {
+                        bits[k / 64] |= 1 << (k % 64);
+                    }
+                }
+                measured
             })
-            .collect();
-        self.measured = near.iter().filter(|(_, measured)| *measured).count();
-        near.into_iter().map(|(near, _)| near).collect()
+            .sum();
+        near
     }
 }
 
@@ -287,21 +421,19 @@ mod tests {
                 blocks: &blocks,
             };
             let near = culling.near_blocks(dense, &all);
-            if culling.measured() < blocks.len() / 2 {
+            if culling.measured() < blocks.len() {
                 skipped_frames += 1;
             }
-            let removers = [sweeps[0].1.clone()];
-            let full = particles_hit(dense, &removers, None);
-            assert_eq!(
-                particles_hit(dense, &removers, Some(&near)),
-                full,
-                "frame {frame}"
-            );
+            // each tool tested alone, by its column of the table
+            let full = particles_hit(dense, &all[..1], None);
+            let culled = particles_hit(dense, &all[..1], Some((&near, &[0])));
+            assert_eq!(culled, full, "frame {frame}");
             let range = 0..positions.len();
             let first = Reported::FirstTool;
             let full_edges =
-                edges_separated(dense, range.clone(), partners, &[all[1]], None, first);
-            let culled = edges_separated(dense, range, partners, &[all[1]], Some(&near), first);
+                edges_separated(dense, range.clone(), partners, &all[1..], None, first);
+            let near = Some((&near, &[1][..]));
+            let culled = edges_separated(dense, range, partners, &all[1..], near, first);
             assert_eq!(culled, full_edges, "frame {frame}");
             hits += full.len();
             severed += full_edges.len();
@@ -314,5 +446,92 @@ mod tests {
             skipped_frames > frames / 2,
             "{skipped_frames} frames skipped most blocks"
         );
+    }
+
+    #[test]
+    fn a_parked_tool_is_not_measured_again_while_another_moves_or_a_third_appears() {
+        // an 8³ cube jiggling in place; a sphere parked half a cell off its +x face; from
+        // frame 10 a blade sliding along far from it; from frame 30 a second sphere
+        let (mut positions, partner_table) = morton_cube(8);
+        let partners = |i: usize| partner_table[i];
+        let live = vec![true; positions.len()];
+        let blocks = Blocks::uniform(positions.len());
+        let tool = |shape| Tool {
+            shape,
+            cut_width: 0.02,
+            mode: CutMode::Sever,
+        };
+        let sphere = tool(ToolShape::Sphere { radius: 0.2 });
+        let blade = tool(ToolShape::Blade {
+            half_width: 0.3,
+            half_height: 0.3,
+        });
+        // (the cube's particles lie within ±0.35 of the origin)
+        let parked = Pose::at(Vec3::new(0.35 + 0.05 + 0.2, 0.0, 0.0));
+        let sliding = |frame: usize| Pose {
+            position: Vec3::new(-4.0, frame as f32 * 0.05, 0.0),
+            rotation: Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+        };
+        let far = Pose::at(Vec3::new(0.0, 6.0, 0.0));
+        let mut culling = ToolCulling::default();
+        culling.set_layout(1, &blocks, partners);
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for frame in 0..40 {
+            for x in positions.iter_mut() {
+                *x += Vec3A::new(rng.random(), rng.random(), rng.random()) * 1e-4 - 0.5e-4;
+            }
+            let mut sweeps = vec![(parked, ToolSweep::new(&sphere, &parked, &parked))];
+            if frame >= 10 {
+                let (from, to) = (sliding(frame), sliding(frame + 1));
+                sweeps.push((to, ToolSweep::new(&blade, &from, &to)));
+            }
+            if frame >= 30 {
+                sweeps.push((far, ToolSweep::new(&sphere, &far, &far)));
+            }
+            let sweeps: Vec<(Pose, ToolSweep)> = (sweeps.into_iter())
+                .map(|(pose, sweep)| (pose, sweep.expect("a valid tool")))
+                .collect();
+            let pairs: Vec<(FollowedTool, &ToolSweep)> = (sweeps.iter().enumerate())
+                .map(|(id, (current, sweep))| {
+                    let followed = FollowedTool {
+                        id: id as u64,
+                        changed: false,
+                        current: *current,
+                    };
+                    (followed, sweep)
+                })
+                .collect();
+            culling.follow(&pairs);
+            let all: Vec<&ToolSweep> = pairs.iter().map(|(_, s)| *s).collect();
+            let dense = DenseParticles {
+                positions: &positions,
+                live: &live,
+                blocks: &blocks,
+            };
+            let near = culling.near_blocks(dense, &all);
+            // every block measured against a tool when it appears, and never again
+            let fresh = if [0, 10, 30].contains(&frame) {
+                blocks.len()
+            } else {
+                0
+            };
+            assert_eq!(culling.measured(), fresh, "frame {frame}");
+            assert!(
+                (0..blocks.len()).all(|b| !near.reaches(b, 0)),
+                "frame {frame}"
+            );
+            // what the culled tests find is what the full tests find: nothing
+            let range = 0..positions.len();
+            let columns: Vec<usize> = (0..all.len()).collect();
+            let near = Some((&near, &columns[..]));
+            let first = Reported::FirstTool;
+            let culled = edges_separated(dense, range.clone(), partners, &all, near, first);
+            assert_eq!(
+                culled,
+                edges_separated(dense, range, partners, &all, None, first)
+            );
+            assert!(culled.is_empty(), "frame {frame}");
+        }
+        assert!(culling.tools[1].travel > 1.4 && culling.tools[0].travel == 0.0);
     }
 }

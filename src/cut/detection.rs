@@ -8,31 +8,39 @@
 //! tool during the motion is skipped whole, so a tool costs one test per block away
 //! from its path and the full per-particle test only near it. The skip is exact: the
 //! distance to what a tool sweeps is 1-Lipschitz, so no particle of a ball of radius `r`
-//! around `c` is nearer to it than `d(c) − r`. Across frames, the blocks no tool can
-//! have reached since they were last measured are skipped without a test
+//! around `c` is nearer to it than `d(c) − r`. Across frames, a block is tested only
+//! against the tools that may have reached it since they were last measured
 //! ([`NearBlocks`], kept by [`crate::cut::culling`]). Which blocks the particles fall
 //! in changes how much is tested, never what is found.
 
 use crate::cut::blocks::{BLOCK, DenseParticles, ball_around, bounding_ball};
+use crate::cut::culling::NearTools;
 use crate::cut::tool_sweep::ToolSweep;
 use glam::Vec3;
 use rayon::prelude::*;
 use smallvec::SmallVec;
 use std::ops::Not;
 
-/// Which blocks of the dense particles a tool may reach; `None`: all may (see
-/// [`crate::cut::culling`]).
-pub type NearBlocks<'a> = Option<&'a [bool]>;
+/// Which of the tools a test is given may reach which blocks of the dense particles:
+/// the culling's table, and each tool's column in it (see [`crate::cut::culling`]);
+/// `None`: every tool may reach every block.
+pub type NearBlocks<'a> = Option<(&'a NearTools, &'a [usize])>;
 
-/// Whether block `b` may be reached.
-fn may_reach(near: NearBlocks, b: usize) -> bool {
-    near.is_none_or(|n| n.get(b).copied().unwrap_or(true))
+/// The tools of `tools` (with their indices) that may reach block `b`.
+fn tools_near<'t>(
+    near: NearBlocks,
+    b: usize,
+    tools: &[&'t ToolSweep],
+) -> SmallVec<[(usize, &'t ToolSweep); 4]> {
+    (tools.iter().copied().enumerate())
+        .filter(|(k, _)| near.is_none_or(|(table, columns)| table.reaches(b, columns[*k])))
+        .collect()
 }
 
 /// The live particles (indices into the positions, ascending) that some tool hits.
 /// Blocks run in parallel, those `near` marks far are skipped; the result does not
 /// depend on the thread count.
-pub fn particles_hit(dense: DenseParticles, tools: &[ToolSweep], near: NearBlocks) -> Vec<usize> {
+pub fn particles_hit(dense: DenseParticles, tools: &[&ToolSweep], near: NearBlocks) -> Vec<usize> {
     particles_where(dense, tools, near, ToolSweep::hits)
 }
 
@@ -40,7 +48,7 @@ pub fn particles_hit(dense: DenseParticles, tools: &[ToolSweep], near: NearBlock
 /// ([`ToolSweep::contains`]): what a carving tool carves.
 pub fn particles_inside(
     dense: DenseParticles,
-    tools: &[ToolSweep],
+    tools: &[&ToolSweep],
     near: NearBlocks,
 ) -> Vec<usize> {
     particles_where(dense, tools, near, ToolSweep::contains)
@@ -50,7 +58,7 @@ pub fn particles_inside(
 /// must hold only within reach of the tool).
 fn particles_where(
     dense: DenseParticles,
-    tools: &[ToolSweep],
+    tools: &[&ToolSweep],
     near_blocks: NearBlocks,
     test: impl Fn(&ToolSweep, Vec3) -> bool + Sync,
 ) -> Vec<usize> {
@@ -62,12 +70,13 @@ fn particles_where(
         .with_min_len(64)
         .flat_map_iter(|block| {
             let (positions, live) = dense.block(block);
-            let near: SmallVec<[&ToolSweep; 4]> = match bounding_ball(positions, live) {
-                Some((centre, r)) if may_reach(near_blocks, block) => {
-                    tools.iter().filter(|t| t.may_hit_ball(centre, r)).collect()
+            let mut near = tools_near(near_blocks, block, tools);
+            if !near.is_empty() {
+                match bounding_ball(positions, live) {
+                    Some((centre, r)) => near.retain(|(_, t)| t.may_hit_ball(centre, r)),
+                    None => near.clear(),
                 }
-                _ => SmallVec::new(),
-            };
+            }
             // a culled block's particles are not visited at all
             let tested = if near.is_empty() { 0 } else { positions.len() };
             let first = dense.blocks.range(block).start;
@@ -75,7 +84,9 @@ fn particles_where(
                 .iter()
                 .zip(live)
                 .enumerate()
-                .filter(|(_, (x, live))| **live && near.iter().any(|t| test(t, Vec3::from(**x))))
+                .filter(|(_, (x, live))| {
+                    **live && near.iter().any(|(_, t)| test(t, Vec3::from(**x)))
+                })
                 .map(|(i, _)| first + i)
                 .collect();
             found
@@ -137,8 +148,12 @@ pub fn edges_separated(
         .overlapping(range.clone())
         .into_par_iter()
         .with_min_len(16)
-        .filter(|&block| may_reach(near_blocks, block))
         .flat_map_iter(|block| {
+            // the tools that may reach the block, with their indices in `tools`
+            let mut near = tools_near(near_blocks, block, tools);
+            if near.is_empty() {
+                return Vec::new();
+            }
             let particles = dense.blocks.range(block);
             let start = particles.start.max(range.start);
             let end = particles.end.min(range.end);
@@ -154,13 +169,10 @@ pub fn edges_separated(
             let ends = edges
                 .iter()
                 .flat_map(|&(i, j)| [positions[i], positions[j]]);
-            // the tools that may reach the block, with their indices in `tools`
-            let near: SmallVec<[(usize, &ToolSweep); 4]> = match ball_around(ends) {
-                Some((centre, radius)) => (tools.iter().copied().enumerate())
-                    .filter(|(_, t)| t.may_hit_ball(centre, radius))
-                    .collect(),
-                None => SmallVec::new(),
-            };
+            match ball_around(ends) {
+                Some((centre, radius)) => near.retain(|(_, t)| t.may_hit_ball(centre, radius)),
+                None => near.clear(),
+            }
             if near.is_empty() {
                 edges.clear();
             }
@@ -343,8 +355,9 @@ mod tests {
                 mode: CutMode::Remove,
             };
             let (last, current) = (random_pose(&mut rng), random_pose(&mut rng));
-            let tools: Vec<ToolSweep> =
+            let sweeps: Vec<ToolSweep> =
                 ToolSweep::new(&tool, &last, &current).into_iter().collect();
+            let tools: Vec<&ToolSweep> = sweeps.iter().collect();
             let full: Vec<usize> = (0..positions.len())
                 .filter(|&i| live[i] && tools[0].hits(Vec3::from(positions[i])))
                 .collect();

@@ -336,9 +336,23 @@ impl ToolSweep {
 
     /// The least distance from `centre` to what the tool reaches over its motion, less
     /// the margin of a ball of `radius` there: no point of that ball comes within reach
-    /// when this is above `radius` (see [`crate::cut::culling`]).
-    pub fn gap(&self, centre: Vec3, radius: f32) -> f32 {
+    /// when this is above `radius`.
+    fn gap(&self, centre: Vec3, radius: f32) -> f32 {
         self.point_distance(centre) - self.radius - self.reach - self.margin(centre, radius)
+    }
+
+    /// A lower bound on the distance from every point of the box `lo`–`hi` to what the
+    /// tool reaches over its motion, less a margin well above the rounding: no point of
+    /// the box comes within reach when this is positive (see [`crate::cut::culling`]).
+    /// The larger of two bounds: the gap between the box and the tool's bounding box
+    /// (tight beside a face of the box), and the distance from the box's centre less
+    /// its half diagonal (tight for a thin tool crossing the box's diagonal).
+    pub fn clearance_to_box(&self, lo: Vec3, hi: Vec3) -> f32 {
+        let centre = (lo + hi) * 0.5;
+        let half_diagonal = (hi - centre).length();
+        let apart = (self.min - hi).max(lo - self.max).max(Vec3::ZERO).length()
+            - self.margin(centre, half_diagonal);
+        apart.max(self.gap(centre, half_diagonal) - half_diagonal)
     }
 
     /// How far its sweep stands off its poses (see [`crate::cut::tool::Sweep::slack`]).
