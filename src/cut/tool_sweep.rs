@@ -60,6 +60,7 @@ pub struct ToolSweep {
     reach: f32,
     mode: CutMode,
     sweep: Sweep,
+    /// A box around everything the tool reaches over its motion.
     min: Vec3,
     max: Vec3,
     /// Largest coordinate magnitude of the sweep's positions plus the tool's size: the
@@ -93,13 +94,27 @@ impl ToolSweep {
         let reach = tool.cut_width * 0.5;
         let bounding = tool.shape.bounding_radius();
         let sweep = Sweep::new(last, current, bounding, reach);
-        let extent = Vec3::splat(bounding + reach + sweep.slack);
         let (lo, hi) = (
             last.position.min(current.position),
             last.position.max(current.position),
         );
         let far = lo.abs().max(hi.abs()).max_element();
         let (core, radius) = tool.shape.core();
+        // the box around what each piece's core sweeps (its corners where the piece
+        // starts and ends), grown by what the tool reaches around its core and by a
+        // margin well above the rounding
+        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for piece in &sweep.pieces {
+            let turn = piece.inverse.inverse();
+            for &v in core.vertices() {
+                for x in [piece.from + turn * v, piece.to + turn * v] {
+                    (lo, hi) = (lo.min(x), hi.max(x));
+                }
+            }
+        }
+        let scale = far + bounding + reach;
+        let grow = (radius + reach + sweep.slack) * (1.0 + 1e-4) + 128.0 * f32::EPSILON * scale;
+        let extent = Vec3::splat(grow);
         let plane = matches!(tool.shape, ToolShape::Blade { .. }).then(|| {
             let normal = current.rotation.normalize() * Vec3::Z;
             BladePlane {
@@ -126,7 +141,7 @@ impl ToolSweep {
             mode: tool.mode,
             min: lo - extent,
             max: hi + extent,
-            scale: far + bounding + reach,
+            scale,
             sweep,
             last: *last,
             current: *current,
@@ -369,5 +384,80 @@ impl ToolSweep {
             a.position.distance(b.position) + angle * self.lever
         };
         step(before, &self.last) + step(&self.last, &self.current)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Quat;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn random_vec(rng: &mut ChaCha8Rng, scale: f32) -> Vec3 {
+        Vec3::new(
+            rng.random_range(-scale..scale),
+            rng.random_range(-scale..scale),
+            rng.random_range(-scale..scale),
+        )
+    }
+
+    #[test]
+    fn every_point_a_turning_tool_reaches_lies_in_its_box_and_beyond_no_clearance() {
+        // points the tool reaches at random times of its true motion (position lerp,
+        // rotation slerp): a random point of its core, moved by up to its radius plus
+        // its reach; each lies inside the tool's box, and a small box around it has no
+        // positive clearance
+        let mut rng = ChaCha8Rng::seed_from_u64(21);
+        for case in 0..300 {
+            let shape = match case % 3 {
+                0 => ToolShape::Sphere {
+                    radius: rng.random_range(0.05..0.5),
+                },
+                1 => ToolShape::Capsule {
+                    radius: rng.random_range(0.05..0.3),
+                    half_length: rng.random_range(0.1..1.0),
+                },
+                _ => ToolShape::Blade {
+                    half_width: rng.random_range(0.1..2.0),
+                    half_height: rng.random_range(0.1..1.0),
+                },
+            };
+            let tool = Tool {
+                shape,
+                cut_width: rng.random_range(0.01..0.2),
+                mode: CutMode::Sever,
+            };
+            let pose = |rng: &mut ChaCha8Rng| Pose {
+                position: random_vec(rng, 3.0),
+                rotation: Quat::from_scaled_axis(random_vec(rng, 1.5)),
+            };
+            let (last, current) = (pose(&mut rng), pose(&mut rng));
+            let sweep = ToolSweep::new(&tool, &last, &current).expect("a valid tool");
+            let (core, radius) = shape.core();
+            for _ in 0..50 {
+                let s = rng.random_range(0.0..=1.0f32);
+                let position = last.position.lerp(current.position, s);
+                let rotation = last.rotation.slerp(current.rotation, s);
+                let weights: Vec<f32> = core.vertices().iter().map(|_| rng.random()).collect();
+                let total: f32 = weights.iter().sum::<f32>().max(f32::MIN_POSITIVE);
+                let on_core: Vec3 = (core.vertices().iter().zip(&weights))
+                    .map(|(v, w)| *v * (w / total))
+                    .sum();
+                let off = random_vec(&mut rng, 1.0).normalize_or_zero()
+                    * rng.random_range(0.0..=1.0f32)
+                    * (radius + sweep.reach);
+                let x = position + rotation * on_core + off;
+                assert!(
+                    x.cmpge(sweep.min).all() && x.cmple(sweep.max).all(),
+                    "case {case}: {x} outside {}..{}",
+                    sweep.min,
+                    sweep.max
+                );
+                let tiny = Vec3::splat(1e-3);
+                let clearance = sweep.clearance_to_box(x - tiny, x + tiny);
+                assert!(clearance <= 0.0, "case {case}: clearance {clearance}");
+            }
+        }
     }
 }
