@@ -34,6 +34,7 @@ use crate::cut::tool::Pose;
 use crate::cut::tool_sweep::ToolSweep;
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
+use smallvec::SmallVec;
 
 /// What the last full test of a block against a tool found.
 #[derive(Clone, Copy, Debug)]
@@ -134,10 +135,30 @@ impl NearTools {
     /// Whether `tool` may reach `block` (`false` only where it cannot; a block or tool
     /// the table does not know may).
     pub fn reaches(&self, block: usize, tool: usize) -> bool {
-        if tool >= self.tools {
-            return true;
-        }
-        (self.bits.get(block * self.words + tool / 64)).is_none_or(|w| (w >> (tool % 64)) & 1 == 1)
+        self.near(block)
+            .is_none_or(|mut near| tool >= self.tools || near.any(|t| t == tool))
+    }
+
+    /// The tools that may reach `block`, ascending; `None` for a block the table does
+    /// not know (every tool may reach it).
+    pub fn near(&self, block: usize) -> Option<impl Iterator<Item = usize> + '_> {
+        let row = self
+            .bits
+            .get(block * self.words..(block + 1) * self.words)?;
+        let set = |(w, bits): (usize, &u64)| {
+            let mut bits = *bits;
+            std::iter::from_fn(move || {
+                let bit = (bits != 0).then(|| bits.trailing_zeros() as usize)?;
+                bits &= bits - 1;
+                Some(64 * w + bit)
+            })
+        };
+        Some(row.iter().enumerate().flat_map(set))
+    }
+
+    /// How many tools the table has a column for.
+    pub fn tools(&self) -> usize {
+        self.tools
     }
 }
 
@@ -175,17 +196,25 @@ impl ToolCulling {
             return;
         }
         self.layout = Some(version);
-        let lists: Vec<Vec<u32>> = (0..blocks.len())
+        // (a block's partners lie in a few blocks, most in its own: the block last
+        // found is looked at before a search)
+        let lists: Vec<SmallVec<[u32; 8]>> = (0..blocks.len())
             .into_par_iter()
+            .with_min_len(16)
             .map(|b| {
-                let mut list: Vec<u32> = (blocks.range(b))
-                    .flat_map(&partners)
-                    .filter(|&j| j != u32::MAX)
-                    .map(|j| blocks.of(j as usize) as u32)
-                    .filter(|&n| n as usize != b)
-                    .collect();
-                list.sort_unstable();
-                list.dedup();
+                let mut list = SmallVec::new();
+                let mut last = (b, blocks.range(b));
+                for j in blocks.range(b).flat_map(&partners) {
+                    let j = j as usize;
+                    if j == u32::MAX as usize || last.1.contains(&j) {
+                        continue;
+                    }
+                    let n = blocks.of(j);
+                    last = (n, blocks.range(n));
+                    if n != b && !list.contains(&(n as u32)) {
+                        list.push(n as u32);
+                    }
+                }
                 list
             })
             .collect();

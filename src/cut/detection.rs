@@ -22,19 +22,29 @@ use smallvec::SmallVec;
 use std::ops::Not;
 
 /// Which of the tools a test is given may reach which blocks of the dense particles:
-/// the culling's table, and each tool's column in it (see [`crate::cut::culling`]);
-/// `None`: every tool may reach every block.
+/// the culling's table, and each tool's column in it, ascending (see
+/// [`crate::cut::culling`]); `None`: every tool may reach every block.
 pub type NearBlocks<'a> = Option<(&'a NearTools, &'a [usize])>;
 
-/// The tools of `tools` (with their indices) that may reach block `b`.
+/// The tools of `tools` (with their indices) that may reach block `b`: by the set bits
+/// of the block's row when the table knows the block and every tool's column (the
+/// columns ascend with the tools, as the detect stage groups them), else all.
 fn tools_near<'t>(
     near: NearBlocks,
     b: usize,
     tools: &[&'t ToolSweep],
 ) -> SmallVec<[(usize, &'t ToolSweep); 4]> {
-    (tools.iter().copied().enumerate())
-        .filter(|(k, _)| near.is_none_or(|(table, columns)| table.reaches(b, columns[*k])))
-        .collect()
+    let all = || tools.iter().copied().enumerate().collect();
+    let Some((table, columns)) = near else {
+        return all();
+    };
+    match table.near(b) {
+        Some(near) if columns.iter().all(|&c| c < table.tools()) => near
+            .filter_map(|c| columns.binary_search(&c).ok())
+            .map(|k| (k, tools[k]))
+            .collect(),
+        _ => all(),
+    }
 }
 
 /// The live particles (indices into the positions, ascending) that some tool hits.

@@ -359,14 +359,17 @@ impl ToolSweep {
     /// A lower bound on the distance from every point of the box `lo`–`hi` to what the
     /// tool reaches over its motion, less a margin well above the rounding: no point of
     /// the box comes within reach when this is positive (see [`crate::cut::culling`]).
-    /// The larger of two bounds: the gap between the box and the tool's bounding box
-    /// (tight beside a face of the box), and the distance from the box's centre less
-    /// its half diagonal (tight for a thin tool crossing the box's diagonal).
+    /// The gap between the box and the tool's box (tight beside a face of the box), or
+    /// where they overlap, the larger of that and the distance from the box's centre
+    /// less its half diagonal (tight for a thin tool crossing the box's diagonal).
     pub fn clearance_to_box(&self, lo: Vec3, hi: Vec3) -> f32 {
         let centre = (lo + hi) * 0.5;
         let half_diagonal = (hi - centre).length();
         let apart = (self.min - hi).max(lo - self.max).max(Vec3::ZERO).length()
             - self.margin(centre, half_diagonal);
+        if apart > 0.0 {
+            return apart;
+        }
         apart.max(self.gap(centre, half_diagonal) - half_diagonal)
     }
 
