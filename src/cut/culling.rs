@@ -203,14 +203,14 @@ impl ToolCulling {
             .with_min_len(16)
             .map(|b| {
                 let mut list = SmallVec::new();
-                let mut last = (b, blocks.range(b));
+                let mut last = blocks.range(b);
                 for j in blocks.range(b).flat_map(&partners) {
                     let j = j as usize;
-                    if j == u32::MAX as usize || last.1.contains(&j) {
+                    if j == u32::MAX as usize || last.contains(&j) {
                         continue;
                     }
                     let n = blocks.of(j);
-                    last = (n, blocks.range(n));
+                    last = blocks.range(n);
                     if n != b && !list.contains(&(n as u32)) {
                         list.push(n as u32);
                     }
@@ -273,9 +273,10 @@ impl ToolCulling {
         let before = std::mem::take(&mut self.measured);
         self.measured = (0..rows)
             .flat_map(|b| {
-                let row = &before[b * old.len()..(b + 1) * old.len()];
+                let row = before.get(b * old.len()..(b + 1) * old.len());
+                let at = move |c: usize| row.and_then(|row| row.get(c)).copied();
                 kept.iter()
-                    .map(move |c| c.map_or(UNMEASURED, |(c, _)| row[c]))
+                    .map(move |c| c.and_then(|(c, _)| at(c)).unwrap_or(UNMEASURED))
             })
             .collect();
     }

@@ -393,17 +393,10 @@ impl ToolSweep {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::convex::random_vec;
     use glam::Quat;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
-
-    fn random_vec(rng: &mut ChaCha8Rng, scale: f32) -> Vec3 {
-        Vec3::new(
-            rng.random_range(-scale..scale),
-            rng.random_range(-scale..scale),
-            rng.random_range(-scale..scale),
-        )
-    }
 
     #[test]
     fn every_point_a_turning_tool_reaches_lies_in_its_box_and_beyond_no_clearance() {

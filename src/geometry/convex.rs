@@ -180,19 +180,21 @@ pub fn segment_distance(p0: Vec3, p1: Vec3, q0: Vec3, q1: Vec3) -> f32 {
     (p0 + d1 * s).distance(q0 + d2 * t)
 }
 
+/// A random vector with each coordinate in `−scale..scale` (for tests).
+#[cfg(test)]
+pub(crate) fn random_vec(rng: &mut impl rand::Rng, scale: f32) -> Vec3 {
+    Vec3::new(
+        rng.random_range(-scale..scale),
+        rng.random_range(-scale..scale),
+        rng.random_range(-scale..scale),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
-
-    fn random_vec(rng: &mut ChaCha8Rng, scale: f32) -> Vec3 {
-        Vec3::new(
-            rng.random_range(-scale..scale),
-            rng.random_range(-scale..scale),
-            rng.random_range(-scale..scale),
-        )
-    }
 
     /// A random convex set: a point, a segment, or a parallelogram (sometimes flat).
     fn random_convex(rng: &mut ChaCha8Rng) -> Convex {
