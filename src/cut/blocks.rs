@@ -120,17 +120,23 @@ pub fn bounding_ball(positions: &[Vec3A], live: &[bool]) -> Option<(Vec3, f32)> 
 }
 
 /// The ball around the finite `points` (their box's centre and half diagonal), or
-/// `None` when there is none. (A non-finite position fails every tool's box test, so
-/// leaving it out culls nothing a full test would find.)
+/// `None` when there is none (see [`box_around`]).
 pub fn ball_around(points: impl Iterator<Item = Vec3A>) -> Option<(Vec3, f32)> {
+    box_around(points).map(|(lo, hi)| {
+        let centre = (lo + hi) * 0.5;
+        (Vec3::from(centre), (hi - centre).length())
+    })
+}
+
+/// The box `(lo, hi)` around the finite `points`, or `None` when there is none. (A
+/// non-finite position fails every tool's box test, so leaving it out culls nothing a
+/// full test would find.)
+pub fn box_around(points: impl Iterator<Item = Vec3A>) -> Option<(Vec3A, Vec3A)> {
     let (lo, hi) = points.filter(|x| x.is_finite()).fold(
         (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)),
         |(lo, hi), x| (lo.min(x), hi.max(x)),
     );
-    lo.cmple(hi).all().then(|| {
-        let centre = (lo + hi) * 0.5;
-        (Vec3::from(centre), (hi - centre).length())
-    })
+    lo.cmple(hi).all().then_some((lo, hi))
 }
 
 #[cfg(test)]

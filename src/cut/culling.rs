@@ -29,7 +29,7 @@
 //! keeps them (the particles keep their places and dense indices, and a block's partners
 //! only become fewer).
 
-use crate::cut::blocks::{Blocks, DenseParticles};
+use crate::cut::blocks::{Blocks, DenseParticles, box_around};
 use crate::cut::tool::Pose;
 use crate::cut::tool_sweep::ToolSweep;
 use glam::{Vec3, Vec3A};
@@ -60,14 +60,9 @@ struct Frame {
 }
 
 impl Frame {
-    /// The box around the finite `points`, if there is one. (A non-finite position fails
-    /// every tool's test, so leaving it out culls nothing a full test would find.)
+    /// The box around the finite `points`, if there is one (see [`box_around`]).
     fn around(points: impl Iterator<Item = Vec3A>) -> Option<Self> {
-        let (lo, hi) = points.filter(|x| x.is_finite()).fold(
-            (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)),
-            |(lo, hi), x| (lo.min(x), hi.max(x)),
-        );
-        lo.cmple(hi).all().then_some(Self { lo, hi })
+        box_around(points).map(|(lo, hi)| Self { lo, hi })
     }
 
     fn union(self, other: Self) -> Self {
@@ -132,13 +127,6 @@ pub struct NearTools {
 }
 
 impl NearTools {
-    /// Whether `tool` may reach `block` (`false` only where it cannot; a block or tool
-    /// the table does not know may).
-    pub fn reaches(&self, block: usize, tool: usize) -> bool {
-        self.near(block)
-            .is_none_or(|mut near| tool >= self.tools || near.any(|t| t == tool))
-    }
-
     /// The tools that may reach `block`, ascending; `None` for a block the table does
     /// not know (every tool may reach it).
     pub fn near(&self, block: usize) -> Option<impl Iterator<Item = usize> + '_> {
@@ -547,7 +535,7 @@ mod tests {
             };
             assert_eq!(culling.measured(), fresh, "frame {frame}");
             assert!(
-                (0..blocks.len()).all(|b| !near.reaches(b, 0)),
+                (0..blocks.len()).all(|b| near.near(b).is_some_and(|mut n| n.all(|t| t != 0))),
                 "frame {frame}"
             );
             // what the culled tests find is what the full tests find: nothing

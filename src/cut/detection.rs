@@ -346,19 +346,7 @@ mod tests {
                 let i = rng.random_range(0..positions.len());
                 positions[i] = Vec3A::new(f32::NAN, 0.0, f32::INFINITY);
             }
-            let shape = match case % 3 {
-                0 => ToolShape::Sphere {
-                    radius: rng.random_range(0.05..0.8),
-                },
-                1 => ToolShape::Capsule {
-                    radius: rng.random_range(0.05..0.4),
-                    half_length: rng.random_range(0.1..1.0),
-                },
-                _ => ToolShape::Blade {
-                    half_width: rng.random_range(0.2..2.0),
-                    half_height: rng.random_range(0.2..2.0),
-                },
-            };
+            let shape = crate::cut::tool::random_shape(&mut rng, case % 3);
             let tool = Tool {
                 shape,
                 cut_width: rng.random_range(0.01..0.3),

@@ -396,6 +396,25 @@ impl Sweep {
     }
 }
 
+/// A random sphere, capsule or blade (as `kind` is 0, 1 or other), of sizes up to about
+/// 2 (for tests).
+#[cfg(test)]
+pub(crate) fn random_shape(rng: &mut impl rand::Rng, kind: usize) -> ToolShape {
+    match kind {
+        0 => ToolShape::Sphere {
+            radius: rng.random_range(0.05..0.8),
+        },
+        1 => ToolShape::Capsule {
+            radius: rng.random_range(0.05..0.4),
+            half_length: rng.random_range(0.1..1.0),
+        },
+        _ => ToolShape::Blade {
+            half_width: rng.random_range(0.2..2.0),
+            half_height: rng.random_range(0.2..2.0),
+        },
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -393,6 +393,7 @@ impl ToolSweep {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cut::tool::random_shape;
     use crate::geometry::convex::random_vec;
     use glam::Quat;
     use rand::{Rng, SeedableRng};
@@ -406,19 +407,7 @@ mod tests {
         // positive clearance
         let mut rng = ChaCha8Rng::seed_from_u64(21);
         for case in 0..300 {
-            let shape = match case % 3 {
-                0 => ToolShape::Sphere {
-                    radius: rng.random_range(0.05..0.5),
-                },
-                1 => ToolShape::Capsule {
-                    radius: rng.random_range(0.05..0.3),
-                    half_length: rng.random_range(0.1..1.0),
-                },
-                _ => ToolShape::Blade {
-                    half_width: rng.random_range(0.1..2.0),
-                    half_height: rng.random_range(0.1..1.0),
-                },
-            };
+            let shape = random_shape(&mut rng, case % 3);
             let tool = Tool {
                 shape,
                 cut_width: rng.random_range(0.01..0.2),

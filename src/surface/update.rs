@@ -190,6 +190,8 @@ fn kept_outside(
             kept += 1;
         }
     }
+    // (a surface without placements sits at rest, as `placements` reads it: made a list
+    // whose kept runs can move)
     if topology.placed.len() != topology.rest.len() {
         topology.placed = topology.rest.clone();
     }
