@@ -241,6 +241,7 @@ fn the_cutting_bench_times_whole_frames_and_each_cut_by_stage() {
         cuts: true,
         block: false,
         slice: false,
+        dice: None,
     };
     // under a default subscriber of its own, as the command line runs it: the runs'
     // systems' spans must still close under the dispatchers they were made under
@@ -342,4 +343,88 @@ fn the_surface_bench_gives_a_row_per_size_moving_and_at_rest() {
             triangles + 4 * n * n
         );
     }
+}
+
+#[test]
+fn the_diced_box_is_cut_into_its_25_blocks_in_the_one_frame_the_blades_cross_it() {
+    use cleave::analysis::bench_cutting::diced_box;
+    use cleave::cut::tool::CutMode;
+    use cleave::sim::simulation::Simulation;
+    let n = 16;
+    for mode in [CutMode::Sever, CutMode::Split] {
+        let workload = diced_box(n, mode);
+        let h = workload.scene.bodies[0].spacing;
+        let mut sim = Simulation::from_scene(&workload.scene).unwrap();
+        let body = sim.bodies()[0];
+        let mut pieces = Vec::new();
+        for _ in 0..3 {
+            sim.step();
+            pieces.push(sim.pieces(body).unwrap());
+        }
+        let counts: Vec<usize> = pieces.iter().map(|p| p.len()).collect();
+        assert_eq!(counts, [1, 25, 25], "{mode:?}: pieces after frames 1, 2, 3");
+        // the planes the blades follow, from the box's size: no piece holds particles
+        // that rest clearly on both sides of one
+        let world = sim.world_mut();
+        let lattice = &world
+            .query::<&cleave::ecs::components::BodyLattice>()
+            .single(world)
+            .unwrap()
+            .lattice;
+        let size = n as f32 * h;
+        let planes: Vec<f32> = [1, 3, 5, 7]
+            .map(|e| ((e * n / 8) as f32 + 0.5) * h - 0.5 * size)
+            .to_vec();
+        for piece in &pieces[1] {
+            for axis in [0, 2] {
+                for &plane in &planes {
+                    let side = |p: &u32| {
+                        let c = lattice.rest_position(*p)[axis] - plane;
+                        if c.abs() < 0.3 * h {
+                            0
+                        } else {
+                            c.signum() as i32
+                        }
+                    };
+                    let sides: std::collections::BTreeSet<i32> = piece.iter().map(side).collect();
+                    assert!(
+                        !(sides.contains(&-1) && sides.contains(&1)),
+                        "{mode:?}: a piece crosses the plane {plane} across axis {axis}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_cutting_bench_dices_a_box_on_request_and_says_what_its_cut_frame_held() {
+    let rows = json_rows(&[
+        "bench",
+        "--cutting",
+        "--dice",
+        "12",
+        "--json",
+        "--threads",
+        "1",
+    ]);
+    assert_eq!(rows.len(), 2, "sever and split");
+    for (row, mode) in rows.iter().zip(["sever", "split"]) {
+        assert_eq!(row["workload"], "diced12");
+        assert_eq!(row["mode"], mode);
+        assert_eq!(row["particles"], 12 * 12 * 12);
+        assert_eq!(row["cut"]["frames"], 1, "{row}");
+        if cfg!(target_os = "linux") {
+            let extra = row["cut_peak_extra_mb"]
+                .as_f64()
+                .expect("measured on Linux");
+            assert!(extra >= 0.0, "{row}");
+        }
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_cleave"))
+        .args(["bench", "--cutting", "--dice", "1"])
+        .output()
+        .expect("run cleave bench");
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("allowed"));
 }

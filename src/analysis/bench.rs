@@ -189,8 +189,21 @@ pub(crate) fn time_ms(runs: usize, mut f: impl FnMut()) -> f64 {
 
 /// Peak resident set size of this process in bytes (Linux `VmHWM`), if known.
 pub fn peak_resident_bytes() -> Option<u64> {
+    process_status_bytes("VmHWM:")
+}
+
+/// Starts a new window for [`peak_resident_bytes`]: resets the process's peak to what it
+/// holds now (Linux `clear_refs`) and returns that, the resident set size in bytes, or
+/// `None` where the peak cannot be reset.
+pub fn reset_peak_resident() -> Option<u64> {
+    std::fs::write("/proc/self/clear_refs", "5").ok()?;
+    process_status_bytes("VmRSS:")
+}
+
+/// A line `key  N kB` of `/proc/self/status`, in bytes.
+fn process_status_bytes(key: &str) -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let line = status.lines().find(|l| l.starts_with(key))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
 }

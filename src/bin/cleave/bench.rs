@@ -358,7 +358,7 @@ pub fn bench_deform(steps: usize, json: bool) -> Result<(), String> {
 
 /// `cleave bench --cutting`: a row per workload (see
 /// [`cleave::analysis::bench_cutting`]).
-pub fn bench_cutting(json: bool) -> Result<(), String> {
+pub fn bench_cutting(dice: Option<u32>, json: bool) -> Result<(), String> {
     use cleave::analysis::bench_cutting::{CuttingOptions, CuttingRow, bench_cutting};
     if !json {
         println!(
@@ -366,7 +366,7 @@ pub fn bench_cutting(json: bool) -> Result<(), String> {
             rayon::current_num_threads()
         );
         println!(
-            "{:<14} {:>6} {:>7} | {:>6} {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} {:>6} {:>6} | {:>6} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} | {:>6} {:>6} {:>6}",
+            "{:<14} {:>6} {:>7} | {:>6} {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} {:>6} {:>6} | {:>6} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} | {:>6} {:>6} {:>6} | {:>6}",
             "workload",
             "parts",
             "plain",
@@ -391,10 +391,11 @@ pub fn bench_cutting(json: bool) -> Result<(), String> {
             "surf fr",
             "p95/pl",
             "max/pl",
-            "cut/pl"
+            "cut/pl",
+            "mem+"
         );
         println!(
-            "(the last three: the same ratios for the frames less their cut work, the floor the pieces' physics sets)"
+            "(then: the same ratios for the frames less their cut work, the floor the pieces' physics sets; mem+: MB the cut frames took at their peak)"
         );
     }
     let mut failed = None;
@@ -407,7 +408,7 @@ pub fn bench_cutting(json: bool) -> Result<(), String> {
         }
         let (s, floor) = (&row.cut_stages, &row.without_cut_work);
         println!(
-            "{:<14} {:>6} {:>7.2} | {:>6.2} {:>6.2} {:>6.2} {:>6.2} | {:>6} {:>6.2} {:>6.2} | {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} | {:>6.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.3} | {:>6.2} {:>6.2} {:>6.2}",
+            "{:<14} {:>6} {:>7.2} | {:>6.2} {:>6.2} {:>6.2} {:>6.2} | {:>6} {:>6.2} {:>6.2} | {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} | {:>6.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.3} | {:>6.2} {:>6.2} {:>6.2} | {:>6}",
             format!("{} {}", row.workload, row.mode),
             row.particles,
             row.plain.median_ms,
@@ -433,9 +434,20 @@ pub fn bench_cutting(json: bool) -> Result<(), String> {
             floor.p95_over_plain,
             floor.slowest_over_plain,
             floor.cut_median_over_plain,
+            row.cut_peak_extra_mb
+                .map_or("-".to_string(), |mb| format!("{mb:.0}")),
         );
     };
-    bench_cutting(CuttingOptions::default(), &mut print).map_err(|e| e.to_string())?;
+    let options = match dice {
+        Some(n) => CuttingOptions {
+            cuts: false,
+            block: false,
+            slice: false,
+            dice: Some(n),
+        },
+        None => CuttingOptions::default(),
+    };
+    bench_cutting(options, &mut print).map_err(|e| e.to_string())?;
     failed.map_or(Ok(()), Err)
 }
 

@@ -9,27 +9,29 @@
 //! frames less that cut work: the floor the pieces' own physics sets, which no speed of
 //! the cut work goes below.
 //!
-//! The workloads: the `cuts` scene in each cut mode; a 32³ block (h = 0.05) crossed by a
-//! blade stroke every 10 frames for 300 frames in each mode; a 64³ box sliced once
-//! (sever and split).
+//! The workloads ([`workloads`]): the `cuts` scene in each cut mode; a 32³ block
+//! (h = 0.05) crossed by a blade stroke every 10 frames for 300 frames in each mode; a
+//! 64³ box sliced once (sever and split); and, on request, an n³ box diced by 8 blades in
+//! one frame (sever and split). Each row also gives the memory its cut frames took at
+//! their peak beyond what the process held before them.
 
 use crate::analysis::frames::FrameStats;
 use crate::analysis::profile::StageProfile;
-use crate::body::shape::Shape;
-use crate::config::SimConfig;
-use crate::cut::tool::{CutMode, Path, Pose, ToolShape};
+use crate::cut::tool::CutMode;
 use crate::ecs::components::BodyLattice;
-use crate::ecs::desc::{BodyDesc, Scene, ToolDesc};
+use crate::ecs::desc::ToolDesc;
 use crate::ecs::resources::CutReport;
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::Result;
 use crate::sim::simulation::Simulation;
 use bevy_ecs::prelude::Entity;
-use glam::{Quat, UVec3, Vec3};
-use rand::{Rng, SeedableRng};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::time::Instant;
+
+pub mod workloads;
+
+pub use workloads::{Workload, diced_box, sliced_box, stroked_block};
 
 /// Milliseconds of each part of a cut, summed over a run's cut frames or averaged per
 /// cut frame.
@@ -77,7 +79,7 @@ impl CutStages {
 pub struct CuttingRow {
     /// Always `"cutting"`.
     pub row: &'static str,
-    /// `cuts`, `block32` or `box64`.
+    /// `cuts`, `block32`, `box64` or `diced` followed by the box's edge in particles.
     pub workload: String,
     /// The tools' cut mode.
     pub mode: CutMode,
@@ -101,6 +103,10 @@ pub struct CuttingRow {
     pub cut_work_over_substeps: f64,
     /// The surface stage's median time in a plain frame (the per-frame update).
     pub surface_frame_ms: f64,
+    /// The most memory a cut frame took at its peak beyond what the process held when
+    /// the frame began, in MB (on Linux, whose peak is reset before each frame; `null`
+    /// where it cannot be).
+    pub cut_peak_extra_mb: Option<f64>,
     /// The cutting run's frames against the plain median frame (in JSON, its four keys
     /// at the row's top level).
     #[serde(flatten)]
@@ -148,6 +154,8 @@ pub struct CuttingOptions {
     pub block: bool,
     /// The 64³ box sliced once, sever and split.
     pub slice: bool,
+    /// An n³ box diced by 8 blades in one frame, sever and split ([`diced_box`]).
+    pub dice: Option<u32>,
 }
 
 impl Default for CuttingOptions {
@@ -156,6 +164,7 @@ impl Default for CuttingOptions {
             cuts: true,
             block: true,
             slice: true,
+            dice: None,
         }
     }
 }
@@ -186,136 +195,12 @@ pub fn bench_cutting(options: CuttingOptions, on_row: &mut dyn FnMut(&CuttingRow
             on_row(&workload("box64", mode, &sliced_box(mode))?);
         }
     }
+    if let Some(n) = options.dice {
+        for mode in [CutMode::Sever, CutMode::Split] {
+            on_row(&workload(&format!("diced{n}"), mode, &diced_box(n, mode))?);
+        }
+    }
     Ok(())
-}
-
-/// A body at rest in space, gravity off.
-fn still_config(frames: u32) -> (SimConfig, u32) {
-    (
-        SimConfig {
-            gravity: Vec3::ZERO,
-            ground: None,
-            ..SimConfig::default()
-        },
-        frames,
-    )
-}
-
-/// A block `n` cells wide at spacing `h`, centred on the origin.
-fn block(n: u32, h: f32) -> BodyDesc {
-    BodyDesc::new(Shape::cuboid(UVec3::splat(n)), h)
-}
-
-/// A blade big enough to cross a block of `size` metres.
-fn blade(size: f32) -> ToolShape {
-    ToolShape::Blade {
-        half_width: size,
-        half_height: 0.5 * size,
-    }
-}
-
-/// A workload: a scene, and blade strokes spawned as tools for the frames they take
-/// (from the frame of their first key) and despawned after their last.
-pub struct Workload {
-    /// The scene (its own tools run throughout).
-    pub scene: Scene,
-    /// `(first frame, tool)`: the tool follows its path from that frame on.
-    pub strokes: Vec<(u32, ToolDesc)>,
-}
-
-/// The `slice` scene's pedestal and ground with a 32³ block (h = 0.05) on it, crossed
-/// by a blade stroke every 10 frames for 300 frames: each stroke drawn as the viewer
-/// draws one ([`crate::cut::stroke::stroke_cut`]), seen from 12 m in front, across the
-/// block from a random point of a circle around it to the opposite side, turned at
-/// random (seeded).
-pub fn stroked_block(mode: CutMode) -> Workload {
-    let mut scene = crate::io::scene::builtin("slice", 0).expect("a built-in scene");
-    let (h, n) = (0.05, 32);
-    let size = n as f32 * h;
-    let top = scene.config.boxes.first().map_or(0.0, |b| b.max.y);
-    let centre = Vec3::new(0.0, top + 0.5 * size, 0.0);
-    let material = scene.bodies[0].material.clone();
-    scene.bodies = vec![BodyDesc {
-        position: centre,
-        material,
-        ..block(n, h)
-    }];
-    scene.tools.clear();
-    scene.frames = 300;
-    let dt = scene.config.dt;
-    let eye = centre + Vec3::new(0.0, 0.0, 12.0);
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(61);
-    let strokes = (0..scene.frames / 10)
-        .filter_map(|k| {
-            let angle = rng.random_range(0.0..std::f32::consts::TAU);
-            let across = Vec3::new(angle.cos(), angle.sin(), 0.0) * 0.8 * size;
-            let offset = Vec3::new(
-                rng.random_range(-0.3..0.3),
-                rng.random_range(-0.3..0.3),
-                0.0,
-            ) * size;
-            let cut = crate::cut::stroke::stroke_cut(
-                eye,
-                centre + offset + across - eye,
-                centre + offset - across - eye,
-                1.0,
-                24.0,
-            )
-            .ok()?;
-            let first = k * 10 + 5;
-            let keys = (cut.poses.iter().enumerate())
-                .map(|(i, p)| ((first - 1 + i as u32) as f32 * dt, *p))
-                .collect();
-            Some((
-                first,
-                ToolDesc {
-                    shape: cut.shape,
-                    cut_width: 2.0 * h,
-                    cut_mode: mode,
-                    path: Path { keys },
-                    pose: cut.poses[0],
-                },
-            ))
-        })
-        .collect();
-    Workload { scene, strokes }
-}
-
-/// A 64³ box (h = 0.05, gravity off) sliced once through its middle by a blade at 30°
-/// to the lattice, at frame 10 of 20.
-pub fn sliced_box(mode: CutMode) -> Workload {
-    let (h, n) = (0.05, 64);
-    let size = n as f32 * h;
-    let centre = Vec3::ZERO;
-    let (config, frames) = still_config(20);
-    let dt = config.dt;
-    let shape = blade(size);
-    let reach = shape.bounding_radius() + size;
-    let rotation = Quat::from_rotation_y(std::f32::consts::FRAC_PI_6);
-    let up = rotation * Vec3::Y;
-    let pose = |position| Pose { position, rotation };
-    let t = 10.0 * dt;
-    let keys = vec![
-        (t - dt, pose(centre + up * reach)),
-        (t, pose(centre - up * reach)),
-    ];
-    let scene = Scene {
-        config,
-        frames,
-        bodies: vec![block(n, h)],
-        tools: vec![ToolDesc {
-            shape,
-            cut_width: 2.0 * h,
-            cut_mode: mode,
-            path: Path { keys: keys.clone() },
-            pose: keys[0].1,
-        }],
-        colliders: Vec::new(),
-    };
-    Workload {
-        scene,
-        strokes: Vec::new(),
-    }
 }
 
 /// What one run of a scene measured: every frame's time, whether it cut, and the
@@ -327,6 +212,9 @@ struct Run {
     cut: Vec<bool>,
     stages: Vec<BTreeMap<String, f64>>,
     surface_topology: Vec<f64>,
+    /// Per frame, what the process held at its peak beyond what it held before the
+    /// frame, in bytes (`None` where the peak cannot be reset).
+    extra_bytes: Vec<Option<u64>>,
 }
 
 /// One run of a workload, a frame at a time (so that the plain and the cutting run can
@@ -406,10 +294,15 @@ impl<'w> Runner<'w> {
             let end = tool.path.keys.last().map_or(0.0, |k| k.0);
             self.under_way.push((sim.spawn_tool(tool)?, end));
         }
+        let held = crate::analysis::bench::reset_peak_resident();
         let start = Instant::now();
         sim.step();
+        let elapsed = start.elapsed();
+        let peak = crate::analysis::bench::peak_resident_bytes();
         let run = &mut self.run;
-        run.frames.push(start.elapsed().as_secs_f64() * 1e3);
+        run.frames.push(elapsed.as_secs_f64() * 1e3);
+        run.extra_bytes
+            .push(held.zip(peak).map(|(held, peak)| peak.saturating_sub(held)));
         run.cut
             .push(!sim.world().resource::<CutReport>().bodies.is_empty());
         let after = self.profile.totals_ms();
@@ -541,6 +434,10 @@ fn workload(name: &str, mode: CutMode, scene: &Workload) -> Result<CuttingRow> {
         substeps_ms: substeps / frames,
         cut_work_over_substeps: whole_run.total() / substeps,
         surface_frame_ms: crate::analysis::bench::median(&mut surface),
+        cut_peak_extra_mb: (0..cutting.frames.len())
+            .filter(|&f| cutting.cut[f])
+            .map(|f| cutting.extra_bytes[f].map(|b| b as f64 / 1e6))
+            .try_fold(0.0, |most: f64, extra| extra.map(|e| most.max(e))),
         as_run,
         without_cut_work,
     })
