@@ -114,7 +114,7 @@ pub mod prelude {
     pub use crate::ecs::handles::{HandlePose, PoseMethod};
     pub use crate::ecs::resources::{
         BodySplit, ClustersRebuilt, EdgesSevered, ParticlesCut, ParticlesRepaired, SimClock,
-        SurfaceBudget, SurfaceChanged, SurfaceDeferred,
+        SplitsOverBudget, SurfaceBudget, SurfaceChanged, SurfaceDeferred,
     };
     pub use crate::ecs::surface_mesh::SurfaceMesh;
     pub use crate::error::CleaveError;

@@ -7,18 +7,22 @@
 //! A particle entity despawned from outside (by a game, say) is removed the same way,
 //! as if cut: its body's lattice and clusters are rebuilt around the hole, instead of
 //! listing a particle that no longer exists.
+//!
+//! Splits that would take a body past its memory budget are not made: their blades
+//! sever instead, and a [`SplitsOverBudget`] says so.
 
-use crate::body::lattice::NO_PARTICLE;
+use crate::body::lattice::{Lattice, NO_PARTICLE};
 use crate::cut::carve::carve;
 use crate::cut::particle_split::{Pairs, SPLIT_GAP, apply_splits, split_positions};
 use crate::cut::tear::sever_keeping_pieces;
+use crate::ecs::budget::bytes_after_split;
 use crate::ecs::components::{
     AngularVelocity, Body, BodyLattice, InvMass, Orientation, Particle, ParticleClusters, Position,
     Velocity,
 };
 use crate::ecs::resources::{
     BodyCut, BodyCutReport, BodySplit, CutList, CutReport, EdgesSevered, ParticlesCut,
-    ParticlesSplit,
+    ParticlesSplit, SimSettings, SplitsOverBudget,
 };
 use bevy_ecs::prelude::*;
 use bevy_ecs::system::SystemParam;
@@ -36,9 +40,12 @@ type ParticleState = (
 );
 
 /// Deletes the particles of the `CutList` and any particle despawned from outside,
-/// splits the `CutList`'s split particles, and severs its edges.
+/// splits the `CutList`'s split particles (or, where that would take a body past its
+/// memory budget, severs the edges the split would hand to new halves), and severs its
+/// edges.
 #[allow(clippy::too_many_arguments)]
 pub fn cut(
+    settings: Res<SimSettings>,
     mut commands: Commands,
     list: Res<CutList>,
     mut report: ResMut<CutReport>,
@@ -69,7 +76,17 @@ pub fn cut(
                 cut_clusters.extend_from_slice(index.index.clusters_of(p));
             }
         }
-        let (splits, mut severed) = split(&mut commands, &mut body, cut, &mut particles);
+        let (splits, mut severed) =
+            match over_budget(cut, &body.lattice, settings.0.memory_budget_bytes()) {
+                None => split(&mut commands, &mut body, cut, &mut particles),
+                Some(over) => {
+                    messages.over_budget.write(over);
+                    let lattice = &mut body.lattice;
+                    let separated = cut.splits.as_severed(lattice);
+                    let severed = separated.into_iter().filter(|&(a, b)| lattice.sever(a, b));
+                    (Vec::new(), severed.collect())
+                }
+            };
         for &(p, _) in &splits {
             cut_clusters.extend_from_slice(index.index.clusters_of(p));
         }
@@ -132,6 +149,7 @@ pub struct CutMessages<'w> {
     edges_severed: MessageWriter<'w, EdgesSevered>,
     particles_split: MessageWriter<'w, ParticlesSplit>,
     body_split: MessageWriter<'w, BodySplit>,
+    over_budget: MessageWriter<'w, SplitsOverBudget>,
 }
 
 impl CutMessages<'_> {
@@ -188,6 +206,31 @@ fn set_crossings(body: &mut BodyLattice, cut: &BodyCut, severed: &[(u32, u32)], 
             }
         }
     }
+}
+
+/// What splitting `cut`'s split particles would take of the body of `lattice`, when it
+/// is more than its `budget` (bytes); `None` when they fit, or there are none. Said
+/// as a warning too.
+fn over_budget(cut: &BodyCut, lattice: &Lattice, budget: u64) -> Option<SplitsOverBudget> {
+    if cut.splits.splits.is_empty() {
+        return None;
+    }
+    let bytes = bytes_after_split(lattice, &cut.splits);
+    (bytes > budget).then(|| {
+        let particles = cut.splits.splits.len();
+        tracing::warn!(
+            "splitting {particles} particles of {} would take it to about {:.3} GB, past its memory budget of {:.3} GB: its split blades sever this frame",
+            cut.body,
+            bytes as f64 / 1e9,
+            budget as f64 / 1e9
+        );
+        SplitsOverBudget {
+            body: cut.body,
+            particles,
+            bytes,
+            budget,
+        }
+    })
 }
 
 /// Splits the cut's split particles of `body` ([`split_particles`]): puts each half at

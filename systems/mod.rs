@@ -239,6 +239,7 @@ pub fn install(world: &mut World, config: crate::config::SimConfig) {
     MessageRegistry::register_message::<ParticlesCut>(world);
     MessageRegistry::register_message::<EdgesSevered>(world);
     MessageRegistry::register_message::<ParticlesSplit>(world);
+    MessageRegistry::register_message::<SplitsOverBudget>(world);
     MessageRegistry::register_message::<ClustersRebuilt>(world);
     MessageRegistry::register_message::<BodySplit>(world);
     MessageRegistry::register_message::<ParticlesRepaired>(world);

@@ -167,3 +167,50 @@ fn a_projective_factor_past_the_memory_budget_falls_back_to_jacobi_with_a_warnin
         "{err}"
     );
 }
+
+#[test]
+fn a_split_past_the_memory_budget_severs_instead_and_says_so() {
+    // a 16³ box diced by 8 split blades through planes of particles in frame 2: about
+    // 2.9 MB as spawned, over 5 MB once split (1,024 halves more, each face drawn as
+    // four quads), so a budget of 4 MB holds the box but not its split
+    use cleave::analysis::bench_cutting::diced_box;
+    use cleave::cut::tool::CutMode;
+    use cleave::ecs::components::BodyLattice;
+    use cleave::ecs::resources::{ParticlesSplit, SplitsOverBudget};
+    use cleave::sim::simulation::Simulation;
+    let run = |mode: CutMode, budget_gb: f32| {
+        let mut scene = diced_box(16, mode).scene;
+        scene.config.memory_budget_gb = budget_gb;
+        let mut sim = Simulation::from_scene(&scene).unwrap();
+        let body = sim.bodies()[0];
+        let (mut over, mut split) = (Vec::new(), 0);
+        for _ in 0..3 {
+            sim.step();
+            over.extend(sim.messages::<SplitsOverBudget>());
+            split += sim.messages::<ParticlesSplit>().len();
+        }
+        let len = sim.world().get::<BodyLattice>(body).unwrap().lattice.len();
+        (sim.pieces(body).unwrap(), len, over, split)
+    };
+    let (within, within_len, within_over, within_split) = run(CutMode::Split, 1.0);
+    let (over, over_len, said, over_split) = run(CutMode::Split, 0.004);
+    // within its budget the box splits: halves gained, no word of the budget
+    assert!(within_len > 4096 && within_split == 1 && within_over.is_empty());
+    assert_eq!(within.len(), 25);
+    // past it, no particle is split, and the blades sever the edges the split would
+    // have handed to new halves: the split's pieces less those halves, each particle
+    // with its kept half
+    assert_eq!((over_len, over_split), (4096, 0));
+    let without_halves: Vec<Vec<u32>> = within
+        .iter()
+        .map(|piece| piece.iter().copied().filter(|&p| p < 4096).collect())
+        .collect();
+    assert_eq!(over, without_halves);
+    assert_eq!(said.len(), 1, "{said:?}");
+    let m = said[0];
+    assert_eq!(m.budget, 4_000_000);
+    assert!(
+        m.bytes > m.budget && m.particles >= 8 * 16 * 16 / 2,
+        "{m:?}"
+    );
+}

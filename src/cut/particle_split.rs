@@ -41,8 +41,7 @@ impl SplitPlan {
         for split in self.splits.drain(..) {
             if first.last().is_some_and(|f| f.0 == split.0) {
                 let (p, moves, _) = split;
-                let edges = (0..6).filter(|&d| moves[d]).map(|d| lattice.link(p, d));
-                self.sever.extend(edges.map(|q| (p.min(q), p.max(q))));
+                self.sever.extend(moved_edges(lattice, p, moves));
             } else {
                 first.push(split);
             }
@@ -51,6 +50,29 @@ impl SplitPlan {
         self.sever.sort_unstable();
         self.sever.dedup();
     }
+
+    /// Every edge the plan separates, those it hands to new halves among them: severed
+    /// instead, they leave the pieces the plan makes less the new halves, each split
+    /// particle where its kept half would be. Sorted, without repeats.
+    pub fn as_severed(&self, lattice: &Lattice) -> Vec<(u32, u32)> {
+        let mut edges = self.sever.clone();
+        for &(p, moves, _) in &self.splits {
+            edges.extend(moved_edges(lattice, p, moves));
+        }
+        edges.sort_unstable();
+        edges.dedup();
+        edges
+    }
+}
+
+/// The edges from `p` in the directions `moves` marks (those its new half would take),
+/// as `(a, b)` with `a < b`.
+fn moved_edges(lattice: &Lattice, p: u32, moves: [bool; 6]) -> impl Iterator<Item = (u32, u32)> {
+    (0..6)
+        .filter(move |&d| moves[d])
+        .map(move |d| lattice.link(p, d))
+        .filter(|&q| q != NO_PARTICLE)
+        .map(move |q| (p.min(q), p.max(q)))
 }
 
 /// Plans what a split blade whose plane is `plane` does to a body, reading only:

@@ -3,6 +3,7 @@
 //! the solver's dense arrays, the drawable surfaces, and the invariant check over a world.
 
 pub mod attach;
+pub mod budget;
 pub mod check;
 pub mod commands;
 pub mod components;

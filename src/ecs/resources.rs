@@ -208,6 +208,24 @@ pub struct ParticlesSplit {
     pub pairs: Vec<(u32, u32)>,
 }
 
+/// Sent by cut: splitting the particles `split` blades passed through in a body this
+/// frame would have taken the body past its memory budget
+/// ([`crate::config::SimConfig::memory_budget_gb`], estimated by
+/// [`crate::ecs::budget::bytes_after_split`]), so they were not split: the blades severed
+/// the edges the split would have handed to new halves, which leaves the pieces the split
+/// would have made, less the new halves, and the body kept its particles.
+#[derive(Message, Clone, Copy, Debug)]
+pub struct SplitsOverBudget {
+    /// The body.
+    pub body: Entity,
+    /// The particles that were not split.
+    pub particles: usize,
+    /// What the body would have taken once split, in bytes.
+    pub bytes: u64,
+    /// The body's memory budget, in bytes.
+    pub budget: u64,
+}
+
 /// Sent by shape-match: particles whose position had become non-finite (a NaN written
 /// from outside, say) were put back where they started the substep, with zero velocity,
 /// before the NaN could spread through their clusters.

@@ -5,7 +5,6 @@
 
 use crate::body::groups::ParticleGroups;
 use crate::body::lattice::Lattice;
-use crate::body::shape::BYTES_PER_PARTICLE;
 use crate::clusters::clustering::{clusters_on_grid, seed_grid_offset};
 use crate::clusters::index::ClusterIndex;
 use crate::clusters::store::ClusterTable;
@@ -364,8 +363,8 @@ fn check_particle_budget(existing: u64, new: u64) -> Result<()> {
 fn check_surface_budget(lattice: &Lattice, budget_gb: f32) -> Result<()> {
     use crate::surface::extract::{BYTES_PER_FACE, face_count};
     let faces = face_count(lattice);
-    let gigabytes = (faces * BYTES_PER_FACE) as f64 / 1e9;
-    let particle_gigabytes = (lattice.len() as u64 * BYTES_PER_PARTICLE) as f64 / 1e9;
+    let gigabytes = super::budget::surface_bytes(faces) as f64 / 1e9;
+    let particle_gigabytes = super::budget::particle_bytes(lattice.len() as u64) as f64 / 1e9;
     if gigabytes + particle_gigabytes > budget_gb as f64 {
         return Err(CleaveError::SurfaceOverBudget {
             faces,
