@@ -7,12 +7,25 @@
 use super::term::ParticleState;
 use glam::{Quat, Vec3, Vec3A};
 use rayon::prelude::*;
+use std::iter::repeat_n;
 
 /// Particles per parallel task.
 pub const PARTICLES_PER_TASK: usize = 2048;
 
 /// Particles per parallel task of the non-finite scan.
 const SCAN_PER_TASK: usize = 8192;
+
+/// Fills `v` with `items` in the allocation it has: grown to fit exactly, and giving
+/// back what it holds beyond a quarter more than it needs.
+fn refill<T>(v: &mut Vec<T>, items: impl ExactSizeIterator<Item = T>) {
+    let n = items.len();
+    v.clear();
+    v.reserve_exact(n);
+    v.extend(items);
+    if v.capacity() > n + n / 4 {
+        v.shrink_to_fit();
+    }
+}
 
 /// Dense particle state (see the module docs).
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
@@ -42,19 +55,29 @@ pub struct Particles {
 impl Particles {
     /// Particles at rest at `positions`, of unit inverse mass.
     pub fn at_rest(positions: &[Vec3]) -> Self {
-        let positions: Vec<Vec3A> = positions.iter().map(|r| Vec3A::from(*r)).collect();
+        let mut particles = Particles::default();
+        particles.reset_at_rest(positions);
+        particles
+    }
+
+    /// Makes these particles [`Particles::at_rest`] at `positions`, in the arrays they
+    /// have: a relayout of a big body then writes memory it already holds instead of
+    /// freeing it and touching as much afresh. An array grows to fit exactly, and one
+    /// holding more than a quarter more than it needs gives the rest back.
+    pub fn reset_at_rest(&mut self, positions: &[Vec3]) {
         let n = positions.len();
-        Particles {
-            previous: positions.clone(),
-            velocities: vec![Vec3A::ZERO; n],
-            inv_mass: vec![1.0; n],
-            corrections: vec![Vec3A::ZERO; n],
-            predicted: positions.clone(),
-            positions,
-            orientations: vec![Quat::IDENTITY; n],
-            previous_orientations: vec![Quat::IDENTITY; n],
-            spins: vec![Vec3A::ZERO; n],
-        }
+        refill(
+            &mut self.positions,
+            positions.iter().map(|r| Vec3A::from(*r)),
+        );
+        refill(&mut self.previous, self.positions.iter().copied());
+        refill(&mut self.predicted, self.positions.iter().copied());
+        refill(&mut self.velocities, repeat_n(Vec3A::ZERO, n));
+        refill(&mut self.inv_mass, repeat_n(1.0, n));
+        refill(&mut self.corrections, repeat_n(Vec3A::ZERO, n));
+        refill(&mut self.orientations, repeat_n(Quat::IDENTITY, n));
+        refill(&mut self.previous_orientations, repeat_n(Quat::IDENTITY, n));
+        refill(&mut self.spins, repeat_n(Vec3A::ZERO, n));
     }
 
     /// Number of particles.
@@ -200,6 +223,29 @@ pub fn turn(from: Quat, to: Quat) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn particles_reset_at_rest_are_those_made_at_rest_and_keep_no_more_than_they_need() {
+        let rest = |n: usize| -> Vec<Vec3> { (0..n).map(|i| Vec3::splat(i as f32)).collect() };
+        // used particles: moved, spun, pinned
+        let mut used = Particles::at_rest(&rest(1000));
+        used.predict(0.01, Vec3::new(0.0, -9.8, 0.0), 0.5);
+        used.inv_mass[3] = 0.0;
+        used.spins[7] = Vec3A::X;
+        used.orientations[7] = Quat::from_rotation_x(0.3);
+        for n in [1000, 1100, 200] {
+            used.reset_at_rest(&rest(n));
+            let fresh = Particles::at_rest(&rest(n));
+            // (compared as their serialised form: every field, bit for bit)
+            assert_eq!(
+                serde_json::to_string(&used).unwrap(),
+                serde_json::to_string(&fresh).unwrap(),
+                "{n}"
+            );
+            assert!(used.positions.capacity() <= n + n / 4, "{n}");
+            assert!(used.spins.capacity() <= n + n / 4, "{n}");
+        }
+    }
 
     #[test]
     fn a_nan_particle_is_put_back_with_zero_velocity() {

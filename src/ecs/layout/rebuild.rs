@@ -110,7 +110,7 @@ impl SolverLayout {
         // clusters it belonged to
         let terms = std::mem::take(&mut solver.terms);
         *solver = Solver::new(ClusterTerm::new(&rest, specs, mode), terms);
-        *particles = Particles::at_rest(&rest);
+        particles.reset_at_rest(&rest);
         let max_index = entities
             .iter()
             .map(|e| e.index_u32() as usize + 1)
