@@ -15,12 +15,17 @@ pub const PARTICLES_PER_TASK: usize = 2048;
 /// Particles per parallel task of the non-finite scan.
 const SCAN_PER_TASK: usize = 8192;
 
-/// Fills `v` with `items` in the allocation it has: grown to fit exactly, and giving
-/// back what it holds beyond a quarter more than it needs.
+/// Fills `v` with `items` in the allocation it has, giving back what it holds beyond a
+/// quarter more than it needs. An empty one is sized exactly; one too small grows with
+/// an eighth to spare: its body grew (by splits) and will likely grow again, and each
+/// growth copies the old allocation.
 fn refill<T>(v: &mut Vec<T>, items: impl ExactSizeIterator<Item = T>) {
     let n = items.len();
     v.clear();
-    v.reserve_exact(n);
+    if v.capacity() < n {
+        let spare = if v.capacity() == 0 { 0 } else { n / 8 };
+        v.reserve_exact(n + spare);
+    }
     v.extend(items);
     if v.capacity() > n + n / 4 {
         v.shrink_to_fit();
@@ -62,8 +67,7 @@ impl Particles {
 
     /// Makes these particles [`Particles::at_rest`] at `positions`, in the arrays they
     /// have: a relayout of a big body then writes memory it already holds instead of
-    /// freeing it and touching as much afresh. An array grows to fit exactly, and one
-    /// holding more than a quarter more than it needs gives the rest back.
+    /// freeing it and touching as much afresh.
     pub fn reset_at_rest(&mut self, positions: &[Vec3]) {
         let n = positions.len();
         refill(
