@@ -81,10 +81,8 @@ pub fn cut(
                 None => split(&mut commands, &mut body, cut, &mut particles),
                 Some(over) => {
                     messages.over_budget.write(over);
-                    let lattice = &mut body.lattice;
-                    let separated = cut.splits.as_severed(lattice);
-                    let severed = separated.into_iter().filter(|&(a, b)| lattice.sever(a, b));
-                    (Vec::new(), severed.collect())
+                    let plan = cut.splits.severing_only(&body.lattice);
+                    apply_splits(&mut body.lattice, &plan)
                 }
             };
         for &(p, _) in &splits {

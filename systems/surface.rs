@@ -25,7 +25,7 @@ use crate::ecs::surface_mesh::{
     DeferredSurface, JobResult, JobSlot, LatticeState, RebuiltSurface, SurfaceMesh,
 };
 use crate::surface::embed::EmbeddedMesh;
-use crate::surface::extract::{SurfaceTopology, extract_with_faces, face_count};
+use crate::surface::extract::{SurfaceTopology, extract_with_faces, face_count, quads_per_face};
 use crate::surface::smooth::smooth;
 use crate::surface::update::update;
 use crate::surface::{CarryLayout, deform, extract};
@@ -281,12 +281,11 @@ impl Source {
     /// surface is extracted again).
     fn quads(&self, mesh: &SurfaceMesh, l: &Lattice) -> usize {
         let res = mesh.topology.resolution.max(1) as usize;
-        let whole = |quads_per_face: usize| face_count(l) as usize * quads_per_face;
+        let whole = |quads_per_face: u64| (face_count(l) * quads_per_face) as usize;
         match &self.touched {
             Some(touched) if res == 1 && touched.iter().any(|&p| l.is_split_half(p)) => whole(4),
             Some(touched) => touched.len() * res * res,
-            None if l.live_particles().any(|p| l.is_split_half(p)) => whole(4),
-            None => whole(1),
+            None => whole(quads_per_face(l)),
         }
     }
 

@@ -51,17 +51,20 @@ impl SplitPlan {
         self.sever.dedup();
     }
 
-    /// Every edge the plan separates, those it hands to new halves among them: severed
-    /// instead, they leave the pieces the plan makes less the new halves, each split
-    /// particle where its kept half would be. Sorted, without repeats.
-    pub fn as_severed(&self, lattice: &Lattice) -> Vec<(u32, u32)> {
-        let mut edges = self.sever.clone();
+    /// The plan with no split: every edge it separates severed, those it hands to new
+    /// halves too (sorted, without repeats). It leaves the pieces the plan makes less
+    /// the new halves, each split particle where its kept half would be.
+    pub fn severing_only(&self, lattice: &Lattice) -> SplitPlan {
+        let mut sever = self.sever.clone();
         for &(p, moves, _) in &self.splits {
-            edges.extend(moved_edges(lattice, p, moves));
+            sever.extend(moved_edges(lattice, p, moves));
         }
-        edges.sort_unstable();
-        edges.dedup();
-        edges
+        sever.sort_unstable();
+        sever.dedup();
+        SplitPlan {
+            splits: Vec::new(),
+            sever,
+        }
     }
 }
 

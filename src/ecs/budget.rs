@@ -5,7 +5,7 @@
 use crate::body::lattice::Lattice;
 use crate::body::shape::BYTES_PER_PARTICLE;
 use crate::cut::particle_split::SplitPlan;
-use crate::surface::extract::{BYTES_PER_FACE, face_count};
+use crate::surface::extract::{BYTES_PER_FACE, face_count, quads_per_face};
 
 /// Bytes of `particles` particles.
 pub fn particle_bytes(particles: u64) -> u64 {
@@ -22,9 +22,12 @@ pub fn surface_bytes(quads: u64) -> u64 {
 /// edge the plan separates, drawn as four quads each once a particle of the body is
 /// split (the first split redraws the whole surface so).
 pub fn bytes_after_split(lattice: &Lattice, plan: &SplitPlan) -> u64 {
-    let split =
-        !plan.splits.is_empty() || lattice.live_particles().any(|p| lattice.is_split_half(p));
-    let quads_per_face = if split { 4 } else { 1 };
+    // (the plan's first split draws the whole surface as a split body's)
+    let quads_per_face = if plan.splits.is_empty() {
+        quads_per_face(lattice)
+    } else {
+        4
+    };
     let separated = (plan.sever.len() + plan.splits.len()) as u64;
     let faces = face_count(lattice) + 2 * separated;
     particle_bytes(lattice.len() as u64 + plan.splits.len() as u64)
@@ -80,6 +83,9 @@ mod tests {
             65 * BYTES_PER_PARTICLE + 4 * 98 * BYTES_PER_FACE
         );
         // and the edges severed instead are those it would have handed to the new half
-        assert_eq!(split.as_severed(&lattice), [(0, lattice.link(p, d))]);
+        assert_eq!(
+            split.severing_only(&lattice).sever,
+            [(0, lattice.link(p, d))]
+        );
     }
 }

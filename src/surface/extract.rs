@@ -160,6 +160,16 @@ pub fn face_count(lattice: &Lattice) -> u64 {
         .sum()
 }
 
+/// The quads each face of `lattice`'s surface is drawn as: four once a particle of it is
+/// split (its cells then drawn as 2×2×2 octants), else one.
+pub fn quads_per_face(lattice: &Lattice) -> u64 {
+    if lattice.live_particles().any(|p| lattice.is_split_half(p)) {
+        4
+    } else {
+        1
+    }
+}
+
 /// The surface of `lattice` (see the module docs).
 pub fn extract(lattice: &Lattice) -> SurfaceTopology {
     extract_with_faces(lattice).0

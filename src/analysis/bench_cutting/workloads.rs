@@ -8,16 +8,13 @@ use crate::ecs::desc::{BodyDesc, Scene, ToolDesc};
 use glam::{Quat, UVec3, Vec3};
 use rand::{Rng, SeedableRng};
 
-/// A body at rest in space, gravity off.
-fn still_config(frames: u32) -> (SimConfig, u32) {
-    (
-        SimConfig {
-            gravity: Vec3::ZERO,
-            ground: None,
-            ..SimConfig::default()
-        },
-        frames,
-    )
+/// The settings of a body at rest in space: gravity off, no ground.
+fn still_config() -> SimConfig {
+    SimConfig {
+        gravity: Vec3::ZERO,
+        ground: None,
+        ..SimConfig::default()
+    }
 }
 
 /// A block `n` cells wide at spacing `h`, centred on the origin.
@@ -104,37 +101,11 @@ pub fn stroked_block(mode: CutMode) -> Workload {
 /// to the lattice, at frame 10 of 20.
 pub fn sliced_box(mode: CutMode) -> Workload {
     let (h, n) = (0.05, 64);
-    let size = n as f32 * h;
-    let centre = Vec3::ZERO;
-    let (config, frames) = still_config(20);
-    let dt = config.dt;
-    let shape = blade(size);
-    let reach = shape.bounding_radius() + size;
+    let shape = blade(n as f32 * h);
     let rotation = Quat::from_rotation_y(std::f32::consts::FRAC_PI_6);
-    let up = rotation * Vec3::Y;
-    let pose = |position| Pose { position, rotation };
-    let t = 10.0 * dt;
-    let keys = vec![
-        (t - dt, pose(centre + up * reach)),
-        (t, pose(centre - up * reach)),
-    ];
-    let scene = Scene {
-        config,
-        frames,
-        bodies: vec![block(n, h)],
-        tools: vec![ToolDesc {
-            shape,
-            cut_width: 2.0 * h,
-            cut_mode: mode,
-            path: Path { keys: keys.clone() },
-            pose: keys[0].1,
-        }],
-        colliders: Vec::new(),
-    };
-    Workload {
-        scene,
-        strokes: Vec::new(),
-    }
+    let up = rotation * Vec3::Y * reach(shape, n, h);
+    let tool = stroke(shape, rotation, [up, -up], 10, h, mode);
+    still_box(n, h, 20, vec![tool])
 }
 
 /// An `n`³ box (h = 0.05, gravity off) diced in one frame, frame 2 of 6, by 8 blades: 4
@@ -144,10 +115,8 @@ pub fn sliced_box(mode: CutMode) -> Workload {
 pub fn diced_box(n: u32, mode: CutMode) -> Workload {
     let h = 0.05;
     let size = n as f32 * h;
-    let (config, frames) = still_config(6);
-    let dt = config.dt;
     let shape = blade(size);
-    let reach = shape.bounding_radius() + size;
+    let up = Vec3::Y * reach(shape, n, h);
     // the particles' planes lie at (i + 1/2) h from the box's low face
     let plane = |eighth: u32| {
         let i = (eighth as f32 / 8.0 * n as f32).floor();
@@ -162,30 +131,51 @@ pub fn diced_box(n: u32, mode: CutMode) -> Workload {
                 (Vec3::new(0.0, 0.0, plane(e)), Quat::IDENTITY),
             ]
         })
-        .map(|(at, rotation)| {
-            let pose = |y: f32| Pose {
-                position: at + Vec3::Y * y,
-                rotation,
-            };
-            let keys = vec![(dt, pose(reach)), (2.0 * dt, pose(-reach))];
-            ToolDesc {
-                shape,
-                cut_width: 2.0 * h,
-                cut_mode: mode,
-                pose: keys[0].1,
-                path: Path { keys },
-            }
-        })
+        .map(|(at, rotation)| stroke(shape, rotation, [at + up, at - up], 2, h, mode))
         .collect();
-    let scene = Scene {
-        config,
-        frames,
-        bodies: vec![block(n, h)],
-        tools: blades,
-        colliders: Vec::new(),
-    };
+    still_box(n, h, 6, blades)
+}
+
+/// How far from a box `n` cells of `h` wide the blade `shape` starts and ends its stroke
+/// across it: clear of the box at both ends.
+fn reach(shape: ToolShape, n: u32, h: f32) -> f32 {
+    shape.bounding_radius() + n as f32 * h
+}
+
+/// A blade stroke at a still box's time step: `shape`, turned by `rotation`, waits at
+/// `from` and crosses to `to` within frame `frame`, cutting `2 h` wide.
+fn stroke(
+    shape: ToolShape,
+    rotation: Quat,
+    [from, to]: [Vec3; 2],
+    frame: u32,
+    h: f32,
+    mode: CutMode,
+) -> ToolDesc {
+    let dt = still_config().dt;
+    let pose = |position| Pose { position, rotation };
+    let t = frame as f32 * dt;
+    let keys = vec![(t - dt, pose(from)), (t, pose(to))];
+    ToolDesc {
+        shape,
+        cut_width: 2.0 * h,
+        cut_mode: mode,
+        pose: keys[0].1,
+        path: Path { keys },
+    }
+}
+
+/// An `n`³ box of spacing `h` at rest at the origin, gravity off, for `frames` frames,
+/// crossed by `tools`.
+fn still_box(n: u32, h: f32, frames: u32, tools: Vec<ToolDesc>) -> Workload {
     Workload {
-        scene,
+        scene: Scene {
+            config: still_config(),
+            frames,
+            bodies: vec![block(n, h)],
+            tools,
+            colliders: Vec::new(),
+        },
         strokes: Vec::new(),
     }
 }
