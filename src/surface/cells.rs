@@ -254,43 +254,66 @@ pub fn octant(k: u32) -> IVec3 {
 
 /// The grid corners of the face of sub-cell `s` in direction `d`, counter-clockwise seen
 /// from outside (along the direction).
+#[inline]
 pub fn face_corners(s: IVec3, d: u8) -> [IVec3; 4] {
-    let axis = d as usize / 2;
-    let positive = d % 2 == 1;
-    // (axis, b, c) a right-handed cycle of (x, y, z)
-    let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
-    let corner = |i: i32, j: i32| {
-        let mut w = s;
-        w[axis] += positive as i32;
-        w[b] += i;
-        w[c] += j;
-        w
-    };
-    // a quad's triangles meet along the diagonal from its first corner: opposite faces
-    // take opposite diagonals, so the two faces of a slit (a severed edge inside a
-    // piece), which share all four corners, share no diagonal
-    if positive {
-        [corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)]
-    } else {
-        [corner(0, 1), corner(1, 1), corner(1, 0), corner(0, 0)]
-    }
+    FACE_CORNERS[d as usize].map(|o| s + o)
 }
 
 /// Which of [`face_corners`]`(s, d)` grid corner `w` is (`w` must be one of them).
 #[inline]
 pub fn corner_index(s: IVec3, d: u8, w: IVec3) -> usize {
-    let axis = d as usize / 2;
-    let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
-    let (i, j) = (w[b] - s[b], w[c] - s[c]);
-    // the orders of `face_corners`: (0,0) (1,0) (1,1) (0,1) facing +, (0,1) (1,1) (1,0)
-    // (0,0) facing −
-    match (d % 2 == 1, i, j) {
-        (true, 0, 0) | (false, 0, 1) => 0,
-        (true, 1, 0) | (false, 1, 1) => 1,
-        (true, 1, 1) | (false, 1, 0) => 2,
-        _ => 3,
-    }
+    let o = w - s;
+    CORNER_INDEX[d as usize][(o.x | o.y << 1 | o.z << 2) as usize & 7] as usize
 }
+
+/// Per direction, the offsets of a face's corners from its sub-cell's lowest corner, in
+/// the order of [`face_corners`]. With `(axis, b, c)` a right-handed cycle of
+/// `(x, y, z)`, the face of direction `2 axis + 1` lies one sub-cell along `axis` and
+/// runs `(0,0) (1,0) (1,1) (0,1)` in `(b, c)`, that of `2 axis` runs `(0,1) (1,1) (1,0)
+/// (0,0)`: opposite faces take opposite diagonals (a quad's triangles meet along the
+/// diagonal from its first corner), so the two faces of a slit (a severed edge inside a
+/// piece), which share all four corners, share no diagonal.
+const FACE_CORNERS: [[IVec3; 4]; 6] = {
+    let mut table = [[IVec3::ZERO; 4]; 6];
+    let mut d = 0;
+    while d < 6 {
+        let (axis, positive) = (d / 2, d % 2 == 1);
+        let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+        let order: [(i32, i32); 4] = if positive {
+            [(0, 0), (1, 0), (1, 1), (0, 1)]
+        } else {
+            [(0, 1), (1, 1), (1, 0), (0, 0)]
+        };
+        let mut k = 0;
+        while k < 4 {
+            let mut o = [0i32; 3];
+            o[axis] = positive as i32;
+            o[b] = order[k].0;
+            o[c] = order[k].1;
+            table[d][k] = IVec3::new(o[0], o[1], o[2]);
+            k += 1;
+        }
+        d += 1;
+    }
+    table
+};
+
+/// Per direction, the index in [`FACE_CORNERS`] of the corner at each offset `x + 2y +
+/// 4z` from the sub-cell (offsets that are no corner of the face read 0).
+const CORNER_INDEX: [[u8; 8]; 6] = {
+    let mut table = [[0u8; 8]; 6];
+    let mut d = 0;
+    while d < 6 {
+        let mut k = 0;
+        while k < 4 {
+            let o = FACE_CORNERS[d][k];
+            table[d][(o.x + 2 * o.y + 4 * o.z) as usize] = k as u8;
+            k += 1;
+        }
+        d += 1;
+    }
+    table
+};
 
 #[cfg(test)]
 mod tests {
@@ -332,6 +355,27 @@ mod tests {
         let s = base + IVec3::new(1, 0, 0);
         assert!(owners.joined(s, half, 1, far));
         assert!(!owners.joined(s, half, 0, middle));
+    }
+
+    #[test]
+    fn a_face_runs_counter_clockwise_round_its_side_of_the_sub_cell() {
+        let s = IVec3::new(-4, 7, 2);
+        for (d, outward) in NEIGHBOUR_OFFSETS.iter().enumerate() {
+            let c = face_corners(s, d as u8);
+            // every corner on the face's plane, on the sub-cell's cube
+            let centre = s.as_vec3() + Vec3::splat(0.5);
+            for w in c {
+                let from_centre = w.as_vec3() - centre;
+                assert_eq!(from_centre.abs(), Vec3::splat(0.5));
+                assert_eq!(from_centre.dot(outward.as_vec3()), 0.5);
+            }
+            // the four corners go round the face once, turning left seen from outside
+            for k in 0..4 {
+                let (a, b, e) = (c[k], c[(k + 1) % 4], c[(k + 2) % 4]);
+                assert_eq!((b - a).abs().element_sum(), 1);
+                assert_eq!((b - a).cross(e - b), *outward);
+            }
+        }
     }
 
     #[test]

@@ -25,7 +25,6 @@ use crate::util::grouping::group_by_key;
 use crate::util::union_find::UnionFind;
 use glam::IVec3;
 use rayon::prelude::*;
-use rustc_hash::FxHashMap;
 
 /// A face of a solid sub-cell on the surface.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -38,7 +37,8 @@ pub struct Quad {
     pub owner: u32,
 }
 
-/// The vertex class of every quad corner of `quads` (see [`VertexClasses`]).
+/// The vertex class of every quad corner of `quads` (see [`VertexClasses`]). The quads
+/// of each sub-cell must be consecutive, as [`super::extract::push_faces`] leaves them.
 pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
     if quads.is_empty() {
         return VertexClasses::of(&mut UnionFind::new(0), 0);
@@ -63,12 +63,7 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
         );
         (lo + d.as_ivec3(), axis)
     };
-    // each quad by its sub-cell and direction, packed in one word over the box of the
-    // sub-cells around the quads' corners (a run's quads lie there)
-    let quad_keys = QuadKeys::around(lo, hi);
-    let index: FxHashMap<u64, u32> = (quads.iter().enumerate())
-        .map(|(q, quad)| (quad_keys.key(quad.cell, quad.direction), q as u32))
-        .collect();
+    let index = QuadIndex::new(quads, lo, hi);
     // (a bit per key, three per corner of the box: the keys come out ascending and
     // each once, without a sort)
     let mut marked = Bits::default();
@@ -98,8 +93,8 @@ pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
             let index = &index;
             let (runs, count) = runs_around(owners, low, axis);
             (runs.into_iter().take(count)).filter_map(move |((cell_a, dir_a), (cell_b, dir_b))| {
-                let qa = *index.get(&quad_keys.key(cell_a, dir_a))?;
-                let qb = *index.get(&quad_keys.key(cell_b, dir_b))?;
+                let qa = index.find(cell_a, dir_a)?;
+                let qb = index.find(cell_b, dir_b)?;
                 Some((
                     e as u32,
                     [slot(qa, low), slot(qb, low), slot(qa, high), slot(qb, high)],
@@ -189,31 +184,121 @@ impl VertexClasses {
     }
 }
 
-/// Packs a quad's sub-cell and direction into one word: the sub-cell's place in a box
-/// one sub-cell wider on every side than the quads' sub-cells from `lo` to `hi`, times
-/// six, plus the direction.
-#[derive(Clone, Copy)]
-struct QuadKeys {
+/// The quads by sub-cell and direction, found without a hash: a bit per sub-cell of a
+/// box one sub-cell wider on every side than the quads' sub-cells (set where quads lie),
+/// the set bits before each word, and each set sub-cell's first quad, in the order of
+/// the bits. A sub-cell's quads are consecutive in the list, so its first leads to them.
+struct QuadIndex<'q> {
+    quads: &'q [Quad],
     min: IVec3,
     dims: glam::U64Vec3,
+    bits: Vec<u64>,
+    /// Set bits in the words before each word.
+    before: Vec<u32>,
+    /// The first quad of each set sub-cell, by its rank among the set bits.
+    first: Vec<u32>,
 }
 
-impl QuadKeys {
-    fn around(lo: IVec3, hi: IVec3) -> Self {
-        Self {
-            min: lo - IVec3::ONE,
-            dims: (hi - lo + IVec3::splat(3)).as_u64vec3(),
+impl<'q> QuadIndex<'q> {
+    /// The index of `quads`, whose sub-cells lie from `lo` to `hi`.
+    fn new(quads: &'q [Quad], lo: IVec3, hi: IVec3) -> Self {
+        let (min, dims) = (lo - IVec3::ONE, (hi - lo + IVec3::splat(3)).as_u64vec3());
+        let mut index = Self {
+            quads,
+            min,
+            dims,
+            bits: vec![0; (dims.element_product() as usize).div_ceil(64)],
+            before: Vec::new(),
+            first: Vec::new(),
+        };
+        for quad in quads {
+            let i = index.place(quad.cell);
+            index.bits[i / 64] |= 1 << (i % 64);
         }
+        let mut count = 0;
+        index.before = (index.bits.iter())
+            .map(|w| {
+                let before = count;
+                count += w.count_ones();
+                before
+            })
+            .collect();
+        index.first = vec![u32::MAX; count as usize];
+        for (q, quad) in quads.iter().enumerate().rev() {
+            let rank = index.rank(index.place(quad.cell));
+            index.first[rank] = q as u32;
+        }
+        index
     }
 
-    /// The key of the quad of sub-cell `cell` facing `direction` (the cell must lie in
-    /// the box).
+    /// The place of sub-cell `s` (which must lie in the box) among the bits.
+    #[inline(always)]
+    fn place(&self, s: IVec3) -> usize {
+        let d = (s - self.min).as_u64vec3();
+        ((d.z * self.dims.y + d.y) * self.dims.x + d.x) as usize
+    }
+
+    /// How many set bits come before bit `i`.
     #[inline]
-    fn key(&self, cell: IVec3, direction: u8) -> u64 {
-        let d = (cell - self.min).as_u64vec3();
-        ((d.z * self.dims.y + d.y) * self.dims.x + d.x) * 6 + direction as u64
+    fn rank(&self, i: usize) -> usize {
+        let below = self.bits[i / 64] & ((1u64 << (i % 64)) - 1);
+        (self.before[i / 64] + below.count_ones()) as usize
+    }
+
+    /// The quad of sub-cell `s` facing `direction`, if there is one (`s` must lie in the
+    /// box).
+    #[inline(always)]
+    fn find(&self, s: IVec3, direction: u8) -> Option<u32> {
+        let i = self.place(s);
+        let word = self.bits[i / 64];
+        if word >> (i % 64) & 1 == 0 {
+            return None;
+        }
+        let rank = self.before[i / 64] + (word & ((1u64 << (i % 64)) - 1)).count_ones();
+        let mut q = self.first[rank as usize] as usize;
+        while let Some(quad) = self.quads.get(q).filter(|quad| quad.cell == s) {
+            if quad.direction == direction {
+                return Some(q as u32);
+            }
+            q += 1;
+        }
+        None
     }
 }
+
+/// Per axis, the four sub-cells around a grid edge along it, from the edge's lower
+/// corner `w`, going round: with `(axis, b, c)` a right-handed cycle of `(x, y, z)`,
+/// `(0, 0) → (−1, 0) → (−1, −1) → (0, −1)` in `(b, c)`, each step one face.
+const ROUND: [[IVec3; 4]; 3] = {
+    let mut table = [[IVec3::ZERO; 4]; 3];
+    let round: [(i32, i32); 4] = [(0, 0), (-1, 0), (-1, -1), (0, -1)];
+    let mut axis = 0;
+    while axis < 3 {
+        let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+        let mut i = 0;
+        while i < 4 {
+            let mut o = [0i32; 3];
+            o[b] = round[i].0;
+            o[c] = round[i].1;
+            table[axis][i] = IVec3::new(o[0], o[1], o[2]);
+            i += 1;
+        }
+        axis += 1;
+    }
+    table
+};
+
+/// Per axis, the direction of each step of [`ROUND`], from sub-cell `i` to `i + 1`.
+const ROUND_STEPS: [[usize; 4]; 3] = {
+    let mut table = [[0; 4]; 3];
+    let mut axis = 0;
+    while axis < 3 {
+        let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+        table[axis] = [2 * b, 2 * c, 2 * b + 1, 2 * c + 1];
+        axis += 1;
+    }
+    table
+};
 
 /// A run's bounding quads `(first, last)`, keyed `(sub-cell, direction)`.
 type Run = ((IVec3, u8), (IVec3, u8));
@@ -223,17 +308,9 @@ type Run = ((IVec3, u8), (IVec3, u8));
 /// there are.
 #[inline]
 fn runs_around(owners: &CellOwners, w: IVec3, axis: usize) -> ([Run; 4], usize) {
-    let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
-    // round the edge: (0, 0) → (−1, 0) → (−1, −1) → (0, −1) in (b, c), each step one face
-    const ROUND: [(i32, i32); 4] = [(0, 0), (-1, 0), (-1, -1), (0, -1)];
-    let steps = [2 * b, 2 * c, 2 * b + 1, 2 * c + 1];
-    let mut cells = [w; 4];
-    let mut own = [None; 4];
-    for i in 0..4 {
-        cells[i][b] += ROUND[i].0;
-        cells[i][c] += ROUND[i].1;
-        own[i] = owners.owner(cells[i]);
-    }
+    let (round, steps) = (&ROUND[axis], &ROUND_STEPS[axis]);
+    let cells = round.map(|o| w + o);
+    let own = cells.map(|c| owners.owner(c));
     let mut joined = [false; 4];
     for i in 0..4 {
         if let (Some(p), Some(q)) = (own[i], own[(i + 1) % 4]) {

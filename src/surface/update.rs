@@ -32,6 +32,7 @@ use super::placement::is_cut_face;
 use crate::body::lattice::Lattice;
 use crate::util::bits::set_bits;
 use glam::IVec3;
+use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 use std::ops::Range;
 
@@ -148,16 +149,23 @@ pub fn update(lattice: &Lattice, old: SurfaceTopology, touched: &[u32]) -> Optio
     Some(topology)
 }
 
-/// The fresh quads of the sub-cells of `region`, in a fixed order.
+/// The fresh quads of the sub-cells of `region`, layer by layer along z, each in order
+/// of y, then x: the layers found in parallel.
 fn region_quads(owners: &CellOwners, region: &CellSet) -> Vec<Quad> {
-    let mut quads = Vec::new();
-    for s in region.cells() {
-        // (an enclosed particle's sub-cells have no face)
-        if let Some(p) = owners.owner(s).filter(|&p| !owners.is_enclosed(p)) {
-            push_faces(owners, s, p, &mut quads);
-        }
-    }
-    quads
+    let layers: Vec<Vec<Quad>> = (0..region.dims.z)
+        .into_par_iter()
+        .map(|z| {
+            let mut quads = Vec::new();
+            for s in region.cells_in_layer(z) {
+                // (an enclosed particle's sub-cells have no face)
+                if let Some(p) = owners.owner(s).filter(|&p| !owners.is_enclosed(p)) {
+                    push_faces(owners, s, p, &mut quads);
+                }
+            }
+            quads
+        })
+        .collect();
+    layers.concat()
 }
 
 /// The four corner vertices of quad `q` of `topology` (its two triangles share the
@@ -413,13 +421,15 @@ impl CellSet {
         }
     }
 
-    /// The cells, in order of z, then y, then x.
-    fn cells(&self) -> impl Iterator<Item = IVec3> + '_ {
+    /// The cells of the `z`-th layer of the box along z, in order of y, then x.
+    fn cells_in_layer(&self, z: i32) -> impl Iterator<Item = IVec3> + '_ {
         // (a row is `row` words: bit `b` is x = b mod 64·row of row b / 64·row)
         let (bits_per_row, ny) = (64 * self.row, self.dims.y as usize);
-        set_bits(&self.bits).map(move |b| {
-            let (row, x) = (b / bits_per_row, b % bits_per_row);
-            self.min + IVec3::new(x as i32, (row % ny) as i32, (row / ny) as i32)
+        let layer = bits_per_row * ny;
+        let words = &self.bits[z as usize * layer / 64..(z as usize + 1) * layer / 64];
+        set_bits(words).map(move |b| {
+            let (y, x) = (b / bits_per_row, b % bits_per_row);
+            self.min + IVec3::new(x as i32, y as i32, z)
         })
     }
 }
