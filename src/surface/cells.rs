@@ -17,6 +17,7 @@
 
 use crate::body::lattice::{Lattice, NEIGHBOUR_OFFSETS, NO_PARTICLE};
 use glam::{IVec3, Vec3};
+use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 use smallvec::SmallVec;
 
@@ -99,23 +100,26 @@ impl<'a> CellOwners<'a> {
             return;
         }
         let mut dense = vec![NO_PARTICLE; count as usize];
-        for z in lo.z..=hi.z {
+        // (a layer of cells along z is two layers of sub-cells, filled in parallel)
+        let layer = (2 * dims.y * dims.x) as usize;
+        let shared = &self.shared;
+        (dense.par_chunks_mut(layer).enumerate()).for_each(|(k, layer)| {
+            let z = lo.z + k as i32;
             for y in lo.y..=hi.y {
                 for x in lo.x..=hi.x {
                     let c = IVec3::new(x, y, z);
-                    let octants = match (self.shared.get(&c), lattice.at(c)) {
+                    let octants = match (shared.get(&c), lattice.at(c)) {
                         (Some(dealt), _) => *dealt,
                         (None, Some(p)) => [p; 8],
                         (None, None) => continue,
                     };
                     for (k, p) in (0..8u32).zip(octants) {
                         let d = (c - lo) * 2 + octant(k);
-                        let i = ((d.z * dims.y + d.y) * dims.x + d.x) as usize;
-                        dense[i] = p;
+                        layer[((d.z % 2 * dims.y + d.y) * dims.x + d.x) as usize] = p;
                     }
                 }
             }
-        }
+        });
         self.dense = dense;
         self.dense_min = lo * 2;
         self.dense_dims = dims;

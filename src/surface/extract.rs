@@ -179,12 +179,23 @@ pub fn extract(lattice: &Lattice) -> SurfaceTopology {
 /// face `q`.
 pub fn extract_with_faces(lattice: &Lattice) -> (SurfaceTopology, Vec<LatticeFace>) {
     let owners = CellOwners::new(lattice);
-    let mut quads = Vec::new();
-    for p in lattice.live_particles().filter(|&p| !owners.is_enclosed(p)) {
-        for s in owners.owned_by(p) {
-            push_faces(&owners, s, p, &mut quads);
-        }
-    }
+    // (runs of particles in parallel, joined in order: the quads of the live particles
+    // that are not enclosed, by particle, each's sub-cells in order)
+    let runs: Vec<Vec<Quad>> = (0..lattice.len().div_ceil(PARTICLES_PER_TASK))
+        .into_par_iter()
+        .map(|run| {
+            let first = run * PARTICLES_PER_TASK;
+            let particles = first as u32..(first + PARTICLES_PER_TASK).min(lattice.len()) as u32;
+            let mut quads = Vec::new();
+            for p in particles.filter(|&p| lattice.is_live(p) && !owners.is_enclosed(p)) {
+                for s in owners.owned_by(p) {
+                    push_faces(&owners, s, p, &mut quads);
+                }
+            }
+            quads
+        })
+        .collect();
+    let quads = runs.concat();
     let classes = vertex_classes(&owners, &quads);
     let class_of = &classes.class_of;
     let mut topology = SurfaceTopology {
@@ -193,17 +204,20 @@ pub fn extract_with_faces(lattice: &Lattice) -> (SurfaceTopology, Vec<LatticeFac
     };
     let all: Vec<&[u32]> = (0..classes.len()).map(|c| classes.slots(c)).collect();
     add_vertices(&owners, &quads, &all, &mut topology);
-    for q in 0..quads.len() {
-        let v: [u32; 4] = std::array::from_fn(|k| class_of[q * 4 + k]);
-        push_quad(&mut topology, v);
-    }
-    // the vertices of cut faces rest on the cut
+    topology.triangles = (class_of.par_chunks_exact(4))
+        .with_min_len(4096)
+        .flat_map_iter(|v| quad_triangles([v[0], v[1], v[2], v[3]]))
+        .collect();
+    // the vertices of cut faces rest on the cut (the cut faces found in parallel)
+    let cut_faces: Vec<usize> = (0..quads.len())
+        .into_par_iter()
+        .with_min_len(4096)
+        .filter(|&q| is_cut_face(&owners, &quads[q]))
+        .collect();
     let mut on_cut = vec![false; classes.len()];
-    for (q, quad) in quads.iter().enumerate() {
-        if is_cut_face(&owners, quad) {
-            for k in 0..4 {
-                on_cut[class_of[q * 4 + k] as usize] = true;
-            }
+    for q in cut_faces {
+        for k in 0..4 {
+            on_cut[class_of[q * 4 + k] as usize] = true;
         }
     }
     let on_cut: Vec<u32> = (0..classes.len() as u32)
@@ -284,6 +298,9 @@ pub(super) fn add_vertices(
     }
 }
 
+/// Particles per parallel task of the quads of [`extract_with_faces`].
+const PARTICLES_PER_TASK: usize = 4096;
+
 /// Vertices per parallel task of [`add_vertices`].
 const VERTICES_PER_TASK: usize = 512;
 
@@ -299,8 +316,13 @@ struct MadeVertices {
 
 /// Appends the two triangles of a quad with corner vertices `v` (counter-clockwise).
 pub(super) fn push_quad(topology: &mut SurfaceTopology, v: [u32; 4]) {
-    topology.triangles.push([v[0], v[1], v[2]]);
-    topology.triangles.push([v[0], v[2], v[3]]);
+    topology.triangles.extend(quad_triangles(v));
+}
+
+/// The two triangles of a quad with corner vertices `v` (counter-clockwise), which
+/// meet along the diagonal from its first corner.
+fn quad_triangles(v: [u32; 4]) -> [[u32; 3]; 2] {
+    [[v[0], v[1], v[2]], [v[0], v[2], v[3]]]
 }
 
 /// Numbers the triangles by piece, from their quads' owners, puts back pieces that
