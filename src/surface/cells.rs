@@ -101,10 +101,10 @@ impl<'a> CellOwners<'a> {
         }
         let mut dense = vec![NO_PARTICLE; count as usize];
         // (a layer of cells along z is two layers of sub-cells, filled in parallel)
-        let layer = (2 * dims.y * dims.x) as usize;
+        let per_layer = (2 * dims.y * dims.x) as usize;
         let shared = &self.shared;
-        (dense.par_chunks_mut(layer).enumerate()).for_each(|(k, layer)| {
-            let z = lo.z + k as i32;
+        (dense.par_chunks_mut(per_layer).enumerate()).for_each(|(along_z, layer)| {
+            let z = lo.z + along_z as i32;
             for y in lo.y..=hi.y {
                 for x in lo.x..=hi.x {
                     let c = IVec3::new(x, y, z);

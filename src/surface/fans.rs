@@ -38,7 +38,7 @@ pub struct Quad {
 }
 
 /// The vertex class of every quad corner of `quads` (see [`VertexClasses`]). The quads
-/// of each sub-cell must be consecutive, as [`super::extract::push_faces`] leaves them.
+/// of each sub-cell must be consecutive, as an extraction leaves them.
 pub fn vertex_classes(owners: &CellOwners, quads: &[Quad]) -> VertexClasses {
     if quads.is_empty() {
         return VertexClasses::of(&mut UnionFind::new(0), 0);
@@ -239,7 +239,7 @@ impl<'q> QuadIndex<'q> {
     }
 
     /// How many set bits come before bit `i`.
-    #[inline]
+    #[inline(always)]
     fn rank(&self, i: usize) -> usize {
         let below = self.bits[i / 64] & ((1u64 << (i % 64)) - 1);
         (self.before[i / 64] + below.count_ones()) as usize
@@ -250,12 +250,10 @@ impl<'q> QuadIndex<'q> {
     #[inline(always)]
     fn find(&self, s: IVec3, direction: u8) -> Option<u32> {
         let i = self.place(s);
-        let word = self.bits[i / 64];
-        if word >> (i % 64) & 1 == 0 {
+        if self.bits[i / 64] >> (i % 64) & 1 == 0 {
             return None;
         }
-        let rank = self.before[i / 64] + (word & ((1u64 << (i % 64)) - 1)).count_ones();
-        let mut q = self.first[rank as usize] as usize;
+        let mut q = self.first[self.rank(i)] as usize;
         while let Some(quad) = self.quads.get(q).filter(|quad| quad.cell == s) {
             if quad.direction == direction {
                 return Some(q as u32);
@@ -343,6 +341,7 @@ fn runs_around(owners: &CellOwners, w: IVec3, axis: usize) -> ([Run; 4], usize) 
 
 #[cfg(test)]
 mod tests {
+    use super::QuadIndex;
     use crate::body::lattice::Lattice;
     use crate::surface::extract;
     use glam::IVec3;
@@ -366,6 +365,42 @@ mod tests {
             assert_eq!(directed.get(&(b, a)), Some(&1), "{a}→{b} open");
         }
         volume
+    }
+
+    #[test]
+    fn the_quad_index_finds_every_quad_by_its_sub_cell_and_direction_and_no_other() {
+        // a 3×3×3 block with its centre removed and one edge severed: quads inside and
+        // out, several per sub-cell
+        let coords: Vec<IVec3> = (0..27)
+            .map(|k| IVec3::new(k % 3, k / 3 % 3, k / 9))
+            .filter(|&c| c != IVec3::ONE)
+            .collect();
+        let mut lattice = Lattice::from_coords(1.0, coords).unwrap();
+        let (a, b) = (
+            lattice.at(IVec3::ZERO).unwrap(),
+            lattice.at(IVec3::X).unwrap(),
+        );
+        assert!(lattice.sever(a, b));
+        let quads = extract(&lattice).quads;
+        let (lo, hi) = quads.iter().fold((IVec3::MAX, IVec3::MIN), |(lo, hi), q| {
+            (lo.min(q.cell), hi.max(q.cell))
+        });
+        let index = QuadIndex::new(&quads, lo, hi);
+        for (q, quad) in quads.iter().enumerate() {
+            assert_eq!(index.find(quad.cell, quad.direction), Some(q as u32));
+        }
+        // every other (sub-cell, direction) of the box, none
+        for z in lo.z - 1..=hi.z + 1 {
+            for y in lo.y - 1..=hi.y + 1 {
+                for x in lo.x - 1..=hi.x + 1 {
+                    let s = IVec3::new(x, y, z);
+                    for d in 0..6u8 {
+                        let held = quads.iter().any(|q| q.cell == s && q.direction == d);
+                        assert_eq!(index.find(s, d).is_some(), held);
+                    }
+                }
+            }
+        }
     }
 
     #[test]
