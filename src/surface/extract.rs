@@ -288,6 +288,15 @@ pub(super) fn add_vertices(
             made
         })
         .collect();
+    // (room for them all at once: grown a task at a time, the lists are copied over and
+    // over)
+    let vertices: usize = made.iter().map(|m| m.rest.len()).sum();
+    let bindings: usize = made.iter().map(|m| m.bindings.len()).sum();
+    topology.rest.reserve(vertices);
+    topology.placed.reserve(vertices);
+    topology.corners.reserve(vertices);
+    topology.binding_start.reserve(vertices);
+    topology.bindings.reserve(bindings);
     for made in made {
         let base = topology.bindings.len() as u32;
         topology.rest.extend_from_slice(&made.rest);
