@@ -25,7 +25,9 @@ use crate::ecs::surface_mesh::{
     DeferredSurface, JobResult, JobSlot, LatticeState, RebuiltSurface, SurfaceMesh,
 };
 use crate::surface::embed::EmbeddedMesh;
-use crate::surface::extract::{SurfaceTopology, extract_with_faces, face_count, quads_per_face};
+use crate::surface::extract::{
+    QUADS_PER_SPLIT_FACE, SurfaceTopology, extract_with_faces, face_count, quads_per_face,
+};
 use crate::surface::smooth::smooth;
 use crate::surface::update::update;
 use crate::surface::{CarryLayout, deform, extract};
@@ -283,7 +285,9 @@ impl Source {
         let res = mesh.topology.resolution.max(1) as usize;
         let whole = |quads_per_face: u64| (face_count(l) * quads_per_face) as usize;
         match &self.touched {
-            Some(touched) if res == 1 && touched.iter().any(|&p| l.is_split_half(p)) => whole(4),
+            Some(touched) if res == 1 && touched.iter().any(|&p| l.is_split_half(p)) => {
+                whole(QUADS_PER_SPLIT_FACE)
+            }
             Some(touched) => touched.len() * res * res,
             None => whole(quads_per_face(l)),
         }

@@ -5,7 +5,7 @@
 use crate::body::lattice::Lattice;
 use crate::body::shape::BYTES_PER_PARTICLE;
 use crate::cut::particle_split::SplitPlan;
-use crate::surface::extract::{BYTES_PER_FACE, face_count, quads_per_face};
+use crate::surface::extract::{BYTES_PER_FACE, QUADS_PER_SPLIT_FACE, face_count, quads_per_face};
 
 /// Bytes of `particles` particles.
 pub fn particle_bytes(particles: u64) -> u64 {
@@ -26,7 +26,7 @@ pub fn bytes_after_split(lattice: &Lattice, plan: &SplitPlan) -> u64 {
     let quads_per_face = if plan.splits.is_empty() {
         quads_per_face(lattice)
     } else {
-        4
+        QUADS_PER_SPLIT_FACE
     };
     let separated = (plan.sever.len() + plan.splits.len()) as u64;
     let faces = face_count(lattice) + 2 * separated;

@@ -282,7 +282,6 @@ const FACE_CORNERS: [[IVec3; 4]; 6] = {
     let mut d = 0;
     while d < 6 {
         let (axis, positive) = (d / 2, d % 2 == 1);
-        let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
         let order: [(i32, i32); 4] = if positive {
             [(0, 0), (1, 0), (1, 1), (0, 1)]
         } else {
@@ -290,17 +289,24 @@ const FACE_CORNERS: [[IVec3; 4]; 6] = {
         };
         let mut k = 0;
         while k < 4 {
-            let mut o = [0i32; 3];
-            o[axis] = positive as i32;
-            o[b] = order[k].0;
-            o[c] = order[k].1;
-            table[d][k] = IVec3::new(o[0], o[1], o[2]);
+            table[d][k] = in_axis_frame(axis, positive as i32, order[k].0, order[k].1);
             k += 1;
         }
         d += 1;
     }
     table
 };
+
+/// The offset that is `along` along `axis`, and `i`, `j` along the axes after it, `b`
+/// and `c` (`(axis, b, c)` a right-handed cycle of `(x, y, z)`): the frame the corner
+/// and edge tables are written in.
+pub(super) const fn in_axis_frame(axis: usize, along: i32, i: i32, j: i32) -> IVec3 {
+    let mut o = [0i32; 3];
+    o[axis] = along;
+    o[(axis + 1) % 3] = i;
+    o[(axis + 2) % 3] = j;
+    IVec3::new(o[0], o[1], o[2])
+}
 
 /// Per direction, the index in [`FACE_CORNERS`] of the corner at each offset `x + 2y +
 /// 4z` from the sub-cell (offsets that are no corner of the face read 0).

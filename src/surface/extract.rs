@@ -160,11 +160,15 @@ pub fn face_count(lattice: &Lattice) -> u64 {
         .sum()
 }
 
+/// The quads a face is drawn as once a particle of its body is split: its cells are
+/// drawn as 2×2×2 octants.
+pub const QUADS_PER_SPLIT_FACE: u64 = 4;
+
 /// The quads each face of `lattice`'s surface is drawn as: four once a particle of it is
 /// split (its cells then drawn as 2×2×2 octants), else one.
 pub fn quads_per_face(lattice: &Lattice) -> u64 {
     if lattice.live_particles().any(|p| lattice.is_split_half(p)) {
-        4
+        QUADS_PER_SPLIT_FACE
     } else {
         1
     }

@@ -19,7 +19,7 @@
 //! one end only) keeps both pairings: dropped, its two quads would part at one end and
 //! leave the edge open.
 
-use super::cells::{CellOwners, corner_index, face_corners};
+use super::cells::{CellOwners, corner_index, face_corners, in_axis_frame};
 use crate::util::bits::Bits;
 use crate::util::grouping::group_by_key;
 use crate::util::union_find::UnionFind;
@@ -272,13 +272,9 @@ const ROUND: [[IVec3; 4]; 3] = {
     let round: [(i32, i32); 4] = [(0, 0), (-1, 0), (-1, -1), (0, -1)];
     let mut axis = 0;
     while axis < 3 {
-        let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
         let mut i = 0;
         while i < 4 {
-            let mut o = [0i32; 3];
-            o[b] = round[i].0;
-            o[c] = round[i].1;
-            table[axis][i] = IVec3::new(o[0], o[1], o[2]);
+            table[axis][i] = in_axis_frame(axis, 0, round[i].0, round[i].1);
             i += 1;
         }
         axis += 1;
