@@ -16,7 +16,7 @@ use crate::cut::tool::Pose;
 use crate::solver::particles::PARTICLES_PER_TASK;
 use crate::solver::term::{NO_DENSE, ParticleState, Substep, Term, Topology};
 use crate::solver::terms::contacts::ball_radius;
-use glam::Vec3A;
+use glam::{BVec3A, Vec3A};
 pub use posed::PosedCollider;
 use posed::{Pushes, with_friction};
 use rayon::prelude::*;
@@ -243,16 +243,25 @@ impl Colliders {
              held: &mut [bool],
              corrections: &mut [Vec3A],
              (previous, inv_mass, margins): (&[Vec3A], &[f32], &[f32])| {
-                for (i, p) in positions.iter_mut().enumerate() {
-                    let below = p.y < clear && p.y < ground.height + margins[i];
-                    if !below || inv_mass[i] == 0.0 {
+                let runs = positions.chunks_mut(CLEAR_RUN).enumerate();
+                for (run, points) in runs {
+                    // (a run wholly above `clear` is passed over at one test of its
+                    // heights together: most of a body resting on the ground)
+                    if !any_below(points, clear) {
                         continue;
                     }
-                    let (resolved, held_back) =
-                        this.on_ground(&ground, *p, previous[i], margins[i]);
-                    held[i] |= held_back;
-                    corrections[i] += resolved - *p;
-                    *p = resolved;
+                    for (k, p) in points.iter_mut().enumerate() {
+                        let i = run * CLEAR_RUN + k;
+                        let below = p.y < clear && p.y < ground.height + margins[i];
+                        if !below || inv_mass[i] == 0.0 {
+                            continue;
+                        }
+                        let (resolved, held_back) =
+                            this.on_ground(&ground, *p, previous[i], margins[i]);
+                        held[i] |= held_back;
+                        corrections[i] += resolved - *p;
+                        *p = resolved;
+                    }
                 }
             };
         let read = (state.previous, state.inv_mass, this.margins.as_slice());
@@ -278,6 +287,20 @@ impl Colliders {
     fn held_back(&self, depth: f32, depth_before: f32) -> f32 {
         (depth.min(depth_before) - self.depenetration_step).max(0.0)
     }
+}
+
+/// Particles whose heights the ground's pass tests together before it tests any alone.
+const CLEAR_RUN: usize = 8;
+
+/// Whether any of `points` lies below `height` (a NaN height is not below, as a
+/// particle's own test has it).
+#[inline]
+fn any_below(points: &[Vec3A], height: f32) -> bool {
+    let level = Vec3A::splat(height);
+    let below = points
+        .iter()
+        .fold(BVec3A::FALSE, |any, p| any | p.cmplt(level));
+    below.test(1)
 }
 
 /// Two blocks' per-shape pushes, added (an empty list adds nothing).

@@ -6,6 +6,7 @@ use super::rigid::{RigidMotion, RigidStep};
 use crate::config::StaticBox;
 use crate::cut::tool::Pose;
 use crate::geometry::collider::ColliderShape;
+use crate::math::cone::surely_within;
 use glam::{Affine3A, Vec3, Vec3A};
 
 /// Depth (relative to the coordinates' size) below which the middle of a chord through a
@@ -208,8 +209,13 @@ pub(super) fn with_friction(
 ) -> Vec3A {
     let moved = target - from;
     let tangential = moved - normal * moved.dot(normal);
-    let length = tangential.length();
     let limit = friction * depth;
+    let squared = tangential.length_squared();
+    // (a particle well inside the cone sticks without a root taken)
+    if surely_within(squared, limit) {
+        return target - tangential;
+    }
+    let length = squared.sqrt();
     if length <= limit {
         target - tangential
     } else if length > 0.0 {
