@@ -13,7 +13,8 @@ const SMALLEST_LIMIT: f32 = 1e-18;
 /// Whether `squared.sqrt() <= limit` surely holds, judged without the root: true only
 /// when it holds, for every `f32` pair, infinities and NaN included. False, so that the
 /// caller takes the root, also when the square is within a few units in the last place
-/// of the limit's, when the limit is at most [`SMALLEST_LIMIT`], or NaN.
+/// of the limit's, when the limit is at most 1e-18 (some way above the limits whose
+/// squares are subnormal), or NaN.
 #[inline]
 pub fn surely_within(squared: f32, limit: f32) -> bool {
     limit > SMALLEST_LIMIT && squared < limit * limit * ROUNDING_MARGIN
