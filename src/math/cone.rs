@@ -1,6 +1,6 @@
 //! A length compared with a limit from the length's square, without its square root,
-//! where the answer is certain: the friction cones of the colliders and of the contacts
-//! skip a root for each contact that sticks.
+//! where the answer is certain: the colliders' friction cone skips a root for each
+//! particle that sticks.
 
 /// The share of the limit's square below which a square is surely below it, whatever
 /// the rounding of the limit's square (a few units in the last place of `f32` below 1).

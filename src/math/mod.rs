@@ -1,6 +1,7 @@
 //! Maths under everything else: rotations (Müller 2016 extraction, quaternion
-//! helpers), a root-free test of a length against a limit, symmetric 3×3 eigen-decomposition, eight-lane vectors and matrices, the run-time choice of SIMD backend, and
-//! sparse Cholesky factors that know their size before they are computed.
+//! helpers), a root-free test of a length against a limit, symmetric 3×3
+//! eigen-decomposition, eight-lane vectors and matrices, the run-time choice of SIMD
+//! backend, and sparse Cholesky factors that know their size before they are computed.
 
 pub mod cone;
 pub mod eigen;
