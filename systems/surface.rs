@@ -30,7 +30,7 @@ use crate::surface::extract::{
 };
 use crate::surface::smooth::smooth;
 use crate::surface::update::update;
-use crate::surface::{CarryLayout, deform, extract};
+use crate::surface::{CarryLayout, SpareLists, deform, extract};
 use bevy_ecs::prelude::*;
 use glam::{Mat3A, Vec3A};
 use rayon::prelude::*;
@@ -68,9 +68,9 @@ pub fn update_surfaces(
                 // a rebuild of this very lattice, running beside the frames
                 Some(job) if job.seen == seen => {
                     if clock.frame >= job.due {
-                        let rebuilt = job
-                            .wait()
-                            .unwrap_or_else(|| Source::of(mesh, None).rebuild(l, None));
+                        let rebuilt = job.wait().unwrap_or_else(|| {
+                            Source::of(mesh, None).rebuild(l, None, SpareLists::default())
+                        });
                         install(mesh, l, rebuilt);
                         installed = true;
                     } else {
@@ -98,7 +98,9 @@ pub fn update_surfaces(
                             .touched
                             .is_some()
                             .then(|| std::mem::take(&mut mesh.topology));
-                        let rebuilt = source.rebuild(l, old);
+                        // (the new layout is written into the old one's lists)
+                        let spare = mesh.layout.take_lists();
+                        let rebuilt = source.rebuild(l, old, spare);
                         install(mesh, l, rebuilt);
                         installed = true;
                     }
@@ -294,8 +296,13 @@ impl Source {
     }
 
     /// The new surface of `l` (updated from `old`, the last surface, where it can be),
-    /// with its carriers' layout and the milliseconds it took.
-    fn rebuild(&self, l: &Lattice, old: Option<SurfaceTopology>) -> RebuiltSurface {
+    /// with its carriers' layout (written into `spare`) and the milliseconds it took.
+    fn rebuild(
+        &self,
+        l: &Lattice,
+        old: Option<SurfaceTopology>,
+        spare: SpareLists,
+    ) -> RebuiltSurface {
         let start = std::time::Instant::now();
         let topology = match (&self.render, &self.touched) {
             (Some(render), _) => {
@@ -312,7 +319,7 @@ impl Source {
             }
             (None, None) => extract(l),
         };
-        let layout = CarryLayout::new(l, &topology);
+        let layout = CarryLayout::new_into(l, &topology, spare);
         (topology, layout, start.elapsed().as_secs_f64() * 1e3)
     }
 
@@ -329,7 +336,7 @@ impl Source {
         let result = JobSlot::default();
         let slot = result.clone();
         rayon::spawn(move || {
-            let rebuilt = self.rebuild(&lattice, old);
+            let rebuilt = self.rebuild(&lattice, old, SpareLists::default());
             let (slot, done) = &*slot;
             *slot.lock().unwrap_or_else(|e| e.into_inner()) = JobResult {
                 done: true,

@@ -11,6 +11,7 @@ use super::extract::SurfaceTopology;
 use crate::body::lattice::Lattice;
 use crate::math::lanes::{LANES, Vec3x8};
 use crate::util::grouping::group_by_key;
+use crate::util::room::emptied_with_room;
 use glam::{Quat, Vec3A};
 use rayon::prelude::*;
 use wide::f32x8;
@@ -73,9 +74,24 @@ fn slots(lattice: &Lattice, carriers: &[u32]) -> (Vec<u32>, Vec<u32>) {
     (slot_of, read)
 }
 
+/// The lists of a retired layout, which a new layout of the same body is written into
+/// ([`CarryLayout::take_lists`]): a cut's new layout then reuses pages the process holds
+/// instead of first-touching fresh ones.
+#[derive(Debug, Default)]
+pub struct SpareLists {
+    batches: Vec<FrameBatch>,
+    binding_slots: Vec<u32>,
+}
+
 impl CarryLayout {
     /// The layout of `topology`, extracted from `lattice`.
     pub fn new(lattice: &Lattice, topology: &SurfaceTopology) -> Self {
+        Self::new_into(lattice, topology, SpareLists::default())
+    }
+
+    /// [`CarryLayout::new`], written into `spare`'s lists (new ones with room to spare
+    /// where they are short, see [`emptied_with_room`]).
+    pub fn new_into(lattice: &Lattice, topology: &SurfaceTopology, spare: SpareLists) -> Self {
         let carriers = &topology.particles;
         // (the triangles around each vertex need only the triangles: grouped beside
         // the slots' passes over the lattice, which are serial)
@@ -91,7 +107,9 @@ impl CarryLayout {
             },
         );
         let rest = |p: u32| Vec3A::from(lattice.rest_position(p));
-        let batches = (0..carriers.len().div_ceil(LANES))
+        let mut batches = emptied_with_room(spare.batches, carriers.len().div_ceil(LANES));
+        let mut binding_slots = emptied_with_room(spare.binding_slots, topology.bindings.len());
+        (0..carriers.len().div_ceil(LANES))
             .into_par_iter()
             .with_min_len(256)
             .map(|b| {
@@ -113,13 +131,11 @@ impl CarryLayout {
                     spokes: spokes.map(|s| Vec3x8::<f32x8>::from_lanes(s).store()),
                 }
             })
-            .collect();
-        let binding_slots = topology
-            .bindings
-            .par_iter()
+            .collect_into_vec(&mut batches);
+        (topology.bindings.par_iter())
             .with_min_len(4096)
             .map(|b| slot_of[b.particle as usize])
-            .collect();
+            .collect_into_vec(&mut binding_slots);
         Self {
             read,
             batches,
@@ -127,6 +143,17 @@ impl CarryLayout {
             binding_slots,
             triangle_start,
             vertex_triangles,
+        }
+    }
+
+    /// Hands over the lists a new layout of the body is written into
+    /// ([`CarryLayout::new_into`]). What [`CarryLayout::carry_frames`] and
+    /// [`CarryLayout::carry_positions`] read of this layout, as the new one's `old`, stays:
+    /// its slots; nothing else may read it afterwards.
+    pub fn take_lists(&mut self) -> SpareLists {
+        SpareLists {
+            batches: std::mem::take(&mut self.batches),
+            binding_slots: std::mem::take(&mut self.binding_slots),
         }
     }
 
@@ -254,6 +281,27 @@ mod tests {
                 l.neighbours(q)
                     .any(|p| t.particles.binary_search(&p).is_ok())
             );
+        }
+    }
+
+    /// A layout written into a retired layout's lists, whether they have room for it or
+    /// not, is the layout made afresh; the retired layout still carries frames over.
+    #[test]
+    fn a_layout_written_into_spare_lists_is_the_layout_made_afresh() {
+        let small = Shape::cuboid(UVec3::new(3, 3, 3)).voxelise(0.5).unwrap();
+        let mut big = Shape::cuboid(UVec3::new(7, 5, 4)).voxelise(0.5).unwrap();
+        big.sever(20, 21);
+        let (st, bt) = (extract(&small), extract(&big));
+        for (l, t, mut retired) in [
+            (&big, &bt, CarryLayout::new(&small, &st)),
+            (&small, &st, CarryLayout::new(&big, &bt)),
+        ] {
+            let frames = vec![Quat::from_rotation_x(0.2); retired.carrier_count()];
+            let carried = CarryLayout::new(l, t).carry_frames(l, &retired, &frames);
+            let spare = retired.take_lists();
+            let into = CarryLayout::new_into(l, t, spare);
+            assert_eq!(format!("{into:?}"), format!("{:?}", CarryLayout::new(l, t)));
+            assert_eq!(into.carry_frames(l, &retired, &frames), carried);
         }
     }
 

@@ -17,6 +17,7 @@ use super::cells::{CellOwners, face_corners, octant};
 use super::fans::{Quad, vertex_classes};
 use super::placement::{cut_vertex_position, is_cut_face};
 use crate::body::lattice::{Lattice, NEIGHBOUR_OFFSETS};
+use crate::util::room::make_room;
 use glam::{IVec3, Vec3};
 use rayon::prelude::*;
 
@@ -199,7 +200,13 @@ pub fn extract_with_faces(lattice: &Lattice) -> (SurfaceTopology, Vec<LatticeFac
             quads
         })
         .collect();
-    let quads = runs.concat();
+    // (every list of a surface is made with room: the local updates that follow edit
+    // it where it lies, see `make_room`)
+    let mut quads = Vec::new();
+    make_room(&mut quads, runs.iter().map(Vec::len).sum());
+    for run in runs {
+        quads.extend_from_slice(&run);
+    }
     let classes = vertex_classes(&owners, &quads);
     let class_of = &classes.class_of;
     let mut topology = SurfaceTopology {
@@ -208,10 +215,12 @@ pub fn extract_with_faces(lattice: &Lattice) -> (SurfaceTopology, Vec<LatticeFac
     };
     let all: Vec<&[u32]> = (0..classes.len()).map(|c| classes.slots(c)).collect();
     add_vertices(&owners, &quads, &all, &mut topology);
-    topology.triangles = (class_of.par_chunks_exact(4))
-        .with_min_len(4096)
-        .flat_map_iter(|v| quad_triangles([v[0], v[1], v[2], v[3]]))
-        .collect();
+    make_room(&mut topology.triangles, 2 * quads.len());
+    (topology.triangles).par_extend(
+        (class_of.par_chunks_exact(4))
+            .with_min_len(4096)
+            .flat_map_iter(|v| quad_triangles([v[0], v[1], v[2], v[3]])),
+    );
     // the vertices of cut faces rest on the cut (the cut faces found in parallel)
     let cut_faces: Vec<usize> = (0..quads.len())
         .into_par_iter()
@@ -296,11 +305,11 @@ pub(super) fn add_vertices(
     // over)
     let vertices: usize = made.iter().map(|m| m.rest.len()).sum();
     let bindings: usize = made.iter().map(|m| m.bindings.len()).sum();
-    topology.rest.reserve(vertices);
-    topology.placed.reserve(vertices);
-    topology.corners.reserve(vertices);
-    topology.binding_start.reserve(vertices);
-    topology.bindings.reserve(bindings);
+    make_room(&mut topology.rest, vertices);
+    make_room(&mut topology.placed, vertices);
+    make_room(&mut topology.corners, vertices);
+    make_room(&mut topology.binding_start, vertices);
+    make_room(&mut topology.bindings, bindings);
     for made in made {
         let base = topology.bindings.len() as u32;
         topology.rest.extend_from_slice(&made.rest);
@@ -434,6 +443,7 @@ pub(super) fn work_out_volume_changes(topology: &mut SurfaceTopology, scale: f32
     let at = placements(placed, rest);
     let known = volume_change.len().min(triangles.len());
     volume_change.truncate(known);
+    make_room(volume_change, triangles.len() - known);
     let grid = |v: u32| corners[v as usize].as_vec3() * scale;
     let volume = |x: [Vec3; 3]| x[0].as_dvec3().dot(x[1].as_dvec3().cross(x[2].as_dvec3())) / 6.0;
     volume_change.par_extend(triangles[known..].par_iter().with_min_len(4096).map(|tri| {

@@ -15,5 +15,5 @@ pub mod smooth;
 mod trilinear;
 pub mod update;
 
-pub use carry::CarryLayout;
+pub use carry::{CarryLayout, SpareLists};
 pub use extract::{Binding, SurfaceTopology, extract};

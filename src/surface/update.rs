@@ -31,6 +31,7 @@ use super::fans::{Quad, vertex_classes};
 use super::placement::is_cut_face;
 use crate::body::lattice::Lattice;
 use crate::util::bits::set_bits;
+use crate::util::room::make_room;
 use glam::IVec3;
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
@@ -87,11 +88,7 @@ pub fn update(lattice: &Lattice, old: SurfaceTopology, touched: &[u32]) -> Optio
                 .filter(|(_, q)| in_region(q.cell))
                 .map(|(i, q)| ((q.cell, q.direction), quad_corners(&old, i)))
                 .collect();
-            // (room for about a face per touched particle, as many vertices, besides
-            // what the region held)
-            let fresh = old_quad.len() + touched.len() * (res * res) as usize;
-            let kept = kept_outside(old, &rebuilt, &in_region, fresh, fresh);
-            (old_quad, kept)
+            (old_quad, kept_outside(old, &rebuilt, &in_region))
         },
     );
     let class_of = &classes.class_of;
@@ -135,6 +132,8 @@ pub fn update(lattice: &Lattice, old: SurfaceTopology, touched: &[u32]) -> Optio
         fresh.push(v);
     }
     add_vertices(&owners, &quads, &made, &mut topology);
+    make_room(&mut topology.quads, quads.len());
+    make_room(&mut topology.triangles, 2 * quads.len());
     for (quad, v) in quads.iter().zip(fresh) {
         topology.quads.push(*quad);
         push_quad(&mut topology, v);
@@ -177,18 +176,15 @@ fn quad_corners(topology: &SurfaceTopology, q: usize) -> [u32; 4] {
 
 /// What stays of the `old` surface: its quads outside the region (`in_region` of a
 /// cell says), and its vertices except those at `rebuilt` corners, renumbered in order;
-/// with each old vertex's new number (`u32::MAX` for one that goes); with room for
-/// `new_vertices` vertices and `new_quads` quads more.
+/// with each old vertex's new number (`u32::MAX` for one that goes).
 ///
 /// Most of the surface stays, in runs between the few vertices and quads that go: each
-/// run is moved back whole where its list has that room (a surface a local update made,
-/// after a cut about as big as this one), else copied into a list that has it.
+/// run is moved back whole within its list, which is edited where it lies (a surface's
+/// lists have room for the faces a cut adds, see [`make_room`]).
 fn kept_outside(
     mut topology: SurfaceTopology,
     rebuilt: &impl Fn(IVec3) -> bool,
     in_region: &impl Fn(IVec3) -> bool,
-    new_vertices: usize,
-    new_quads: usize,
 ) -> (SurfaceTopology, Vec<u32>) {
     let mut renumbered = vec![u32::MAX; topology.vertex_count()];
     let mut kept = 0u32;
@@ -209,62 +205,50 @@ fn kept_outside(
         .map(|run| t.binding_start[run.start] as usize..t.binding_start[run.end] as usize)
         .collect();
     // each kept vertex's bindings start where they did, less what went before them
-    let mut starts = Vec::with_capacity(kept as usize + 1 + new_vertices);
-    starts.push(0);
+    // (written over the list as it is read: a kept vertex's new place is at or before
+    // its old one)
+    let mut at = 1;
     let mut bindings_at = 0;
     for (run, bindings) in vertices.iter().zip(&binding_runs) {
         let back = bindings.start as u32 - bindings_at;
-        starts.extend(
-            t.binding_start[run.start + 1..=run.end]
-                .iter()
-                .map(|s| s - back),
-        );
+        for v in run.start + 1..=run.end {
+            t.binding_start[at] = t.binding_start[v] - back;
+            at += 1;
+        }
         bindings_at += bindings.len() as u32;
     }
-    t.binding_start = starts;
-    keep_runs(&mut t.rest, &vertices, new_vertices);
-    keep_runs(&mut t.placed, &vertices, new_vertices);
-    keep_runs(&mut t.corners, &vertices, new_vertices);
-    // (a vertex has about as many bindings as the old ones had on average)
-    let new_bindings = t.bindings.len() * new_vertices / renumbered.len().max(1);
-    keep_runs(&mut t.bindings, &binding_runs, new_bindings);
+    t.binding_start.truncate(at);
+    keep_runs(&mut t.rest, &vertices);
+    keep_runs(&mut t.placed, &vertices);
+    keep_runs(&mut t.corners, &vertices);
+    keep_runs(&mut t.bindings, &binding_runs);
     let outside: Vec<bool> = t.quads.iter().map(|q| !in_region(q.cell)).collect();
     let quads: Vec<Range<usize>> = runs(&outside, |o| o).collect();
     let triangles: Vec<Range<usize>> = quads.iter().map(|q| 2 * q.start..2 * q.end).collect();
     // (a kept triangle's vertices keep their places, and so its volume term)
     if t.volume_change.len() == t.triangles.len() {
-        keep_runs(&mut t.volume_change, &triangles, 2 * new_quads);
+        keep_runs(&mut t.volume_change, &triangles);
     } else {
         t.volume_change.clear();
     }
-    keep_runs(&mut t.quads, &quads, new_quads);
-    keep_runs(&mut t.triangles, &triangles, 2 * new_quads);
+    keep_runs(&mut t.quads, &quads);
+    keep_runs(&mut t.triangles, &triangles);
     for triangle in &mut t.triangles {
         *triangle = triangle.map(|v| renumbered[v as usize]);
     }
     (topology, renumbered)
 }
 
-/// Keeps the `runs` of `list` (ascending and apart), in order, with room for `extra`
-/// more: moved back over what went before them when the list has that room, else copied
-/// into a list with room for `extra` past its old length. One copy of what stays either
-/// way.
-fn keep_runs<T: Copy>(list: &mut Vec<T>, runs: &[Range<usize>], extra: usize) {
-    let kept: usize = runs.iter().map(|r| r.len()).sum();
-    if list.capacity() >= kept + extra {
-        let mut at = 0;
-        for run in runs {
-            list.copy_within(run.clone(), at);
-            at += run.len();
-        }
-        list.truncate(at);
-    } else {
-        let mut copy = Vec::with_capacity(list.len() + extra);
-        for run in runs {
-            copy.extend_from_slice(&list[run.clone()]);
-        }
-        *list = copy;
+/// Keeps the `runs` of `list` (ascending and apart), in order, each moved back over
+/// what went before it: the list is edited where it lies, and what is added to it later
+/// takes the room it has ([`make_room`]).
+fn keep_runs<T: Copy>(list: &mut Vec<T>, runs: &[Range<usize>]) {
+    let mut at = 0;
+    for run in runs {
+        list.copy_within(run.clone(), at);
+        at += run.len();
     }
+    list.truncate(at);
 }
 
 /// The maximal runs of consecutive indices of `items` that `keep` holds for.

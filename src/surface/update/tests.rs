@@ -204,3 +204,38 @@ fn a_saved_surface_whose_placements_do_not_match_its_vertices_is_refused() {
     surface.placed = vec![glam::Vec3::NAN; surface.rest.len()];
     assert!(surface.fault(lattice.len()).is_some());
 }
+
+/// A slice through the middle of a box, its surface extracted before: the local update
+/// edits the surface's lists where they lie (their room takes the cut faces), so that a
+/// cut frame first-touches no copy of them; and it is still the full extraction.
+#[test]
+fn a_slice_is_spliced_into_the_extracted_lists_where_they_lie() {
+    let n = 12;
+    let coords = (0..n * n * n).map(|k| IVec3::new(k % n, k / n % n, k / n / n));
+    let mut lattice = Lattice::from_coords(0.1, coords.collect()).unwrap();
+    let surface = extract(&lattice);
+    let at = |t: &SurfaceTopology| {
+        [
+            t.rest.as_ptr() as usize,
+            t.corners.as_ptr() as usize,
+            t.binding_start.as_ptr() as usize,
+            t.bindings.as_ptr() as usize,
+            t.quads.as_ptr() as usize,
+            t.triangles.as_ptr() as usize,
+            t.volume_change.as_ptr() as usize,
+        ]
+    };
+    let before = at(&surface);
+    let mut touched = Vec::new();
+    for p in lattice.live_particles().collect::<Vec<_>>() {
+        let c = lattice.coord(p) - lattice.coord(0);
+        if c.x == n / 2 - 1 {
+            let q = lattice.at(lattice.coord(p) + IVec3::X).unwrap();
+            lattice.sever(p, q);
+            touched.extend([p, q]);
+        }
+    }
+    let local = update(&lattice, surface, &touched).unwrap();
+    assert_eq!(at(&local), before);
+    assert!(canonical(&local) == canonical(&extract(&lattice)));
+}
