@@ -29,17 +29,9 @@ pub fn unit_quaternion(q: Quat) -> Option<Quat> {
 #[inline]
 pub fn extract_rotation(a: Mat3A, warm: Quat, max_iterations: u32) -> Quat {
     let mut q = warm_start(warm);
-    let scale = a
-        .x_axis
-        .abs()
-        .max(a.y_axis.abs())
-        .max(a.z_axis.abs())
-        .max_element();
-    if !(scale.is_finite() && scale > 0.0) {
+    let Some(epsilon) = extraction_epsilon(a) else {
         return q;
-    }
-    // ε relative to the size of `a`, so the iteration does not depend on its scale
-    let epsilon = 1e-9 * scale;
+    };
     for _ in 0..max_iterations {
         let r = Mat3A::from_quat(q);
         let omega: Vec3A =
@@ -53,6 +45,20 @@ pub fn extract_rotation(a: Mat3A, warm: Quat, max_iterations: u32) -> Quat {
         q = (exp_map(omega, w2) * q).normalize();
     }
     q
+}
+
+/// The ε of `a`'s extraction, relative to its largest entry so that the iteration does
+/// not depend on its scale; `None` when `a` is zero or not finite (the extraction keeps
+/// its warm start).
+#[inline]
+pub fn extraction_epsilon(a: Mat3A) -> Option<f32> {
+    let scale = a
+        .x_axis
+        .abs()
+        .max(a.y_axis.abs())
+        .max(a.z_axis.abs())
+        .max_element();
+    (scale.is_finite() && scale > 0.0).then_some(1e-9 * scale)
 }
 
 /// A usable warm start: `warm` if it is a unit quaternion, else `warm` normalised, else
@@ -132,7 +138,7 @@ fn exp_map_x8<L: Lane>(omega: Vec3x8<L>, w2: L) -> Quatx8<L> {
 /// Taylor series for angles up to 1 rad (error below 2·10⁻⁶, then normalised), the
 /// exact sine and cosine beyond.
 #[inline]
-fn exp_map(omega: Vec3A, w2: f32) -> Quat {
+pub(super) fn exp_map(omega: Vec3A, w2: f32) -> Quat {
     if w2 < 1.0 {
         // x = w/2: sin(x)/w = (1 − x²/6 + x⁴/120)/2, cos(x) = 1 − x²/2 + x⁴/24
         let x2 = w2 * 0.25;

@@ -125,10 +125,16 @@ impl ClusterTerm {
         warm: Quat,
         max_iterations: u32,
     ) -> Quat {
+        self.moment(k, positions)
+            .map_or(warm, |a| extract_rotation(a, warm, max_iterations))
+    }
+
+    /// The moment matrix of cluster slot `k`'s members at `positions` against their rest
+    /// offsets, `Σ wᵢ (pᵢ − c) qᵢᵀ`, what its rotation is extracted from (`None` for a
+    /// cluster without members).
+    pub(in crate::solver) fn moment(&self, k: usize, positions: &[Vec3A]) -> Option<Mat3A> {
         let members = self.cluster_members(k);
-        let Some(&first) = members.first() else {
-            return warm;
-        };
+        let &first = members.first()?;
         // (relative to the first member: full precision far from the origin)
         let origin = positions[first as usize];
         let (mut sum, mut total) = (Vec3A::ZERO, 0.0f32);
@@ -138,12 +144,13 @@ impl ClusterTerm {
             total += w;
         }
         let centre = sum / total;
-        let a = (members.iter().enumerate()).fold(Mat3A::ZERO, |a, (j, &m)| {
-            let d = (positions[m as usize] - origin - centre) * self.weight(m);
-            let q = self.rest_offset(k, j, m);
-            a + Mat3A::from_cols(d * q.x, d * q.y, d * q.z)
-        });
-        extract_rotation(a, warm, max_iterations)
+        Some(
+            (members.iter().enumerate()).fold(Mat3A::ZERO, |a, (j, &m)| {
+                let d = (positions[m as usize] - origin - centre) * self.weight(m);
+                let q = self.rest_offset(k, j, m);
+                a + Mat3A::from_cols(d * q.x, d * q.y, d * q.z)
+            }),
+        )
     }
 
     /// The particle rows of batch `b`.

@@ -22,8 +22,11 @@
 //! spin.
 
 use super::term::{CLUSTERS_PER_TASK, ClusterTerm};
+use crate::math::lanes::LANES;
+use crate::math::rotation_lockstep::extract_rotations_lockstep;
+use crate::math::simd::{Lane, WithLanes, dispatch};
 use crate::solver::particles::PARTICLES_PER_TASK;
-use glam::{Quat, Vec3A};
+use glam::{Mat3A, Quat, Vec3A};
 use rayon::prelude::*;
 
 /// The smallest turn per substep carried ahead, as the sine of half its angle: 1e-6
@@ -119,22 +122,80 @@ impl ClusterTerm {
 
     /// Starts every cluster's turn at its fit to the substep's starting positions
     /// `previous`, and its rotation at its fit to the `predictions`, both to convergence
-    /// (see the module docs).
+    /// (see the module docs). Eight clusters are fitted at once, each exactly as
+    /// [`ClusterTerm::fit_rotation`] fits it alone.
     pub(in crate::solver) fn fit_turns(&mut self, previous: &[Vec3A], predictions: &[Vec3A]) {
         let mut rotations = std::mem::take(&mut self.rotations);
         let mut start = std::mem::take(&mut self.substep_start);
         start.resize(rotations.len(), Quat::IDENTITY);
         rotations
-            .par_iter_mut()
-            .zip(start.par_iter_mut())
+            .par_chunks_mut(CLUSTERS_PER_TASK)
+            .zip(start.par_chunks_mut(CLUSTERS_PER_TASK))
             .enumerate()
-            .with_min_len(CLUSTERS_PER_TASK)
-            .for_each(|(k, (rotation, start))| {
-                *start = self.fit_rotation(k, previous, *rotation, FORGOTTEN_TURN_FIT_ITERATIONS);
-                *rotation =
-                    self.fit_rotation(k, predictions, *start, FORGOTTEN_TURN_FIT_ITERATIONS);
+            .for_each(|(task, (rotations, start))| {
+                dispatch(FitTurns {
+                    term: self,
+                    first: task * CLUSTERS_PER_TASK,
+                    rotations,
+                    start,
+                    previous,
+                    predictions,
+                })
             });
         self.rotations = rotations;
         self.substep_start = start;
     }
+}
+
+/// [`ClusterTerm::fit_turns`] for the clusters from `first` on, eight at a time.
+struct FitTurns<'a> {
+    term: &'a ClusterTerm,
+    first: usize,
+    rotations: &'a mut [Quat],
+    start: &'a mut [Quat],
+    previous: &'a [Vec3A],
+    predictions: &'a [Vec3A],
+}
+
+impl WithLanes for FitTurns<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run<L: Lane>(self) {
+        let chunks = self
+            .rotations
+            .chunks_mut(LANES)
+            .zip(self.start.chunks_mut(LANES));
+        for (c, (rotations, start)) in chunks.enumerate() {
+            let first = self.first + c * LANES;
+            let warm = std::array::from_fn(|l| rotations.get(l).copied().unwrap_or_default());
+            let clusters = first..first + rotations.len();
+            let turned = fit_eight::<L>(self.term, clusters.clone(), self.previous, warm);
+            let fitted = fit_eight::<L>(self.term, clusters, self.predictions, turned);
+            for (l, (rotation, start)) in rotations.iter_mut().zip(start).enumerate() {
+                (*rotation, *start) = (fitted[l], turned[l]);
+            }
+        }
+    }
+}
+
+/// The rotations of `clusters` (at most eight) fitted to `positions` from `warm` to
+/// convergence, each as [`ClusterTerm::fit_rotation`] fits it: a cluster without
+/// members keeps its warm start (as do the lanes past the last cluster).
+#[inline(always)]
+fn fit_eight<L: Lane>(
+    term: &ClusterTerm,
+    clusters: std::ops::Range<usize>,
+    positions: &[Vec3A],
+    warm: [Quat; LANES],
+) -> [Quat; LANES] {
+    let moments: [Option<Mat3A>; LANES] = std::array::from_fn(|l| {
+        let k = clusters.start + l;
+        clusters.contains(&k).then(|| term.moment(k, positions))?
+    });
+    let fitted = extract_rotations_lockstep::<L>(
+        &moments.map(Option::unwrap_or_default),
+        warm,
+        FORGOTTEN_TURN_FIT_ITERATIONS,
+    );
+    std::array::from_fn(|l| moments[l].map_or(warm[l], |_| fitted[l]))
 }
