@@ -42,10 +42,8 @@ pub fn extract_rotations_lockstep<L: Lane>(
             break;
         }
         let r = Mat3x8::from_quat(q);
-        let omega = add(
-            add(cross(r.x_axis, a.x_axis), cross(r.y_axis, a.y_axis)),
-            cross(r.z_axis, a.z_axis),
-        );
+        let omega =
+            cross(r.x_axis, a.x_axis) + cross(r.y_axis, a.y_axis) + cross(r.z_axis, a.z_axis);
         let dot = (dot3(r.x_axis, a.x_axis) + dot3(r.y_axis, a.y_axis)) + dot3(r.z_axis, a.z_axis);
         let divisor = dot.abs() + eps;
         let omega = Vec3x8 {
@@ -59,16 +57,6 @@ pub fn extract_rotations_lockstep<L: Lane>(
         q = Quatx8::select(active, turned, q);
     }
     std::array::from_fn(|l| q.lane(l))
-}
-
-/// `a + b`, lane by lane.
-#[inline(always)]
-fn add<L: Lane>(a: Vec3x8<L>, b: Vec3x8<L>) -> Vec3x8<L> {
-    Vec3x8 {
-        x: a.x + b.x,
-        y: a.y + b.y,
-        z: a.z + b.z,
-    }
 }
 
 /// glam's `Vec3A::dot`: `(x x' + y y') + z z'`.
