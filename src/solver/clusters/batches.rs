@@ -268,10 +268,11 @@ impl ClusterTerm {
         k: usize,
         template: &Template,
     ) {
-        let order = self
-            .template_order(k, template)
-            .expect("a templated batch's clusters match the template");
-        for (at, m) in particles.iter_mut().zip(order) {
+        debug_assert!(
+            self.template_order(k, template).is_some(),
+            "a templated batch's clusters match the template"
+        );
+        for (at, m) in particles.iter_mut().zip(self.canonical_order(k)) {
             at[l] = m * PARTICLE_BYTES;
         }
     }

@@ -24,48 +24,84 @@ const SAMPLES: usize = 64;
 pub(in crate::solver) type Order = SmallVec<[u32; 32]>;
 
 impl ClusterTerm {
-    /// The members of cluster slot `k` with their rest offsets and weights, ordered by
-    /// offset (z, then y, then x, on a grid of 1/64 of the largest offset, so rounding
-    /// cannot reorder a lattice cluster's members), ties by particle.
-    fn canonical(&self, k: usize) -> Canonical {
-        let centroid = self.rest_centroid[k];
-        let mut members: Canonical = self
-            .cluster_members(k)
-            .iter()
-            .map(|&m| (m, self.rest[m as usize] - centroid, self.weight(m)))
-            .collect();
+    /// The members of cluster slot `k` in canonical order, as their sort keys: ordered
+    /// by rest offset (z, then y, then x, on a grid of 1/64 of the largest offset, so
+    /// rounding cannot reorder a lattice cluster's members), ties by particle, the
+    /// particle in the low bits ([`member_of_key`]).
+    fn canonical_keys(&self, k: usize) -> SmallVec<[u64; 32]> {
+        let members = self.cluster_members(k);
+        let offset = |m: u32| self.rest[m as usize] - self.rest_centroid[k];
         let extent = members
             .iter()
-            .map(|(_, q, _)| q.abs().max_element())
+            .map(|&m| offset(m).abs().max_element())
             .fold(0.0, f32::max);
         let grid = if extent > 0.0 { 64.0 / extent } else { 0.0 };
         // one integer key per member: cells in [-64, 64] biased to 8 bits each, then
-        // the particle (below 2^28, see `MAX_SOLVER_PARTICLES`)
-        let key = |(m, q, _): &(u32, Vec3A, f32)| {
-            let cell = ((*q * grid).round() + Vec3A::splat(64.0)).as_uvec3();
+        // the particle (below 2^28, see `MAX_SOLVER_PARTICLES`); the keys are distinct,
+        // as the members are, so any sort gives the one order. (Each key is worked out
+        // once: sorting the members by a key closure works it out at every comparison.)
+        let key = |m: u32| {
+            let cell = ((offset(m) * grid).round() + Vec3A::splat(64.0)).as_uvec3();
             (u64::from(cell.z) << 52)
                 | (u64::from(cell.y) << 44)
                 | (u64::from(cell.x) << 36)
-                | u64::from(*m)
+                | u64::from(m)
         };
-        members.sort_unstable_by_key(key);
-        members
+        // (written into a plain array: collecting into the small vector pushes one
+        // key at a time, which costs more than the keys)
+        let mut keys = match members.len() {
+            n @ 0..=32 => {
+                let mut buffer = [0u64; 32];
+                for (slot, &m) in buffer.iter_mut().zip(members) {
+                    *slot = key(m);
+                }
+                SmallVec::from_buf_and_len(buffer, n)
+            }
+            _ => SmallVec::from_vec(members.iter().map(|&m| key(m)).collect()),
+        };
+        keys.sort_unstable();
+        keys
     }
 
-    /// Whether canonical members `members` of a cluster with rest centroid `centroid`
-    /// match `template`: same size, same weights, offsets equal within the tolerance.
-    fn matches(members: &Canonical, centroid: Vec3A, template: &Template) -> bool {
+    /// The rest offset (from the rest centroid of cluster slot `k`) and weight of member
+    /// `m`.
+    fn offset_and_weight(&self, k: usize, m: u32) -> (Vec3A, f32) {
+        (
+            self.rest[m as usize] - self.rest_centroid[k],
+            self.weight(m),
+        )
+    }
+
+    /// The members of cluster slot `k` with their rest offsets and weights, in
+    /// canonical order ([`Self::canonical_keys`]).
+    fn canonical(&self, k: usize) -> Canonical {
+        (self.canonical_keys(k).iter())
+            .map(|&key| {
+                let m = member_of_key(key);
+                let (q, w) = self.offset_and_weight(k, m);
+                (m, q, w)
+            })
+            .collect()
+    }
+
+    /// Whether a cluster with rest centroid `centroid` and these rest offsets and
+    /// weights, in canonical order, matches `template`: same size, same weights,
+    /// offsets equal within the tolerance.
+    fn matches(
+        members: impl ExactSizeIterator<Item = (Vec3A, f32)> + Clone,
+        centroid: Vec3A,
+        template: &Template,
+    ) -> bool {
         if members.len() != template.len() {
             return false;
         }
-        let scale = members
-            .iter()
-            .map(|(_, q, _)| q.abs().max_element())
+        let scale = (members.clone())
+            .map(|(q, _)| q.abs().max_element())
             .fold(centroid.abs().max_element(), f32::max);
         let tolerance = TOLERANCE * scale;
-        members.iter().enumerate().all(|(j, (_, q, w))| {
+        members.enumerate().all(|(j, (q, w))| {
             let (tq, tw) = template.member(j);
-            *w == tw && (*q - tq).abs().max_element() <= tolerance
+            w == tw && (q - tq).abs().max_element() <= tolerance
         })
     }
 
@@ -88,7 +124,10 @@ impl ClusterTerm {
         for (members, _) in &sample {
             let candidate = Template::of(members);
             let matching: Vec<usize> = (0..sample.len())
-                .filter(|&i| Self::matches(&sample[i].0, sample[i].1, &candidate))
+                .filter(|&i| {
+                    let members = sample[i].0.iter().map(|(_, q, w)| (*q, *w));
+                    Self::matches(members, sample[i].1, &candidate)
+                })
                 .collect();
             if matching.len() > best.len().max(1) {
                 best = matching;
@@ -111,8 +150,86 @@ impl ClusterTerm {
         {
             return None;
         }
-        let members = self.canonical(k);
-        Self::matches(&members, self.rest_centroid[k], template)
-            .then(|| members.iter().map(|(m, _, _)| *m).collect())
+        // (read off the keys: a cluster that matches needs no list of its offsets)
+        let keys = self.canonical_keys(k);
+        let members = keys
+            .iter()
+            .map(|&key| self.offset_and_weight(k, member_of_key(key)));
+        Self::matches(members, self.rest_centroid[k], template)
+            .then(|| keys.iter().map(|&key| member_of_key(key)).collect())
+    }
+
+    /// The particles of cluster slot `k` in canonical order: the template's member
+    /// order, for a cluster already known to match it ([`Self::template_order`]).
+    pub(in crate::solver) fn canonical_order(&self, k: usize) -> Order {
+        (self.canonical_keys(k).iter())
+            .map(|&key| member_of_key(key))
+            .collect()
+    }
+}
+
+/// The particle of a key of [`ClusterTerm::canonical_keys`].
+fn member_of_key(key: u64) -> u32 {
+    (key & ((1 << 36) - 1)) as u32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::SolverMode;
+    use crate::solver::testing::unit_specs;
+    use glam::Vec3;
+    use rand::{Rng, SeedableRng};
+
+    /// The canonical order as its definition reads: the members sorted by their cell on
+    /// the grid of 1/64 of the largest offset (z, then y, then x), then by particle.
+    fn sorted_by_definition(l: &ClusterTerm, k: usize) -> Vec<u32> {
+        let centroid = l.rest_centroid[k];
+        let offset = |m: u32| l.rest[m as usize] - centroid;
+        let members = l.cluster_members(k);
+        let extent = (members.iter())
+            .map(|&m| offset(m).abs().max_element())
+            .fold(0.0, f32::max);
+        let grid = if extent > 0.0 { 64.0 / extent } else { 0.0 };
+        let mut sorted = members.to_vec();
+        sorted.sort_by_key(|&m| {
+            let cell = (offset(m) * grid).round().as_ivec3();
+            (cell.z, cell.y, cell.x, m)
+        });
+        sorted
+    }
+
+    #[test]
+    fn canonical_order_is_the_members_sorted_by_cell_then_particle() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(31);
+        // a jittered lattice far from the origin, each place held by two particles (as
+        // a split's halves rest near each other: their cells tie), and clusters of 1 to
+        // 40 members (past 32 the keys do not fit inline)
+        let places: Vec<Vec3> = (0..2048)
+            .map(|i| {
+                let c = Vec3::new((i % 16) as f32, (i / 16 % 16) as f32, (i / 256) as f32);
+                c * 0.05 + Vec3::splat(300.0) + Vec3::splat(rng.random_range(-1e-3..1e-3))
+            })
+            .collect();
+        let rest: Vec<Vec3> = (0..4096).map(|i| places[i % 2048]).collect();
+        let clusters: Vec<Vec<u32>> = (1..=40)
+            .flat_map(|size| std::iter::repeat_n(size, 3))
+            .map(|size| {
+                let mut members: Vec<u32> = (0..size).map(|_| rng.random_range(0..4096)).collect();
+                members.sort_unstable();
+                members.dedup();
+                members
+            })
+            .collect();
+        let l = ClusterTerm::new(&rest, unit_specs(&clusters), SolverMode::Jacobi);
+        let mut long = 0;
+        for (k, members) in l.clusters() {
+            let expected = sorted_by_definition(&l, k);
+            assert_eq!(l.canonical_order(k).to_vec(), expected, "cluster {k}");
+            let canonical: Vec<u32> = l.canonical(k).iter().map(|(m, _, _)| *m).collect();
+            assert_eq!(canonical, expected, "cluster {k}");
+            long += usize::from(members.len() > 32);
+        }
+        assert!(long > 0, "some clusters past 32 members");
     }
 }
