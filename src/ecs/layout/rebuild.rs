@@ -11,7 +11,6 @@ use crate::solver::particles::Particles;
 use crate::solver::solve::Solver;
 use bevy_ecs::prelude::Entity;
 use glam::Quat;
-use std::collections::HashMap;
 
 /// One cluster while the layout is rebuilt.
 struct ClusterEntry {
@@ -38,9 +37,6 @@ impl SolverLayout {
         mode: SolverMode,
     ) {
         let old = std::mem::take(&mut solver.clusters);
-        let old_slot: HashMap<Entity, usize> = (self.clusters.iter().enumerate())
-            .map(|(k, e)| (*e, k))
-            .collect();
         let mut body_list: Vec<BodyItem> = bodies.collect();
         body_list.sort_unstable_by_key(|(e, ..)| *e);
         // sized up front: grown by doubling, they would keep up to twice their length
@@ -92,8 +88,10 @@ impl SolverLayout {
         }
         // Clusters in the order of their first member (then key, for determinism).
         cluster_list.sort_unstable_by_key(|c| c.order);
+        // (each cluster's old slot, by the layout's table of them: no map to build)
+        let (old_slots, old_clusters) = (&self.slot_of, &self.clusters);
         let specs = cluster_list.iter().map(|c| {
-            let slot = old_slot.get(&c.entity).copied();
+            let slot = (old_slots.get(c.entity, old_clusters)).map(|k| k as usize);
             ClusterSpec {
                 members: &flat[c.range.clone()],
                 compliance: c.compliance,
