@@ -16,6 +16,7 @@ use super::colouring::order_by_colour;
 use super::rows::{
     Batches, EMPTY_LANE, MomentRow, PARTICLE_BYTES, ParticleRow, TEMPLATED, Template,
 };
+use super::template::Order;
 use super::term::{CLUSTERS_PER_TASK, ClusterTerm, FREE_SLOT, PATCH_HEADROOM, weighted_by_count};
 use crate::math::lanes::LANES;
 use rayon::prelude::*;
@@ -44,12 +45,19 @@ impl ClusterTerm {
             batches.start.push(0);
             batches
         };
-        // which clusters match the template (a batch whose clusters all do reads it)
-        let matches: Vec<bool> = (0..self.cluster_range.len())
+        // which clusters match the template (a batch whose clusters all do reads it),
+        // with their members in its order, kept for writing their lanes (working the
+        // order out is most of a templated lane's cost)
+        let orders: Vec<Option<Order>> = (0..self.cluster_range.len())
             .into_par_iter()
             .with_min_len(256)
-            .map(|k| self.colour_of[k] != FREE_SLOT && self.template_order(k, &template).is_some())
+            .map(|k| {
+                (self.colour_of[k] != FREE_SLOT)
+                    .then(|| self.template_order(k, &template))
+                    .flatten()
+            })
             .collect();
+        let matches: Vec<bool> = orders.iter().map(Option::is_some).collect();
         let mut batches = empty();
         let spatial = weighted_by_count(self.mode) && {
             let mut order: Vec<u32> = (0..self.cluster_range.len() as u32)
@@ -119,7 +127,7 @@ impl ClusterTerm {
                     }
                     match moments {
                         Some(ref mut moments) => self.write_lane(particles, moments, l, k as usize),
-                        None => self.write_template_lane(particles, l, k as usize, &template),
+                        None => write_template_lane(particles, l, &orders[k as usize]),
                     }
                 }
             });
@@ -259,24 +267,6 @@ impl ClusterTerm {
         }
     }
 
-    /// Writes lane `l` of a templated batch's particle rows for cluster slot `k`, which
-    /// matches `template`: its members in the template's order.
-    fn write_template_lane(
-        &self,
-        particles: &mut [ParticleRow],
-        l: usize,
-        k: usize,
-        template: &Template,
-    ) {
-        debug_assert!(
-            self.template_order(k, template).is_some(),
-            "a templated batch's clusters match the template"
-        );
-        for (at, m) in particles.iter_mut().zip(self.canonical_order(k)) {
-            at[l] = m * PARTICLE_BYTES;
-        }
-    }
-
     /// The batch and lane of cluster slot `k`.
     fn place(&self, k: usize) -> (usize, usize) {
         let place = self.batches.place[k] as usize;
@@ -398,6 +388,17 @@ impl ClusterTerm {
             self.write_own_rows(&mut batches, b);
         }
         self.batches = batches;
+    }
+}
+
+/// Writes lane `l` of a templated batch's particle rows for a cluster that matches the
+/// template, its members in the template's order being `order`.
+fn write_template_lane(particles: &mut [ParticleRow], l: usize, order: &Option<Order>) {
+    let order = order
+        .as_ref()
+        .expect("a templated batch's clusters match the template");
+    for (at, &m) in particles.iter_mut().zip(order) {
+        at[l] = m * PARTICLE_BYTES;
     }
 }
 

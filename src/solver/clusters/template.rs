@@ -158,14 +158,6 @@ impl ClusterTerm {
         Self::matches(members, self.rest_centroid[k], template)
             .then(|| keys.iter().map(|&key| member_of_key(key)).collect())
     }
-
-    /// The particles of cluster slot `k` in canonical order: the template's member
-    /// order, for a cluster already known to match it ([`Self::template_order`]).
-    pub(in crate::solver) fn canonical_order(&self, k: usize) -> Order {
-        (self.canonical_keys(k).iter())
-            .map(|&key| member_of_key(key))
-            .collect()
-    }
 }
 
 /// The particle of a key of [`ClusterTerm::canonical_keys`].
@@ -225,9 +217,12 @@ mod tests {
         let mut long = 0;
         for (k, members) in l.clusters() {
             let expected = sorted_by_definition(&l, k);
-            assert_eq!(l.canonical_order(k).to_vec(), expected, "cluster {k}");
-            let canonical: Vec<u32> = l.canonical(k).iter().map(|(m, _, _)| *m).collect();
-            assert_eq!(canonical, expected, "cluster {k}");
+            let canonical = l.canonical(k);
+            let sorted: Vec<u32> = canonical.iter().map(|(m, _, _)| *m).collect();
+            assert_eq!(sorted, expected, "cluster {k}");
+            // a cluster matches the template of its own shape, in that order
+            let order = l.template_order(k, &Template::of(&canonical));
+            assert_eq!(order.map(|o| o.to_vec()), Some(expected), "cluster {k}");
             long += usize::from(members.len() > 32);
         }
         assert!(long > 0, "some clusters past 32 members");
