@@ -57,7 +57,6 @@ impl ClusterTerm {
                     .flatten()
             })
             .collect();
-        let matches: Vec<bool> = orders.iter().map(Option::is_some).collect();
         let mut batches = empty();
         let spatial = weighted_by_count(self.mode) && {
             let mut order: Vec<u32> = (0..self.cluster_range.len() as u32)
@@ -65,14 +64,14 @@ impl ClusterTerm {
                 .collect();
             order.sort_unstable_by_key(|&k| (self.first_member(k as usize), k));
             batches.group_colours = vec![0; self.rest.len()];
-            self.add_spatial_groups(&mut batches, &order, &matches)
+            self.add_spatial_groups(&mut batches, &order, &orders)
         };
         if !spatial {
             batches = empty();
             let (colour_order, colour_start) = order_by_colour(&self.colour_of, FREE_SLOT);
             for (colour, range) in colour_start.windows(2).enumerate() {
                 let clusters = &colour_order[range[0] as usize..range[1] as usize];
-                self.add_colour_groups(&mut batches, colour, clusters, &matches);
+                self.add_colour_groups(&mut batches, colour, clusters, &orders);
             }
         }
         let templated: Vec<bool> = batches
@@ -81,7 +80,7 @@ impl ClusterTerm {
             .map(|lanes| {
                 lanes
                     .iter()
-                    .all(|&k| k == EMPTY_LANE || matches[k as usize])
+                    .all(|&k| k == EMPTY_LANE || orders[k as usize].is_some())
             })
             .collect();
         // the old rows' allocations are reused: fresh ones would page-fault every time
@@ -149,17 +148,18 @@ impl ClusterTerm {
     }
 
     /// Appends the clusters `slots` (all of colour `colour`, so no two share a
-    /// particle) in batches, and the batches in groups of that colour. `matches` flags
-    /// the slots that match the template (empty: none does).
+    /// particle) in batches, and the batches in groups of that colour. `orders` holds
+    /// the members of each slot that matches the template in its order (empty: none
+    /// does).
     fn add_colour_groups(
         &self,
         batches: &mut Batches,
         colour: usize,
         slots: &[u32],
-        matches: &[bool],
+        orders: &[Option<Order>],
     ) {
         for group in slots.chunks(LANES * GROUP_BATCHES) {
-            let first = self.add_group_batches(batches, group, matches);
+            let first = self.add_group_batches(batches, group, orders);
             batches.push_group(colour, first);
         }
     }
@@ -167,11 +167,16 @@ impl ClusterTerm {
     /// Appends the clusters `slots` (in spatial order) in batches and groups, giving
     /// each group the lowest colour that no group holding one of its particles has.
     /// Returns false when a group would need a 65th colour (the batches are then
-    /// unusable and must be laid out again by cluster colour). `matches` as for
+    /// unusable and must be laid out again by cluster colour). `orders` as for
     /// [`Self::add_colour_groups`].
-    fn add_spatial_groups(&self, batches: &mut Batches, slots: &[u32], matches: &[bool]) -> bool {
+    fn add_spatial_groups(
+        &self,
+        batches: &mut Batches,
+        slots: &[u32],
+        orders: &[Option<Order>],
+    ) -> bool {
         for group in slots.chunks(LANES * GROUP_BATCHES) {
-            let first = self.add_group_batches(batches, group, matches);
+            let first = self.add_group_batches(batches, group, orders);
             let members = || {
                 group.iter().flat_map(|&k| {
                     let [start, end] = self.cluster_range[k as usize];
@@ -192,11 +197,16 @@ impl ClusterTerm {
     }
 
     /// Appends the clusters `slots` of one group in batches of [`LANES`], those that
-    /// match the template (flagged in `matches`, empty for none) first, so that they
-    /// fill batches of their own; returns the group's first batch.
-    fn add_group_batches(&self, batches: &mut Batches, slots: &[u32], matches: &[bool]) -> u32 {
+    /// match the template (those with an order in `orders`, empty for none) first, so
+    /// that they fill batches of their own; returns the group's first batch.
+    fn add_group_batches(
+        &self,
+        batches: &mut Batches,
+        slots: &[u32],
+        orders: &[Option<Order>],
+    ) -> u32 {
         let first = batches.lanes.len() as u32;
-        let matching = |k: &u32| matches.get(*k as usize).copied().unwrap_or(false);
+        let matching = |k: &u32| orders.get(*k as usize).is_some_and(Option::is_some);
         let (templated, other): (Vec<u32>, Vec<u32>) = slots.iter().partition(|k| matching(k));
         for chunk in templated.chunks(LANES).chain(other.chunks(LANES)) {
             self.add_batch(batches, chunk);
