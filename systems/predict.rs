@@ -10,5 +10,9 @@ use bevy_ecs::prelude::*;
 pub fn predict(settings: Res<SimSettings>, mut cache: ResMut<SolverCache>) {
     let config = &settings.0;
     let dt = config.dt / config.substeps as f32;
-    cache.particles.predict(dt, config.gravity, config.damping);
+    let cache = &mut *cache;
+    let cluster_counts = cache.solver.clusters.member_counts();
+    cache
+        .particles
+        .predict(dt, config.gravity, config.damping, cluster_counts);
 }

@@ -34,7 +34,11 @@ pub fn shape_match(
     cache.solver.solve(&mut cache.particles, &step);
     // (the same 1/dt as `substeps / dt`, rounded once)
     let inv_dt = config.substeps as f32 / config.dt;
-    cache.particles.update_velocities(inv_dt);
+    let ends_frame = substep.index + 1 >= substep.count;
+    let cluster_counts = cache.solver.clusters.member_counts();
+    cache
+        .particles
+        .update_velocities(inv_dt, cluster_counts, ends_frame);
     report_repaired(cache, &repaired, &mut repaired_messages);
 }
 

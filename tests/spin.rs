@@ -92,3 +92,49 @@ fn a_rigid_block_spinning_in_free_space_keeps_its_spin() {
         }
     }
 }
+
+#[test]
+fn the_particles_of_a_spinning_cluster_body_turn_with_it_whatever_the_substeps() {
+    // Spawned with the particles' velocities of a spin of 1 rad/s about z but their
+    // angular velocities zeroed: the clusters turn the particles, and each particle's
+    // angular velocity after a frame must be read off that turn (the last substep's),
+    // however many substeps the frame has.
+    for substeps in [1, 2, 3] {
+        let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(6, 6, 6)), 0.1);
+        body.angular_velocity = Vec3::new(0.0, 0.0, 1.0);
+        body.material = Material::rigid();
+        let mut sim = Simulation::from_scene(&Scene {
+            config: SimConfig {
+                substeps,
+                gravity: Vec3::ZERO,
+                ground: None,
+                damping: 0.0,
+                ..SimConfig::default()
+            },
+            bodies: vec![body],
+            tools: vec![],
+            colliders: vec![],
+            frames: 30,
+        })
+        .unwrap();
+        let world = sim.world_mut();
+        let mut spins = world.query::<&mut AngularVelocity>();
+        for mut w in spins.iter_mut(world) {
+            w.0 = Vec3::ZERO;
+        }
+        sim.run(30);
+        let world = sim.world_mut();
+        let mut spins = world.query::<&AngularVelocity>();
+        let spins: Vec<Vec3> = spins.iter(world).map(|w| w.0).collect();
+        assert_eq!(spins.len(), 216);
+        for w in spins {
+            assert!((w - Vec3::Z).length() < 0.01, "{substeps} substeps: {w}");
+        }
+        // half a second at 1 rad/s: every particle turned by 0.5 rad about z
+        let turned = Quat::from_rotation_z(0.5);
+        let b = sim.bodies()[0];
+        for (i, q) in sim.orientations(b).unwrap() {
+            assert!(q.dot(turned).abs() > 1.0 - 1e-4, "{substeps}: {i} {q}");
+        }
+    }
+}

@@ -244,7 +244,8 @@ pub fn term_seconds(sim: &Simulation, name: &str) -> TermSeconds {
 fn bare_step(solver: &mut Solver, particles: &mut Particles, config: &SimConfig) {
     let dt = config.dt / config.substeps as f32;
     for index in 0..config.substeps {
-        particles.predict(dt, config.gravity, config.damping);
+        let cluster_counts = solver.clusters.member_counts();
+        particles.predict(dt, config.gravity, config.damping, cluster_counts);
         let count = config.substeps as f32;
         let step = Substep {
             dt,
@@ -252,7 +253,9 @@ fn bare_step(solver: &mut Solver, particles: &mut Particles, config: &SimConfig)
             frame_span: [index as f32 / count, (index + 1) as f32 / count],
         };
         solver.solve(particles, &step);
-        particles.update_velocities(1.0 / dt);
+        let ends_frame = index + 1 == config.substeps;
+        let cluster_counts = solver.clusters.member_counts();
+        particles.update_velocities(1.0 / dt, cluster_counts, ends_frame);
     }
 }
 

@@ -99,7 +99,14 @@ impl Particles {
     /// `q_prev ← q`, `q ← exp(ω dt) q` (the exact turn at constant `ω`, so that a free
     /// particle's spin survives the round trip through [`Particles::update_velocities`]);
     /// a particle of inverse mass 0 keeps its velocity and spin.
-    pub fn predict(&mut self, dt: f32, gravity: Vec3, damping: f32) {
+    ///
+    /// `cluster_counts` is the number of clusters each particle is in
+    /// ([`crate::solver::clusters::term::ClusterTerm::member_counts`]; a particle past its
+    /// end is in none). The orientation of a particle in any is set by their blend after
+    /// the solve ([`crate::solver::clusters::term::ClusterTerm::blend_orientations`]), and
+    /// no term reads it before, so it is not turned here (`q_prev ← q` only): its spin is
+    /// not needed until the frame ends.
+    pub fn predict(&mut self, dt: f32, gravity: Vec3, damping: f32, cluster_counts: &[u32]) {
         let keep = (-damping * dt).exp();
         let dv = Vec3A::from(gravity * dt);
         self.positions
@@ -116,30 +123,41 @@ impl Particles {
                 *x += *v * dt;
             });
         self.orientations
-            .par_iter_mut()
-            .zip(self.previous_orientations.par_iter_mut())
-            .zip(self.spins.par_iter_mut())
-            .zip(self.inv_mass.par_iter())
-            .with_min_len(PARTICLES_PER_TASK)
-            .for_each(|(((q, prev), w), inv_mass)| {
-                *prev = *q;
-                if *inv_mass != 0.0 {
-                    *w *= keep;
-                }
-                if *w != Vec3A::ZERO {
-                    *q = (Quat::from_scaled_axis(Vec3::from(*w * dt)) * *q).normalize();
+            .par_chunks_mut(PARTICLES_PER_TASK)
+            .zip(
+                self.previous_orientations
+                    .par_chunks_mut(PARTICLES_PER_TASK),
+            )
+            .zip(self.spins.par_chunks_mut(PARTICLES_PER_TASK))
+            .zip(self.inv_mass.par_chunks(PARTICLES_PER_TASK))
+            .enumerate()
+            .for_each(|(task, (((q, prev), w), inv_mass))| {
+                prev.copy_from_slice(q);
+                let first = task * PARTICLES_PER_TASK;
+                for i in 0..q.len() {
+                    if in_clusters(cluster_counts, first + i) {
+                        continue;
+                    }
+                    if inv_mass[i] != 0.0 {
+                        w[i] *= keep;
+                    }
+                    if w[i] != Vec3A::ZERO {
+                        q[i] = (Quat::from_scaled_axis(Vec3::from(w[i] * dt)) * q[i]).normalize();
+                    }
                 }
             });
     }
 
     /// Adds the last solve's corrections to the velocities, `v += Σ Δp / dt`, and sets
-    /// each angular velocity to the substep's turn, `ω = log(q q_prev⁻¹) / dt`.
+    /// each angular velocity to the substep's turn, `ω = log(q q_prev⁻¹) / dt`: a
+    /// particle's in clusters (`cluster_counts`, as for [`Particles::predict`]) only when
+    /// the substep `ends_frame`, since until then nothing reads it.
     ///
     /// Deriving velocity from the corrections rather than from `(p − p_prev) / dt` keeps
     /// the rounding of large absolute positions out of the velocities, so momentum is
     /// conserved to the precision of the (small) corrections. Orientations have no such
     /// offset, so their turn is read off directly.
-    pub fn update_velocities(&mut self, inv_dt: f32) {
+    pub fn update_velocities(&mut self, inv_dt: f32, cluster_counts: &[u32], ends_frame: bool) {
         self.velocities
             .par_iter_mut()
             .zip(&self.corrections)
@@ -149,8 +167,13 @@ impl Particles {
             .par_iter_mut()
             .zip(&self.orientations)
             .zip(&self.previous_orientations)
+            .enumerate()
             .with_min_len(PARTICLES_PER_TASK)
-            .for_each(|((w, q), prev)| *w = Vec3A::from(turn(*prev, *q)) * inv_dt);
+            .for_each(|(d, ((w, q), prev))| {
+                if ends_frame || !in_clusters(cluster_counts, d) {
+                    *w = Vec3A::from(turn(*prev, *q)) * inv_dt;
+                }
+            });
     }
 
     /// The arrays as a term sees them.
@@ -215,6 +238,11 @@ impl Particles {
     }
 }
 
+/// Whether particle `d` is in any cluster by `cluster_counts` (see [`Particles::predict`]).
+fn in_clusters(cluster_counts: &[u32], d: usize) -> bool {
+    cluster_counts.get(d).is_some_and(|&count| count > 0)
+}
+
 /// The turn from `from` to `to` as a rotation vector (axis × angle, the shorter way
 /// round); zero when either is not finite.
 pub fn turn(from: Quat, to: Quat) -> Vec3 {
@@ -233,7 +261,7 @@ mod tests {
         let rest = |n: usize| -> Vec<Vec3> { (0..n).map(|i| Vec3::splat(i as f32)).collect() };
         // used particles: moved, spun, pinned
         let mut used = Particles::at_rest(&rest(1000));
-        used.predict(0.01, Vec3::new(0.0, -9.8, 0.0), 0.5);
+        used.predict(0.01, Vec3::new(0.0, -9.8, 0.0), 0.5, &[]);
         used.inv_mass[3] = 0.0;
         used.spins[7] = Vec3A::X;
         used.orientations[7] = Quat::from_rotation_x(0.3);
@@ -279,7 +307,7 @@ mod tests {
         let mut p = Particles::at_rest(&[Vec3::ZERO, Vec3::X]);
         p.velocities[1] = Vec3A::new(0.0, 0.0, 2.0);
         p.inv_mass[1] = 0.0;
-        p.predict(0.5, Vec3::new(0.0, -10.0, 0.0), 0.0);
+        p.predict(0.5, Vec3::new(0.0, -10.0, 0.0), 0.0, &[]);
         assert_eq!(p.positions[0], Vec3A::new(0.0, -2.5, 0.0));
         assert_eq!(p.positions[1], Vec3A::new(1.0, 0.0, 1.0));
         assert_eq!(p.previous[1], Vec3A::X);
@@ -292,9 +320,9 @@ mod tests {
         p.spins[0] = spin;
         let dt = 1.0 / 120.0;
         for _ in 0..240 {
-            p.predict(dt, Vec3::ZERO, 0.0);
+            p.predict(dt, Vec3::ZERO, 0.0, &[]);
             p.corrections[0] = Vec3A::ZERO;
-            p.update_velocities(1.0 / dt);
+            p.update_velocities(1.0 / dt, &[], false);
         }
         assert!(
             (p.spins[0] - spin).length() < 1e-3 * spin.length(),

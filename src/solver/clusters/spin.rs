@@ -64,13 +64,14 @@ impl ClusterTerm {
     }
 
     /// Turns every particle that is in a cluster to the blend of its clusters' rotations:
-    /// their normalised sum, each taken on the side of the particle's current
-    /// orientation (a quaternion and its negative are one rotation), so a particle in
-    /// clusters that turn alike turns with them, and one between clusters turning apart
-    /// takes the turn between. The clusters' rotations are their fits' of this substep
-    /// (the turn from rest), so a rigid motion turns every particle with it. Particles in
-    /// no cluster keep theirs. Memberships are summed in slot order: the same for any
-    /// thread count.
+    /// their normalised sum, each taken on the side of the particle's orientation at the
+    /// substep's start (a quaternion and its negative are one rotation; the prediction
+    /// leaves a particle in a cluster unturned:
+    /// [`crate::solver::particles::Particles::predict`]), so a particle in clusters that
+    /// turn alike turns with them, and one between clusters turning apart takes the turn
+    /// between. The clusters' rotations are their fits' of this substep (the turn from
+    /// rest), so a rigid motion turns every particle with it. Particles in no cluster
+    /// keep theirs. Memberships are summed in slot order: the same for any thread count.
     pub fn blend_orientations(&self, orientations: &mut [Quat]) {
         // (each particle sums its own clusters, in slot order: the lists are as new as
         // the coefficients, which every substep brings up to date before its solve)

@@ -405,6 +405,11 @@ impl ClusterTerm {
         self.member_particle.len() - self.garbage
     }
 
+    /// The number of clusters each particle is in, kept up to date by every patch.
+    pub fn member_counts(&self) -> &[u32] {
+        &self.member_count
+    }
+
     /// Warm-start rotation of every cluster slot (free slots included).
     pub fn rotations(&self) -> &[Quat] {
         &self.rotations
