@@ -12,6 +12,7 @@
 use super::rows::{Canonical, Template};
 use super::term::ClusterTerm;
 use glam::Vec3A;
+use rayon::prelude::*;
 use smallvec::SmallVec;
 
 /// Match tolerance, relative to the size of the cluster's rest coordinates.
@@ -92,12 +93,19 @@ impl ClusterTerm {
         centroid: Vec3A,
         template: &Template,
     ) -> bool {
+        let scale = match_scale(members.clone().map(|(q, _)| q), centroid);
+        Self::matches_at_scale(members, scale, template)
+    }
+
+    /// [`Self::matches`] for a cluster whose [`match_scale`] is `scale`.
+    fn matches_at_scale(
+        members: impl ExactSizeIterator<Item = (Vec3A, f32)>,
+        scale: f32,
+        template: &Template,
+    ) -> bool {
         if members.len() != template.len() {
             return false;
         }
-        let scale = (members.clone())
-            .map(|(q, _)| q.abs().max_element())
-            .fold(centroid.abs().max_element(), f32::max);
         let tolerance = TOLERANCE * scale;
         members.enumerate().all(|(j, (q, w))| {
             let (tq, tw) = template.member(j);
@@ -116,19 +124,31 @@ impl ClusterTerm {
             let fraction = (i as f64 * 0.618_033_988_749_895).fract();
             live[(fraction * live.len() as f64) as usize]
         });
-        let sample: Vec<(Canonical, Vec3A)> = spread
-            .map(|k| (self.canonical(k), self.rest_centroid[k]))
+        // (each with its match scale, worked out once: it is tested against every
+        // candidate)
+        let sample: Vec<(Canonical, Vec3A, f32)> = spread
+            .map(|k| {
+                let (members, centroid) = (self.canonical(k), self.rest_centroid[k]);
+                let scale = match_scale(members.iter().map(|(_, q, _)| *q), centroid);
+                (members, centroid, scale)
+            })
             .collect();
-        // the shape most of the sample shares, as its members' indices in the sample
+        // each sampled shape's matches, as their indices in the sample (the candidates
+        // tested in parallel), and of those the shape most of the sample shares
+        let matchings: Vec<Vec<usize>> = (sample.par_iter())
+            .map(|(members, _, _)| {
+                let candidate = Template::of(members);
+                (0..sample.len())
+                    .filter(|&i| {
+                        let (members, _, scale) = &sample[i];
+                        let members = members.iter().map(|(_, q, w)| (*q, *w));
+                        Self::matches_at_scale(members, *scale, &candidate)
+                    })
+                    .collect()
+            })
+            .collect();
         let mut best: Vec<usize> = Vec::new();
-        for (members, _) in &sample {
-            let candidate = Template::of(members);
-            let matching: Vec<usize> = (0..sample.len())
-                .filter(|&i| {
-                    let members = sample[i].0.iter().map(|(_, q, w)| (*q, *w));
-                    Self::matches(members, sample[i].1, &candidate)
-                })
-                .collect();
+        for matching in matchings {
             if matching.len() > best.len().max(1) {
                 best = matching;
             }
@@ -158,6 +178,14 @@ impl ClusterTerm {
         Self::matches(members, self.rest_centroid[k], template)
             .then(|| keys.iter().map(|&key| member_of_key(key)).collect())
     }
+}
+
+/// The size of a cluster's rest coordinates, which the match tolerance is relative to:
+/// the largest coordinate of its rest centroid and of its members' rest `offsets`.
+fn match_scale(offsets: impl Iterator<Item = Vec3A>, centroid: Vec3A) -> f32 {
+    offsets
+        .map(|q| q.abs().max_element())
+        .fold(centroid.abs().max_element(), f32::max)
 }
 
 /// The particle of a key of [`ClusterTerm::canonical_keys`].
