@@ -54,6 +54,12 @@ pub struct StoredColumns<'a> {
 pub struct TableRows {
     row_of_slot: Vec<u32>,
     slot_of_row: Vec<u32>,
+    /// Per chunk of [`CHUNK`] slots, the row of its first when its rows follow on from
+    /// it one by one (a body's particles spawn in the solver's order, so they mostly
+    /// do): such a chunk is copied slice to slice.
+    rows_in_run: Vec<Option<u32>>,
+    /// Per chunk of [`CHUNK`] rows, likewise the slot of its first.
+    slots_in_run: Vec<Option<u32>>,
     /// The rows that hold no particle of the layout, and their entities.
     strangers: Vec<(u32, Entity)>,
 }
@@ -90,7 +96,30 @@ impl TableRows {
             self.slot_of_row.par_chunks(CHUNK),
         )
             .into_par_iter()
-            .for_each(|(x, v, q, w, slots)| {
+            .enumerate()
+            .for_each(|(chunk, (x, v, q, w, slots))| {
+                if let Some(first) = self.slots_in_run.get(chunk).copied().flatten() {
+                    let run = first as usize..first as usize + x.len();
+                    let from = (particles.positions.get(run.clone()))
+                        .zip(particles.velocities.get(run.clone()))
+                        .zip(particles.orientations.get(run.clone()))
+                        .zip(particles.spins.get(run));
+                    if let Some((((px, pv), pq), pw)) = from {
+                        for (x, p) in x.iter_mut().zip(px) {
+                            x.0 = Vec3::from(*p);
+                        }
+                        for (v, p) in v.iter_mut().zip(pv) {
+                            v.0 = Vec3::from(*p);
+                        }
+                        for (q, p) in q.iter_mut().zip(pq) {
+                            q.0 = *p;
+                        }
+                        for (w, p) in w.iter_mut().zip(pw) {
+                            w.0 = Vec3::from(*p);
+                        }
+                        return;
+                    }
+                }
                 for ((((x, v), q), w), &slot) in x.iter_mut().zip(v).zip(q).zip(w).zip(slots) {
                     if slot != NONE {
                         let slot = slot as usize;
@@ -131,7 +160,13 @@ impl TableRows {
             slots.par_chunks(CHUNK),
         )
             .into_par_iter()
-            .all(|(x, v, q, w, inv_mass, rows, entities)| {
+            .enumerate()
+            .all(|(chunk, (x, v, q, w, inv_mass, rows, entities))| {
+                if let Some(first) = self.rows_in_run.get(chunk).copied().flatten() {
+                    let run = first as usize..first as usize + x.len();
+                    return table.entities.get(run.clone()) == Some(entities)
+                        && copy_run(&table, run, x, v, q, w, inv_mass);
+                }
                 let slots = x.iter_mut().zip(v).zip(q).zip(w).zip(inv_mass);
                 for (((((x, v), q), w), inv_mass), (&row, entity)) in
                     slots.zip(rows.iter().zip(entities))
@@ -172,7 +207,54 @@ impl TableRows {
                 self.strangers.push((row as u32, *entity));
             }
         }
+        self.rows_in_run = self.row_of_slot.chunks(CHUNK).map(run_start).collect();
+        self.slots_in_run = self.slot_of_row.chunks(CHUNK).map(run_start).collect();
     }
+}
+
+/// The first of `map` when the rest follow on from it one by one (and none is
+/// [`NONE`]).
+fn run_start(map: &[u32]) -> Option<u32> {
+    let first = *map.first()?;
+    let last = first.checked_add(map.len() as u32 - 1)?;
+    (last != NONE && (first..).zip(map).all(|(want, &is)| want == is)).then_some(first)
+}
+
+/// Copies the particle state of the table's rows `run` into these slots (as many), or
+/// false when the table has fewer rows.
+fn copy_run(
+    table: &ParticleColumns,
+    run: std::ops::Range<usize>,
+    x: &mut [Vec3A],
+    v: &mut [Vec3A],
+    q: &mut [glam::Quat],
+    w: &mut [Vec3A],
+    inv_mass: &mut [f32],
+) -> bool {
+    let from = (table.positions.get(run.clone()))
+        .zip(table.velocities.get(run.clone()))
+        .zip(table.orientations.get(run.clone()))
+        .zip(table.spins.get(run.clone()))
+        .zip(table.inv_mass.get(run));
+    let Some(((((tx, tv), tq), tw), tm)) = from else {
+        return false;
+    };
+    for (x, t) in x.iter_mut().zip(tx) {
+        *x = Vec3A::from(t.0);
+    }
+    for (v, t) in v.iter_mut().zip(tv) {
+        *v = Vec3A::from(t.0);
+    }
+    for (q, t) in q.iter_mut().zip(tq) {
+        *q = t.0;
+    }
+    for (w, t) in w.iter_mut().zip(tw) {
+        *w = Vec3A::from(t.0);
+    }
+    for (m, t) in inv_mass.iter_mut().zip(tm) {
+        *m = t.0;
+    }
+    true
 }
 
 #[cfg(test)]
@@ -343,6 +425,50 @@ mod tests {
                 "row {row}"
             );
         }
+    }
+
+    #[test]
+    fn a_table_in_the_slots_order_is_copied_run_by_run_and_a_trade_within_a_run_noticed() {
+        let mut world = World::new();
+        let n = 2 * CHUNK + 5;
+        let (mut particles, slots, map) = particles_and_slots(&mut world, n);
+        let mut rows = TableRows::default();
+        let mut table = slots.clone();
+        load(&mut rows, &mut particles, &slots, &map, &table);
+        assert_loaded(&particles, &slots);
+        let runs = [Some(0), Some(CHUNK as u32), Some(2 * CHUNK as u32)];
+        assert_eq!(
+            (rows.rows_in_run.as_slice(), rows.slots_in_run.as_slice()),
+            (&runs[..], &runs[..])
+        );
+        // stored run by run: every row from its slot
+        particles.positions.iter_mut().for_each(|p| *p *= 2.0);
+        let Columns {
+            mut x,
+            mut v,
+            mut q,
+            mut w,
+            ..
+        } = columns(&table);
+        let stored = StoredColumns {
+            positions: &mut x,
+            velocities: &mut v,
+            orientations: &mut q,
+            spins: &mut w,
+        };
+        rows.store(&particles, stored);
+        for (row, e) in table.iter().enumerate() {
+            assert_eq!(
+                x[row].0,
+                Vec3::splat(2.0 * e.index_u32() as f32),
+                "row {row}"
+            );
+        }
+        // two rows of the middle run trade places: the run is checked, not trusted
+        table.swap(CHUNK + 1, CHUNK + 2);
+        load(&mut rows, &mut particles, &slots, &map, &table);
+        assert_loaded(&particles, &slots);
+        assert_eq!(rows.rows_in_run[1], None);
     }
 
     #[test]
