@@ -305,6 +305,26 @@ mod tests {
         }
     }
 
+    /// The columns of `table` ([`columns`]), edited, after `rows` stored `particles`
+    /// into them.
+    fn stored(
+        rows: &TableRows,
+        particles: &Particles,
+        table: &[Entity],
+        edit: impl FnOnce(&mut Columns),
+    ) -> Columns {
+        let mut c = columns(table);
+        edit(&mut c);
+        let stored = StoredColumns {
+            positions: &mut c.x,
+            velocities: &mut c.v,
+            orientations: &mut c.q,
+            spins: &mut c.w,
+        };
+        rows.store(particles, stored);
+        c
+    }
+
     fn turned(id: f32) -> Quat {
         Quat::from_rotation_z(id * 1e-3)
     }
@@ -386,23 +406,11 @@ mod tests {
         for (s, q) in particles.orientations.iter_mut().enumerate() {
             *q = Quat::from_rotation_x(s as f32 * 1e-3);
         }
-        let Columns {
-            mut x,
-            mut v,
-            mut q,
-            mut w,
-            ..
-        } = columns(&table);
         let at = table.iter().position(|e| *e == stranger).unwrap();
-        x[at] = Position(Vec3::splat(123.0));
-        v[at] = Velocity(Vec3::splat(9.0));
-        let stored = StoredColumns {
-            positions: &mut x,
-            velocities: &mut v,
-            orientations: &mut q,
-            spins: &mut w,
-        };
-        rows.store(&particles, stored);
+        let Columns { x, v, q, .. } = stored(&rows, &particles, &table, |c| {
+            c.x[at] = Position(Vec3::splat(123.0));
+            c.v[at] = Velocity(Vec3::splat(9.0));
+        });
         for (row, e) in table.iter().enumerate() {
             let (position, velocity, orientation) = match slots.iter().position(|p| p == e) {
                 None => (
@@ -441,28 +449,31 @@ mod tests {
             (rows.rows_in_run.as_slice(), rows.slots_in_run.as_slice()),
             (&runs[..], &runs[..])
         );
-        // stored run by run: every row from its slot
+        // stored run by run: every row from its slot, the slot of the same number
         particles.positions.iter_mut().for_each(|p| *p *= 2.0);
-        let Columns {
-            mut x,
-            mut v,
-            mut q,
-            mut w,
-            ..
-        } = columns(&table);
-        let stored = StoredColumns {
-            positions: &mut x,
-            velocities: &mut v,
-            orientations: &mut q,
-            spins: &mut w,
-        };
-        rows.store(&particles, stored);
-        for (row, e) in table.iter().enumerate() {
-            assert_eq!(
-                x[row].0,
-                Vec3::splat(2.0 * e.index_u32() as f32),
-                "row {row}"
+        particles.velocities.iter_mut().for_each(|v| *v *= -1.0);
+        particles
+            .orientations
+            .iter_mut()
+            .for_each(|q| *q = q.conjugate());
+        particles.spins.iter_mut().for_each(|w| *w *= 3.0);
+        let c = stored(&rows, &particles, &table, |_| {});
+        for s in 0..n {
+            let stored = (c.x[s].0, c.v[s].0, c.q[s].0, c.w[s].0);
+            let p = &particles;
+            let expected = (
+                p.positions[s],
+                p.velocities[s],
+                p.orientations[s],
+                p.spins[s],
             );
+            let expected = (
+                expected.0.into(),
+                expected.1.into(),
+                expected.2,
+                expected.3.into(),
+            );
+            assert_eq!(stored, expected, "slot {s}");
         }
         // two rows of the middle run trade places: the run is checked, not trusted
         table.swap(CHUNK + 1, CHUNK + 2);
