@@ -54,12 +54,6 @@ pub struct StoredColumns<'a> {
 pub struct TableRows {
     row_of_slot: Vec<u32>,
     slot_of_row: Vec<u32>,
-    /// Per chunk of [`CHUNK`] slots, the row of its first when its rows follow on from
-    /// it one by one (a body's particles spawn in the solver's order, so they mostly
-    /// do): such a chunk is copied slice to slice.
-    rows_in_run: Vec<Option<u32>>,
-    /// Per chunk of [`CHUNK`] rows, likewise the slot of its first.
-    slots_in_run: Vec<Option<u32>>,
     /// The rows that hold no particle of the layout, and their entities.
     strangers: Vec<(u32, Entity)>,
 }
@@ -96,9 +90,8 @@ impl TableRows {
             self.slot_of_row.par_chunks(CHUNK),
         )
             .into_par_iter()
-            .enumerate()
-            .for_each(|(chunk, (x, v, q, w, slots))| {
-                if let Some(first) = self.slots_in_run.get(chunk).copied().flatten() {
+            .for_each(|(x, v, q, w, slots)| {
+                if let Some(first) = run_start(slots) {
                     let run = first as usize..first as usize + x.len();
                     let from = (particles.positions.get(run.clone()))
                         .zip(particles.velocities.get(run.clone()))
@@ -160,9 +153,8 @@ impl TableRows {
             slots.par_chunks(CHUNK),
         )
             .into_par_iter()
-            .enumerate()
-            .all(|(chunk, (x, v, q, w, inv_mass, rows, entities))| {
-                if let Some(first) = self.rows_in_run.get(chunk).copied().flatten() {
+            .all(|(x, v, q, w, inv_mass, rows, entities)| {
+                if let Some(first) = run_start(rows) {
                     let run = first as usize..first as usize + x.len();
                     return table.entities.get(run.clone()) == Some(entities)
                         && copy_run(&table, run, x, v, q, w, inv_mass);
@@ -207,13 +199,12 @@ impl TableRows {
                 self.strangers.push((row as u32, *entity));
             }
         }
-        self.rows_in_run = self.row_of_slot.chunks(CHUNK).map(run_start).collect();
-        self.slots_in_run = self.slot_of_row.chunks(CHUNK).map(run_start).collect();
     }
 }
 
 /// The first of `map` when the rest follow on from it one by one (and none is
-/// [`NONE`]).
+/// [`NONE`]): a chunk of slots whose rows so follow (a body's particles spawn in the
+/// solver's order, so they mostly do) is copied slice to slice.
 fn run_start(map: &[u32]) -> Option<u32> {
     let first = *map.first()?;
     let last = first.checked_add(map.len() as u32 - 1)?;
@@ -445,10 +436,9 @@ mod tests {
         load(&mut rows, &mut particles, &slots, &map, &table);
         assert_loaded(&particles, &slots);
         let runs = [Some(0), Some(CHUNK as u32), Some(2 * CHUNK as u32)];
-        assert_eq!(
-            (rows.rows_in_run.as_slice(), rows.slots_in_run.as_slice()),
-            (&runs[..], &runs[..])
-        );
+        let in_runs = |map: &[u32]| map.chunks(CHUNK).map(run_start).collect::<Vec<_>>();
+        assert_eq!(in_runs(&rows.row_of_slot), runs);
+        assert_eq!(in_runs(&rows.slot_of_row), runs);
         // stored run by run: every row from its slot, the slot of the same number
         particles.positions.iter_mut().for_each(|p| *p *= 2.0);
         particles.velocities.iter_mut().for_each(|v| *v *= -1.0);
@@ -479,7 +469,7 @@ mod tests {
         table.swap(CHUNK + 1, CHUNK + 2);
         load(&mut rows, &mut particles, &slots, &map, &table);
         assert_loaded(&particles, &slots);
-        assert_eq!(rows.rows_in_run[1], None);
+        assert_eq!(in_runs(&rows.row_of_slot)[1], None);
     }
 
     #[test]
