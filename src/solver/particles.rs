@@ -149,9 +149,9 @@ impl Particles {
     }
 
     /// Adds the last solve's corrections to the velocities, `v += Σ Δp / dt`, and sets
-    /// each angular velocity to the substep's turn, `ω = log(q q_prev⁻¹) / dt`: a
-    /// particle's in clusters (`cluster_counts`, as for [`Particles::predict`]) only when
-    /// the substep `ends_frame`, since until then nothing reads it.
+    /// each angular velocity to the substep's turn, `ω = log(q q_prev⁻¹) / dt` — that of
+    /// a particle in clusters (`cluster_counts`, as for [`Particles::predict`]) only when
+    /// the substep `ends_frame`: until then nothing reads it.
     ///
     /// Deriving velocity from the corrections rather than from `(p − p_prev) / dt` keeps
     /// the rounding of large absolute positions out of the velocities, so momentum is
