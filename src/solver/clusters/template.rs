@@ -28,8 +28,10 @@ impl ClusterTerm {
     /// The members of cluster slot `k` in canonical order, as their sort keys: ordered
     /// by rest offset (z, then y, then x, on a grid of 1/64 of the largest offset, so
     /// rounding cannot reorder a lattice cluster's members), ties by particle, the
-    /// particle in the low bits ([`member_of_key`]).
-    fn canonical_keys(&self, k: usize) -> SmallVec<[u64; 32]> {
+    /// particle in the low bits ([`member_of_key`]); with the cluster's match scale, the
+    /// largest coordinate of its rest centroid and offsets (the match tolerance is
+    /// relative to it).
+    fn canonical_keys(&self, k: usize) -> (SmallVec<[u64; 32]>, f32) {
         let members = self.cluster_members(k);
         let offset = |m: u32| self.rest[m as usize] - self.rest_centroid[k];
         let extent = members
@@ -61,7 +63,8 @@ impl ClusterTerm {
             _ => SmallVec::from_vec(members.iter().map(|&m| key(m)).collect()),
         };
         keys.sort_unstable();
-        keys
+        let scale = extent.max(self.rest_centroid[k].abs().max_element());
+        (keys, scale)
     }
 
     /// The rest offset (from the rest centroid of cluster slot `k`) and weight of member
@@ -74,31 +77,23 @@ impl ClusterTerm {
     }
 
     /// The members of cluster slot `k` with their rest offsets and weights, in
-    /// canonical order ([`Self::canonical_keys`]).
-    fn canonical(&self, k: usize) -> Canonical {
-        (self.canonical_keys(k).iter())
+    /// canonical order, and its match scale ([`Self::canonical_keys`]).
+    fn canonical(&self, k: usize) -> (Canonical, f32) {
+        let (keys, scale) = self.canonical_keys(k);
+        let members = (keys.iter())
             .map(|&key| {
                 let m = member_of_key(key);
                 let (q, w) = self.offset_and_weight(k, m);
                 (m, q, w)
             })
-            .collect()
+            .collect();
+        (members, scale)
     }
 
-    /// Whether a cluster with rest centroid `centroid` and these rest offsets and
-    /// weights, in canonical order, matches `template`: same size, same weights,
-    /// offsets equal within the tolerance.
+    /// Whether a cluster of match scale `scale` with these rest offsets and weights, in
+    /// canonical order, matches `template`: same size, same weights, offsets equal
+    /// within the tolerance.
     fn matches(
-        members: impl ExactSizeIterator<Item = (Vec3A, f32)> + Clone,
-        centroid: Vec3A,
-        template: &Template,
-    ) -> bool {
-        let scale = match_scale(members.clone().map(|(q, _)| q), centroid);
-        Self::matches_at_scale(members, scale, template)
-    }
-
-    /// [`Self::matches`] for a cluster whose [`match_scale`] is `scale`.
-    fn matches_at_scale(
         members: impl ExactSizeIterator<Item = (Vec3A, f32)>,
         scale: f32,
         template: &Template,
@@ -124,13 +119,10 @@ impl ClusterTerm {
             let fraction = (i as f64 * 0.618_033_988_749_895).fract();
             live[(fraction * live.len() as f64) as usize]
         });
-        // (each with its match scale, worked out once: it is tested against every
-        // candidate)
-        let sample: Vec<(Canonical, Vec3A, f32)> = spread
+        let sample: Vec<(Canonical, f32, Vec3A)> = spread
             .map(|k| {
-                let (members, centroid) = (self.canonical(k), self.rest_centroid[k]);
-                let scale = match_scale(members.iter().map(|(_, q, _)| *q), centroid);
-                (members, centroid, scale)
+                let (members, scale) = self.canonical(k);
+                (members, scale, self.rest_centroid[k])
             })
             .collect();
         // each sampled shape's matches, as their indices in the sample (the candidates
@@ -140,9 +132,9 @@ impl ClusterTerm {
                 let candidate = Template::of(members);
                 (0..sample.len())
                     .filter(|&i| {
-                        let (members, _, scale) = &sample[i];
+                        let (members, scale, _) = &sample[i];
                         let members = members.iter().map(|(_, q, w)| (*q, *w));
-                        Self::matches_at_scale(members, *scale, &candidate)
+                        Self::matches(members, *scale, &candidate)
                     })
                     .collect()
             })
@@ -155,7 +147,7 @@ impl ClusterTerm {
         }
         // its values from the cluster nearest the origin, whose offsets rounded least
         let nearest = best.into_iter().min_by(|&a, &b| {
-            let size = |i: usize| sample[i].1.abs().max_element();
+            let size = |i: usize| sample[i].2.abs().max_element();
             size(a).total_cmp(&size(b))
         })?;
         Some(Template::of(&sample[nearest].0))
@@ -171,21 +163,13 @@ impl ClusterTerm {
             return None;
         }
         // (read off the keys: a cluster that matches needs no list of its offsets)
-        let keys = self.canonical_keys(k);
+        let (keys, scale) = self.canonical_keys(k);
         let members = keys
             .iter()
             .map(|&key| self.offset_and_weight(k, member_of_key(key)));
-        Self::matches(members, self.rest_centroid[k], template)
+        Self::matches(members, scale, template)
             .then(|| keys.iter().map(|&key| member_of_key(key)).collect())
     }
-}
-
-/// The size of a cluster's rest coordinates, which the match tolerance is relative to:
-/// the largest coordinate of its rest centroid and of its members' rest `offsets`.
-fn match_scale(offsets: impl Iterator<Item = Vec3A>, centroid: Vec3A) -> f32 {
-    offsets
-        .map(|q| q.abs().max_element())
-        .fold(centroid.abs().max_element(), f32::max)
 }
 
 /// The particle of a key of [`ClusterTerm::canonical_keys`].
@@ -245,7 +229,7 @@ mod tests {
         let mut long = 0;
         for (k, members) in l.clusters() {
             let expected = sorted_by_definition(&l, k);
-            let canonical = l.canonical(k);
+            let (canonical, _) = l.canonical(k);
             let sorted: Vec<u32> = canonical.iter().map(|(m, _, _)| *m).collect();
             assert_eq!(sorted, expected, "cluster {k}");
             // a cluster matches the template of its own shape, in that order
