@@ -6,6 +6,23 @@ use cleave::analysis::stats::rigid_fit;
 use cleave::ecs::desc::Scene;
 use cleave::prelude::*;
 
+/// A simulation of `body` and `tools` under `config` with no gravity, ground or damping.
+fn in_free_space(config: SimConfig, body: BodyDesc, tools: Vec<ToolDesc>) -> Simulation {
+    Simulation::from_scene(&Scene {
+        config: SimConfig {
+            gravity: Vec3::ZERO,
+            ground: None,
+            damping: 0.0,
+            ..config
+        },
+        bodies: vec![body],
+        tools,
+        colliders: vec![],
+        frames: 30,
+    })
+    .unwrap()
+}
+
 /// Half a second of an 8³ rigid block (h = 0.1) of `model` under `solver`, spun at
 /// 1 rad/s about z with no gravity, ground or damping, its rest positions and a blade
 /// severing it through its axis from 0.2 s to 0.25 s when `cut`: how far each piece
@@ -34,20 +51,11 @@ fn turns(solver: SolverMode, model: Model, cut: bool) -> Vec<f32> {
         },
         pose: at(2.0),
     };
-    let mut sim = Simulation::from_scene(&Scene {
-        config: SimConfig {
-            solver,
-            gravity: Vec3::ZERO,
-            ground: None,
-            damping: 0.0,
-            ..SimConfig::default()
-        },
-        bodies: vec![body],
-        tools: if cut { vec![blade] } else { vec![] },
-        colliders: vec![],
-        frames: 30,
-    })
-    .unwrap();
+    let config = SimConfig {
+        solver,
+        ..SimConfig::default()
+    };
+    let mut sim = in_free_space(config, body, if cut { vec![blade] } else { vec![] });
     let b = sim.bodies()[0];
     let rest: Vec<Vec3> = sim.positions(b).unwrap().iter().map(|(_, x)| *x).collect();
     sim.run(30);
@@ -103,20 +111,11 @@ fn the_particles_of_a_spinning_cluster_body_turn_with_it_whatever_the_substeps()
         let mut body = BodyDesc::new(Shape::cuboid(UVec3::new(6, 6, 6)), 0.1);
         body.angular_velocity = Vec3::new(0.0, 0.0, 1.0);
         body.material = Material::rigid();
-        let mut sim = Simulation::from_scene(&Scene {
-            config: SimConfig {
-                substeps,
-                gravity: Vec3::ZERO,
-                ground: None,
-                damping: 0.0,
-                ..SimConfig::default()
-            },
-            bodies: vec![body],
-            tools: vec![],
-            colliders: vec![],
-            frames: 30,
-        })
-        .unwrap();
+        let config = SimConfig {
+            substeps,
+            ..SimConfig::default()
+        };
+        let mut sim = in_free_space(config, body, vec![]);
         let world = sim.world_mut();
         let mut spins = world.query::<&mut AngularVelocity>();
         for mut w in spins.iter_mut(world) {
