@@ -7,6 +7,7 @@
 pub mod cone;
 pub mod eigen;
 pub mod lanes;
+pub mod log_map;
 pub mod rigid_fit;
 pub mod rotation;
 pub mod rotation_lockstep;

@@ -11,7 +11,7 @@
 
 use crate::cut::tool::Pose;
 use crate::geometry::collider::ColliderShape;
-use crate::solver::particles::turn;
+use crate::math::log_map::turn;
 use glam::{Quat, Vec3, Vec3A};
 use smallvec::{SmallVec, smallvec};
 
