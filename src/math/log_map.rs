@@ -50,8 +50,8 @@ fn atan_over_arg_minus_one<L: Lane>(z: L) -> L {
 /// With `v = (x, y, z)`, `l = |v|` and `w ≥ 0`, the angle is `θ = 2 atan2(l, w)` and the
 /// vector `v θ / l`. For `t = l / w ≤ tan(π/8)` (turns up to 45°: every substep's in
 /// practice) `θ / l = 2 (atan t / t) / w` is a polynomial in `t²`, within a few ulps
-/// down to a zero turn, with no division by `l`. Larger turns take
-/// [`angle_over_length`].
+/// down to a zero turn, with no division by `l`. Larger turns reduce the arctangent's
+/// argument to that range (`angle_over_length`).
 #[inline(always)]
 pub fn log_map_x8<L: Lane>(r: Quatx8<L>) -> Vec3x8<L> {
     let sign = r.w.simd_lt(L::ZERO).select(L::splat(-1.0), L::ONE);
