@@ -41,7 +41,9 @@ fn step(c: &mut Criterion) {
 fn frame_end_spins(c: &mut Criterion) {
     let mut group = c.benchmark_group("frame_end_spins");
     let mut sim = Simulation::new(SimConfig::default()).unwrap();
+    // (the engine bench's body: rigid clusters, which the Jacobi cluster term holds)
     let mut desc = BodyDesc::new(Shape::cuboid(UVec3::splat(16)), 0.05);
+    desc.material = Material::rigid();
     desc.position = Vec3::new(0.0, 0.5, 0.0);
     sim.spawn_body(&desc).unwrap();
     for _ in 0..20 {

@@ -223,7 +223,7 @@ pub fn build_schedule() -> Schedule {
 }
 
 /// Inserts every resource, registers the messages and adds both schedules to `world`.
-/// Afterwards `world.run_schedule(CleaveSchedule)` advances one frame.
+/// Afterwards [`run_frame`] advances one frame.
 pub fn install(world: &mut World, config: crate::config::SimConfig) {
     world.insert_resource(SimRng(rand_chacha::ChaCha8Rng::seed_from_u64(config.seed)));
     world.insert_resource(SimSettings(config));
@@ -274,6 +274,21 @@ pub fn add_ecs_substep_term<T: EcsSubstepTerm>(world: &mut World, term: T) {
     add_term(world, term);
     world.schedule_scope(SubstepSchedule, |_, schedule| {
         schedule.add_systems(term_sync::term_substep_system::<T>());
+    });
+}
+
+/// Runs the [`CleaveSchedule`] once: one frame, on a thread of the current rayon pool.
+///
+/// The frame's stages run dozens of parallel passes. Called from a thread outside the
+/// pool (a game's main thread, a test), each pass would be handed to the pool and
+/// waited for on its own; run on a thread of the pool, the frame is handed over once
+/// and its passes start where it runs. A caller already in the pool runs it in place.
+/// The caller's tracing dispatcher goes with it, so that the stages' spans reach the
+/// subscriber the caller set.
+pub fn run_frame(world: &mut World) {
+    let dispatch = tracing::dispatcher::get_default(|current| current.clone());
+    rayon::scope(|_| {
+        tracing::dispatcher::with_default(&dispatch, || world.run_schedule(CleaveSchedule))
     });
 }
 

@@ -1,7 +1,7 @@
 //! [`CleavePlugin`] (cargo feature `bevy_app`): the cleave stages in a Bevy [`App`],
 //! on the game's clock.
 //!
-//! The plugin installs the resources, messages and the [`CleaveSchedule`], and runs one
+//! The plugin installs the resources, messages and the [`CleaveSchedule`](crate::systems::CleaveSchedule), and runs one
 //! simulation frame per run of its schedule: by default [`FixedPostUpdate`], which
 //! bevy_time's `TimePlugin` runs once per fixed timestep of `Time<Fixed>` (after the
 //! game's `FixedUpdate`, as avian does), so the simulation keeps the game's time whatever
@@ -12,7 +12,7 @@
 //!
 //! The frame runs in three system sets, chained, all inside [`CleaveFrame`]:
 //! [`CleaveSystems::Prepare`] (the frame's length follows the clock), then
-//! [`CleaveSystems::StepSimulation`] (the whole [`CleaveSchedule`]: motion, cutting,
+//! [`CleaveSystems::StepSimulation`] (the whole [`CleaveSchedule`](crate::systems::CleaveSchedule): motion, cutting,
 //! the surface), then [`CleaveSystems::Writeback`] (what the frame hands to the game:
 //! meshes with the `bevy_mesh` feature, diagnostics with `bevy_diagnostic`). Order a
 //! system that moves tools, colliders or attachment targets for the coming frame
@@ -24,7 +24,7 @@
 use crate::config::SimConfig;
 use crate::ecs::resources::SimSettings;
 use crate::error::Result;
-use crate::systems::{CleaveSchedule, install};
+use crate::systems::{install, run_frame};
 use bevy_app::{App, FixedPostUpdate, Plugin};
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::ScheduleLabel;
@@ -120,7 +120,7 @@ impl<L: ScheduleLabel + Clone> Plugin for CleavePlugin<L> {
 /// Exclusive system: advances the simulation by one frame, timing it ([`LastFrame`]).
 pub fn run_cleave_frame(world: &mut World) {
     let start = std::time::Instant::now();
-    world.run_schedule(CleaveSchedule);
+    run_frame(world);
     world.insert_resource(LastFrame {
         wall: start.elapsed(),
     });

@@ -10,7 +10,7 @@ use crate::ecs::spawn::{recluster, spawn_body, spawn_collider, spawn_tool};
 use crate::ecs::surface_mesh::SurfaceMesh;
 use crate::error::{CleaveError, Result};
 use crate::solver::term::Term;
-use crate::systems::{CleaveSchedule, install};
+use crate::systems::{install, run_frame};
 use bevy_ecs::message::{Message, Messages, message_update_system};
 use bevy_ecs::prelude::*;
 use glam::{Quat, Vec3};
@@ -114,7 +114,7 @@ impl Simulation {
     /// Advances one frame.
     pub fn step(&mut self) {
         self.world.run_system_cached(message_update_system).ok();
-        self.world.run_schedule(CleaveSchedule);
+        run_frame(&mut self.world);
     }
 
     /// Advances `frames` frames.
