@@ -3,8 +3,8 @@
 //! `time / (memberships × substeps × iterations)`.
 //!
 //! Beside it, the frame-end angular velocities of the 16³ box's particles (all in
-//! clusters): the eight-lane logarithm the step runs (with the linear velocities'
-//! update), against libm's turn per particle.
+//! clusters) on one thread: the eight-lane logarithm the step runs (with the linear
+//! velocities' update), against libm's turn per particle.
 
 use cleave::ecs::layout::SolverCache;
 use cleave::math::log_map::turn;
@@ -55,6 +55,13 @@ fn frame_end_spins(c: &mut Criterion) {
     } = cache.into_inner();
     let counts = solver.clusters.member_counts().to_vec();
     let inv_dt = 120.0;
+    // (this thread made the one thread of a pool, as the step runs them: from outside a
+    // pool each call would first hand its passes over)
+    let _pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .use_current_thread()
+        .build()
+        .unwrap();
     group.bench_function("16^3/lanes", |b| {
         b.iter(|| particles.update_velocities(inv_dt, &counts, true))
     });
