@@ -1,21 +1,24 @@
 //! [`CleavePlugin`] (cargo feature `bevy_app`): the cleave stages in a Bevy [`App`],
 //! on the game's clock.
 //!
-//! The plugin installs the resources, messages and the [`CleaveSchedule`](crate::systems::CleaveSchedule), and runs one
-//! simulation frame per run of its schedule: by default [`FixedPostUpdate`], which
-//! bevy_time's `TimePlugin` runs once per fixed timestep of `Time<Fixed>` (after the
-//! game's `FixedUpdate`, as avian does), so the simulation keeps the game's time whatever
-//! the display's frame rate. Each frame is `Time<Fixed>`'s timestep long
-//! ([`StepClock::FixedTimestep`]); an app without `Time<Fixed>` — a headless test, a tool
-//! — steps by the config's `dt`. Another schedule is a choice ([`CleavePlugin::in_schedule`]);
-//! `Update` runs once per `app.update()` without bevy_time.
+//! The plugin installs the resources, messages and the
+//! [`CleaveSchedule`](crate::systems::CleaveSchedule), and runs one simulation frame per
+//! run of its schedule (on rayon's pool, see [`crate::systems::run_frame`]): by default
+//! [`FixedPostUpdate`], which bevy_time's `TimePlugin` runs once per fixed timestep of
+//! `Time<Fixed>` (after the game's `FixedUpdate`, as avian does), so the simulation
+//! keeps the game's time whatever the display's frame rate. Each frame is
+//! `Time<Fixed>`'s timestep long ([`StepClock::FixedTimestep`]); an app without
+//! `Time<Fixed>` — a headless test, a tool — steps by the config's `dt`. Another
+//! schedule is a choice ([`CleavePlugin::in_schedule`]); `Update` runs once per
+//! `app.update()` without bevy_time.
 //!
 //! The frame runs in three system sets, chained, all inside [`CleaveFrame`]:
 //! [`CleaveSystems::Prepare`] (the frame's length follows the clock), then
-//! [`CleaveSystems::StepSimulation`] (the whole [`CleaveSchedule`](crate::systems::CleaveSchedule): motion, cutting,
-//! the surface), then [`CleaveSystems::Writeback`] (what the frame hands to the game:
-//! meshes with the `bevy_mesh` feature, diagnostics with `bevy_diagnostic`). Order a
-//! system that moves tools, colliders or attachment targets for the coming frame
+//! [`CleaveSystems::StepSimulation`] (the whole
+//! [`CleaveSchedule`](crate::systems::CleaveSchedule): motion, cutting, the surface),
+//! then [`CleaveSystems::Writeback`] (what the frame hands to the game: meshes with the
+//! `bevy_mesh` feature, diagnostics with `bevy_diagnostic`). Order a system that moves
+//! tools, colliders or attachment targets for the coming frame
 //! `.before(CleaveFrame)` (or in `FixedUpdate`), and one that reads the frame's
 //! positions or messages `.after(CleaveFrame)`. Messages (`ParticlesCut`,
 //! `ClustersRebuilt`, `BodySplit`, …) are registered with the app's message update, so
