@@ -126,6 +126,17 @@ impl<L: Lane> Vec3x8<L> {
     pub fn abs_max(self) -> L {
         self.x.abs().max(self.y.abs()).max(self.z.abs())
     }
+
+    /// Lane-wise choice: `mask` lanes (all bits set) from `if_true`, the others from
+    /// `if_false`.
+    #[inline(always)]
+    pub fn select(mask: L, if_true: Self, if_false: Self) -> Self {
+        Self {
+            x: mask.select(if_true.x, if_false.x),
+            y: mask.select(if_true.y, if_false.y),
+            z: mask.select(if_true.z, if_false.z),
+        }
+    }
 }
 
 impl<L: Lane> std::ops::Add for Vec3x8<L> {
@@ -308,6 +319,17 @@ impl<L: Lane> Quatx8<L> {
             y: mask.select(if_true.y, if_false.y),
             z: mask.select(if_true.z, if_false.z),
             w: mask.select(if_true.w, if_false.w),
+        }
+    }
+
+    /// Each lane's conjugate (its inverse, for a unit quaternion).
+    #[inline(always)]
+    pub fn conjugate(self) -> Self {
+        Self {
+            x: L::ZERO - self.x,
+            y: L::ZERO - self.y,
+            z: L::ZERO - self.z,
+            w: self.w,
         }
     }
 }

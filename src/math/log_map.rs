@@ -73,11 +73,7 @@ pub fn log_map_x8<L: Lane>(r: Quatx8<L>) -> Vec3x8<L> {
     }
     let turned = v.scale(scale);
     let finite = turned.x.is_finite() & turned.y.is_finite() & turned.z.is_finite();
-    Vec3x8 {
-        x: finite.select(turned.x, L::ZERO),
-        y: finite.select(turned.y, L::ZERO),
-        z: finite.select(turned.z, L::ZERO),
-    }
+    Vec3x8::select(finite, turned, Vec3x8::ZERO)
 }
 
 /// `2 atan2(l, w) / l` for `l, w ≥ 0` with `l² + w² = 1`: the arctangent's argument is
@@ -98,13 +94,7 @@ fn angle_over_length<L: Lane>(l: L, w: L) -> L {
 /// The turn from `from` to `to` per lane as a rotation vector (see [`log_map_x8`]).
 #[inline(always)]
 pub fn turn_x8<L: Lane>(from: Quatx8<L>, to: Quatx8<L>) -> Vec3x8<L> {
-    let back = Quatx8 {
-        x: L::ZERO - from.x,
-        y: L::ZERO - from.y,
-        z: L::ZERO - from.z,
-        w: from.w,
-    };
-    log_map_x8(to * back)
+    log_map_x8(to * from.conjugate())
 }
 
 /// The turn from `from` to `to` as a rotation vector (axis × angle, the shorter way

@@ -258,11 +258,7 @@ impl WithLanes for Batch<'_, '_> {
             let scale = relax / (w + alpha);
             let delta = (Vec3x8::ZERO - c - l.scale(alpha)).scale(scale);
             let active = w.simd_gt(L::ZERO) & L::from_stored(row.member).simd_gt(L::ZERO);
-            let delta = Vec3x8 {
-                x: active.select(delta.x, L::ZERO),
-                y: active.select(delta.y, L::ZERO),
-                z: active.select(delta.z, L::ZERO),
-            };
+            let delta = Vec3x8::select(active, delta, Vec3x8::ZERO);
             *lambda = (l + delta).store();
             let step = delta.scale(w).to_lanes();
             let active = (active & L::ONE).to_array();
